@@ -1,0 +1,134 @@
+"""Rectified stereo pinhole camera: projection, triangulation and its covariance.
+
+A stereo measurement is ``z = (uL, vL, uR, vR)`` in pixels; the right camera
+sits at ``(+baseline, 0, 0)`` in the left camera frame (x right, y down,
+z forward). Every method is vectorised over points: ``(N, 3)`` points in
+metres, ``(N, 4)`` measurements in pixels.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class StereoCamera:
+    """A rectified stereo pair; the defaults are the KITTI-like rig of DESIGN.md.
+
+    Args:
+        fx, fy: focal lengths in pixels.
+        cx, cy: principal point in pixels.
+        baseline: distance between the two optical centres in metres.
+        width, height: image size in pixels.
+        min_disparity: disparities at or below this (pixels) carry no usable depth.
+    """
+
+    fx: float = 718.856
+    fy: float = 718.856
+    cx: float = 607.19
+    cy: float = 185.22
+    baseline: float = 0.5372
+    width: int = 1241
+    height: int = 376
+    min_disparity: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name in ("fx", "fy", "baseline", "width", "height", "min_disparity"):
+            value = getattr(self, name)
+            if not np.isfinite(value) or value <= 0:
+                raise ValueError(f"StereoCamera.{name} must be a positive finite number, got {value!r}")
+        for name in ("cx", "cy"):
+            if not np.isfinite(getattr(self, name)):
+                raise ValueError(f"StereoCamera.{name} must be finite, got {getattr(self, name)!r}")
+
+    @property
+    def intrinsics(self) -> np.ndarray:
+        """The 3x3 matrix K of the left camera."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """Stereo measurements ``(..., 4)`` of points ``(..., 3)`` in the left camera frame.
+
+        Points must lie in front of the camera (z > 0); use :meth:`is_visible` first.
+        """
+        X = np.asarray(points, dtype=float)
+        inv_z = 1.0 / X[..., 2]
+        uL = self.fx * X[..., 0] * inv_z + self.cx
+        v = self.fy * X[..., 1] * inv_z + self.cy
+        uR = uL - self.fx * self.baseline * inv_z
+        return np.stack([uL, v, uR, v], axis=-1)
+
+    def disparity(self, measurements: np.ndarray) -> np.ndarray:
+        """Disparity ``uL - uR`` in pixels of measurements ``(..., 4)``."""
+        z = np.asarray(measurements, dtype=float)
+        return z[..., 0] - z[..., 2]
+
+    def has_depth(self, measurements: np.ndarray) -> np.ndarray:
+        """Boolean mask of measurements whose disparity exceeds ``min_disparity``."""
+        return self.disparity(measurements) > self.min_disparity
+
+    def triangulate(self, measurements: np.ndarray) -> np.ndarray:
+        """Points ``(..., 3)`` in metres from stereo measurements ``(..., 4)``.
+
+        Raises:
+            ValueError: if any disparity is at or below ``min_disparity``; such a
+                measurement has no depth and is never divided by.
+        """
+        z = np.asarray(measurements, dtype=float)
+        d = self.disparity(z)
+        if np.any(~(d > self.min_disparity)):
+            bad = int(np.count_nonzero(~(d > self.min_disparity)))
+            raise ValueError(
+                f"{bad} measurement(s) have disparity <= min_disparity={self.min_disparity} px: no depth"
+            )
+        depth = self.fx * self.baseline / d
+        x = (z[..., 0] - self.cx) * depth / self.fx
+        y = ((z[..., 1] + z[..., 3]) / 2 - self.cy) * depth / self.fy
+        return np.stack([x, y, depth], axis=-1)
+
+    def triangulation_jacobian(self, measurements: np.ndarray) -> np.ndarray:
+        """Jacobians ``(..., 3, 4)`` of the triangulated point w.r.t. ``(uL, vL, uR, vR)``."""
+        X = self.triangulate(measurements)
+        d = self.disparity(measurements)
+        x, y, depth = X[..., 0], X[..., 1], X[..., 2]
+        J = np.zeros(X.shape[:-1] + (3, 4))
+        J[..., 0, 0] = depth / self.fx - x / d
+        J[..., 0, 2] = x / d
+        J[..., 1, 0] = -y / d
+        J[..., 1, 1] = depth / (2 * self.fy)
+        J[..., 1, 2] = y / d
+        J[..., 1, 3] = depth / (2 * self.fy)
+        J[..., 2, 0] = -depth / d
+        J[..., 2, 2] = depth / d
+        return J
+
+    def triangulation_covariance(self, measurements: np.ndarray, sigma: float) -> np.ndarray:
+        """Covariances ``(..., 3, 3)`` in m^2 of triangulated points: ``sigma^2 J J^T``.
+
+        Args:
+            measurements: ``(..., 4)`` stereo measurements in pixels.
+            sigma: isotropic pixel noise standard deviation (pixels).
+        """
+        if not np.isfinite(sigma) or sigma <= 0:
+            raise ValueError(f"sigma must be a positive pixel noise, got {sigma!r}")
+        J = self.triangulation_jacobian(measurements)
+        return sigma**2 * J @ np.swapaxes(J, -1, -2)
+
+    def in_image(self, measurements: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """Mask of measurements whose left and right pixels lie inside the image."""
+        z = np.asarray(measurements, dtype=float)
+        u_ok = (z[..., [0, 2]] >= margin) & (z[..., [0, 2]] <= self.width - 1 - margin)
+        v_ok = (z[..., [1, 3]] >= margin) & (z[..., [1, 3]] <= self.height - 1 - margin)
+        return np.all(u_ok, axis=-1) & np.all(v_ok, axis=-1)
+
+    def is_visible(
+        self, points: np.ndarray, z_min: float = 0.5, z_max: float = np.inf, margin: float = 0.0
+    ) -> np.ndarray:
+        """Mask of points ``(..., 3)`` seen by both cameras within ``[z_min, z_max]`` metres."""
+        X = np.asarray(points, dtype=float)
+        depth = X[..., 2]
+        ok = (depth >= z_min) & (depth <= z_max)
+        meas = self.project(np.where(ok[..., None], X, np.array([0.0, 0.0, 1.0])))
+        return ok & self.in_image(meas, margin) & (self.disparity(meas) > self.min_disparity)

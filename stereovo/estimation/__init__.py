@@ -1,0 +1,24 @@
+"""The shared estimator core: one RANSAC loop, roles as components, named methods.
+
+Public entry point: :func:`estimate_motion`; the registry: :func:`available_methods`.
+"""
+
+from stereovo.estimation.methods import (
+    EstimatorOptions,
+    MotionEstimate,
+    available_methods,
+    estimate_motion,
+    method_spec,
+    register_method,
+)
+from stereovo.estimation.problem import StereoProblem
+
+__all__ = [
+    "EstimatorOptions",
+    "MotionEstimate",
+    "StereoProblem",
+    "available_methods",
+    "estimate_motion",
+    "method_spec",
+    "register_method",
+]

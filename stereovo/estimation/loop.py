@@ -1,0 +1,162 @@
+"""The one RANSAC loop: sampler, solver, verifier, local optimiser, termination, refinement.
+
+Every named method (RANSAC, MSAC, the probabilistic RANSAC, the classical
+family, the environment's guided sampling) is a :class:`RansacComponents`
+recipe run by :func:`run_ransac`. Hypotheses are drawn, fitted and scored in
+vectorised batches; the bookkeeping between batches is the only Python loop.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from stereovo.estimation.problem import StereoProblem
+from stereovo.estimation.refinement import ReprojectionRefiner
+from stereovo.estimation.samplers import Sampler
+from stereovo.estimation.scoring import Quality, ResidualModel
+from stereovo.estimation.solvers import minimal_hypotheses
+from stereovo.estimation.verification import FullVerification, ScoringContext, Verifier
+
+
+class LocalOptimizer(Protocol):
+    def improve(
+        self,
+        ctx: ScoringContext,
+        R: np.ndarray,
+        t: np.ndarray,
+        inliers: np.ndarray,
+        score: float,
+        rng: np.random.Generator,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
+        """Better ``(R, t, inliers, score)`` or the input, and the point checks spent."""
+        ...
+
+
+class Termination(Protocol):
+    max_iterations: int
+
+    def required(self, n_inliers: int, n: int) -> int: ...
+
+
+@dataclass
+class RansacComponents:
+    """A RANSAC variant as a composition of roles (see module docstring).
+
+    Attributes:
+        sampler: draws ``(B, 3)`` minimal samples.
+        residual_model, quality, threshold_sq: how a hypothesis is judged.
+        verifier: full scoring or an early-rejection strategy.
+        termination: adaptive bound or fixed budget.
+        local_optimizer: optional, runs on every new best hypothesis.
+        refiner: final LM refinement on the inliers; None keeps the best hypothesis as is.
+        batch_size: hypotheses fitted and scored per vectorised batch.
+        polish_iterations: Gauss-Newton steps on each minimal sample's reprojection error.
+        min_inliers: fewer inliers in the best model means "no consensus".
+        listeners: objects whose ``on_new_best(inliers, loop_state)`` is called on each new best
+            (PROSAC's sampler and termination, SPRT's verifier adapt there).
+    """
+
+    sampler: Sampler
+    residual_model: ResidualModel
+    quality: Quality
+    threshold_sq: float
+    termination: Termination
+    verifier: Verifier = field(default_factory=FullVerification)
+    local_optimizer: LocalOptimizer | None = None
+    refiner: ReprojectionRefiner | None = field(default_factory=ReprojectionRefiner)
+    batch_size: int = 32
+    polish_iterations: int = 2
+    min_inliers: int = 6
+    listeners: list[Any] = field(default_factory=list)
+
+
+@dataclass
+class RansacReport:
+    """What one run of the loop found and what it cost."""
+
+    rotation: np.ndarray
+    translation: np.ndarray
+    inliers: np.ndarray
+    score: float
+    status: str
+    n_hypotheses: int  # minimal samples drawn (degenerate ones included)
+    n_scored: int  # hypotheses that reached verification
+    n_point_checks: int  # point-hypothesis residual evaluations, local optimisation included
+    n_degenerate: int
+    n_local_optimizations: int
+    best_found_at: int  # hypotheses drawn when the final best was first found
+
+
+@dataclass
+class LoopState:
+    """Read-only view of the loop for listeners."""
+
+    n_hypotheses: int
+    best_score: float
+
+
+def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.random.Generator) -> RansacReport:
+    """Run the RANSAC loop described by ``components`` on ``problem``."""
+    c = components
+    n = problem.n
+    ctx = ScoringContext(problem, c.residual_model, c.quality, c.threshold_sq)
+    best_R, best_t = np.eye(3), np.zeros(3)
+    best_inliers = np.zeros(n, dtype=bool)
+    best_score = -np.inf
+    drawn = scored = checks = degenerate = local_runs = found_at = 0
+    required = c.termination.max_iterations
+
+    while drawn < required:
+        batch = int(min(c.batch_size, required - drawn))
+        samples = c.sampler.draw(batch, rng)
+        R, t, valid = minimal_hypotheses(problem, samples, c.polish_iterations)
+        drawn += batch
+        degenerate += int(np.count_nonzero(~valid))
+        if not np.any(valid):
+            continue
+        R, t = R[valid], t[valid]
+        scores, spent = c.verifier.verify(ctx, R, t, rng)
+        scored += R.shape[0]
+        checks += spent
+        i = int(np.argmax(scores))
+        if not scores[i] > best_score:
+            continue
+        best_R, best_t, best_score = R[i], t[i], float(scores[i])
+        best_inliers = ctx.residuals(best_R[None], best_t[None])[0] < c.threshold_sq
+        checks += n
+        found_at = drawn
+        if c.local_optimizer is not None:
+            best_R, best_t, best_inliers, best_score, spent = c.local_optimizer.improve(
+                ctx, best_R, best_t, best_inliers, best_score, rng
+            )
+            local_runs += 1
+            checks += spent
+        state = LoopState(n_hypotheses=drawn, best_score=best_score)
+        for listener in c.listeners:
+            listener.on_new_best(best_inliers, state)
+        required = min(c.termination.required(int(np.count_nonzero(best_inliers)), n), c.termination.max_iterations)
+
+    report = dict(
+        n_hypotheses=drawn,
+        n_scored=scored,
+        n_point_checks=checks,
+        n_degenerate=degenerate,
+        n_local_optimizations=local_runs,
+        best_found_at=found_at,
+    )
+    if scored == 0:
+        return RansacReport(np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), -np.inf, "failed: all samples degenerate", **report)
+    if c.refiner is not None and np.count_nonzero(best_inliers) >= 3:
+        best_R, best_t, best_inliers = c.refiner.refine(problem, best_R, best_t, best_inliers, c.residual_model, c.threshold_sq)
+        best_score = float(c.quality.score(ctx.residuals(best_R[None], best_t[None]), c.threshold_sq)[0])
+        checks += n
+    if np.count_nonzero(best_inliers) < max(c.min_inliers, 3):
+        return RansacReport(
+            np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), best_score,
+            f"failed: no consensus (best model has {int(np.count_nonzero(best_inliers))} inliers, need {c.min_inliers})",
+            **report,
+        )
+    return RansacReport(best_R, best_t, best_inliers, best_score, "ok", **report)

@@ -1,0 +1,348 @@
+"""Named estimators and the public entry point :func:`estimate_motion`.
+
+A method is a short recipe: it picks a residual model, a quality, a verifier,
+a local optimiser and a termination rule, and the shared loop runs it. New
+methods register themselves with :func:`register_method`; the classical
+family does so in :mod:`stereovo.estimation.classical`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from stereovo.camera import StereoCamera
+from stereovo.estimation.local_optimization import ConsensusRefit
+from stereovo.estimation.loop import RansacComponents, RansacReport, run_ransac
+from stereovo.estimation.problem import StereoProblem
+from stereovo.estimation.refinement import ReprojectionRefiner
+from stereovo.estimation.samplers import (
+    SAMPLE_SIZE,
+    ProsacSampler,
+    UniformSampler,
+    WeightedSampler,
+    validate_order,
+    validate_priors,
+)
+from stereovo.estimation.scoring import (
+    InlierCount,
+    MahalanobisResidual,
+    ReprojectionResidual,
+    TruncatedQuadratic,
+)
+from stereovo.estimation.termination import AdaptiveTermination, FixedBudget
+from scipy.stats import chi2
+
+
+@dataclass(frozen=True)
+class EstimatorOptions:
+    """Options shared by every method, validated on construction (COLMAP's ``Check()`` habit).
+
+    Attributes:
+        noise_sigma: pixel noise standard deviation of the measurements (px).
+        confidence: probability of drawing at least one all-inlier sample (adaptive stop).
+        max_iterations: hard cap on hypotheses drawn.
+        budget: if set, draw exactly this many hypotheses (fixed budget) instead of stopping adaptively.
+        batch_size: hypotheses fitted and scored per vectorised batch.
+        threshold_px: reprojection inlier gate (px); None means ``6 * noise_sigma`` (the k-1 point
+            carries its own triangulation noise into frame k, so residuals exceed the pixel noise).
+        gate_probability: chi-square(3) quantile of the Mahalanobis inlier gate.
+        polish_iterations: Gauss-Newton steps on each minimal sample's reprojection error.
+        refine: run the final Levenberg-Marquardt refinement on the inliers.
+        refine_iterations: LM iterations per refinement round.
+        local_refit: refit each new best on its consensus (a light local optimisation).
+        min_inliers: fewer inliers in the final model is reported as "no consensus".
+    """
+
+    noise_sigma: float = 0.5
+    confidence: float = 0.99
+    max_iterations: int = 10_000
+    budget: int | None = None
+    batch_size: int = 32
+    threshold_px: float | None = None
+    gate_probability: float = 0.95
+    polish_iterations: int = 2
+    refine: bool = True
+    refine_iterations: int = 6
+    local_refit: bool = True
+    min_inliers: int = 6
+
+    def __post_init__(self) -> None:
+        def fail(name: str, rule: str) -> None:
+            raise ValueError(f"option {name} must be {rule}, got {getattr(self, name)!r}")
+
+        if not (np.isfinite(self.noise_sigma) and self.noise_sigma > 0):
+            fail("noise_sigma", "a positive pixel noise")
+        if not 0 < self.confidence < 1:
+            fail("confidence", "in (0, 1)")
+        if int(self.max_iterations) != self.max_iterations or self.max_iterations < 1:
+            fail("max_iterations", "an integer >= 1")
+        if self.budget is not None and (int(self.budget) != self.budget or self.budget < 1):
+            fail("budget", "None or an integer >= 1")
+        if self.batch_size < 1:
+            fail("batch_size", ">= 1")
+        if self.threshold_px is not None and not (np.isfinite(self.threshold_px) and self.threshold_px > 0):
+            fail("threshold_px", "None or a positive number of pixels")
+        if not 0 < self.gate_probability < 1:
+            fail("gate_probability", "in (0, 1)")
+        if self.polish_iterations < 0 or self.refine_iterations < 0:
+            fail("polish_iterations" if self.polish_iterations < 0 else "refine_iterations", ">= 0")
+        if self.min_inliers < SAMPLE_SIZE:
+            fail("min_inliers", f">= {SAMPLE_SIZE}")
+
+    @property
+    def reprojection_threshold_sq(self) -> float:
+        px = 6.0 * self.noise_sigma if self.threshold_px is None else self.threshold_px
+        return px * px
+
+    @property
+    def mahalanobis_threshold_sq(self) -> float:
+        return float(chi2.ppf(self.gate_probability, 3))
+
+
+MethodBuilder = Callable[[StereoProblem, EstimatorOptions, np.ndarray | None, np.ndarray | None, dict], RansacComponents]
+
+
+@dataclass(frozen=True)
+class MethodSpec:
+    """A registered estimator: its recipe, a one-line description and its paper."""
+
+    name: str
+    description: str
+    reference: str
+    build: MethodBuilder
+    extra_options: tuple[str, ...] = ()  # method-specific keyword options besides EstimatorOptions
+
+
+_METHODS: dict[str, MethodSpec] = {}
+
+
+def register_method(
+    name: str, description: str, reference: str, extra_options: tuple[str, ...] = ()
+) -> Callable[[MethodBuilder], MethodBuilder]:
+    """Decorator registering ``build(problem, options, priors, order, extra) -> RansacComponents``."""
+
+    def decorator(build: MethodBuilder) -> MethodBuilder:
+        if name in _METHODS:
+            raise ValueError(f"method {name!r} is already registered")
+        _METHODS[name] = MethodSpec(name, description, reference, build, tuple(extra_options))
+        return build
+
+    return decorator
+
+
+def available_methods() -> dict[str, str]:
+    """Registered method names mapped to ``"description (reference)"``."""
+    return {name: f"{spec.description} ({spec.reference})" for name, spec in _METHODS.items()}
+
+
+def method_spec(name: str) -> MethodSpec:
+    if name not in _METHODS:
+        raise ValueError(f"unknown method {name!r}; available: {', '.join(sorted(_METHODS))}")
+    return _METHODS[name]
+
+
+# ----------------------------------------------------------------------------- shared recipe parts
+
+
+def default_sampler(problem: StereoProblem, priors: np.ndarray | None, order: np.ndarray | None):
+    """Uniform, prior-weighted (guided) or PROSAC sampling, by what the caller supplied."""
+    if order is not None:
+        return ProsacSampler(order)
+    if priors is not None:
+        return WeightedSampler(priors)
+    return UniformSampler(problem.n)
+
+
+def default_termination(options: EstimatorOptions):
+    if options.budget is not None:
+        return FixedBudget(int(options.budget))
+    return AdaptiveTermination(options.confidence, int(options.max_iterations))
+
+
+def base_components(
+    problem: StereoProblem,
+    options: EstimatorOptions,
+    priors: np.ndarray | None,
+    order: np.ndarray | None,
+    residual_model,
+    quality,
+    threshold_sq: float,
+) -> RansacComponents:
+    """The plain loop with the given judge; named methods replace roles of this."""
+    refiner = ReprojectionRefiner(iterations=options.refine_iterations) if options.refine else None
+    return RansacComponents(
+        sampler=default_sampler(problem, priors, order),
+        residual_model=residual_model,
+        quality=quality,
+        threshold_sq=threshold_sq,
+        termination=default_termination(options),
+        local_optimizer=ConsensusRefit() if options.local_refit else None,
+        refiner=refiner,
+        batch_size=int(options.batch_size),
+        polish_iterations=int(options.polish_iterations),
+        min_inliers=int(options.min_inliers),
+    )
+
+
+@register_method(
+    "ransac",
+    "inlier count under a stereo reprojection gate",
+    "Fischler & Bolles 1981",
+)
+def _build_ransac(problem, options, priors, order, extra) -> RansacComponents:
+    return base_components(
+        problem, options, priors, order, ReprojectionResidual(), InlierCount(), options.reprojection_threshold_sq
+    )
+
+
+@register_method(
+    "msac",
+    "truncated quadratic cost under a stereo reprojection gate",
+    "Torr & Zisserman 2000",
+)
+def _build_msac(problem, options, priors, order, extra) -> RansacComponents:
+    return base_components(
+        problem, options, priors, order, ReprojectionResidual(), TruncatedQuadratic(), options.reprojection_threshold_sq
+    )
+
+
+@register_method(
+    "probabilistic",
+    "Mahalanobis-gated consensus with triangulation covariances, chi-square(3) gate",
+    "Brink et al.",
+)
+def _build_probabilistic(problem, options, priors, order, extra) -> RansacComponents:
+    threshold = options.mahalanobis_threshold_sq
+    return base_components(
+        problem, options, priors, order, MahalanobisResidual(threshold), InlierCount(), threshold
+    )
+
+
+# ----------------------------------------------------------------------------- public entry point
+
+
+@dataclass
+class MotionEstimate:
+    """The result of :func:`estimate_motion`.
+
+    Attributes:
+        rotation, translation: ``(3, 3)`` and ``(3,)``, ``x_k = R x_{k-1} + t`` (identity on failure).
+        inliers: ``(N,)`` bool mask of the final model's inliers.
+        status: ``"ok"`` or ``"failed: <reason>"``.
+        n_hypotheses: minimal samples drawn; n_scored: hypotheses verified;
+        n_point_checks: point-hypothesis residual evaluations.
+        time_s: wall time of the estimate in seconds.
+        method: the method's name.
+        report: the loop's full report (None when the frame failed before the loop).
+    """
+
+    rotation: np.ndarray
+    translation: np.ndarray
+    inliers: np.ndarray
+    status: str
+    n_hypotheses: int
+    n_scored: int
+    n_point_checks: int
+    time_s: float
+    method: str
+    score: float = float("-inf")
+    report: RansacReport | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    @property
+    def n_inliers(self) -> int:
+        return int(np.count_nonzero(self.inliers))
+
+
+def as_generator(rng: np.random.Generator | int | np.random.SeedSequence | None) -> np.random.Generator:
+    """The one way seeds become generators: an existing Generator is used as is."""
+    if isinstance(rng, np.random.Generator):
+        return rng
+    return np.random.default_rng(rng)
+
+
+def _split_options(spec: MethodSpec, options: dict) -> tuple[EstimatorOptions, dict]:
+    known = {f.name for f in dataclasses.fields(EstimatorOptions)}
+    unknown = set(options) - known - set(spec.extra_options)
+    if unknown:
+        allowed = sorted(known | set(spec.extra_options))
+        raise ValueError(f"unknown option(s) {sorted(unknown)} for method {spec.name!r}; known options: {allowed}")
+    shared = EstimatorOptions(**{k: v for k, v in options.items() if k in known})
+    extra = {k: v for k, v in options.items() if k not in known}
+    return shared, extra
+
+
+def estimate_motion(
+    prev: np.ndarray,
+    curr: np.ndarray,
+    camera: StereoCamera,
+    method: str = "probabilistic",
+    priors: np.ndarray | None = None,
+    order: np.ndarray | None = None,
+    rng: np.random.Generator | int | None = 0,
+    **options,
+) -> MotionEstimate:
+    """Estimate the motion ``x_k = R x_{k-1} + t`` between two stereo frames.
+
+    Args:
+        prev, curr: ``(N, 4)`` stereo measurements ``(uL, vL, uR, vR)`` in pixels at k-1 and k;
+            row i of both is one putative match.
+        camera: the rectified stereo rig.
+        method: a name from :func:`available_methods`.
+        priors: optional ``(N,)`` non-negative sampling weights (guided sampling).
+        order: optional ``(N,)`` permutation, best match first (PROSAC sampling).
+        rng: a ``numpy.random.Generator`` or a seed; the same seed gives the same result.
+        **options: fields of :class:`EstimatorOptions` and the method's own options.
+
+    Returns:
+        A :class:`MotionEstimate`. A hopeless frame (N < 3, every sample degenerate,
+        no consensus) gives ``status="failed: ..."`` with identity motion; it never raises.
+
+    Raises:
+        ValueError: malformed input (shapes, NaN/inf, mismatched N, no depth), bad priors/order,
+            an unknown method or option.
+    """
+    start = time.perf_counter()
+    spec = method_spec(method)
+    shared, extra = _split_options(spec, options)
+    problem = StereoProblem.build(prev, curr, camera, shared.noise_sigma)
+    if priors is not None and order is not None:
+        raise ValueError("give either priors (guided sampling) or order (PROSAC), not both")
+    for name, value in (("priors", priors), ("order", order)):
+        if value is not None and np.shape(value) != (problem.n,):
+            raise ValueError(f"{name} must have shape ({problem.n},), one entry per correspondence, got {np.shape(value)}")
+    generator = as_generator(rng)
+
+    if problem.n < max(SAMPLE_SIZE, shared.min_inliers):
+        return MotionEstimate(
+            np.eye(3), np.zeros(3), np.zeros(problem.n, dtype=bool),
+            f"failed: too few correspondences ({problem.n}, need {max(SAMPLE_SIZE, shared.min_inliers)})",
+            0, 0, 0, time.perf_counter() - start, method,
+        )
+    if priors is not None:
+        priors = validate_priors(priors, problem.n)
+    if order is not None:
+        order = validate_order(order, problem.n)
+    components = spec.build(problem, shared, priors, order, extra)
+    report = run_ransac(problem, components, generator)
+    return MotionEstimate(
+        rotation=report.rotation,
+        translation=report.translation,
+        inliers=report.inliers,
+        status=report.status,
+        n_hypotheses=report.n_hypotheses,
+        n_scored=report.n_scored,
+        n_point_checks=report.n_point_checks,
+        time_s=time.perf_counter() - start,
+        method=method,
+        score=report.score,
+        report=report,
+    )

@@ -1,0 +1,67 @@
+"""Refinement of one motion on its inliers: Levenberg-Marquardt over se(3).
+
+Minimises the symmetric stereo reprojection error (the k-1 point into both
+images at k, the k point into both images at k-1) over the inliers, then
+re-selects inliers with the caller's gate and repeats, because a better model
+admits inliers the first gate missed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from stereovo.estimation.problem import StereoProblem
+from stereovo.estimation.reprojection import gauss_newton_steps
+from stereovo.estimation.scoring import ResidualModel
+
+
+@dataclass(frozen=True)
+class ReprojectionRefiner:
+    """LM on the symmetric reprojection error of the inliers, alternating with inlier re-selection.
+
+    Args:
+        iterations: LM iterations per round.
+        rounds: refine / re-select rounds.
+        huber_px: Huber threshold (pixels) on each point's residual norm; None for plain least squares.
+    """
+
+    iterations: int = 6
+    rounds: int = 2
+    huber_px: float | None = None
+
+    def refine(
+        self,
+        problem: StereoProblem,
+        R: np.ndarray,
+        t: np.ndarray,
+        inliers: np.ndarray,
+        residual_model: ResidualModel,
+        threshold_sq: float,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return the refined ``(R, t)`` and its inlier mask ``(N,)`` under ``threshold_sq``."""
+        for _ in range(self.rounds):
+            if np.count_nonzero(inliers) < 3:
+                break
+            idx = np.flatnonzero(inliers)
+            R_new, t_new, _ = gauss_newton_steps(
+                problem.camera,
+                R[None],
+                t[None],
+                problem.points_prev[idx],
+                problem.points_curr[idx],
+                problem.prev[idx],
+                problem.curr[idx],
+                iterations=self.iterations,
+                huber=self.huber_px,
+            )
+            new_inliers = residual_model.squared(problem, R_new, t_new)[0] < threshold_sq
+            if np.count_nonzero(new_inliers) < np.count_nonzero(inliers) // 2:
+                break  # refinement ran away from the consensus: keep what we had
+            R, t = R_new[0], t_new[0]
+            same = np.array_equal(new_inliers, inliers)
+            inliers = new_inliers
+            if same:
+                break
+        return R, t, inliers

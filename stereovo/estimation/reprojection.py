@@ -1,0 +1,166 @@
+"""Symmetric stereo reprojection residuals and their se(3) Jacobians, batched.
+
+A motion ``(R, t)`` maps a point triangulated at k-1 into camera k, where it
+is projected into both images and compared with the measurement at k; the
+inverse motion does the same for the point triangulated at k. Pixel noise is
+isotropic in this space, which is why hypotheses are polished and the final
+model refined here rather than on triangulated points, whose depth error
+grows as z^2 / (fx b).
+
+Perturbation: ``T <- exp(delta^) T`` with ``delta = (rho, omega)`` (left
+multiplication), matching :func:`stereovo.geometry.se3_exp`.
+
+Shapes: ``H`` hypotheses, ``M`` points each. Residuals ``(H, M, 8)`` in pixels
+(forward uL, vL, uR, vR then backward), Jacobians ``(H, M, 8, 6)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stereovo.camera import StereoCamera
+from stereovo.geometry import hat, se3_exp
+
+# A transformed point this close to the camera plane cannot be projected: its residual
+# is replaced by a large constant and its Jacobian zeroed, so it stops pulling.
+_MIN_DEPTH = 1e-3
+_BEHIND_CAMERA_RESIDUAL = 1e3
+
+
+def _project_with_jacobian(camera: StereoCamera, P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Projections ``(..., 4)``, d(projection)/dP ``(..., 4, 3)`` and a validity mask."""
+    x, y, z = P[..., 0], P[..., 1], P[..., 2]
+    valid = z > _MIN_DEPTH
+    inv_z = 1.0 / np.where(valid, z, 1.0)
+    fx, fy, b = camera.fx, camera.fy, camera.baseline
+    uL = fx * x * inv_z + camera.cx
+    v = fy * y * inv_z + camera.cy
+    uR = uL - fx * b * inv_z
+    proj = np.stack([uL, v, uR, v], axis=-1)
+    J = np.zeros(P.shape[:-1] + (4, 3))
+    J[..., 0, 0] = fx * inv_z
+    J[..., 0, 2] = -fx * x * inv_z**2
+    J[..., 1, 1] = fy * inv_z
+    J[..., 1, 2] = -fy * y * inv_z**2
+    J[..., 2, 0] = fx * inv_z
+    J[..., 2, 2] = -fx * (x - b) * inv_z**2
+    J[..., 3, :] = J[..., 1, :]
+    return proj, J, valid
+
+
+def residuals_and_jacobians(
+    camera: StereoCamera,
+    R: np.ndarray,
+    t: np.ndarray,
+    points_prev: np.ndarray,
+    points_curr: np.ndarray,
+    meas_prev: np.ndarray,
+    meas_curr: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Symmetric reprojection residuals ``(H, M, 8)`` and Jacobians ``(H, M, 8, 6)``.
+
+    Args:
+        R, t: ``(H, 3, 3)`` and ``(H, 3)`` motions, ``x_k = R x_{k-1} + t``.
+        points_prev, points_curr: ``(H, M, 3)`` or ``(M, 3)`` triangulated points.
+        meas_prev, meas_curr: matching ``(..., M, 4)`` pixel measurements.
+    """
+    H = R.shape[0]
+    points_prev = np.broadcast_to(points_prev, (H,) + points_prev.shape[-2:])
+    points_curr = np.broadcast_to(points_curr, (H,) + points_curr.shape[-2:])
+    Rt = np.swapaxes(R, -1, -2)
+    fwd = points_prev @ Rt + t[:, None, :]
+    proj_f, Jp_f, ok_f = _project_with_jacobian(camera, fwd)
+    bwd = (points_curr - t[:, None, :]) @ R
+    proj_b, Jp_b, ok_b = _project_with_jacobian(camera, bwd)
+
+    # d(fwd)/d(rho, omega) = [I, -[fwd]x];  d(bwd)/d(rho, omega) = [-R^T, R^T [Y]x]
+    dfwd = np.concatenate([np.broadcast_to(np.eye(3), fwd.shape + (3,)), -hat(fwd)], axis=-1)
+    dbwd = np.concatenate(
+        [np.broadcast_to(-Rt[:, None], bwd.shape + (3,)), Rt[:, None] @ hat(points_curr)], axis=-1
+    )
+    res = np.concatenate([proj_f - meas_curr, proj_b - meas_prev], axis=-1)
+    jac = np.concatenate([Jp_f @ dfwd, Jp_b @ dbwd], axis=-2)
+    bad = ~(ok_f & ok_b)
+    if np.any(bad):
+        res = np.where(bad[..., None], _BEHIND_CAMERA_RESIDUAL, res)
+        jac = np.where(bad[..., None, None], 0.0, jac)
+    return res, jac
+
+
+def gauss_newton_steps(
+    camera: StereoCamera,
+    R: np.ndarray,
+    t: np.ndarray,
+    points_prev: np.ndarray,
+    points_curr: np.ndarray,
+    meas_prev: np.ndarray,
+    meas_curr: np.ndarray,
+    weights: np.ndarray | None = None,
+    iterations: int = 3,
+    damping: float = 1e-6,
+    huber: float | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Levenberg-Marquardt iterations on the symmetric reprojection error, for H hypotheses at once.
+
+    Args:
+        weights: optional ``(H, M)`` or ``(M,)`` per-point weights (0 drops a point).
+        damping: LM damping added to the normal equations' diagonal (relative to its scale).
+        huber: optional Huber threshold in pixels on each point's residual norm.
+
+    Returns:
+        ``(R, t, cost)``: refined motions and the final weighted squared cost ``(H,)`` (pixels^2).
+        A step that raises the cost is rejected for that hypothesis and its damping raised.
+    """
+    H = R.shape[0]
+    lam = np.full(H, damping)
+    w_base = None if weights is None else np.broadcast_to(np.asarray(weights, dtype=float), (H, meas_curr.shape[-2]))
+
+    def cost_terms(R_, t_):
+        res, jac = residuals_and_jacobians(camera, R_, t_, points_prev, points_curr, meas_prev, meas_curr)
+        sq = np.sum(res**2, axis=-1)
+        w = np.ones_like(sq) if w_base is None else w_base.copy()
+        if huber is not None:
+            norm = np.sqrt(sq)
+            w = w * np.where(norm > huber, huber / np.maximum(norm, 1e-12), 1.0)
+        return res, jac, w, np.sum(w * sq, axis=-1)
+
+    res, jac, w, cost = cost_terms(R, t)
+    for _ in range(iterations):
+        J = jac.reshape(H, -1, 6)
+        JtW = np.swapaxes(J * np.repeat(w, jac.shape[2], axis=1)[..., None], -1, -2)
+        A = JtW @ J
+        g = (JtW @ res.reshape(H, -1, 1))[..., 0]
+        scale = np.maximum(np.einsum("hkk->hk", A), 1e-9)
+        A_damped = A + (lam[:, None] * scale)[:, :, None] * np.eye(6)
+        try:
+            delta = -np.linalg.solve(A_damped, g[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            delta = -np.einsum("hkl,hl->hk", np.linalg.pinv(A_damped), g)
+        dR, dt = se3_exp(delta)
+        R_new = dR @ R
+        t_new = np.einsum("hij,hj->hi", dR, t) + dt
+        res_n, jac_n, w_n, cost_n = cost_terms(R_new, t_new)
+        better = cost_n <= cost
+        R = np.where(better[:, None, None], R_new, R)
+        t = np.where(better[:, None], t_new, t)
+        res = np.where(better[:, None, None], res_n, res)
+        jac = np.where(better[:, None, None, None], jac_n, jac)
+        w = np.where(better[:, None], w_n, w)
+        cost = np.where(better, cost_n, cost)
+        lam = np.where(better, lam * 0.3, lam * 10.0)
+    return R, t, cost
+
+
+def reprojection_sq(
+    camera: StereoCamera, R: np.ndarray, t: np.ndarray, points_prev: np.ndarray, meas_curr: np.ndarray
+) -> np.ndarray:
+    """Squared forward reprojection error ``(H, N)`` in pixels^2 of the k-1 points in both images at k."""
+    fwd = points_prev @ np.swapaxes(R, -1, -2) + t[:, None, :]
+    z = fwd[..., 2]
+    valid = z > _MIN_DEPTH
+    inv_z = 1.0 / np.where(valid, z, 1.0)
+    uL = camera.fx * fwd[..., 0] * inv_z + camera.cx
+    v = camera.fy * fwd[..., 1] * inv_z + camera.cy
+    uR = uL - camera.fx * camera.baseline * inv_z
+    sq = (uL - meas_curr[:, 0]) ** 2 + (uR - meas_curr[:, 2]) ** 2 + (v - meas_curr[:, 1]) ** 2 + (v - meas_curr[:, 3]) ** 2
+    return np.where(valid, sq, np.inf)

@@ -1,0 +1,167 @@
+"""Minimal-sample generators: uniform, prior-weighted (guided) and PROSAC.
+
+A sampler hands out batches ``(B, 3)`` of three *distinct* correspondence
+indices; all randomness comes from the generator passed to :meth:`draw`.
+Priors and orderings are how the Gymnasium agents reach the estimator.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+SAMPLE_SIZE = 3
+
+
+class Sampler(Protocol):
+    n: int
+
+    def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
+        """``(batch, 3)`` int64 indices, three distinct per row."""
+        ...
+
+
+def distinct_uniform_triplets(pool_sizes: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Three distinct indices drawn uniformly from ``range(m)`` for each ``m`` in ``pool_sizes``.
+
+    Exact sampling without replacement in closed form: draw from shrinking ranges and
+    shift past the indices already taken, so no rejection loop is needed.
+    """
+    m = np.asarray(pool_sizes, dtype=np.int64)
+    u = rng.random((m.shape[0], 3))
+    a = np.minimum((u[:, 0] * m).astype(np.int64), m - 1)
+    b = np.minimum((u[:, 1] * (m - 1)).astype(np.int64), m - 2)
+    c = np.minimum((u[:, 2] * (m - 2)).astype(np.int64), m - 3)
+    b = b + (b >= a)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    c = c + (c >= lo)
+    c = c + (c >= hi)
+    return np.stack([a, b, c], axis=1)
+
+
+class UniformSampler:
+    """Every triplet of distinct correspondences equally likely."""
+
+    def __init__(self, n: int) -> None:
+        if n < SAMPLE_SIZE:
+            raise ValueError(f"need at least {SAMPLE_SIZE} correspondences to sample, got {n}")
+        self.n = n
+
+    def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
+        return distinct_uniform_triplets(np.full(batch, self.n), rng)
+
+
+def validate_priors(priors: np.ndarray, n: int) -> np.ndarray:
+    """Check per-correspondence prior weights: shape ``(n,)``, finite, >= 0, >= 3 positive."""
+    p = np.asarray(priors, dtype=float)
+    if p.shape != (n,):
+        raise ValueError(f"priors must have shape ({n},), one weight per correspondence, got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("priors contain NaN or inf")
+    if np.any(p < 0):
+        raise ValueError(f"priors must be non-negative, got minimum {p.min()}")
+    if np.count_nonzero(p > 0) < SAMPLE_SIZE:
+        raise ValueError(f"priors need at least {SAMPLE_SIZE} positive weights to draw a minimal sample")
+    return p
+
+
+class WeightedSampler:
+    """Guided sampling (Tordoff & Murray): P(i) proportional to ``priors[i]``.
+
+    The three indices are drawn one after another without replacement,
+    renormalising each time; the Gumbel-top-k trick does exactly that for a whole
+    batch at once. :meth:`log_probability` gives the log-probability of the ordered
+    draw, which the policy-gradient trainer differentiates.
+    """
+
+    def __init__(self, priors: np.ndarray) -> None:
+        if np.ndim(priors) != 1:
+            raise ValueError(f"priors must be a 1-D array, one weight per correspondence, got shape {np.shape(priors)}")
+        self.priors = validate_priors(priors, len(priors))
+        self.n = self.priors.shape[0]
+        with np.errstate(divide="ignore"):
+            self._log_w = np.log(self.priors / self.priors.sum())
+
+    def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
+        keys = self._log_w[None, :] + rng.gumbel(size=(batch, self.n))
+        top = np.argpartition(-keys, SAMPLE_SIZE - 1, axis=1)[:, :SAMPLE_SIZE]
+        # Order the three by key: that is the order of the equivalent sequential draw.
+        order = np.argsort(-np.take_along_axis(keys, top, axis=1), axis=1)
+        return np.take_along_axis(top, order, axis=1)
+
+    def log_probability(self, samples: np.ndarray) -> np.ndarray:
+        """Log-probability ``(B,)`` of drawing each ordered triplet sequentially without replacement."""
+        w = np.exp(self._log_w)
+        picked = w[samples]
+        taken = np.cumsum(picked, axis=1) - picked
+        return np.sum(np.log(picked) - np.log1p(-np.minimum(taken, 1 - 1e-12)), axis=1)
+
+
+def prosac_growth(n: int, sample_size: int = SAMPLE_SIZE, t_n: float = 200_000) -> np.ndarray:
+    """PROSAC's T'_n for n = 0..N (Chum & Matas 2005); entries below ``sample_size`` are 0.
+
+    ``T_m = T_N prod_{i<m} (m-i)/(N-i)``, ``T_{k+1} = T_k (k+1)/(k+1-m)``,
+    ``T'_m = 1``, ``T'_{k+1} = T'_k + ceil(T_{k+1} - T_k)``.
+    """
+    m = sample_size
+    T = np.zeros(n + 1)
+    T_prime = np.zeros(n + 1, dtype=np.int64)
+    if n < m:
+        return T_prime
+    i = np.arange(m)
+    T[m] = t_n * np.prod((m - i) / (n - i))
+    T_prime[m] = 1
+    for k in range(m, n):
+        T[k + 1] = T[k] * (k + 1) / (k + 1 - m)
+        T_prime[k + 1] = T_prime[k] + int(np.ceil(T[k + 1] - T[k]))
+    return T_prime
+
+
+def validate_order(order: np.ndarray, n: int) -> np.ndarray:
+    """Check a PROSAC ordering: a permutation of ``range(n)``, best correspondence first."""
+    o = np.asarray(order)
+    if o.shape != (n,) or not np.issubdtype(o.dtype, np.integer):
+        raise ValueError(f"order must be an integer array of shape ({n},), got {o.dtype} {o.shape}")
+    if not np.array_equal(np.sort(o), np.arange(n)):
+        raise ValueError("order must be a permutation of range(N): each correspondence exactly once")
+    return o.astype(np.int64)
+
+
+class ProsacSampler:
+    """PROSAC (Chum & Matas 2005): samples from a growing set of top-ranked correspondences.
+
+    Draw t (1-based) uses ``n = min(g(t), n_max)`` with ``g(t) = min{n : T'_n >= t}``.
+    While ``t <= T'_n`` the sample is ``u_n`` plus two distinct points of ``U_{n-1}``;
+    afterwards it is three distinct points of ``U_n`` (plain RANSAC on ``U_n``).
+    ``n_max`` is the termination length n*, which PROSAC's stopping rule may lower.
+    """
+
+    def __init__(self, order: np.ndarray, t_n: float = 200_000) -> None:
+        self.order = validate_order(order, np.asarray(order).shape[0])
+        self.n = self.order.shape[0]
+        if self.n < SAMPLE_SIZE:
+            raise ValueError(f"need at least {SAMPLE_SIZE} correspondences to sample, got {self.n}")
+        self.growth = prosac_growth(self.n, SAMPLE_SIZE, t_n)
+        self.n_max = self.n
+        self.t = 0
+
+    def subset_sizes(self, t: np.ndarray) -> np.ndarray:
+        """``n`` used at draws ``t`` (1-based): ``min(g(t), n_max)``."""
+        g = np.searchsorted(self.growth[SAMPLE_SIZE:], t, side="left") + SAMPLE_SIZE
+        return np.minimum(np.minimum(g, self.n), self.n_max)
+
+    def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
+        t = self.t + 1 + np.arange(batch)
+        self.t += batch
+        n = self.subset_sizes(t)
+        anchored = t <= self.growth[n]
+        # Anchored draws: u_n plus two distinct points of U_{n-1}; others: three of U_n.
+        pool = np.where(anchored, n - 1, n)
+        ranks = distinct_uniform_triplets(np.maximum(pool, SAMPLE_SIZE), rng)
+        ranks[:, 2] = np.where(anchored, n - 1, ranks[:, 2])
+        if np.any(anchored & (pool < SAMPLE_SIZE)):
+            # n = 3 at the start: the only sample is the top three.
+            first = anchored & (pool < SAMPLE_SIZE)
+            ranks[first] = np.arange(SAMPLE_SIZE)
+        return self.order[ranks]

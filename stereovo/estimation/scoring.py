@@ -1,0 +1,142 @@
+"""Residual models and hypothesis quality measures, vectorised over hypotheses and points.
+
+A *residual model* turns motions ``(H, 3, 3), (H, 3)`` into squared residuals
+``(H, N)`` in its own units with a default inlier gate; a *quality* turns those
+into one score per hypothesis (higher is better). Classical variants pick one
+of each: RANSAC = count, MSAC = truncated quadratic, the probabilistic RANSAC
+of Brink et al. = count under the Mahalanobis gate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+from scipy.stats import chi2
+
+from stereovo.estimation.problem import StereoProblem
+from stereovo.estimation.reprojection import reprojection_sq
+
+CHI2_3_95 = float(chi2.ppf(0.95, 3))  # 7.81: Mahalanobis gate on 3-D residuals
+
+
+class ResidualModel(Protocol):
+    """Squared residuals of every correspondence under every hypothesis."""
+
+    name: str
+    threshold_sq: float  # inlier gate on the squared residual, in the model's units
+
+    def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """``(H, N)`` squared residuals for motions ``R (H, 3, 3)``, ``t (H, 3)``."""
+        ...
+
+
+_ROWS = np.array([0, 0, 0, 1, 1, 2])  # unique entries (a, b) of a symmetric 3x3, a <= b
+_COLS = np.array([0, 1, 2, 1, 2, 2])
+
+
+def _unique_entries(S: np.ndarray) -> np.ndarray:
+    """``(..., 6)`` entries S00, S01, S02, S11, S12, S22 of symmetric ``(..., 3, 3)`` matrices."""
+    return S[..., _ROWS, _COLS]
+
+
+def rotated_covariance_map(R: np.ndarray) -> np.ndarray:
+    """``(H, 6, 6)`` maps taking the unique entries of S to those of ``R S R^T``."""
+    a, b = _ROWS[:, None], _COLS[:, None]
+    k, l = _ROWS[None, :], _COLS[None, :]
+    M = R[:, a, k] * R[:, b, l]
+    off_diagonal = (k != l).astype(float)
+    return M + off_diagonal * R[:, a, l] * R[:, b, k]
+
+
+def _quadratic_form_inverse_unique(C: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``r^T C^-1 r`` with C given by its unique entries ``(H, 6, N)`` and ``r (H, N, 3)``."""
+    a, b, c, d, e, f = (C[:, i] for i in range(6))
+    A00 = d * f - e * e
+    A01 = c * e - b * f
+    A02 = b * e - c * d
+    A11 = a * f - c * c
+    A12 = b * c - a * e
+    A22 = a * d - b * b
+    det = a * A00 + b * A01 + c * A02
+    x, y, z = r[..., 0], r[..., 1], r[..., 2]
+    quad = A00 * x * x + A11 * y * y + A22 * z * z + 2 * (A01 * x * y + A02 * x * z + A12 * y * z)
+    return quad / np.maximum(det, 1e-300)
+
+
+@dataclass(frozen=True)
+class MahalanobisResidual:
+    """Brink et al.: ``r_i = Y_i - (R X_i + t)`` under ``R Sigma_X R^T + Sigma_Y``; unit-free, chi-square(3)."""
+
+    threshold_sq: float = CHI2_3_95
+    name: str = "mahalanobis"
+
+    def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+        r = problem.points_curr[None] - (problem.points_prev @ np.swapaxes(R, -1, -2) + t[:, None, :])
+        # R S R^T on the 6 unique entries of symmetric S is one (6, 6) linear map per
+        # hypothesis, so all H x N rotated covariances come from a single batched matmul.
+        rotated = rotated_covariance_map(R) @ _unique_entries(problem.cov_prev).T  # (H, 6, N)
+        C = rotated + _unique_entries(problem.cov_curr).T[None]
+        return _quadratic_form_inverse_unique(C, r)
+
+
+@dataclass(frozen=True)
+class ReprojectionResidual:
+    """Pixels^2: the k-1 point moved by the hypothesis and projected into both images at k."""
+
+    threshold_sq: float = 9.0  # (3 px)^2; estimate_motion scales it with the pixel noise
+    name: str = "reprojection"
+
+    def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+        return reprojection_sq(problem.camera, R, t, problem.points_prev, problem.curr)
+
+
+@dataclass(frozen=True)
+class EuclideanResidual:
+    """Metres^2 between ``Y_i`` and ``R X_i + t``: blind to the depth dependence of the noise."""
+
+    threshold_sq: float = 0.25
+    name: str = "euclidean"
+
+    def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+        moved = problem.points_prev @ np.swapaxes(R, -1, -2) + t[:, None, :]
+        return np.sum((problem.points_curr[None] - moved) ** 2, axis=-1)
+
+
+RESIDUAL_MODELS = {"mahalanobis": MahalanobisResidual, "reprojection": ReprojectionResidual, "euclidean": EuclideanResidual}
+
+
+class Quality(Protocol):
+    """Score ``(H,)`` (higher is better) from squared residuals ``(H, N)`` and the gate."""
+
+    name: str
+
+    def score(self, residual_sq: np.ndarray, threshold_sq: float) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class InlierCount:
+    """RANSAC (Fischler & Bolles 1981): the number of residuals under the gate."""
+
+    name: str = "count"
+
+    def score(self, residual_sq: np.ndarray, threshold_sq: float) -> np.ndarray:
+        return np.count_nonzero(residual_sq < threshold_sq, axis=-1).astype(float)
+
+
+@dataclass(frozen=True)
+class TruncatedQuadratic:
+    """MSAC (Torr & Zisserman 2000): minus the sum of ``min(e^2, T^2)``, normalised by T^2.
+
+    Normalising makes the score read as "inliers minus their mean squared misfit", so it
+    is comparable across gates and never below ``-N``.
+    """
+
+    name: str = "msac"
+
+    def score(self, residual_sq: np.ndarray, threshold_sq: float) -> np.ndarray:
+        return -np.sum(np.minimum(residual_sq, threshold_sq), axis=-1) / threshold_sq
+
+
+QUALITIES = {"count": InlierCount, "msac": TruncatedQuadratic}

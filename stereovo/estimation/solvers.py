@@ -1,0 +1,103 @@
+"""Rigid-motion solvers: the batched 3-point minimal solver and the non-minimal fit.
+
+Both are Kabsch/Horn (Arun et al. 1987) with the det(R) = +1 correction;
+the minimal solver handles a whole batch of hypotheses with one SVD call on
+``(H, 3, 3)`` cross-covariances. Because depth noise makes a 3-point fit on
+triangulated points badly conditioned (DESIGN.md section 5), the minimal
+solver can polish each hypothesis with a few batched Gauss-Newton steps on
+the stereo reprojection error of its own three points (as libviso2 does):
+the hypothesis stays minimal, but is judged where pixel noise is isotropic.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stereovo.estimation.problem import StereoProblem
+from stereovo.estimation.reprojection import gauss_newton_steps
+
+SAMPLE_SIZE = 3
+# Pitfalls (ALGORITHMS.md): a triplet whose triangle area is below this fraction of its
+# squared longest side is near-collinear and leaves the rotation about its line free.
+DEGENERATE_AREA_RATIO = 1e-3
+
+
+def kabsch_batch(X: np.ndarray, Y: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares rigid motions with ``Y ~ R X + t`` for a batch of point sets.
+
+    Args:
+        X, Y: ``(H, M, 3)`` corresponding points (metres), M >= 3.
+        weights: optional ``(H, M)`` non-negative weights.
+
+    Returns:
+        ``R (H, 3, 3)`` with det +1 and ``t (H, 3)``.
+    """
+    if weights is None:
+        weights = np.ones(X.shape[:2])
+    w = weights / np.maximum(np.sum(weights, axis=1, keepdims=True), 1e-300)
+    mx = np.einsum("hm,hmi->hi", w, X)
+    my = np.einsum("hm,hmi->hi", w, Y)
+    cov = np.einsum("hm,hmi,hmj->hij", w, Y - my[:, None], X - mx[:, None])
+    U, _, Vt = np.linalg.svd(cov)
+    # Reflection fix: flip the last singular direction when U V^T is a reflection.
+    d = np.sign(np.linalg.det(U @ Vt))
+    d = np.where(d == 0, 1.0, d)
+    U[:, :, 2] *= d[:, None]
+    R = U @ Vt
+    t = my - np.einsum("hij,hj->hi", R, mx)
+    return R, t
+
+
+def fit_rigid(X: np.ndarray, Y: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Non-minimal least-squares rigid fit ``Y ~ R X + t`` on ``(M, 3)`` points, M >= 3."""
+    R, t = kabsch_batch(X[None], Y[None], None if weights is None else np.asarray(weights)[None])
+    return R[0], t[0]
+
+
+def degenerate_triplets(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """Mask ``(H,)`` of near-collinear or near-coincident triplets in either frame.
+
+    Args:
+        X, Y: ``(H, 3, 3)`` triplets of points at k-1 and k.
+    """
+    bad = np.zeros(X.shape[0], dtype=bool)
+    for P in (X, Y):
+        e1 = P[:, 1] - P[:, 0]
+        e2 = P[:, 2] - P[:, 0]
+        e3 = P[:, 2] - P[:, 1]
+        area2 = np.linalg.norm(np.cross(e1, e2), axis=-1)  # twice the area
+        longest2 = np.max(np.stack([np.sum(e**2, axis=-1) for e in (e1, e2, e3)]), axis=0)
+        bad |= ~(area2 / 2 >= DEGENERATE_AREA_RATIO * longest2) | (longest2 < 1e-12)
+    return bad
+
+
+def minimal_hypotheses(
+    problem: StereoProblem, samples: np.ndarray, polish_iterations: int = 2
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Fit one motion per minimal sample.
+
+    Args:
+        samples: ``(H, 3)`` int indices into the problem's correspondences.
+        polish_iterations: Gauss-Newton steps on the three points' stereo reprojection
+            error after the Kabsch fit (0 keeps the plain Kabsch hypothesis).
+
+    Returns:
+        ``(R (H, 3, 3), t (H, 3), valid (H,))``; invalid hypotheses came from degenerate samples.
+    """
+    X = problem.points_prev[samples]
+    Y = problem.points_curr[samples]
+    valid = ~degenerate_triplets(X, Y)
+    R, t = kabsch_batch(X, Y)
+    if polish_iterations > 0 and samples.shape[0] > 0:
+        R, t, _ = gauss_newton_steps(
+            problem.camera,
+            R,
+            t,
+            X,
+            Y,
+            problem.prev[samples],
+            problem.curr[samples],
+            iterations=polish_iterations,
+        )
+    valid &= np.all(np.isfinite(t), axis=-1) & np.all(np.isfinite(R), axis=(-2, -1))
+    return R, t, valid

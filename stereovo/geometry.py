@@ -1,0 +1,178 @@
+"""SO(3) / SE(3) helpers and the one place that fixes the transform convention.
+
+Convention (DESIGN.md section 2): the motion between frames k-1 and k is the
+point transform ``x_k = R @ x_{k-1} + t``; it maps a landmark from camera frame
+k-1 into camera frame k. Poses are camera-to-world 4x4 matrices ``P_k`` and
+the pose update is ``P_k = P_{k-1} @ inv(T)`` with ``T = [[R, t], [0, 1]]``.
+
+All functions accept a leading batch dimension where it makes sense:
+rotation vectors ``(..., 3)``, rotations ``(..., 3, 3)``, twists ``(..., 6)``
+ordered ``(rho, omega)`` (translation part first), angles in radians.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+_SMALL_ANGLE = 1e-8
+
+
+def hat(w: np.ndarray) -> np.ndarray:
+    """Skew-symmetric matrices ``(..., 3, 3)`` of vectors ``(..., 3)``."""
+    w = np.asarray(w, dtype=float)
+    out = np.zeros(w.shape[:-1] + (3, 3))
+    out[..., 0, 1] = -w[..., 2]
+    out[..., 0, 2] = w[..., 1]
+    out[..., 1, 0] = w[..., 2]
+    out[..., 1, 2] = -w[..., 0]
+    out[..., 2, 0] = -w[..., 1]
+    out[..., 2, 1] = w[..., 0]
+    return out
+
+
+def _rodrigues_coefficients(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Coefficients a = sin/θ, b = (1-cos)/θ², c = (θ - sin)/θ³ with Taylor series near 0."""
+    small = theta < 1e-4
+    th = np.where(small, 1.0, theta)
+    th2 = th * th
+    a = np.where(small, 1 - theta**2 / 6 + theta**4 / 120, np.sin(th) / th)
+    b = np.where(small, 0.5 - theta**2 / 24 + theta**4 / 720, (1 - np.cos(th)) / th2)
+    c = np.where(small, 1 / 6 - theta**2 / 120 + theta**4 / 5040, (th - np.sin(th)) / (th2 * th))
+    return a, b, c
+
+
+def so3_exp(w: np.ndarray) -> np.ndarray:
+    """Rotation matrices ``(..., 3, 3)`` from rotation vectors ``(..., 3)`` (radians)."""
+    w = np.asarray(w, dtype=float)
+    theta = np.linalg.norm(w, axis=-1)
+    a, b, _ = _rodrigues_coefficients(theta)
+    W = hat(w)
+    return np.eye(3) + a[..., None, None] * W + b[..., None, None] * (W @ W)
+
+
+def so3_log(R: np.ndarray) -> np.ndarray:
+    """Rotation vectors ``(..., 3)`` of rotation matrices ``(..., 3, 3)``; angle in [0, pi]."""
+    R = np.asarray(R, dtype=float)
+    cos = np.clip((np.trace(R, axis1=-2, axis2=-1) - 1) / 2, -1.0, 1.0)
+    theta = np.arccos(cos)
+    vee = np.stack(
+        [R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], axis=-1
+    )
+    sin = np.sin(theta)
+    small = theta < 1e-6
+    near_pi = theta > np.pi - 1e-3
+    scale = np.where(small, 0.5 + theta**2 / 12, theta / (2 * np.where(small, 1.0, sin)))
+    w = scale[..., None] * vee
+    if np.any(near_pi):
+        # sin(theta) ~ 0 loses the axis: read it from the symmetric part instead.
+        B = (R + np.swapaxes(R, -1, -2)) / 2 - np.eye(3) * cos[..., None, None]
+        diag = np.clip(np.diagonal(B, axis1=-2, axis2=-1), 0, None)
+        axis = np.sqrt(diag / np.maximum(1 - cos, 1e-12)[..., None])
+        k = np.argmax(diag, axis=-1)
+        row = np.take_along_axis(B, k[..., None, None].repeat(3, axis=-1), axis=-2)[..., 0, :]
+        pivot = np.take_along_axis(axis, k[..., None], axis=-1)
+        axis = row / np.maximum(pivot * (1 - cos[..., None]), 1e-12)
+        axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+        axis = np.where((np.sum(axis * vee, axis=-1) < 0)[..., None], -axis, axis)
+        w = np.where(near_pi[..., None], axis * theta[..., None], w)
+    return w
+
+
+def _left_jacobian(w: np.ndarray) -> np.ndarray:
+    theta = np.linalg.norm(w, axis=-1)
+    _, b, c = _rodrigues_coefficients(theta)
+    W = hat(w)
+    return np.eye(3) + b[..., None, None] * W + c[..., None, None] * (W @ W)
+
+
+def se3_exp(xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(R, t)`` from twists ``(..., 6) = (rho, omega)``: ``T = exp(xi^)``."""
+    xi = np.asarray(xi, dtype=float)
+    rho, w = xi[..., :3], xi[..., 3:]
+    R = so3_exp(w)
+    t = np.einsum("...ij,...j->...i", _left_jacobian(w), rho)
+    return R, t
+
+
+def se3_log(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Twists ``(..., 6) = (rho, omega)`` of transforms ``(R, t)``; inverse of :func:`se3_exp`."""
+    w = so3_log(R)
+    rho = np.linalg.solve(_left_jacobian(w), np.asarray(t, dtype=float)[..., None])[..., 0]
+    return np.concatenate([rho, w], axis=-1)
+
+
+def make_transform(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """4x4 homogeneous matrices ``(..., 4, 4)`` from ``R (..., 3, 3)`` and ``t (..., 3)``."""
+    R = np.asarray(R, dtype=float)
+    T = np.zeros(R.shape[:-2] + (4, 4))
+    T[..., :3, :3] = R
+    T[..., :3, 3] = t
+    T[..., 3, 3] = 1.0
+    return T
+
+
+def invert_transform(T: np.ndarray) -> np.ndarray:
+    """Inverse of rigid 4x4 transforms, using ``R^T`` instead of a general inverse."""
+    T = np.asarray(T, dtype=float)
+    Rt = np.swapaxes(T[..., :3, :3], -1, -2)
+    return make_transform(Rt, -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3]))
+
+
+def compose(R1: np.ndarray, t1: np.ndarray, R2: np.ndarray, t2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(R, t)`` of applying ``(R2, t2)`` first, then ``(R1, t1)``: ``x -> R1 (R2 x + t2) + t1``."""
+    return R1 @ R2, np.einsum("...ij,...j->...i", R1, t2) + t1
+
+
+def transform_points(R: np.ndarray, t: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """Apply ``x -> R x + t`` to points ``(N, 3)``; batched ``R (H, 3, 3)`` gives ``(H, N, 3)``."""
+    return np.einsum("...ij,nj->...ni", R, X) + np.asarray(t)[..., None, :]
+
+
+def pose_update(pose_prev: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Camera-to-world pose at k from the pose at k-1 and the motion ``x_k = R x_{k-1} + t``.
+
+    ``P_k = P_{k-1} @ inv(T)``, the single place where the convention is applied.
+    """
+    return np.asarray(pose_prev, dtype=float) @ invert_transform(make_transform(R, t))
+
+
+def relative_motion(pose_prev: np.ndarray, pose_curr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Motion ``(R, t)`` with ``x_k = R x_{k-1} + t`` between two camera-to-world poses.
+
+    The inverse of :func:`pose_update`: ``T = inv(P_k) @ P_{k-1}``.
+    """
+    T = invert_transform(pose_curr) @ np.asarray(pose_prev, dtype=float)
+    return T[..., :3, :3], T[..., :3, 3]
+
+
+def rotation_angle(R: np.ndarray) -> np.ndarray:
+    """Rotation angle in radians, in [0, pi], of rotation matrices ``(..., 3, 3)``."""
+    cos = (np.trace(np.asarray(R, dtype=float), axis1=-2, axis2=-1) - 1) / 2
+    return np.arccos(np.clip(cos, -1.0, 1.0))
+
+
+def rotation_error(R_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:
+    """Angle in radians of ``R_est^T R_true`` (the geodesic distance on SO(3))."""
+    return rotation_angle(np.swapaxes(np.asarray(R_est, dtype=float), -1, -2) @ R_true)
+
+
+def translation_error(t_est: np.ndarray, t_true: np.ndarray) -> np.ndarray:
+    """Euclidean distance in metres between translation vectors ``(..., 3)``."""
+    return np.linalg.norm(np.asarray(t_est, dtype=float) - t_true, axis=-1)
+
+
+def random_rotation(rng: np.random.Generator, max_angle: float = np.pi) -> np.ndarray:
+    """A rotation with a uniformly random axis and angle uniform in [0, max_angle] (radians)."""
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    return so3_exp(axis * rng.uniform(0, max_angle))
+
+
+def quaternion_from_rotation(R: np.ndarray) -> np.ndarray:
+    """Unit quaternions ``(..., 4)`` ordered ``(qx, qy, qz, qw)`` with ``qw >= 0`` (TUM order)."""
+    R = np.asarray(R, dtype=float)
+    w = so3_log(R)
+    theta = np.linalg.norm(w, axis=-1, keepdims=True)
+    axis = np.where(theta > _SMALL_ANGLE, w / np.where(theta > _SMALL_ANGLE, theta, 1.0), 0.0)
+    q = np.concatenate([axis * np.sin(theta / 2), np.cos(theta / 2)], axis=-1)
+    return np.where(q[..., 3:] < 0, -q, q)
