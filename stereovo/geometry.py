@@ -147,8 +147,14 @@ def relative_motion(pose_prev: np.ndarray, pose_curr: np.ndarray) -> tuple[np.nd
 
 def rotation_angle(R: np.ndarray) -> np.ndarray:
     """Rotation angle in radians, in [0, pi], of rotation matrices ``(..., 3, 3)``."""
-    cos = (np.trace(np.asarray(R, dtype=float), axis1=-2, axis2=-1) - 1) / 2
-    return np.arccos(np.clip(cos, -1.0, 1.0))
+    R = np.asarray(R, dtype=float)
+    # atan2 of sin and cos keeps full precision near 0, where arccos(1 - e) loses half the digits.
+    cos = (np.trace(R, axis1=-2, axis2=-1) - 1) / 2
+    vee = np.stack(
+        [R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], axis=-1
+    )
+    sin = np.linalg.norm(vee, axis=-1) / 2
+    return np.arctan2(sin, cos)
 
 
 def rotation_error(R_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:

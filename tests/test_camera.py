@@ -1,0 +1,71 @@
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from stereovo.camera import StereoCamera
+
+
+def random_visible_points(camera, rng, n=200):
+    X = np.c_[rng.uniform(-30, 30, n * 4), rng.uniform(-5, 5, n * 4), rng.uniform(2, 80, n * 4)]
+    return X[camera.is_visible(X, z_min=2, z_max=80)][:n]
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_projection_and_triangulation_invert_each_other(seed):
+    camera = StereoCamera()
+    rng = np.random.default_rng(seed)
+    X = random_visible_points(camera, rng)
+    z = camera.project(X)
+    np.testing.assert_allclose(camera.triangulate(z), X, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(camera.project(camera.triangulate(z)), z, atol=1e-9)
+    assert np.all(z[:, 1] == z[:, 3])
+
+
+def test_default_is_kitti_like(camera):
+    assert (camera.fx, camera.fy, camera.cx, camera.cy, camera.baseline) == (718.856, 718.856, 607.19, 185.22, 0.5372)
+    assert (camera.width, camera.height) == (1241, 376)
+
+
+def test_triangulation_jacobian_matches_finite_differences(camera):
+    rng = np.random.default_rng(3)
+    z = camera.project(random_visible_points(camera, rng, 20))
+    J = camera.triangulation_jacobian(z)
+    h = 1e-6
+    for k in range(4):
+        dz = np.zeros(4)
+        dz[k] = h
+        fd = (camera.triangulate(z + dz) - camera.triangulate(z - dz)) / (2 * h)
+        np.testing.assert_allclose(J[:, :, k], fd, rtol=1e-5, atol=1e-8)
+    # dy/dv is b/(2d) when fx = fy (a public re-implementation had b/(2d^2)).
+    d = camera.disparity(z)
+    np.testing.assert_allclose(J[:, 1, 1], camera.baseline / (2 * d), rtol=1e-12)
+
+
+def test_covariance_is_sigma2_JJt_and_depth_error_grows_quadratically(camera):
+    X = np.array([[0.0, 0.0, 5.0], [0.0, 0.0, 10.0], [0.0, 0.0, 40.0]])
+    z = camera.project(X)
+    cov = camera.triangulation_covariance(z, sigma=0.5)
+    J = camera.triangulation_jacobian(z)
+    np.testing.assert_allclose(cov, 0.25 * J @ J.transpose(0, 2, 1))
+    depth_std = np.sqrt(cov[:, 2, 2])
+    # sigma_z = z^2 / (fx b) * sqrt(2) sigma
+    np.testing.assert_allclose(depth_std, X[:, 2] ** 2 / (camera.fx * camera.baseline) * np.sqrt(2) * 0.5, rtol=1e-12)
+
+
+def test_triangulation_refuses_points_without_depth(camera):
+    with pytest.raises(ValueError, match="disparity"):
+        camera.triangulate(np.array([[600.0, 100.0, 600.0, 100.0]]))
+    with pytest.raises(ValueError, match="sigma"):
+        camera.triangulation_covariance(np.array([[600.0, 100.0, 590.0, 100.0]]), sigma=-1)
+
+
+def test_visibility(camera):
+    X = np.array([[0.0, 0.0, 10.0], [0.0, 0.0, -10.0], [100.0, 0.0, 10.0], [0.0, 0.0, 1e6], [0.0, 0.0, 1.0]])
+    np.testing.assert_array_equal(camera.is_visible(X, z_min=2.0), [True, False, False, False, False])
+
+
+@pytest.mark.parametrize("field,value", [("fx", 0.0), ("baseline", -0.5), ("width", 0), ("height", -1), ("cx", np.nan)])
+def test_invalid_camera_names_the_field(field, value):
+    with pytest.raises(ValueError, match=field):
+        StereoCamera(**{field: value})

@@ -1,0 +1,240 @@
+"""The shared estimator core: solvers, samplers, termination, scoring and the estimate_motion contract."""
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from stereovo import StereoCamera, available_methods, estimate_motion
+from stereovo.estimation.problem import StereoProblem
+from stereovo.estimation.samplers import (
+    ProsacSampler,
+    UniformSampler,
+    WeightedSampler,
+    distinct_uniform_triplets,
+    prosac_growth,
+)
+from stereovo.estimation.scoring import MahalanobisResidual
+from stereovo.estimation.solvers import degenerate_triplets, kabsch_batch
+from stereovo.estimation.termination import required_iterations
+from stereovo.geometry import random_rotation, rotation_error, se3_exp
+
+CAMERA = StereoCamera()
+CORE_METHODS = ["ransac", "msac", "probabilistic"]
+
+
+def noise_free_pair(rng, R, t, n=80):
+    """Points visible in both frames under the motion x_k = R x_{k-1} + t, measured exactly."""
+    X = np.c_[rng.uniform(-20, 20, 40 * n), rng.uniform(-3, 3, 40 * n), rng.uniform(3, 50, 40 * n)]
+    Y = X @ R.T + t
+    ok = CAMERA.is_visible(X, z_min=3) & CAMERA.is_visible(Y, z_min=1)
+    X, Y = X[ok][:n], Y[ok][:n]
+    return CAMERA.project(X), CAMERA.project(Y)
+
+
+motions = st.tuples(
+    st.floats(-0.15, 0.15), st.floats(-0.15, 0.15), st.floats(-0.15, 0.15),
+    st.floats(-1.0, 1.0), st.floats(-0.5, 0.5), st.floats(-2.0, 0.5), st.integers(0, 2**31),
+)
+
+
+@given(motions)
+def test_noise_free_motion_recovered_to_1e9(m):
+    wx, wy, wz, tx, ty, tz, seed = m
+    R, _ = se3_exp(np.array([0, 0, 0, wx, wy, wz]))
+    t = np.array([tx, ty, tz])
+    prev, curr = noise_free_pair(np.random.default_rng(seed), R, t)
+    for method in CORE_METHODS:
+        est = estimate_motion(prev, curr, CAMERA, method=method, rng=seed)
+        assert est.ok, est.status
+        assert rotation_error(est.rotation, R) < 1e-9
+        assert np.linalg.norm(est.translation - t) < 1e-9
+        assert est.inliers.all()
+
+
+def test_kabsch_batch_exact_and_proper_rotation():
+    rng = np.random.default_rng(0)
+    R = np.stack([random_rotation(rng) for _ in range(16)])
+    t = rng.normal(size=(16, 3))
+    X = rng.normal(size=(16, 3, 3)) * 5
+    Y = np.einsum("hij,hmj->hmi", R, X) + t[:, None]
+    R_fit, t_fit = kabsch_batch(X, Y)
+    np.testing.assert_allclose(R_fit, R, atol=1e-10)
+    np.testing.assert_allclose(t_fit, t, atol=1e-9)
+    # A mirrored point set must still give det +1.
+    R_m, _ = kabsch_batch(X[:1], -X[:1])
+    assert np.linalg.det(R_m[0]) == pytest.approx(1.0)
+
+
+def test_degenerate_triplets_detected():
+    line = np.array([[[0, 0, 5.0], [1, 0, 5.0], [2, 0, 5.0]]])
+    coincident = np.array([[[1, 1, 5.0], [1, 1, 5.0], [1, 1, 5.0]]])
+    good = np.array([[[0, 0, 5.0], [1, 0, 5.0], [0, 1, 6.0]]])
+    X = np.concatenate([line, coincident, good])
+    np.testing.assert_array_equal(degenerate_triplets(X, X), [True, True, False])
+
+
+def test_uniform_triplets_distinct_and_uniform():
+    rng = np.random.default_rng(0)
+    s = distinct_uniform_triplets(np.full(60_000, 5), rng)
+    assert np.all((s[:, 0] != s[:, 1]) & (s[:, 0] != s[:, 2]) & (s[:, 1] != s[:, 2]))
+    counts = np.bincount(s.ravel(), minlength=5) / s.size
+    np.testing.assert_allclose(counts, 0.2, atol=0.005)
+    sets = {tuple(sorted(r)) for r in s[:2000]}
+    assert len(sets) == 10  # every 3-subset of 5 appears
+
+
+def test_weighted_sampler_follows_priors_and_log_probability_is_exact():
+    priors = np.array([4.0, 3.0, 2.0, 1.0, 0.0])
+    sampler = WeightedSampler(priors)
+    rng = np.random.default_rng(0)
+    draws = sampler.draw(100_000, rng)
+    assert not np.any(draws == 4)  # zero prior is never drawn
+    # Empirical frequency of each ordered triplet matches its exact log-probability.
+    triplets = list(itertools.permutations(range(4), 3))
+    probs = np.exp(sampler.log_probability(np.array(triplets)))
+    assert probs.sum() == pytest.approx(1.0)
+    keys = draws @ np.array([16, 4, 1])
+    freq = np.array([np.mean(keys == a * 16 + b * 4 + c) for a, b, c in triplets])
+    np.testing.assert_allclose(freq, probs, atol=0.006)
+
+
+def test_prosac_growth_matches_reference_values():
+    T = prosac_growth(500)
+    assert [int(T[n]) for n in (4, 5, 10, 20, 50, 100, 200)] == [2, 3, 8, 23, 216, 1613, 12783]
+
+
+def test_prosac_samples_respect_growth():
+    order = np.random.default_rng(1).permutation(200)
+    sampler = ProsacSampler(order)
+    rank = np.empty(200, dtype=int)
+    rank[order] = np.arange(200)
+    draws = rank[sampler.draw(3000, np.random.default_rng(2))]
+    t = np.arange(1, 3001)
+    n = sampler.subset_sizes(t)
+    anchored = t <= sampler.growth[n]
+    assert np.all(draws.max(axis=1) < n)
+    assert np.all(draws[anchored].max(axis=1) == n[anchored] - 1)
+    assert set(draws[0]) == {0, 1, 2}
+
+
+def test_required_iterations_without_replacement():
+    # ALGORITHMS.md section 1: N = 20, I = 6, p = 0.99 gives 261 (the w^3 bound would give 169).
+    assert required_iterations(6, 20, 0.99) == 261
+    assert required_iterations(2, 20, 0.99, max_iterations=10_000) == 10_000
+    assert required_iterations(20, 20, 0.99) == 1
+
+
+def test_mahalanobis_matches_explicit_inverse():
+    rng = np.random.default_rng(0)
+    R, t = random_rotation(rng, 0.1), rng.normal(size=3)
+    prev, curr = noise_free_pair(rng, R, t, 30)
+    curr = curr + rng.normal(0, 0.5, curr.shape)
+    curr[:, 3] = curr[:, 1]
+    problem = StereoProblem.build(prev, curr, CAMERA, 0.5)
+    Rs = np.stack([R, random_rotation(rng, 0.1)])
+    ts = np.stack([t, t + 0.1])
+    got = MahalanobisResidual().squared(problem, Rs, ts)
+    for h in range(2):
+        r = problem.points_curr - (problem.points_prev @ Rs[h].T + ts[h])
+        C = Rs[h] @ problem.cov_prev @ Rs[h].T + problem.cov_curr
+        expected = np.einsum("ni,ni->n", r, np.linalg.solve(C, r[..., None])[..., 0])
+        np.testing.assert_allclose(got[h], expected, rtol=1e-8)
+
+
+# ----------------------------------------------------------------------------- the public contract
+
+
+def test_available_methods_lists_core_methods_with_descriptions():
+    methods = available_methods()
+    for name in CORE_METHODS:
+        assert name in methods and len(methods[name]) > 10
+
+
+@pytest.mark.parametrize(
+    "prev,curr,message",
+    [
+        (np.zeros((5, 3)), np.zeros((5, 3)), r"shape \(N, 4\)"),
+        (np.full((5, 4), np.nan), np.ones((5, 4)), "NaN"),
+        (np.tile([600.0, 100, 590, 100], (5, 1)), np.tile([600.0, 100, 590, 100], (4, 1)), "same number of rows"),
+        (np.tile([600.0, 100, 600, 100], (5, 1)), np.tile([600.0, 100, 590, 100], (5, 1)), "disparity"),
+    ],
+)
+def test_malformed_input_raises_clear_value_error(prev, curr, message):
+    with pytest.raises(ValueError, match=message):
+        estimate_motion(prev, curr, CAMERA)
+
+
+def test_bad_method_option_priors_and_order_raise():
+    prev, curr = noise_free_pair(np.random.default_rng(0), np.eye(3), np.array([0, 0, -1.0]), 30)
+    with pytest.raises(ValueError, match="unknown method"):
+        estimate_motion(prev, curr, CAMERA, method="nope")
+    with pytest.raises(ValueError, match="unknown option"):
+        estimate_motion(prev, curr, CAMERA, threshhold=3)
+    with pytest.raises(ValueError, match="confidence"):
+        estimate_motion(prev, curr, CAMERA, confidence=1.5)
+    with pytest.raises(ValueError, match="priors must have shape"):
+        estimate_motion(prev, curr, CAMERA, priors=np.ones(3))
+    with pytest.raises(ValueError, match="non-negative"):
+        estimate_motion(prev, curr, CAMERA, priors=-np.ones(30))
+    with pytest.raises(ValueError, match="permutation"):
+        estimate_motion(prev, curr, CAMERA, order=np.zeros(30, dtype=int))
+    with pytest.raises(ValueError, match="not both"):
+        estimate_motion(prev, curr, CAMERA, priors=np.ones(30), order=np.arange(30))
+
+
+def test_hopeless_frames_fail_without_raising():
+    prev, curr = noise_free_pair(np.random.default_rng(0), np.eye(3), np.array([0, 0, -1.0]), 30)
+    few = estimate_motion(prev[:2], curr[:2], CAMERA)
+    assert not few.ok and "too few" in few.status
+    assert np.array_equal(few.rotation, np.eye(3)) and few.inliers.shape == (2,)
+
+    line = np.array([[x, 0.0, 10.0] for x in np.linspace(-3, 3, 12)])
+    collinear = estimate_motion(CAMERA.project(line), CAMERA.project(line + [0, 0, -1]), CAMERA, budget=64)
+    assert not collinear.ok and "degenerate" in collinear.status
+
+    rng = np.random.default_rng(5)
+    shuffled = curr[rng.permutation(30)]
+    none = estimate_motion(prev, shuffled, CAMERA, method="ransac", rng=1, max_iterations=300)
+    assert not none.ok and "no consensus" in none.status
+    np.testing.assert_array_equal(none.translation, np.zeros(3))
+
+
+def test_same_seed_same_result_different_seed_differs():
+    rng = np.random.default_rng(3)
+    R, t = random_rotation(rng, 0.05), np.array([0.1, 0.0, -1.0])
+    prev, curr = noise_free_pair(rng, R, t, 200)
+    curr = curr + rng.normal(0, 0.5, curr.shape)
+    curr[:, 3] = curr[:, 1]
+    curr[:100] = curr[rng.permutation(100)]  # half of them mismatched
+    a = estimate_motion(prev, curr, CAMERA, rng=7)
+    b = estimate_motion(prev, curr, CAMERA, rng=np.random.default_rng(7))
+    c = estimate_motion(prev, curr, CAMERA, rng=8)
+    np.testing.assert_array_equal(a.rotation, b.rotation)
+    np.testing.assert_array_equal(a.inliers, b.inliers)
+    assert a.n_hypotheses == b.n_hypotheses
+    assert not np.array_equal(a.translation, c.translation)
+
+
+def test_fixed_budget_draws_exactly_budget():
+    rng = np.random.default_rng(4)
+    prev, curr = noise_free_pair(rng, np.eye(3), np.array([0, 0, -1.0]), 100)
+    est = estimate_motion(prev, curr, CAMERA, budget=17, batch_size=5)
+    assert est.n_hypotheses == 17 and est.ok
+
+
+def test_priors_and_order_reach_the_sampler():
+    # Only the first 20 correspondences are correct; priors or an order naming them
+    # finds the motion within the first batch, uniform sampling at 90 % outliers rarely does.
+    rng = np.random.default_rng(6)
+    t = np.array([0.0, 0.0, -1.0])
+    prev, curr = noise_free_pair(rng, np.eye(3), t, 200)
+    curr[20:] = curr[20:][rng.permutation(180)]
+    priors = np.r_[np.ones(20), np.zeros(180)]
+    guided = estimate_motion(prev, curr, CAMERA, priors=priors, budget=8, batch_size=8, rng=0)
+    prosac = estimate_motion(prev, curr, CAMERA, order=np.arange(200), budget=1, batch_size=1, rng=0)
+    assert guided.ok and np.linalg.norm(guided.translation - t) < 1e-6
+    assert prosac.ok and np.linalg.norm(prosac.translation - t) < 1e-6
+    assert guided.inliers[:20].all()
