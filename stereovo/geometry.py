@@ -71,8 +71,9 @@ def so3_log(R: np.ndarray) -> np.ndarray:
         k = np.argmax(diag, axis=-1)
         row = np.take_along_axis(B, k[..., None, None].repeat(3, axis=-1), axis=-2)[..., 0, :]
         pivot = np.take_along_axis(axis, k[..., None], axis=-1)
-        axis = row / np.maximum(pivot * (1 - cos[..., None]), 1e-12)
-        axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+        with np.errstate(divide="ignore", invalid="ignore"):  # rows away from pi are masked below
+            axis = row / np.maximum(pivot * (1 - cos[..., None]), 1e-12)
+            axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
         axis = np.where((np.sum(axis * vee, axis=-1) < 0)[..., None], -axis, axis)
         w = np.where(near_pi[..., None], axis * theta[..., None], w)
     return w

@@ -1,0 +1,301 @@
+"""Per-frame and trajectory accuracy metrics.
+
+Per frame: rotation / translation error of an estimated motion against the
+simulator's truth, the success criterion every report shares, and inlier
+precision / recall. Per trajectory, on ``(F, 4, 4)`` camera-to-world poses:
+ATE (raw and SE(3)-aligned), RPE, and the KITTI segment drift that evo lacks.
+
+Units: errors are computed in metres and radians; fields whose name ends in
+``_deg`` (or ``_deg_per_m``, ``_percent``) are converted for reports.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from stereovo.geometry import invert_transform, rotation_angle, rotation_error, translation_error
+
+# Success thresholds shared by every consumer (odometry, gym env, baselines):
+# a frame succeeds when its status is ok, its rotation error is below
+# SUCCESS_ROT_DEG and its translation error below
+# max(SUCCESS_TRANS_M, SUCCESS_TRANS_REL * ||t_true||).
+SUCCESS_ROT_DEG = 1.0
+SUCCESS_TRANS_M = 0.05
+SUCCESS_TRANS_REL = 0.05
+
+# KITTI odometry benchmark segment lengths in metres.
+KITTI_LENGTHS: tuple[float, ...] = (100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 700.0, 800.0)
+KITTI_STEP = 10
+
+
+def is_success(rot_err_rad: Any, trans_err: Any, t_true_norm: Any) -> np.ndarray:
+    """Vectorised success test (status not included: AND it with ``status == "ok"``).
+
+    Args:
+        rot_err_rad: rotation errors in radians, any shape.
+        trans_err: translation errors in metres, broadcastable.
+        t_true_norm: norms of the true translations in metres, broadcastable.
+
+    Returns:
+        Boolean array of the broadcast shape (a 0-d array for scalars).
+        NaN errors count as failures.
+    """
+    rot = np.asarray(rot_err_rad, dtype=float)
+    trans = np.asarray(trans_err, dtype=float)
+    bound = np.maximum(SUCCESS_TRANS_M, SUCCESS_TRANS_REL * np.asarray(t_true_norm, dtype=float))
+    return (rot < np.deg2rad(SUCCESS_ROT_DEG)) & (trans < bound)
+
+
+def inlier_precision_recall(predicted: np.ndarray, actual: np.ndarray) -> tuple[float, float]:
+    """Precision and recall of a predicted inlier mask against the true one.
+
+    NaN-free by definition: precision is 0 when nothing is predicted, recall is
+    0 when there are no true inliers.
+    """
+    predicted = np.asarray(predicted, dtype=bool)
+    actual = np.asarray(actual, dtype=bool)
+    if predicted.shape != actual.shape:
+        raise ValueError(f"inlier masks differ in shape: {predicted.shape} vs {actual.shape}")
+    tp = int(np.count_nonzero(predicted & actual))
+    n_pred = int(np.count_nonzero(predicted))
+    n_true = int(np.count_nonzero(actual))
+    return (tp / n_pred if n_pred else 0.0), (tp / n_true if n_true else 0.0)
+
+
+@dataclass(frozen=True)
+class FrameMetrics:
+    """Accuracy and cost of one frame's motion estimate.
+
+    Attributes:
+        rot_err_deg: geodesic rotation error in degrees.
+        trans_err_m: translation error in metres.
+        t_true_norm_m: norm of the true translation in metres.
+        success: status ok and both errors under the module thresholds.
+        precision, recall: of the estimated inlier mask against the labels.
+        n_inliers: number of correspondences the estimate marks as inliers.
+        n_hypotheses, n_scored, n_point_checks: estimator effort counters.
+        time_s: estimator wall time in seconds.
+        status: ``"ok"`` or the estimator's failure reason.
+    """
+
+    rot_err_deg: float
+    trans_err_m: float
+    t_true_norm_m: float
+    success: bool
+    precision: float
+    recall: float
+    n_inliers: int
+    n_hypotheses: int
+    n_scored: int
+    n_point_checks: int
+    time_s: float
+    status: str
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def frame_metrics(estimate: Any, truth: Any) -> FrameMetrics:
+    """Compare a ``MotionEstimate`` with a ``FrameTruth``.
+
+    ``estimate`` needs ``rotation (3,3)``, ``translation (3,)``, ``inliers (N,)``,
+    ``status`` and the effort counters; ``truth`` needs ``rotation``,
+    ``translation`` and ``inlier (N,)``.
+    """
+    rot_err = float(rotation_error(estimate.rotation, truth.rotation))
+    trans_err = float(translation_error(estimate.translation, truth.translation))
+    t_norm = float(np.linalg.norm(truth.translation))
+    status = str(estimate.status)
+    precision, recall = inlier_precision_recall(estimate.inliers, truth.inlier)
+    return FrameMetrics(
+        rot_err_deg=float(np.rad2deg(rot_err)),
+        trans_err_m=trans_err,
+        t_true_norm_m=t_norm,
+        success=bool(status == "ok" and is_success(rot_err, trans_err, t_norm)),
+        precision=precision,
+        recall=recall,
+        n_inliers=int(np.count_nonzero(estimate.inliers)),
+        n_hypotheses=int(estimate.n_hypotheses),
+        n_scored=int(estimate.n_scored),
+        n_point_checks=int(estimate.n_point_checks),
+        time_s=float(estimate.time_s),
+        status=status,
+    )
+
+
+# --------------------------------------------------------------------------- trajectories
+
+
+def _check_poses(est: np.ndarray, true: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    est = np.asarray(est, dtype=float)
+    true = np.asarray(true, dtype=float)
+    if est.ndim != 3 or est.shape[1:] != (4, 4) or est.shape != true.shape:
+        raise ValueError(f"expected two (F, 4, 4) pose arrays of equal length, got {est.shape} and {true.shape}")
+    return est, true
+
+
+def align_se3(est_positions: np.ndarray, true_positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rigid alignment (no scale) of estimated onto true positions (Horn / Umeyama).
+
+    Args:
+        est_positions, true_positions: ``(F, 3)`` in metres, ``F >= 1``.
+
+    Returns:
+        ``(R (3, 3), t (3,))`` minimising ``sum ||R p_est + t - p_true||^2``, det R = +1.
+    """
+    P = np.asarray(est_positions, dtype=float)
+    Q = np.asarray(true_positions, dtype=float)
+    if P.ndim != 2 or P.shape[1] != 3 or P.shape != Q.shape or len(P) == 0:
+        raise ValueError(f"expected two non-empty (F, 3) position arrays, got {P.shape} and {Q.shape}")
+    mu_p, mu_q = P.mean(axis=0), Q.mean(axis=0)
+    H = (Q - mu_q).T @ (P - mu_p) / len(P)
+    U, _, Vt = np.linalg.svd(H)
+    # Reflection guard: flip the weakest axis so that det R = +1.
+    S = np.diag([1.0, 1.0, np.sign(np.linalg.det(U) * np.linalg.det(Vt)) or 1.0])
+    R = U @ S @ Vt
+    return R, mu_q - R @ mu_p
+
+
+def ate(est: np.ndarray, true: np.ndarray, align: bool = True) -> float:
+    """Absolute trajectory error: RMSE in metres of camera positions.
+
+    Args:
+        est, true: ``(F, 4, 4)`` camera-to-world poses.
+        align: first align ``est`` onto ``true`` with :func:`align_se3` (as
+            ``evo_ape --align``); otherwise compare raw positions (both
+            trajectories start at the same pose in this project).
+    """
+    est, true = _check_poses(est, true)
+    p_est, p_true = est[:, :3, 3], true[:, :3, 3]
+    if align:
+        R, t = align_se3(p_est, p_true)
+        p_est = p_est @ R.T + t
+    return float(np.sqrt(np.mean(np.sum((p_est - p_true) ** 2, axis=1))))
+
+
+def _relative(poses: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """Relative poses ``inv(P_i) @ P_j`` ``(S, 4, 4)``."""
+    return invert_transform(poses[i]) @ poses[j]
+
+
+def rpe(est: np.ndarray, true: np.ndarray, delta: int = 1) -> tuple[float, float]:
+    """Relative pose error over frame pairs ``(i, i + delta)`` (evo's RPE definition).
+
+    The error pose is ``inv(inv(Q_i) Q_j) @ inv(P_i) P_j`` for true ``Q`` and estimated ``P``.
+
+    Returns:
+        ``(translation RMSE in metres, rotation RMSE in degrees)``; NaN when
+        the trajectory has no pair ``delta`` frames apart.
+    """
+    est, true = _check_poses(est, true)
+    if delta < 1:
+        raise ValueError(f"delta must be a positive number of frames, got {delta}")
+    if len(est) <= delta:
+        return float("nan"), float("nan")
+    i = np.arange(len(est) - delta)
+    E = invert_transform(_relative(true, i, i + delta)) @ _relative(est, i, i + delta)
+    t_rmse = np.sqrt(np.mean(np.sum(E[:, :3, 3] ** 2, axis=1)))
+    r_rmse = np.sqrt(np.mean(rotation_angle(E[:, :3, :3]) ** 2))
+    return float(t_rmse), float(np.rad2deg(r_rmse))
+
+
+def path_lengths(poses: np.ndarray) -> np.ndarray:
+    """Cumulative travelled distance ``(F,)`` in metres along camera positions, 0 at frame 0."""
+    p = np.asarray(poses, dtype=float)[:, :3, 3]
+    steps = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    return np.concatenate([[0.0], np.cumsum(steps)])
+
+
+def kitti_drift(
+    est: np.ndarray,
+    true: np.ndarray,
+    lengths: Sequence[float] = KITTI_LENGTHS,
+    step: int = KITTI_STEP,
+) -> tuple[float, float, int]:
+    """KITTI odometry-benchmark segment drift.
+
+    For every start frame ``0, step, 2 step, ...`` and every length ``L``, the
+    segment ends at the first frame whose true path length from the start
+    reaches ``L`` (>=; the devkit's strict > differs only on exact ties); its error pose is ``inv(inv(P_s) P_e) @ inv(Q_s) Q_e``.
+    Segments that would run past the end are skipped. Errors are averaged
+    over all segments (all lengths pooled, as the devkit does per sequence).
+
+    Returns:
+        ``(translational error in % of segment length, rotational error in
+        deg/m, number of segments)``; ``(nan, nan, 0)`` when no segment fits
+        (the trajectory is shorter than the shortest length). Many papers quote
+        rotation in deg/100 m: multiply by 100.
+    """
+    est, true = _check_poses(est, true)
+    if step < 1:
+        raise ValueError(f"step must be a positive number of frames, got {step}")
+    lengths_arr = np.asarray(lengths, dtype=float).ravel()
+    if lengths_arr.size == 0 or np.any(~(lengths_arr > 0)):
+        raise ValueError(f"segment lengths must be positive metres, got {lengths!r}")
+    dist = path_lengths(true)
+    starts = np.arange(0, len(true), step)
+    # One row per (start, length): first frame whose distance reaches start + length.
+    s = np.repeat(starts, lengths_arr.size)
+    L = np.tile(lengths_arr, starts.size)
+    e = np.searchsorted(dist, dist[s] + L, side="left")
+    valid = e < len(true)
+    if not np.any(valid):
+        return float("nan"), float("nan"), 0
+    s, e, L = s[valid], e[valid], L[valid]
+    E = invert_transform(_relative(est, s, e)) @ _relative(true, s, e)
+    t_err = np.linalg.norm(E[:, :3, 3], axis=1) / L
+    r_err = rotation_angle(E[:, :3, :3]) / L
+    return float(100.0 * t_err.mean()), float(np.rad2deg(r_err.mean())), int(s.size)
+
+
+@dataclass(frozen=True)
+class TrajectoryMetrics:
+    """Whole-trajectory accuracy.
+
+    Attributes:
+        n_poses: number of poses compared (frames + 1).
+        path_length_m: true travelled distance in metres.
+        ate_raw_m, ate_aligned_m: position RMSE in metres without / with SE(3) alignment.
+        rpe_trans_m, rpe_rot_deg: frame-to-frame relative pose RMSE (m, deg).
+        kitti_t_percent, kitti_r_deg_per_m: KITTI segment drift (NaN if too short).
+        kitti_segments: number of KITTI segments averaged.
+    """
+
+    n_poses: int
+    path_length_m: float
+    ate_raw_m: float
+    ate_aligned_m: float
+    rpe_trans_m: float
+    rpe_rot_deg: float
+    kitti_t_percent: float
+    kitti_r_deg_per_m: float
+    kitti_segments: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def trajectory_metrics(
+    est: np.ndarray,
+    true: np.ndarray,
+    kitti_lengths: Sequence[float] = KITTI_LENGTHS,
+    kitti_step: int = KITTI_STEP,
+) -> TrajectoryMetrics:
+    """All trajectory metrics of ``(F, 4, 4)`` estimated vs true camera-to-world poses."""
+    est, true = _check_poses(est, true)
+    rpe_t, rpe_r = rpe(est, true, delta=1)
+    kt, kr, ks = kitti_drift(est, true, lengths=kitti_lengths, step=kitti_step)
+    return TrajectoryMetrics(
+        n_poses=len(est),
+        path_length_m=float(path_lengths(true)[-1]),
+        ate_raw_m=ate(est, true, align=False),
+        ate_aligned_m=ate(est, true, align=True),
+        rpe_trans_m=rpe_t,
+        rpe_rot_deg=rpe_r,
+        kitti_t_percent=kt,
+        kitti_r_deg_per_m=kr,
+        kitti_segments=ks,
+    )

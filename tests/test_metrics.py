@@ -1,0 +1,210 @@
+"""Per-frame and trajectory metrics on hand-built cases with known answers."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from stereovo.geometry import make_transform, pose_update, so3_exp
+from stereovo.metrics import (
+    SUCCESS_ROT_DEG,
+    SUCCESS_TRANS_M,
+    SUCCESS_TRANS_REL,
+    align_se3,
+    ate,
+    frame_metrics,
+    inlier_precision_recall,
+    is_success,
+    kitti_drift,
+    path_lengths,
+    rpe,
+    trajectory_metrics,
+)
+
+
+def car_trajectory(n: int, seed: int = 0, step: float = 1.0, yaw_sigma: float = 0.02) -> np.ndarray:
+    """(n+1, 4, 4) camera-to-world poses driving forward (+z) with gentle random yaw."""
+    rng = np.random.default_rng(seed)
+    poses = [np.eye(4)]
+    for _ in range(n):
+        R = so3_exp(np.array([0.0, rng.normal(0, yaw_sigma), 0.0]))
+        # The camera moves forward by `step`, so points move backwards in its frame.
+        poses.append(pose_update(poses[-1], R, np.array([0.0, 0.0, -step])))
+    return np.stack(poses)
+
+
+def rigidly_moved(poses: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    return make_transform(R, t) @ poses
+
+
+def estimate(R, t, inliers, status="ok"):
+    return SimpleNamespace(
+        rotation=R, translation=t, inliers=np.asarray(inliers, bool), status=status,
+        n_hypotheses=7, n_scored=5, n_point_checks=1234, time_s=0.01,
+    )
+
+
+def truth(R, t, inlier):
+    return SimpleNamespace(rotation=R, translation=t, inlier=np.asarray(inlier, bool))
+
+
+# ----------------------------------------------------------------------------- per frame
+
+
+def test_precision_recall_hand_built_masks():
+    pred = np.array([1, 1, 1, 0, 0, 1], bool)
+    true = np.array([1, 0, 1, 1, 0, 1], bool)
+    p, r = inlier_precision_recall(pred, true)
+    assert p == pytest.approx(3 / 4)
+    assert r == pytest.approx(3 / 4)
+    assert inlier_precision_recall(np.zeros(4, bool), np.ones(4, bool)) == (0.0, 0.0)
+    assert inlier_precision_recall(np.ones(4, bool), np.zeros(4, bool)) == (0.0, 0.0)
+    assert inlier_precision_recall(true, true) == (1.0, 1.0)
+    with pytest.raises(ValueError):
+        inlier_precision_recall(np.ones(3, bool), np.ones(4, bool))
+
+
+def test_success_thresholds():
+    rot_lim = np.deg2rad(SUCCESS_ROT_DEG)
+    # Absolute floor applies for small motions, relative bound for large ones.
+    assert is_success(0.5 * rot_lim, 0.049, 0.1)
+    assert not is_success(0.5 * rot_lim, 0.051, 0.1)
+    assert is_success(0.5 * rot_lim, 0.09, 2.0)  # 0.05 * 2 m = 0.1 m
+    assert not is_success(0.5 * rot_lim, 0.11, 2.0)
+    assert not is_success(1.01 * rot_lim, 0.0, 1.0)
+    assert not is_success(np.nan, 0.0, 1.0)
+    vec = is_success(np.array([0.0, 2 * rot_lim, 0.0]), np.array([0.0, 0.0, 1.0]), 1.0)
+    assert vec.tolist() == [True, False, False]
+    assert SUCCESS_TRANS_M == 0.05 and SUCCESS_TRANS_REL == 0.05
+
+
+def test_frame_metrics_values_and_status():
+    R_true = so3_exp(np.array([0.0, 0.1, 0.0]))
+    t_true = np.array([0.0, 0.0, -1.0])
+    R_est = so3_exp(np.array([0.0, 0.1 + np.deg2rad(0.5), 0.0]))
+    t_est = t_true + np.array([0.03, 0.0, 0.0])
+    tr = truth(R_true, t_true, [1, 1, 0, 0])
+    m = frame_metrics(estimate(R_est, t_est, [1, 0, 1, 0]), tr)
+    assert m.rot_err_deg == pytest.approx(0.5, abs=1e-9)
+    assert m.trans_err_m == pytest.approx(0.03)
+    assert m.t_true_norm_m == pytest.approx(1.0)
+    assert m.success
+    assert (m.precision, m.recall, m.n_inliers) == (0.5, 0.5, 2)
+    assert (m.n_hypotheses, m.n_scored, m.n_point_checks, m.status) == (7, 5, 1234, "ok")
+    # A failed status is never a success, even with a perfect motion.
+    failed = frame_metrics(estimate(R_true, t_true, [0, 0, 0, 0], status="no consensus"), tr)
+    assert not failed.success and failed.precision == 0.0 and failed.status == "no consensus"
+    # 0.06 m off on a 1 m motion exceeds max(0.05, 0.05 * 1).
+    assert not frame_metrics(estimate(R_true, t_true + [0.06, 0, 0], [1, 1, 0, 0]), tr).success
+
+
+# ----------------------------------------------------------------------------- trajectories
+
+
+def test_align_se3_recovers_rigid_transform():
+    rng = np.random.default_rng(1)
+    P = rng.normal(size=(50, 3))
+    R = so3_exp(np.array([0.3, -0.5, 1.1]))
+    t = np.array([1.0, -2.0, 3.0])
+    R_hat, t_hat = align_se3(P, P @ R.T + t)
+    np.testing.assert_allclose(R_hat, R, atol=1e-12)
+    np.testing.assert_allclose(t_hat, t, atol=1e-12)
+    assert np.linalg.det(R_hat) == pytest.approx(1.0)
+
+
+def test_ate_rigid_offset_aligned_zero_raw_positive():
+    true = car_trajectory(80)
+    est = rigidly_moved(true, so3_exp(np.array([0.0, 0.2, 0.05])), np.array([2.0, 0.5, -1.0]))
+    assert ate(est, true, align=True) < 1e-9
+    assert ate(est, true, align=False) > 1.0
+    assert ate(true, true, align=False) == 0.0
+
+
+def test_ate_known_value_constant_offset():
+    true = car_trajectory(20)
+    est = true.copy()
+    est[:, 0, 3] += 0.3  # a translation offset, removed by alignment
+    assert ate(est, true, align=False) == pytest.approx(0.3)
+    assert ate(est, true, align=True) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_rpe_identical_zero_and_known_step_error():
+    true = car_trajectory(50)
+    t_err, r_err = rpe(true, true)
+    # arccos near 1 resolves angles only to ~1e-8 rad, hence the rotation tolerance.
+    assert t_err < 1e-12 and r_err < 1e-5
+    # Rigidly moved trajectories have the same relative poses.
+    moved = rigidly_moved(true, so3_exp(np.array([0.1, 0.2, 0.3])), np.ones(3))
+    t_err, r_err = rpe(moved, true)
+    assert t_err < 1e-9 and r_err < 1e-5
+    # Every estimated step 10 % too long -> relative translation error 0.1 m per 1 m step.
+    est = true.copy()
+    est[:, :3, 3] *= 1.1
+    t_err, r_err = rpe(est, true)
+    assert t_err == pytest.approx(0.1, rel=1e-9)
+    assert r_err == pytest.approx(0.0, abs=1e-5)
+    assert np.isnan(rpe(true[:1], true[:1])[0])
+
+
+def test_kitti_drift_one_percent_scale_error():
+    # A straight drive: chord = path length, so a 1 % scale error is 1 % drift.
+    true = car_trajectory(300, yaw_sigma=0.0)
+    est = true.copy()
+    est[:, :3, 3] *= 1.01
+    t_pct, r_deg_m, n = kitti_drift(est, true)
+    assert t_pct == pytest.approx(1.0, rel=1e-9)
+    assert r_deg_m == pytest.approx(0.0, abs=1e-9)
+    # Starts every 10 frames; 100 m segments end 100 frames later, etc.
+    expected = sum(len(range(0, 301 - L, 10)) for L in (100, 200, 300))
+    assert n == expected
+    # With gentle turns the scale error still shows as ~1 % (chords ~ path lengths).
+    curvy = car_trajectory(300, seed=3, yaw_sigma=0.01)
+    est_c = curvy.copy()
+    est_c[:, :3, 3] *= 1.01
+    t_pct_c, _, _ = kitti_drift(est_c, curvy)
+    assert 0.9 < t_pct_c <= 1.0 + 1e-9
+
+
+def test_kitti_drift_rotational_error_units():
+    # A constant yaw bias of b rad per frame on a straight 1 m/frame drive:
+    # a segment of L metres accumulates L*b rad, i.e. b rad/m.
+    n, bias = 250, np.deg2rad(0.01)
+    true = car_trajectory(n, yaw_sigma=0.0)
+    est = [np.eye(4)]
+    for _ in range(n):
+        est.append(pose_update(est[-1], so3_exp(np.array([0.0, bias, 0.0])), np.array([0.0, 0.0, -1.0])))
+    _, r_deg_m, n_seg = kitti_drift(np.stack(est), true, lengths=(100, 200))
+    assert n_seg > 0
+    assert r_deg_m == pytest.approx(0.01, rel=1e-6)
+
+
+def test_kitti_drift_short_trajectory_and_custom_lengths():
+    true = car_trajectory(30, yaw_sigma=0.0)
+    est = true.copy()
+    est[:, :3, 3] *= 1.02
+    t_pct, r_deg_m, n = kitti_drift(est, true)
+    assert n == 0 and np.isnan(t_pct) and np.isnan(r_deg_m)
+    t_pct, _, n = kitti_drift(est, true, lengths=(5, 10, 20), step=5)
+    assert n > 0 and t_pct == pytest.approx(2.0, rel=1e-9)
+    with pytest.raises(ValueError):
+        kitti_drift(est, true, lengths=(0.0,))
+    with pytest.raises(ValueError):
+        kitti_drift(est, true[:-1])
+
+
+def test_trajectory_metrics_bundle():
+    true = car_trajectory(120, yaw_sigma=0.0)
+    est = true.copy()
+    est[:, :3, 3] *= 1.01
+    m = trajectory_metrics(est, true)
+    assert m.n_poses == 121
+    assert m.path_length_m == pytest.approx(120.0)
+    assert path_lengths(true)[-1] == pytest.approx(120.0)
+    assert m.ate_raw_m == pytest.approx(ate(est, true, align=False))
+    assert m.ate_aligned_m <= m.ate_raw_m
+    assert m.rpe_trans_m == pytest.approx(0.01)
+    assert m.kitti_segments == 3  # 100 m segments from frames 0, 10, 20
+    assert m.kitti_t_percent == pytest.approx(1.0)
+    assert set(m.as_dict()) >= {"ate_raw_m", "kitti_t_percent", "kitti_r_deg_per_m"}

@@ -1,0 +1,161 @@
+"""Frame-to-frame odometry: accuracy on a short car run, determinism, pose chaining, fallback."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import stereovo.odometry as odometry
+from stereovo.estimation import MotionEstimate
+from stereovo.metrics import trajectory_metrics
+from stereovo.odometry import run_odometry
+from stereovo.plotting import plot_odometry
+from stereovo.simulation import Sequence, SimulationConfig
+
+SHORT_LENGTHS = (5.0, 10.0, 20.0)  # a 30-frame car run covers ~30 m
+
+
+@pytest.fixture(scope="module")
+def sequence() -> Sequence:
+    config = SimulationConfig(preset="car", n_frames=30, n_correspondences=300, outlier_ratio=0.5)
+    return Sequence(config, seed=1)
+
+
+@pytest.fixture(scope="module")
+def result(sequence):
+    return run_odometry(sequence, seed=0, kitti_lengths=SHORT_LENGTHS, kitti_step=5)
+
+
+def oracle_estimate(frame, fail: bool = False) -> MotionEstimate:
+    """What a perfect estimator would return for this frame (or a failure)."""
+    truth = frame.truth
+    if fail:
+        return MotionEstimate(
+            rotation=np.eye(3), translation=np.zeros(3), inliers=np.zeros(frame.n, bool),
+            status="failed: no consensus", n_hypotheses=10, n_scored=10, n_point_checks=100,
+            time_s=0.0, method="oracle",
+        )
+    return MotionEstimate(
+        rotation=truth.rotation, translation=truth.translation, inliers=truth.inlier.copy(),
+        status="ok", n_hypotheses=1, n_scored=1, n_point_checks=frame.n, time_s=0.0, method="oracle",
+    )
+
+
+def patch_estimator(monkeypatch, fail_frames=(), calls=None):
+    """Replace the estimator inside odometry by the oracle, failing on the given frame indices."""
+    frames_by_prev = {}
+
+    def fake(prev, curr, camera, **kwargs):
+        frame = frames_by_prev[id(prev)]
+        if calls is not None:
+            calls.append((frame, kwargs))
+        return oracle_estimate(frame, fail=frame.index in fail_frames)
+
+    class Recording:
+        def __init__(self, seq):
+            self.seq, self.true_poses = seq, seq.true_poses
+
+        def __len__(self):
+            return len(self.seq)
+
+        def __iter__(self):
+            for frame in self.seq:
+                frames_by_prev[id(frame.prev)] = frame
+                yield frame
+
+    monkeypatch.setattr(odometry, "estimate_motion", fake)
+    return Recording
+
+
+def test_short_car_run_is_accurate(result, sequence):
+    F = len(sequence)
+    assert result.poses.shape == result.true_poses.shape == (F + 1, 4, 4)
+    np.testing.assert_array_equal(result.true_poses, sequence.true_poses)
+    np.testing.assert_array_equal(result.poses[0], np.eye(4))
+    assert result.n_frames == F and result.frame_indices.tolist() == list(range(1, F + 1))
+    success = result.column("success")
+    assert success.mean() >= 0.9
+    assert result.n_failed <= 2
+    assert np.median(result.column("rot_err_deg")) < 0.2
+    assert np.median(result.column("trans_err_m")) < 0.05
+    assert result.column("precision").mean() > 0.9  # outliers at eps 0.5 are rejected
+    traj = result.trajectory
+    assert traj.kitti_segments > 0
+    assert traj.kitti_t_percent < 2.0 and traj.kitti_r_deg_per_m < 0.05
+    assert traj.ate_aligned_m < 0.2 and traj.ate_aligned_m <= traj.ate_raw_m + 1e-12
+    assert 20 < traj.path_length_m < 45
+
+
+def test_same_seed_identical_other_seed_differs(result, sequence):
+    again = run_odometry(sequence, seed=0, kitti_lengths=SHORT_LENGTHS, kitti_step=5)
+    np.testing.assert_array_equal(again.poses, result.poses)
+    assert [m.n_hypotheses for m in again.frames] == [m.n_hypotheses for m in result.frames]
+    other = run_odometry(sequence, seed=7, kitti_lengths=SHORT_LENGTHS, kitti_step=5)
+    assert not np.array_equal(other.poses, result.poses)
+
+
+def test_perfect_motions_reproduce_true_trajectory(monkeypatch, sequence):
+    # Checks the chaining convention: true motions must rebuild the true poses.
+    recording = patch_estimator(monkeypatch)
+    res = run_odometry(recording(sequence), method="oracle", kitti_lengths=SHORT_LENGTHS)
+    np.testing.assert_allclose(res.poses, sequence.true_poses, atol=1e-9)
+    assert res.n_failed == 0 and all(m.success for m in res.frames)
+    assert all(m.precision == 1.0 and m.recall == 1.0 for m in res.frames)
+    assert res.trajectory.ate_raw_m < 1e-9
+
+
+def test_failed_frames_reuse_previous_motion(monkeypatch, sequence):
+    recording = patch_estimator(monkeypatch, fail_frames={1, 5, 6})
+    res = run_odometry(recording(sequence), method="oracle")
+    true = sequence.true_poses
+    assert res.n_failed == 3
+    assert np.flatnonzero(res.fallback).tolist() == [0, 4, 5]
+    # Frame 1 failed with no history: identity motion, the camera stays put.
+    np.testing.assert_allclose(res.poses[1], res.poses[0], atol=1e-12)
+    # Frames 5 and 6 repeat frame 4's (true) motion.
+    step4 = np.linalg.inv(true[3]) @ true[4]
+    np.testing.assert_allclose(np.linalg.inv(res.poses[4]) @ res.poses[5], step4, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.inv(res.poses[5]) @ res.poses[6], step4, atol=1e-9)
+    # Frame metrics score the estimator's own (failed) output.
+    assert not res.frames[4].success and res.frames[4].status.startswith("failed")
+    rows = res.rows()
+    assert len(rows) == len(sequence)
+    assert [r["frame"] for r in rows[:3]] == [1, 2, 3]
+    assert rows[4]["fallback"] is True and rows[3]["fallback"] is False
+    assert {"rot_err_deg", "trans_err_m", "precision", "recall", "n_hypotheses", "status"} <= set(rows[0])
+    assert res.summary()["failed_frames"] == 3
+
+
+def test_priors_and_order_functions_reach_the_estimator(monkeypatch, sequence):
+    calls = []
+    recording = patch_estimator(monkeypatch, calls=calls)
+    run_odometry(recording(sequence), method="oracle", priors_fn=lambda f: f.scores, budget=50)
+    assert len(calls) == len(sequence)
+    for frame, kwargs in calls:
+        assert kwargs["priors"] is frame.scores and kwargs["order"] is None
+        assert kwargs["budget"] == 50 and kwargs["noise_sigma"] == frame.noise_sigma
+        assert isinstance(kwargs["rng"], np.random.Generator)
+    # One stream for the whole run: every frame gets the same generator object.
+    assert len({id(kwargs["rng"]) for _, kwargs in calls}) == 1
+    calls.clear()
+    run_odometry(recording(sequence), method="oracle", order_fn=lambda f: np.argsort(-f.scores), noise_sigma=1.0)
+    assert all(kw["priors"] is None and kw["order"].shape == (f.n,) for f, kw in calls)
+    assert all(kw["noise_sigma"] == 1.0 for _, kw in calls)
+    with pytest.raises(ValueError, match="priors_fn"):
+        run_odometry(sequence, priors=np.ones(300))
+
+
+def test_guided_priors_with_real_estimator(sequence):
+    res = run_odometry(sequence, seed=0, priors_fn=lambda f: f.scores, kitti_lengths=SHORT_LENGTHS)
+    assert res.column("success").mean() >= 0.9
+
+
+def test_trajectory_metrics_match_result(result):
+    again = trajectory_metrics(result.poses, result.true_poses, kitti_lengths=SHORT_LENGTHS, kitti_step=5)
+    assert again == result.trajectory
+
+
+def test_plot_odometry_writes_png(result, tmp_path):
+    path = plot_odometry(result, tmp_path / "plots" / "odometry.png")
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
