@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from stereovo.camera import StereoCamera
-from stereovo.geometry import hat, se3_exp
+from stereovo.geometry import se3_exp
 
 # A transformed point this close to the camera plane cannot be projected: its residual
 # is replaced by a large constant and its Jacobian zeroed, so it stops pulling.
@@ -56,33 +56,34 @@ def residuals_and_jacobians(
     points_curr: np.ndarray,
     meas_prev: np.ndarray,
     meas_curr: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
+    with_jacobian: bool = True,
+) -> tuple[np.ndarray, np.ndarray | None]:
     """Symmetric reprojection residuals ``(H, M, 8)`` and Jacobians ``(H, M, 8, 6)``.
 
     Args:
         R, t: ``(H, 3, 3)`` and ``(H, 3)`` motions, ``x_k = R x_{k-1} + t``.
         points_prev, points_curr: ``(H, M, 3)`` or ``(M, 3)`` triangulated points.
         meas_prev, meas_curr: matching ``(..., M, 4)`` pixel measurements.
+        with_jacobian: False skips the Jacobian (returned as None) for cost-only evaluations.
     """
-    H = R.shape[0]
-    points_prev = np.broadcast_to(points_prev, (H,) + points_prev.shape[-2:])
-    points_curr = np.broadcast_to(points_curr, (H,) + points_curr.shape[-2:])
-    Rt = np.swapaxes(R, -1, -2)
-    fwd = points_prev @ Rt + t[:, None, :]
-    proj_f, Jp_f, ok_f = _project_with_jacobian(camera, fwd)
+    fwd = points_prev @ np.swapaxes(R, -1, -2) + t[:, None, :]
     bwd = (points_curr - t[:, None, :]) @ R
+    proj_f, Jp_f, ok_f = _project_with_jacobian(camera, fwd)
     proj_b, Jp_b, ok_b = _project_with_jacobian(camera, bwd)
-
-    # d(fwd)/d(rho, omega) = [I, -[fwd]x];  d(bwd)/d(rho, omega) = [-R^T, R^T [Y]x]
-    dfwd = np.concatenate([np.broadcast_to(np.eye(3), fwd.shape + (3,)), -hat(fwd)], axis=-1)
-    dbwd = np.concatenate(
-        [np.broadcast_to(-Rt[:, None], bwd.shape + (3,)), Rt[:, None] @ hat(points_curr)], axis=-1
-    )
     res = np.concatenate([proj_f - meas_curr, proj_b - meas_prev], axis=-1)
-    jac = np.concatenate([Jp_f @ dfwd, Jp_b @ dbwd], axis=-2)
     bad = ~(ok_f & ok_b)
     if np.any(bad):
         res = np.where(bad[..., None], _BEHIND_CAMERA_RESIDUAL, res)
+    if not with_jacobian:
+        return res, None
+    # Rows a of d(proj)/dP: d/d rho = a and d/d omega = P x a for the forward point;
+    # with b = a R^T, d/d rho = -b and d/d omega = b x Y for the backward one.
+    fwd_rows = np.concatenate([Jp_f, np.cross(fwd[..., None, :], Jp_f)], axis=-1)
+    B = Jp_b @ np.swapaxes(R, -1, -2)[:, None]
+    Y = np.broadcast_to(points_curr, bwd.shape)
+    bwd_rows = np.concatenate([-B, np.cross(B, Y[..., None, :])], axis=-1)
+    jac = np.concatenate([fwd_rows, bwd_rows], axis=-2)
+    if np.any(bad):
         jac = np.where(bad[..., None, None], 0.0, jac)
     return res, jac
 
@@ -99,6 +100,7 @@ def gauss_newton_steps(
     iterations: int = 3,
     damping: float = 1e-6,
     huber: float | None = None,
+    tolerance: float = 1e-12,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Levenberg-Marquardt iterations on the symmetric reprojection error, for H hypotheses at once.
 
@@ -106,6 +108,8 @@ def gauss_newton_steps(
         weights: optional ``(H, M)`` or ``(M,)`` per-point weights (0 drops a point).
         damping: LM damping added to the normal equations' diagonal (relative to its scale).
         huber: optional Huber threshold in pixels on each point's residual norm.
+        tolerance: stop early once every hypothesis' step is below this (radians / metres) or
+            its cost fell by less than a relative 1e-9.
 
     Returns:
         ``(R, t, cost)``: refined motions and the final weighted squared cost ``(H,)`` (pixels^2).
@@ -115,16 +119,17 @@ def gauss_newton_steps(
     lam = np.full(H, damping)
     w_base = None if weights is None else np.broadcast_to(np.asarray(weights, dtype=float), (H, meas_curr.shape[-2]))
 
-    def cost_terms(R_, t_):
-        res, jac = residuals_and_jacobians(camera, R_, t_, points_prev, points_curr, meas_prev, meas_curr)
+    def weights_and_cost(res):
         sq = np.sum(res**2, axis=-1)
-        w = np.ones_like(sq) if w_base is None else w_base.copy()
+        w = np.ones_like(sq) if w_base is None else w_base
         if huber is not None:
             norm = np.sqrt(sq)
             w = w * np.where(norm > huber, huber / np.maximum(norm, 1e-12), 1.0)
-        return res, jac, w, np.sum(w * sq, axis=-1)
+        return w, np.sum(w * sq, axis=-1)
 
-    res, jac, w, cost = cost_terms(R, t)
+    args = (points_prev, points_curr, meas_prev, meas_curr)
+    res, jac = residuals_and_jacobians(camera, R, t, *args)
+    w, cost = weights_and_cost(res)
     for _ in range(iterations):
         J = jac.reshape(H, -1, 6)
         JtW = np.swapaxes(J * np.repeat(w, jac.shape[2], axis=1)[..., None], -1, -2)
@@ -139,15 +144,22 @@ def gauss_newton_steps(
         dR, dt = se3_exp(delta)
         R_new = dR @ R
         t_new = np.einsum("hij,hj->hi", dR, t) + dt
-        res_n, jac_n, w_n, cost_n = cost_terms(R_new, t_new)
-        better = cost_n <= cost
+        res_new, _ = residuals_and_jacobians(camera, R_new, t_new, *args, with_jacobian=False)
+        w_new, cost_new = weights_and_cost(res_new)
+        better = cost_new <= cost
+        lam = np.where(better, lam * 0.3, lam * 10.0)
+        if not np.any(better):
+            continue
+        converged = np.all(better) and (
+            np.all(np.abs(delta) < tolerance) or np.all(cost - cost_new <= 1e-9 * cost)
+        )
         R = np.where(better[:, None, None], R_new, R)
         t = np.where(better[:, None], t_new, t)
-        res = np.where(better[:, None, None], res_n, res)
-        jac = np.where(better[:, None, None, None], jac_n, jac)
-        w = np.where(better[:, None], w_n, w)
-        cost = np.where(better, cost_n, cost)
-        lam = np.where(better, lam * 0.3, lam * 10.0)
+        cost = np.where(better, cost_new, cost)
+        if converged:
+            break
+        res, jac = residuals_and_jacobians(camera, R, t, *args)
+        w, cost = weights_and_cost(res)
     return R, t, cost
 
 
