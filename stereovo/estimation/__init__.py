@@ -12,6 +12,7 @@ from stereovo.estimation.methods import (
     register_method,
 )
 from stereovo.estimation.problem import StereoProblem
+from stereovo.estimation import classical  # noqa: F401  (registers the classical family)
 
 __all__ = [
     "EstimatorOptions",

@@ -56,7 +56,16 @@ class RansacComponents:
         polish_iterations: Gauss-Newton steps on each minimal sample's reprojection error.
         min_inliers: fewer inliers in the best model means "no consensus".
         listeners: objects whose ``on_new_best(inliers, loop_state)`` is called on each new best
-            (PROSAC's sampler and termination, SPRT's verifier adapt there).
+            (PROSAC's sampler and termination, SPRT's verifier adapt there); a listener may also
+            define ``on_batch(loop_state)``, called after every batch (SPRT's termination counts
+            the draws made under each test there).
+
+    Hooks for cheaper verifiers and adaptive terminations:
+        - a verifier with ``uses_samples = True`` gets ``samples=`` ``(H, 3)``, the minimal sample of
+          each hypothesis it verifies, so its early checks can skip the sample's own points
+          (T(d,d), SPRT: ALGORITHMS.md Pitfalls);
+        - ``termination.required`` is asked again after every batch once a best model exists, so a
+          rule whose bound moves between new bests (SPRT's delta estimate) takes effect at once.
     """
 
     sampler: Sampler
@@ -109,35 +118,43 @@ def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.ran
     drawn = scored = checks = degenerate = local_runs = found_at = 0
     required = c.termination.max_iterations
 
+    uses_samples = bool(getattr(c.verifier, "uses_samples", False))
+    batch_listeners = [listener for listener in c.listeners if hasattr(listener, "on_batch")]
     while drawn < required:
         batch = int(min(c.batch_size, required - drawn))
         samples = c.sampler.draw(batch, rng)
         R, t, valid = minimal_hypotheses(problem, samples, c.polish_iterations)
         drawn += batch
         degenerate += int(np.count_nonzero(~valid))
-        if not np.any(valid):
-            continue
-        R, t = R[valid], t[valid]
-        scores, spent = c.verifier.verify(ctx, R, t, rng)
-        scored += R.shape[0]
-        checks += spent
-        i = int(np.argmax(scores))
-        if not scores[i] > best_score:
-            continue
-        best_R, best_t, best_score = R[i], t[i], float(scores[i])
-        best_inliers = ctx.residuals(best_R[None], best_t[None])[0] < c.threshold_sq
-        checks += n
-        found_at = drawn
-        if c.local_optimizer is not None:
-            best_R, best_t, best_inliers, best_score, spent = c.local_optimizer.improve(
-                ctx, best_R, best_t, best_inliers, best_score, rng
-            )
-            local_runs += 1
+        if np.any(valid):
+            R, t = R[valid], t[valid]
+            if uses_samples:
+                scores, spent = c.verifier.verify(ctx, R, t, rng, samples=samples[valid])
+            else:
+                scores, spent = c.verifier.verify(ctx, R, t, rng)
+            scored += R.shape[0]
             checks += spent
-        state = LoopState(n_hypotheses=drawn, best_score=best_score)
-        for listener in c.listeners:
-            listener.on_new_best(best_inliers, state)
-        required = min(c.termination.required(int(np.count_nonzero(best_inliers)), n), c.termination.max_iterations)
+            i = int(np.argmax(scores))
+            if scores[i] > best_score:
+                best_R, best_t, best_score = R[i], t[i], float(scores[i])
+                best_inliers = ctx.residuals(best_R[None], best_t[None])[0] < c.threshold_sq
+                checks += n
+                found_at = drawn
+                if c.local_optimizer is not None:
+                    best_R, best_t, best_inliers, best_score, spent = c.local_optimizer.improve(
+                        ctx, best_R, best_t, best_inliers, best_score, rng
+                    )
+                    local_runs += 1
+                    checks += spent
+                state = LoopState(n_hypotheses=drawn, best_score=best_score)
+                for listener in c.listeners:
+                    listener.on_new_best(best_inliers, state)
+        if batch_listeners:
+            state = LoopState(n_hypotheses=drawn, best_score=best_score)
+            for listener in batch_listeners:
+                listener.on_batch(state)
+        if best_score > -np.inf:
+            required = min(c.termination.required(int(np.count_nonzero(best_inliers)), n), c.termination.max_iterations)
 
     report = dict(
         n_hypotheses=drawn,

@@ -105,20 +105,50 @@ class EstimatorOptions:
 
 
 MethodBuilder = Callable[[StereoProblem, EstimatorOptions, np.ndarray | None, np.ndarray | None, dict], RansacComponents]
+# A method that is not a sampling loop (e.g. inlier detection by maximum clique) estimates directly:
+# ``run(problem, options, priors, order, extra, rng) -> RansacReport``.
+MethodRunner = Callable[
+    [StereoProblem, EstimatorOptions, np.ndarray | None, np.ndarray | None, dict, np.random.Generator], RansacReport
+]
 
 
 @dataclass(frozen=True)
 class MethodSpec:
-    """A registered estimator: its recipe, a one-line description and its paper."""
+    """A registered estimator: its recipe (or direct runner), a one-line description and its paper.
+
+    Exactly one of ``build`` (a :class:`RansacComponents` recipe for the shared loop) and
+    ``runner`` (a direct estimator returning the loop's :class:`RansacReport`) is set.
+    """
 
     name: str
     description: str
     reference: str
-    build: MethodBuilder
+    build: MethodBuilder | None
     extra_options: tuple[str, ...] = ()  # method-specific keyword options besides EstimatorOptions
+    runner: MethodRunner | None = None
+
+    def run(
+        self,
+        problem: StereoProblem,
+        options: EstimatorOptions,
+        priors: np.ndarray | None,
+        order: np.ndarray | None,
+        extra: dict,
+        rng: np.random.Generator,
+    ) -> RansacReport:
+        """Estimate on ``problem``: the shared loop on the recipe, or the direct runner."""
+        if self.runner is not None:
+            return self.runner(problem, options, priors, order, extra, rng)
+        return run_ransac(problem, self.build(problem, options, priors, order, extra), rng)
 
 
 _METHODS: dict[str, MethodSpec] = {}
+
+
+def _register(spec: MethodSpec) -> None:
+    if spec.name in _METHODS:
+        raise ValueError(f"method {spec.name!r} is already registered")
+    _METHODS[spec.name] = spec
 
 
 def register_method(
@@ -127,10 +157,24 @@ def register_method(
     """Decorator registering ``build(problem, options, priors, order, extra) -> RansacComponents``."""
 
     def decorator(build: MethodBuilder) -> MethodBuilder:
-        if name in _METHODS:
-            raise ValueError(f"method {name!r} is already registered")
-        _METHODS[name] = MethodSpec(name, description, reference, build, tuple(extra_options))
+        _register(MethodSpec(name, description, reference, build, tuple(extra_options)))
         return build
+
+    return decorator
+
+
+def register_estimator(
+    name: str, description: str, reference: str, extra_options: tuple[str, ...] = ()
+) -> Callable[[MethodRunner], MethodRunner]:
+    """Decorator registering a method that is not a sampling loop.
+
+    The runner ``run(problem, options, priors, order, extra, rng) -> RansacReport`` reuses the
+    core's fit, refinement and scoring; :func:`estimate_motion` wraps its report like the loop's.
+    """
+
+    def decorator(runner: MethodRunner) -> MethodRunner:
+        _register(MethodSpec(name, description, reference, None, tuple(extra_options), runner))
+        return runner
 
     return decorator
 
@@ -331,8 +375,7 @@ def estimate_motion(
         priors = validate_priors(priors, problem.n)
     if order is not None:
         order = validate_order(order, problem.n)
-    components = spec.build(problem, shared, priors, order, extra)
-    report = run_ransac(problem, components, generator)
+    report = spec.run(problem, shared, priors, order, extra, generator)
     return MotionEstimate(
         rotation=report.rotation,
         translation=report.translation,

@@ -165,3 +165,26 @@ class ProsacSampler:
             first = anchored & (pool < SAMPLE_SIZE)
             ranks[first] = np.arange(SAMPLE_SIZE)
         return self.order[ranks]
+
+
+class ReplaySampler:
+    """Hands out minimal samples drawn elsewhere, in order: the policy-gradient trainer draws
+    samples from the network's distribution (recording their log-probabilities) and the
+    shared loop fits and scores exactly those."""
+
+    def __init__(self, samples: np.ndarray, n: int) -> None:
+        samples = np.asarray(samples, dtype=np.int64)
+        if samples.ndim != 2 or samples.shape[1] != SAMPLE_SIZE:
+            raise ValueError(f"samples must have shape (M, {SAMPLE_SIZE}), got {samples.shape}")
+        if samples.size and (samples.min() < 0 or samples.max() >= n):
+            raise ValueError(f"sample indices must lie in [0, {n})")
+        self.samples = samples
+        self.n = n
+        self.position = 0
+
+    def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
+        if self.position + batch > self.samples.shape[0]:
+            raise ValueError(f"replay exhausted: {self.samples.shape[0]} samples, asked for {self.position + batch}")
+        out = self.samples[self.position : self.position + batch]
+        self.position += batch
+        return out

@@ -1,0 +1,107 @@
+"""PROSAC's termination: non-randomness and maximality (Chum & Matas 2005): ALGORITHMS.md section 3.
+
+The sampler (:class:`~stereovo.estimation.samplers.ProsacSampler`) grows the
+set of top-ranked correspondences it draws from; this object decides when to
+stop and how far the set may grow. On every new best model it computes, for
+each prefix size n, the model's support ``I_n`` among the n top-ranked
+correspondences and picks the termination length ``n*`` minimising the
+draws ``k_n`` still needed among the prefixes that pass
+
+- non-randomness: ``I_n >= I_n^min``, the support a wrong model reaches with
+  probability below psi (normal approximation of the binomial:
+  ``I_n^min = m + (n - m) beta + z_{1-psi} sqrt((n - m) beta (1 - beta))``);
+- maximality: ``k_n = log(eta0) / log(1 - q_n)`` with ``q_n`` the chance that a
+  sample from ``U_n`` is all-inlier, ``prod_{j<m} (I_n - j) / (n - j)``;
+
+then lowers the sampler's ``n_max`` to ``n*`` and stops once ``t >= k_n*``.
+Guards used in practice: only prefixes with ``n >= min_n`` (20), and
+``I_n >= min_inlier_fraction * N`` (0.2) except for ``n = N`` itself, whose
+bound is plain RANSAC's on all correspondences (PROSAC never does worse than
+that; without the exemption a frame with fewer than 20 % inliers could never stop).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import norm
+
+from stereovo.estimation.loop import LoopState
+from stereovo.estimation.samplers import ProsacSampler
+from stereovo.estimation.solvers import SAMPLE_SIZE
+
+
+def non_random_minimum(n: np.ndarray, beta: float, psi: float, m: int = SAMPLE_SIZE) -> np.ndarray:
+    """``I_n^min`` ``(len(n),)``: support below which a model on ``U_n`` may be random (normal approx.)."""
+    n = np.maximum(np.asarray(n, dtype=float), m)
+    mu = (n - m) * beta
+    sigma = np.sqrt((n - m) * beta * (1 - beta))
+    return m + mu + sigma * norm.ppf(1 - psi)
+
+
+def prefix_draws(support: np.ndarray, n: np.ndarray, eta0: float, m: int = SAMPLE_SIZE) -> np.ndarray:
+    """``k_n = log(eta0) / log(1 - q_n)``, ``q_n = prod_{j<m} (I_n - j)/(n - j)``; inf when q_n = 0, 1 when q_n = 1."""
+    I = np.asarray(support, dtype=float)
+    n = np.asarray(n, dtype=float)
+    q = np.ones_like(I)
+    for j in range(m):
+        q = q * np.clip(I - j, 0, None) / np.maximum(n - j, 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.log(eta0) / np.log1p(-np.minimum(q, 1.0))
+    return np.where(q <= 0, np.inf, np.where(q >= 1, 1.0, k))
+
+
+@dataclass
+class ProsacTermination:
+    """PROSAC's stopping rule; a loop listener that lowers ``sampler.n_max`` to ``n*``.
+
+    Args:
+        sampler: the PROSAC sampler whose ``order`` ranks the correspondences.
+        confidence: ``eta0 = 1 - confidence`` (0.99 -> 0.01; the paper's 0.05 is confidence 0.95).
+        max_iterations: hard cap on draws.
+        beta: chance that a point is consistent with a wrong model.
+        psi: tolerated probability that the chosen support is random.
+        min_n: smallest prefix considered for termination.
+        min_inlier_fraction: ``I_n* / N`` below this is not trusted (except n* = N).
+    """
+
+    sampler: ProsacSampler
+    confidence: float = 0.99
+    max_iterations: int = 10_000
+    beta: float = 0.05
+    psi: float = 0.05
+    min_n: int = 20
+    min_inlier_fraction: float = 0.2
+
+    def __post_init__(self) -> None:
+        for name, ok in (
+            ("prosac_beta", 0 < self.beta < 1),
+            ("prosac_psi", 0 < self.psi < 1),
+            ("prosac_min_n", int(self.min_n) == self.min_n and self.min_n >= SAMPLE_SIZE + 1),
+            ("prosac_min_inlier_fraction", 0 <= self.min_inlier_fraction <= 1),
+        ):
+            if not ok:
+                raise ValueError(f"option {name} has an invalid value {getattr(self, name.removeprefix('prosac_'))!r}")
+        self.k_stop = float(self.max_iterations)  # draws after which PROSAC may stop
+        self.n_star: int | None = None
+
+    def on_new_best(self, inliers: np.ndarray, state: LoopState) -> None:
+        order = self.sampler.order
+        N = order.shape[0]
+        support = np.cumsum(inliers[order])  # support[n-1] = I_n
+        n = np.arange(1, N + 1)
+        ok = (n >= min(self.min_n, N)) & (support >= non_random_minimum(n, self.beta, self.psi))
+        ok &= (support >= self.min_inlier_fraction * N) | (n == N)
+        if not np.any(ok):
+            return  # no trustworthy prefix yet: keep drawing (n_max and the bound unchanged)
+        k = np.where(ok, prefix_draws(support, n, 1.0 - self.confidence), np.inf)
+        best = np.flatnonzero(k == np.min(k))[-1]  # ties: the largest prefix, the most data
+        if not np.isfinite(k[best]):
+            return
+        self.n_star = int(n[best])
+        self.k_stop = float(k[best])
+        self.sampler.n_max = self.n_star
+
+    def required(self, n_inliers: int, n: int) -> int:
+        return int(np.clip(np.ceil(self.k_stop), 1, self.max_iterations))
