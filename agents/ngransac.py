@@ -1,0 +1,281 @@
+"""NG-RANSAC-style policy-gradient training of the per-correspondence sampler.
+
+Brachmann & Rother 2019 (ALGORITHMS.md section 9): the network gives a
+distribution p over correspondences; a pool of M minimal samples drawn from p
+goes through the shared RANSAC core under the same fixed budget as the
+environment, and the expected task loss is minimised with the score-function
+gradient ``E[(loss - b) grad log p(pool)]``, ``b`` the mean loss of the K pools
+drawn for the same frame.
+
+Samples are drawn sequentially without replacement (the core's
+``WeightedSampler``), so ``log p(pool)`` is the sum over its triplets of the
+ordered-draw log-probability, computed here in torch to be differentiated.
+
+Frames come from simulated sequences, and features from
+``vo_gym.features.compute_features`` with the previous frame's estimated motion,
+exactly as the environment computes them.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import itertools
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterator
+
+import numpy as np
+import torch
+
+from agents.checkpoint import load_checkpoint, save_checkpoint
+from agents.network import CorrespondenceNet
+from stereovo.estimation import EstimatorOptions, MotionEstimate, StereoProblem, method_spec
+from stereovo.estimation.loop import run_ransac
+from stereovo.estimation.samplers import ReplaySampler, WeightedSampler
+from stereovo.geometry import rotation_error
+from stereovo.metrics import SUCCESS_ROT_DEG, SUCCESS_TRANS_M, SUCCESS_TRANS_REL
+from stereovo.simulation import Frame, Sequence, SimulationConfig
+from vo_gym.env import DEFAULT_ESTIMATOR_OPTIONS
+from vo_gym.features import N_FEATURES, compute_features
+
+LOSS_CAP = 4.0  # a pose that misses the success region by 4x or more all counts the same
+
+
+@dataclass
+class NGRansacConfig:
+    """Training settings (saved in every checkpoint).
+
+    Attributes:
+        loss: "supervised" (pose error against ground truth) or "self-supervised" (-inliers / N).
+        epsilon_range: contamination drawn per frame.
+        budget: hypotheses per pool (M), the environment's budget.
+        pools: pools per frame (K); their mean loss is the baseline.
+        frames: training frames (policy-gradient steps).
+        method: core method that fits and scores each pool.
+    """
+
+    loss: str = "supervised"
+    epsilon_range: tuple[float, float] = (0.3, 0.9)
+    n_correspondences: int = 500
+    noise_sigma: float = 0.5
+    score_auc: float = 0.75
+    outlier_mix: tuple[float, float, float] = (0.6, 0.2, 0.2)
+    frames_per_sequence: int = 25
+    budget: int = 16  # the agents' benchmark budget (the env's default is 32)
+    pools: int = 4
+    frames: int = 3000
+    learning_rate: float = 1e-3
+    width: int = 64
+    blocks: int = 3
+    method: str = "msac"  # the environment's default core method
+    seed: int = 0
+    eval_every: int = 250
+    eval_frames: int = 60
+    eval_epsilon: float = 0.8
+    keep_best: bool = True  # end with the weights that evaluated best, not the last ones
+
+    def __post_init__(self) -> None:
+        if self.loss not in ("supervised", "self-supervised"):
+            raise ValueError(f"loss must be 'supervised' or 'self-supervised', got {self.loss!r}")
+        lo, hi = self.epsilon_range
+        if not 0 <= lo <= hi < 1:
+            raise ValueError(f"epsilon_range must satisfy 0 <= low <= high < 1, got {self.epsilon_range}")
+        for name in ("budget", "pools", "frames", "frames_per_sequence", "width", "blocks", "eval_frames"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.pools < 2:
+            raise ValueError("pools must be >= 2: the baseline is the mean loss of the pools")
+        self.epsilon_range = (float(lo), float(hi))
+
+    def simulation(self, epsilon: float | tuple[float, float] | None = None) -> SimulationConfig:
+        return SimulationConfig(
+            n_frames=self.frames_per_sequence,
+            n_correspondences=self.n_correspondences,
+            noise_sigma=self.noise_sigma,
+            outlier_ratio=self.epsilon_range if epsilon is None else epsilon,
+            outlier_mix=self.outlier_mix,
+            score_auc=self.score_auc,
+        )
+
+
+def frame_stream(config: SimulationConfig, seed: int) -> Iterator[Frame]:
+    """Frames of consecutive sequences (the episode structure the environment uses)."""
+    for i in itertools.count():
+        yield from Sequence(config, seed=np.random.SeedSequence([seed, i]))
+
+
+def pose_loss(estimate: MotionEstimate, frame: Frame) -> float:
+    """Supervised task loss: the pose error in units of the success thresholds, capped.
+
+    ``< 1`` exactly when the frame counts as a success.
+    """
+    if not estimate.ok:
+        return LOSS_CAP
+    r_deg = float(np.degrees(rotation_error(estimate.rotation, frame.truth.rotation)))
+    t_true = float(np.linalg.norm(frame.truth.translation))
+    t_err = float(np.linalg.norm(estimate.translation - frame.truth.translation))
+    return min(max(r_deg / SUCCESS_ROT_DEG, t_err / max(SUCCESS_TRANS_M, SUCCESS_TRANS_REL * t_true)), LOSS_CAP)
+
+
+def inlier_loss(estimate: MotionEstimate, frame: Frame) -> float:
+    """Self-supervised task loss: minus the inlier fraction of the chosen model (no ground truth)."""
+    return -estimate.n_inliers / max(frame.n, 1)
+
+
+def run_pool(problem: StereoProblem, samples: np.ndarray, method: str, options: EstimatorOptions, rng: np.random.Generator) -> MotionEstimate:
+    """Fit, score and refine exactly ``samples`` with a core method (fixed budget = len(samples))."""
+    spec = method_spec(method)
+    if spec.build is None:
+        raise ValueError(f"method {method!r} is not a sampling method and cannot train a sampler")
+    components = spec.build(problem, options, None, None, {})
+    components.sampler = ReplaySampler(samples, problem.n)
+    report = run_ransac(problem, components, rng)
+    return MotionEstimate(
+        report.rotation, report.translation, report.inliers, report.status, report.n_hypotheses,
+        report.n_scored, report.n_point_checks, 0.0, method, report.score, report,
+    )
+
+
+def ordered_triplet_log_prob(log_p: torch.Tensor, samples: torch.Tensor) -> torch.Tensor:
+    """Log-probability ``(S,)`` of ordered triplets drawn sequentially without replacement from ``p``."""
+    picked = log_p[samples]  # (S, 3)
+    p = picked.exp()
+    taken = torch.cumsum(p, dim=1) - p
+    return (picked - torch.log1p(-taken.clamp(max=1 - 1e-6))).sum(dim=1)
+
+
+@dataclass
+class TrainingLog:
+    step: int
+    mean_loss: float
+    success_rate: float  # of the pools' estimates in this reporting window
+    eval_success: float | None = None
+
+
+@dataclass
+class NGRansacTrainer:
+    """Policy-gradient trainer. ``train()`` runs ``config.frames`` steps and returns the network
+    with the weights that scored best in the periodic evaluations (held-out seeds)."""
+
+    config: NGRansacConfig
+    net: CorrespondenceNet | None = None
+    on_log: Callable[[TrainingLog], None] | None = None
+    step: int = 0
+    history: list[TrainingLog] = field(default_factory=list)
+    best_eval: float = -1.0
+    best_state: dict | None = None
+
+    def __post_init__(self) -> None:
+        torch.manual_seed(self.config.seed)
+        if self.net is None:
+            self.net = CorrespondenceNet(N_FEATURES, self.config.width, self.config.blocks)
+        self.optimizer = torch.optim.Adam(self.net.parameters(), lr=self.config.learning_rate)
+        self.rng = np.random.default_rng(self.config.seed)
+        # The environment's estimator settings, so a policy trained here behaves the same in the env.
+        self.options = EstimatorOptions(
+            noise_sigma=self.config.noise_sigma, budget=self.config.budget, batch_size=self.config.budget,
+            **DEFAULT_ESTIMATOR_OPTIONS,
+        )
+        self.loss_fn = pose_loss if self.config.loss == "supervised" else inlier_loss
+
+    def _frame_loss(self, frame: Frame, previous_motion) -> tuple[torch.Tensor, list[float], list[bool], MotionEstimate]:
+        feats = compute_features(frame.prev, frame.curr, frame.scores, frame.camera, frame.noise_sigma, previous_motion)
+        problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+        x = torch.from_numpy(feats)[None]
+        mask = torch.ones(1, frame.n, dtype=torch.bool)
+        log_p = torch.log_softmax(self.net(x, mask)[0], dim=0)
+        sampler = WeightedSampler(log_p.detach().exp().double().numpy())
+        K, M = self.config.pools, self.config.budget
+        samples = sampler.draw(K * M, self.rng)
+        log_prob = ordered_triplet_log_prob(log_p, torch.from_numpy(samples)).view(K, M).sum(dim=1)
+        estimates = [run_pool(problem, samples[k * M : (k + 1) * M], self.config.method, self.options, self.rng) for k in range(K)]
+        losses = [self.loss_fn(e, frame) for e in estimates]
+        success = [pose_loss(e, frame) < 1.0 for e in estimates]
+        advantage = torch.tensor(losses) - float(np.mean(losses))
+        objective = (advantage * log_prob).mean()
+        return objective, losses, success, estimates[0]
+
+    def train(self, frames: int | None = None, progress: bool = False) -> CorrespondenceNet:
+        from tqdm import tqdm
+
+        frames = self.config.frames if frames is None else frames
+        stream = frame_stream(self.config.simulation(), self.config.seed * 7919 + self.step)
+        previous_motion = None
+        window_loss, window_success = [], []
+        self.net.train()
+        bar = tqdm(total=frames, desc=f"ngransac ({self.config.loss})", disable=not progress, unit="frame")
+        for i in range(frames):
+            frame = next(stream)
+            if frame.index == 1:
+                previous_motion = None  # a new sequence: no constant-velocity prediction yet
+            objective, losses, success, first = self._frame_loss(frame, previous_motion)
+            self.optimizer.zero_grad()
+            objective.backward()
+            self.optimizer.step()
+            if first.ok:  # like the environment: a failed frame keeps the last good motion
+                previous_motion = (first.rotation, first.translation)
+            window_loss.extend(losses)
+            window_success.extend(success)
+            self.step += 1
+            bar.update()
+            if self.step % self.config.eval_every == 0 or i == frames - 1:
+                entry = TrainingLog(self.step, float(np.mean(window_loss)), float(np.mean(window_success)))
+                entry.eval_success = self.evaluate(self.config.eval_frames)
+                self.history.append(entry)
+                if entry.eval_success >= self.best_eval:
+                    # Policy-gradient estimates are noisy: keep the weights that evaluated best.
+                    self.best_eval = entry.eval_success
+                    self.best_state = copy.deepcopy(self.net.state_dict())
+                bar.set_postfix(loss=f"{entry.mean_loss:.3f}", train_succ=f"{entry.success_rate:.2f}", eval_succ=f"{entry.eval_success:.2f}")
+                if self.on_log:
+                    self.on_log(entry)
+                window_loss, window_success = [], []
+                self.net.train()
+        bar.close()
+        if self.config.keep_best and self.best_state is not None:
+            self.net.load_state_dict(self.best_state)
+        return self.net
+
+    @torch.no_grad()
+    def evaluate(self, n_frames: int, epsilon: float | None = None, seed: int = 10_000) -> float:
+        """Success rate at ``eval_epsilon`` (held-out seeds), one pool of ``budget`` hypotheses per frame."""
+        self.net.eval()
+        epsilon = self.config.eval_epsilon if epsilon is None else epsilon
+        stream = frame_stream(self.config.simulation(epsilon), seed)
+        rng = np.random.default_rng(seed)
+        previous_motion, ok = None, []
+        for _ in range(n_frames):
+            frame = next(stream)
+            if frame.index == 1:
+                previous_motion = None
+            feats = compute_features(frame.prev, frame.curr, frame.scores, frame.camera, frame.noise_sigma, previous_motion)
+            logits = self.net(torch.from_numpy(feats)[None], torch.ones(1, frame.n, dtype=torch.bool))[0]
+            p = torch.softmax(logits.double(), 0).numpy()
+            problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+            samples = WeightedSampler(p).draw(self.config.budget, rng)
+            est = run_pool(problem, samples, self.config.method, self.options, rng)
+            ok.append(pose_loss(est, frame) < 1.0)
+            if est.ok:
+                previous_motion = (est.rotation, est.translation)
+        return float(np.mean(ok))
+
+    def save(self, path: str | Path) -> Path:
+        state = {"step": self.step, "optimizer": self.optimizer.state_dict(), "history": [dataclasses.asdict(h) for h in self.history]}
+        return save_checkpoint(path, self.net, {"algo": "ngransac", **dataclasses.asdict(self.config)}, state)
+
+    @classmethod
+    def resume(cls, path: str | Path, **overrides) -> "NGRansacTrainer":
+        net, payload = load_checkpoint(path)
+        cfg = {k: v for k, v in payload["config"].items() if k != "algo"}
+        cfg.update(overrides)
+        for key in ("epsilon_range", "outlier_mix"):
+            cfg[key] = tuple(cfg[key])
+        trainer = cls(NGRansacConfig(**cfg), net=net)
+        state = payload.get("trainer_state", {})
+        if "optimizer" in state:
+            trainer.optimizer.load_state_dict(state["optimizer"])
+        trainer.step = int(state.get("step", 0))
+        trainer.history = [TrainingLog(**h) for h in state.get("history", [])]
+        trainer.rng = np.random.default_rng([trainer.config.seed, trainer.step])
+        return trainer

@@ -1,0 +1,123 @@
+"""The learned sampler: equivariance, padding, the policy-gradient estimator, checkpoints, training."""
+
+import numpy as np
+import pytest
+import torch
+
+from agents.checkpoint import LearnedPolicy, load_checkpoint, save_checkpoint
+from agents.network import CorrespondenceNet
+from agents.ngransac import NGRansacConfig, NGRansacTrainer, ordered_triplet_log_prob
+from stereovo.estimation.samplers import WeightedSampler
+from vo_gym.features import N_FEATURES
+
+
+def test_network_is_permutation_equivariant_and_padding_independent():
+    torch.manual_seed(0)
+    net = CorrespondenceNet(N_FEATURES, width=16, blocks=2).eval()
+    x = torch.randn(1, 50, N_FEATURES)
+    mask = torch.ones(1, 50, dtype=torch.bool)
+    logits = net(x, mask)
+    perm = torch.randperm(50)
+    torch.testing.assert_close(net(x[:, perm], mask)[0], logits[0, perm], atol=1e-5, rtol=1e-5)
+    # Pad with garbage rows: the valid logits must not move.
+    padded = torch.cat([x, 100 * torch.randn(1, 30, N_FEATURES)], dim=1)
+    padded_mask = torch.cat([mask, torch.zeros(1, 30, dtype=torch.bool)], dim=1)
+    out = net(padded, padded_mask)
+    torch.testing.assert_close(out[0, :50], logits[0], atol=1e-5, rtol=1e-5)
+    assert torch.all(out[0, 50:] < -1e3)
+    # Same weights, any N.
+    assert net(torch.randn(2, 7, N_FEATURES), torch.ones(2, 7, dtype=torch.bool)).shape == (2, 7)
+
+
+def test_ordered_triplet_log_prob_matches_core_sampler():
+    p = np.array([0.4, 0.3, 0.2, 0.05, 0.05])
+    samples = np.array([[0, 1, 2], [4, 3, 0], [2, 0, 1]])
+    ours = ordered_triplet_log_prob(torch.log(torch.tensor(p)), torch.from_numpy(samples)).numpy()
+    np.testing.assert_allclose(ours, WeightedSampler(p).log_probability(samples), rtol=1e-9)
+
+
+def test_policy_gradient_raises_probability_of_all_inlier_sets():
+    # Toy frame: 12 correspondences, the first 4 are inliers; a pool "succeeds" (loss 0)
+    # when one of its triplets is all-inlier. The score-function estimator with the
+    # mean-of-pools baseline must push probability mass onto the inliers.
+    torch.manual_seed(0)
+    rng = np.random.default_rng(0)
+    logits = torch.zeros(12, requires_grad=True)
+    opt = torch.optim.SGD([logits], lr=0.5)
+    inlier = np.arange(12) < 4
+
+    def all_inlier_probability() -> float:
+        p = torch.softmax(logits.detach().double(), 0).numpy()
+        q = WeightedSampler(p)
+        triplets = np.array([(a, b, c) for a in range(4) for b in range(4) for c in range(4) if len({a, b, c}) == 3])
+        return float(np.exp(q.log_probability(triplets)).sum())
+
+    before = all_inlier_probability()
+    for _ in range(60):
+        log_p = torch.log_softmax(logits, 0)
+        samples = WeightedSampler(log_p.detach().exp().double().numpy()).draw(4 * 2, rng)
+        lp = ordered_triplet_log_prob(log_p, torch.from_numpy(samples)).view(4, 2).sum(1)
+        losses = torch.tensor([0.0 if inlier[samples[2 * k : 2 * k + 2]].all(axis=1).any() else 1.0 for k in range(4)])
+        objective = ((losses - losses.mean()) * lp).mean()
+        opt.zero_grad()
+        objective.backward()
+        opt.step()
+    after = all_inlier_probability()
+    assert before == pytest.approx(4 * 3 * 2 / (12 * 11 * 10))
+    assert after > 5 * before
+
+
+def test_checkpoint_round_trip_and_layout_refusal(tmp_path):
+    net = CorrespondenceNet(N_FEATURES, width=8, blocks=1)
+    path = save_checkpoint(tmp_path / "a.pt", net, {"algo": "test"})
+    loaded, payload = load_checkpoint(path)
+    x, m = torch.randn(1, 20, N_FEATURES), torch.ones(1, 20, dtype=torch.bool)
+    torch.testing.assert_close(loaded(x, m), net.eval()(x, m))
+    assert payload["config"] == {"algo": "test"}
+    obs = {"features": x[0].numpy(), "mask": np.ones(20, dtype=np.int8)}
+    action = LearnedPolicy(loaded).act(obs)
+    assert action.shape == (20,) and action.dtype == np.float32
+
+    payload["feature_names"] = payload["feature_names"][::-1]
+    torch.save(payload, tmp_path / "b.pt")
+    with pytest.raises(ValueError, match="feature layout"):
+        load_checkpoint(tmp_path / "b.pt")
+    with pytest.raises(FileNotFoundError):
+        load_checkpoint(tmp_path / "missing.pt")
+
+
+def _inlier_mass(net, frames) -> float:
+    """Mean probability the network puts on the true inliers (test-only: reads labels)."""
+    from vo_gym.features import compute_features
+
+    masses = []
+    with torch.no_grad():
+        for frame in frames:
+            feats = compute_features(frame.prev, frame.curr, frame.scores, frame.camera, frame.noise_sigma)
+            p = torch.softmax(net(torch.from_numpy(feats)[None], torch.ones(1, frame.n, dtype=torch.bool))[0], 0)
+            masses.append(float(p[torch.from_numpy(frame.truth.inlier)].sum()))
+    return float(np.mean(masses))
+
+
+def test_short_training_lowers_the_loss_on_a_fixed_seed(tmp_path):
+    from stereovo.simulation import simulate_frame
+
+    config = NGRansacConfig(
+        n_correspondences=150, epsilon_range=(0.75, 0.75), outlier_mix=(0.8, 0.2, 0.0), budget=6, pools=4,
+        frames=100, learning_rate=1e-2, width=16, blocks=1, eval_every=50, eval_frames=10, frames_per_sequence=10, seed=3,
+        keep_best=False,
+    )
+    held_out = [simulate_frame(config.simulation(0.75), np.random.default_rng(1000 + i)) for i in range(20)]
+    trainer = NGRansacTrainer(config)
+    mass_before = _inlier_mass(trainer.net, held_out)
+    trainer.train()
+    mass_after = _inlier_mass(trainer.net, held_out)
+    # The policy learns where to sample: more mass on inliers, and a lower pool loss late in training.
+    assert mass_after > mass_before + 0.05
+    assert trainer.history[-1].mean_loss < trainer.history[0].mean_loss
+    # Resuming restores the step count and weights.
+    path = trainer.save(tmp_path / "ng.pt")
+    resumed = NGRansacTrainer.resume(path)
+    assert resumed.step == 100
+    for a, b in zip(resumed.net.state_dict().values(), trainer.net.state_dict().values()):
+        torch.testing.assert_close(a, b)

@@ -1,0 +1,298 @@
+"""vo_gym.StereoVOEnv: registration, both env checkers, spaces, validation, determinism, no label leak."""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import math
+import pickle
+import subprocess
+import sys
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+from gymnasium.utils.env_checker import data_equivalence
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+import vo_gym
+import vo_gym.env as env_module
+from stereovo.estimation import available_methods
+from stereovo.simulation import Sequence, SimulationConfig
+from vo_gym import ENV_IDS, FEATURE_NAMES, N_FEATURES, StereoVOEnv
+
+SHORT = dict(n_frames=4)  # short episodes: the checkers then also cross an episode end
+
+
+def _rollout(env, seed, n_steps=None, action_seed=0):
+    """Observations, rewards, truncations and infos of one episode under seeded random actions."""
+    rng = np.random.default_rng(action_seed)
+    obs, info = env.reset(seed=seed)
+    record = [(obs, 0.0, False, info)]
+    for _ in range(n_steps or env.unwrapped.sim_config.n_frames):
+        action = rng.uniform(-3, 3, env.action_space.shape).astype(np.float32)
+        obs, reward, terminated, truncated, info = env.step(action)
+        assert terminated is False
+        record.append((obs, reward, truncated, info))
+    return record
+
+
+def _same(a, b) -> bool:
+    return data_equivalence(a, b, exact=True)
+
+
+# ---------------------------------------------------------------------------- registration and checkers
+
+
+def test_registered_ids():
+    assert set(ENV_IDS) >= {"vo_gym/StereoVO-v0", "vo_gym/StereoVOProsac-v0", "vo_gym/StereoVOHard-v0"}
+    for env_id in ENV_IDS:
+        assert env_id in gym.registry
+    vo_gym.register_envs()  # idempotent
+
+
+@pytest.mark.parametrize("env_id", sorted(ENV_IDS))
+def test_gymnasium_check_env(env_id):
+    env = gym.make(env_id, **SHORT)
+    with warnings.catch_warnings():
+        # The logit Box [-10, 10] is deliberately not [-1, 1] (see the env docstring).
+        warnings.filterwarnings("ignore", message=".*symmetric and normalized")
+        gym_check_env(env.unwrapped)
+    env.close()
+
+
+@pytest.mark.parametrize("env_id", sorted(ENV_IDS))
+def test_sb3_check_env(env_id):
+    env = gym.make(env_id, **SHORT)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*symmetric and normalized")
+        warnings.filterwarnings("ignore", message=".*unconventional shape")  # (N, F) needs a custom policy
+        sb3_check_env(env.unwrapped, warn=True)
+    env.close()
+
+
+def test_make_without_import_by_module_prefix():
+    code = (
+        "import sys, gymnasium as gym\n"
+        "assert 'vo_gym' not in sys.modules\n"
+        "env = gym.make('vo_gym:vo_gym/StereoVO-v0', n_frames=2, n_correspondences=60)\n"
+        "obs, _ = env.reset(seed=0)\n"
+        "print(type(env.unwrapped).__name__, obs['features'].shape)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == f"StereoVOEnv (60, {N_FEATURES})"
+
+
+def test_docstring_states_the_contract():
+    doc = StereoVOEnv.__doc__
+    for section in ("## Action Space", "## Observation Space", "## Rewards", "## Episode End", "## Arguments"):
+        assert section in doc
+    for name in inspect.signature(StereoVOEnv.__init__).parameters:
+        if name not in ("self", "estimator_options"):
+            assert f"``{name}``" in doc, f"argument {name} is not documented"
+
+
+def test_simulator_defaults_match_the_simulator():
+    params = inspect.signature(StereoVOEnv.__init__).parameters
+    for field in dataclasses.fields(SimulationConfig):
+        if field.name != "camera":
+            assert params[field.name].default == field.default, field.name
+
+
+# ---------------------------------------------------------------------------- spaces and episodes
+
+
+def test_spaces_and_episode_end():
+    env = StereoVOEnv(n_frames=3, n_correspondences=120)
+    assert env.observation_space["features"].shape == (120, N_FEATURES)
+    assert env.observation_space["features"].dtype == np.float32
+    assert env.action_space.shape == (120,)
+    record = _rollout(env, seed=3)
+    assert [r[2] for r in record] == [False, False, False, True]
+    for obs, reward, _, info in record:
+        assert obs in env.observation_space
+        assert -1.0 <= reward <= 1.0
+    final = record[-1][3]["trajectory"]
+    assert final["n_poses"] == 4 and 0.0 <= final["success_rate"] <= 1.0
+    assert all(not (isinstance(v, float) and math.isnan(v)) for v in final.values())
+    assert "trajectory" not in record[-2][3]
+    for key in ("rot_err_deg", "trans_err_m", "success", "precision", "recall", "n_hypotheses", "n_point_checks"):
+        assert key in record[1][3]
+    assert not any("time" in key for _, _, _, info in record for key in info)
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(env.action_space.sample())
+    assert env.estimated_poses.shape == env.true_poses.shape == (4, 4, 4)
+
+
+def test_padding_and_action_validation():
+    env = StereoVOEnv(n_frames=2, n_correspondences=50, max_correspondences=64)
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros(64, np.float32))
+    obs, _ = env.reset(seed=0)
+    assert obs["features"].shape == (64, N_FEATURES)
+    assert obs["mask"].sum() == 50 and np.all(obs["mask"][50:] == 0) and np.all(obs["features"][50:] == 0)
+    for bad, match in ((np.zeros(50), "shape"), (np.zeros((64, 1)), "shape"), ("logits", "numeric")):
+        with pytest.raises(ValueError, match=match):
+            env.step(bad)
+    nan = np.zeros(64)
+    nan[7] = np.nan
+    with pytest.raises(ValueError, match="NaN or inf"):
+        env.step(nan)
+    masked = np.zeros(64)
+    masked[50:] = -np.inf  # masked logits in padded slots are ignored
+    env.step(masked)
+    env.step(np.full(64, 1e6))  # out-of-Box values are clipped
+    assert env.frame_index == 3
+
+
+@pytest.mark.filterwarnings("ignore:.*render_mode")
+@pytest.mark.parametrize(
+    "kwargs, error, match",
+    [
+        (dict(outlier_ratio=1.5), ValueError, "outlier_ratio"),
+        (dict(n_correspondences=2), ValueError, "n_correspondences"),
+        (dict(preset="boat"), ValueError, "preset"),
+        (dict(max_correspondences=100), ValueError, "max_correspondences"),
+        (dict(sampling="lottery"), ValueError, "sampling"),
+        (dict(reward_mode="vibes"), ValueError, "reward_mode"),
+        (dict(budget=0), ValueError, "budget"),
+        (dict(budget=2.5), ValueError, "budget"),
+        (dict(method="magic"), ValueError, "unknown method"),
+        (dict(confidence=1.5), ValueError, "confidence"),
+        (dict(threshold_px=-1.0), ValueError, "threshold_px"),
+        (dict(action_bound=0.0), ValueError, "action_bound"),
+        (dict(success_bonus=2.0), ValueError, "success_bonus"),
+        (dict(failure_reward=-3.0), ValueError, "failure_reward"),
+        (dict(render_mode="ansi"), ValueError, "render_mode"),
+        (dict(noise_sigma=0.0), ValueError, "estimator_noise_sigma"),
+        (dict(bogus=1), TypeError, "bogus"),
+    ],
+)
+def test_invalid_settings_are_rejected_by_make(kwargs, error, match):
+    with pytest.raises(error, match=match):
+        gym.make("vo_gym/StereoVO-v0", n_correspondences=kwargs.pop("n_correspondences", 200), **kwargs)
+
+
+@pytest.mark.skipif("mlesac" not in available_methods() or "prosac" not in available_methods(),
+                    reason="the classical methods are not registered")
+def test_method_options_and_sampling_are_checked_when_made():
+    with pytest.raises(ValueError, match="mlesac_em_iterations"):
+        StereoVOEnv(n_correspondences=100, method="mlesac", mlesac_em_iterations=0)
+    with pytest.raises(TypeError, match="sprt_t_m"):
+        StereoVOEnv(n_correspondences=100, method="mlesac", sprt_t_m=10)
+    with pytest.raises(ValueError, match="sampling='guided'"):  # PROSAC needs an order, not priors
+        StereoVOEnv(n_correspondences=100, method="prosac", sampling="guided")
+    StereoVOEnv(n_correspondences=100, method="prosac", sampling="prosac")
+
+
+def test_estimator_settings_pass_through():
+    env = gym.make("vo_gym/StereoVO-v0", n_frames=2, n_correspondences=100, budget=8, batch_size=4,
+                   method="ransac", refine=False, threshold_px=2.0)
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(np.zeros(100, np.float32))
+    assert info["n_hypotheses"] == 8
+    options = env.unwrapped.estimator_options
+    assert (options.budget, options.batch_size, options.refine, options.threshold_px) == (8, 4, False, 2.0)
+    noise_free = StereoVOEnv(n_frames=1, n_correspondences=80, noise_sigma=0.0, estimator_noise_sigma=0.3)
+    noise_free.reset(seed=0)
+    assert noise_free.step(np.zeros(80))[4]["success"]
+
+
+# ---------------------------------------------------------------------------- determinism
+
+
+@pytest.mark.parametrize("sampling", ["guided", "prosac"])
+def test_same_seed_same_actions_identical_episodes(sampling):
+    kwargs = dict(sampling=sampling, n_frames=5, n_correspondences=200, outlier_ratio=(0.4, 0.7))
+    a = _rollout(StereoVOEnv(**kwargs), seed=11)
+    b = _rollout(gym.make("vo_gym/StereoVO-v0", **kwargs), seed=11)
+    assert len(a) == len(b)
+    for (obs_a, r_a, tr_a, info_a), (obs_b, r_b, tr_b, info_b) in zip(a, b):
+        assert _same(obs_a, obs_b) and r_a == r_b and tr_a == tr_b and _same(info_a, info_b)
+    c = _rollout(StereoVOEnv(**kwargs), seed=12)
+    assert not _same(a[1][0], c[1][0])
+
+
+def test_reset_seed_reproduces_on_the_same_env_and_after_pickling():
+    env = StereoVOEnv(n_frames=3, n_correspondences=150, outlier_ratio=0.6)
+    first = _rollout(env, seed=5)
+    again = _rollout(env, seed=5)
+    assert all(_same(x[0], y[0]) and x[1] == y[1] and _same(x[3], y[3]) for x, y in zip(first, again))
+    # Mid-episode pickling (AsyncVectorEnv / SubprocVecEnv ship envs between processes) keeps the stream.
+    env.reset(seed=5)
+    env.step(np.zeros(150))
+    clone = pickle.loads(pickle.dumps(env))
+    action = np.linspace(-1, 1, 150)
+    out_a, out_b = env.step(action), clone.step(action)
+    assert _same(out_a[0], out_b[0]) and out_a[1] == out_b[1] and _same(out_a[4], out_b[4])
+
+
+# ---------------------------------------------------------------------------- no label leak
+
+
+class _ShuffledLabelSequence(Sequence):
+    """The same frames with every ground-truth label shuffled."""
+
+    def frame(self, k):
+        frame = super().frame(k)
+        rng = np.random.default_rng(1000 + k)
+        perm = rng.permutation(frame.n)
+        truth = dataclasses.replace(
+            frame.truth, inlier=frame.truth.inlier[perm], outlier_kind=frame.truth.outlier_kind[perm]
+        )
+        return dataclasses.replace(frame, truth=truth)
+
+
+@pytest.mark.parametrize("reward_mode", ["supervised", "msac", "inliers"])
+def test_shuffled_labels_give_identical_observations(monkeypatch, reward_mode):
+    kwargs = dict(n_frames=4, n_correspondences=200, outlier_ratio=0.6, reward_mode=reward_mode)
+    plain = _rollout(StereoVOEnv(**kwargs), seed=21)
+    monkeypatch.setattr(env_module, "Sequence", _ShuffledLabelSequence)
+    shuffled = _rollout(StereoVOEnv(**kwargs), seed=21)
+    for (obs_a, r_a, _, info_a), (obs_b, r_b, _, info_b) in zip(plain, shuffled):
+        assert _same(obs_a, obs_b)
+        if reward_mode != "supervised":  # self-supervised rewards need no labels either
+            assert r_a == r_b
+    # The labels did change: precision against them collapses.
+    assert np.mean([x[3]["precision"] for x in shuffled[1:]]) < np.mean([x[3]["precision"] for x in plain[1:]]) - 0.2
+
+
+# ---------------------------------------------------------------------------- rewards and rendering
+
+
+def test_reward_modes_are_bounded_and_ordered():
+    for mode in ("supervised", "inliers", "msac"):
+        env = StereoVOEnv(n_frames=2, n_correspondences=200, outlier_ratio=0.3, reward_mode=mode, hypothesis_cost=0.0)
+        env.reset(seed=0)
+        inlier = env.current_frame.truth.inlier
+        good = env.step(np.where(inlier, 10.0, -10.0))[1]
+        assert -1.0 <= good <= 1.0
+        if mode == "inliers":
+            assert abs(good - np.mean(inlier)) < 0.1  # the inlier fraction of a correct model
+        if mode == "supervised":
+            assert good > 0.5
+    fail = StereoVOEnv(n_frames=1, n_correspondences=100, min_inliers=99, failure_reward=-0.7)
+    fail.reset(seed=0)
+    _, reward, _, _, info = fail.step(np.zeros(100))
+    assert info["status"] != "ok" and info["fallback"] and reward == -0.7
+
+
+def test_render_rgb_array():
+    env = gym.make("vo_gym/StereoVOProsac-v0", n_frames=2, n_correspondences=100, render_mode="rgb_array")
+    env.reset(seed=0)
+    first = env.render()
+    env.step(np.linspace(-1, 1, 100, dtype=np.float32))
+    image = env.render()
+    assert image.dtype == np.uint8 and image.ndim == 3 and image.shape[2] == 3
+    assert image.shape == first.shape and not np.array_equal(image, first)
+    with pytest.warns(UserWarning, match="render_mode"):
+        assert StereoVOEnv(n_frames=1).render() is None  # no render_mode: nothing to draw
+
+
+def test_feature_layout_is_exposed():
+    env = StereoVOEnv(n_frames=1, n_correspondences=50)
+    assert env.feature_names == FEATURE_NAMES == vo_gym.FEATURE_NAMES
+    assert env.feature_layout_version == vo_gym.FEATURE_LAYOUT_VERSION

@@ -1,0 +1,103 @@
+"""``vo-gym train``: train a learned sampling policy.
+
+``--algo ngransac`` runs the NG-RANSAC-style policy-gradient trainer
+(:mod:`agents.ngransac`); ``--algo ppo`` runs stable-baselines3 PPO on the
+environment through the equivariant custom policy (:mod:`agents.ppo`). Both
+show a progress bar, log to TensorBoard under ``<out>/tb``, evaluate
+periodically and write checkpoints that carry their config and feature layout;
+``--resume CHECKPOINT`` continues from one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+
+def add_parser(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--algo", choices=("ngransac", "ppo"), default="ngransac")
+    parser.add_argument("--out", default="runs/train", help="directory for checkpoints and TensorBoard logs")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--resume", default=None, help="checkpoint to continue from")
+    parser.add_argument("--no-progress", action="store_true")
+    ng = parser.add_argument_group("ngransac")
+    ng.add_argument("--loss", choices=("supervised", "self-supervised"), default="supervised",
+                    help="task loss: pose error against ground truth, or minus the inlier fraction (no ground truth)")
+    ng.add_argument("--frames", type=int, default=None,
+                    help="total training frames (policy-gradient steps; default 1500); with --resume, the new total")
+    ng.add_argument("--epsilon", default="0.3:0.9", help="training contamination, a value or a range lo:hi")
+    ng.add_argument("--budget", type=int, default=16, help="hypotheses per pool (the env's budget)")
+    ng.add_argument("--pools", type=int, default=4, help="pools per frame; their mean loss is the baseline")
+    ng.add_argument("--lr", type=float, default=3e-4)
+    ng.add_argument("--eval-every", type=int, default=250)
+    ng.add_argument("--eval-frames", type=int, default=100)
+    ppo = parser.add_argument_group("ppo")
+    ppo.add_argument("--timesteps", type=int, default=20_000, help="PPO environment steps")
+    ppo.add_argument("--env-id", default="vo_gym/StereoVO-v0")
+    ppo.add_argument("--n-envs", type=int, default=2)
+
+
+def _epsilon_range(text: str) -> tuple[float, float]:
+    try:
+        parts = [float(v) for v in text.split(":")]
+    except ValueError:
+        raise SystemExit(f"vo-gym train: error: --epsilon must be a number or lo:hi, got {text!r}")
+    if len(parts) == 1:
+        parts = parts * 2
+    if len(parts) != 2:
+        raise SystemExit(f"vo-gym train: error: --epsilon must be a number or lo:hi, got {text!r}")
+    return parts[0], parts[1]
+
+
+def _train_ngransac(args: argparse.Namespace, out: Path) -> int:
+    from torch.utils.tensorboard import SummaryWriter
+
+    from agents.ngransac import NGRansacConfig, NGRansacTrainer
+
+    try:
+        if args.resume:
+            overrides = {} if args.frames is None else {"frames": args.frames}
+            trainer = NGRansacTrainer.resume(args.resume, **overrides)
+        else:
+            config = NGRansacConfig(
+                loss=args.loss, epsilon_range=_epsilon_range(args.epsilon), budget=args.budget, pools=args.pools,
+                frames=1500 if args.frames is None else args.frames, learning_rate=args.lr, seed=args.seed, eval_every=args.eval_every,
+                eval_frames=args.eval_frames,
+            )
+            trainer = NGRansacTrainer(config)
+    except (ValueError, FileNotFoundError) as err:
+        raise SystemExit(f"vo-gym train: error: {err}")
+    writer = SummaryWriter(str(out / "tb"))
+    checkpoint = out / f"ngransac-{trainer.config.loss}.pt"
+
+    def log(entry) -> None:
+        writer.add_scalar("train/mean_loss", entry.mean_loss, entry.step)
+        writer.add_scalar("train/pool_success", entry.success_rate, entry.step)
+        if entry.eval_success is not None:
+            writer.add_scalar(f"eval/success_eps{trainer.config.eval_epsilon}", entry.eval_success, entry.step)
+        trainer.save(checkpoint)  # periodic checkpoint at every evaluation
+
+    trainer.on_log = log
+    remaining = max(trainer.config.frames - trainer.step, 0)
+    trainer.train(frames=remaining, progress=not args.no_progress)
+    trainer.save(checkpoint)
+    writer.close()
+    summary = {"checkpoint": str(checkpoint), "steps": trainer.step, "history": [vars(h) for h in trainer.history]}
+    (out / "training.json").write_text(json.dumps(summary, indent=2))
+    last = trainer.history[-1] if trainer.history else None
+    print(f"checkpoint: {checkpoint}")
+    if last is not None:
+        print(f"step {last.step}: mean loss {last.mean_loss:.3f}, success at eps {trainer.config.eval_epsilon} "
+              f"with {trainer.config.budget} hypotheses: {last.eval_success:.3f}")
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    if args.algo == "ngransac":
+        return _train_ngransac(args, out)
+    from agents.ppo import train_ppo_command
+
+    return train_ppo_command(args, out)

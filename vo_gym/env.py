@@ -1,0 +1,540 @@
+"""``StereoVOEnv``: stereo visual odometry as a Gymnasium environment (DESIGN.md section 6).
+
+An agent watches the putative matches of each frame pair and answers with a
+value per match: logits of guided-sampling weights, or scores whose ranking is
+the PROSAC order. The shared estimator core (:func:`stereovo.estimation.estimate_motion`)
+turns them into a motion under a hypothesis budget; the motion is chained into
+a trajectory and rewarded.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from stereovo.camera import StereoCamera
+from stereovo.estimation import EstimatorOptions, estimate_motion, method_spec
+from stereovo.geometry import pose_update
+from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, frame_metrics, trajectory_metrics
+from stereovo.simulation import Frame, Sequence, SimulationConfig, simulate_frame
+from vo_gym.features import FEATURE_BOUND, FEATURE_LAYOUT_VERSION, FEATURE_NAMES, N_FEATURES, compute_features
+from vo_gym.rewards import REWARD_MODES, inlier_reward, msac_reward, pose_error_ratio, supervised_reward
+
+__all__ = ["StereoVOEnv", "SAMPLING_MODES", "DEFAULT_ESTIMATOR_OPTIONS"]
+
+SAMPLING_MODES: tuple[str, ...] = ("guided", "prosac")
+
+DEFAULT_ESTIMATOR_OPTIONS: dict[str, Any] = {"local_refit": False, "refine_iterations": 3}
+"""The environment's defaults for :class:`~stereovo.estimation.EstimatorOptions` fields it
+changes (the rest keep the core's defaults): the final refinement stays, the per-hypothesis
+local refit goes, which keeps a step fast; pass either as a keyword to change it."""
+
+# FrameMetrics fields that must not reach info: wall-clock time breaks determinism.
+_NON_DETERMINISTIC_METRICS = ("time_s",)
+
+
+def _finite_number(name: str, value: Any, low: float | None = None, high: float | None = None,
+                   low_open: bool = False) -> float:
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    ok = ok and math.isfinite(float(value))
+    if ok and low is not None:
+        ok = float(value) > low if low_open else float(value) >= low
+    if ok and high is not None:
+        ok = float(value) <= high
+    if not ok:
+        bounds = []
+        if low is not None:
+            bounds.append(f"{'>' if low_open else '>='} {low:g}")
+        if high is not None:
+            bounds.append(f"<= {high:g}")
+        rule = "a finite number" + (" " + " and ".join(bounds) if bounds else "")
+        raise ValueError(f"StereoVOEnv: {name} must be {rule}, got {value!r}")
+    return float(value)
+
+
+def _positive_int(name: str, value: Any, allow_none: bool = False) -> int | None:
+    if value is None and allow_none:
+        return None
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 1:
+        rule = "None or an integer >= 1" if allow_none else "an integer >= 1"
+        raise ValueError(f"StereoVOEnv: {name} must be {rule}, got {value!r}")
+    return int(value)
+
+
+def _nan_to_none(value: Any) -> Any:
+    """NaN breaks equality checks of infos (NaN != NaN): 'not available' is reported as None."""
+    if isinstance(value, float) and math.isnan(value):
+        return None
+    return value
+
+
+class StereoVOEnv(gym.Env):
+    """Stereo visual odometry on a simulated trajectory; the agent proposes RANSAC sampling priors.
+
+    ## Description
+
+    One episode is one simulated trajectory of ``n_frames`` frame pairs
+    (:class:`stereovo.simulation.Sequence`); one step is one frame pair
+    ``(k-1, k)`` with ``n_correspondences`` putative stereo matches, some of
+    them outliers (random mismatches, stereo mismatches, a moving object). The
+    agent answers with one value per match; the shared estimator core samples
+    minimal sets accordingly under a fixed hypothesis budget, refines the best
+    motion on its inliers, and the motion is chained into the estimated
+    trajectory (a failed estimate keeps the previous motion: constant-velocity
+    fallback).
+
+    Registered ids (``import vo_gym``, or ``"vo_gym:<id>"`` without it):
+    ``vo_gym/StereoVO-v0`` (guided), ``vo_gym/StereoVOProsac-v0`` (PROSAC), and
+    for benchmarking learned samplers ``vo_gym/StereoVOHard-v0`` /
+    ``vo_gym/StereoVOProsacHard-v0``: contamination drawn per frame from
+    [0.6, 0.85], 40 % of the outliers on a moving object, match-score AUC 0.6
+    (:data:`vo_gym.registration.HARD_SETTINGS`).
+
+    ## Action Space
+
+    ``Box(-action_bound, action_bound, (max_correspondences,), float32)``, one
+    value per correspondence slot; slots ``>= n_correspondences`` are padding
+    and ignored (their values may even be NaN or inf, e.g. masked logits).
+    Values outside the Box are clipped to it; NaN/inf in a valid slot or a
+    wrong shape raises ``ValueError``.
+
+    - ``sampling="guided"`` (``vo_gym/StereoVO-v0``): the values are logits;
+      the sampling weights are ``softmax(logit_scale * a)`` over the valid
+      slots, and each minimal set is three distinct matches drawn in
+      proportion to them (guided sampling, Tordoff & Murray).
+    - ``sampling="prosac"`` (``vo_gym/StereoVOProsac-v0``): the values are
+      scores; ``argsort(-a, stable)`` over the valid slots is the PROSAC order
+      (best first).
+
+    ## Observation Space
+
+    ``Dict(features=Box(-10, 10, (max_correspondences, F), float32),
+    mask=MultiBinary(max_correspondences))``: row i of ``features`` describes
+    match i of the current frame pair with what a real front end knows (match
+    score, image coordinates and disparities at k-1 and k, triangulated depth
+    and its uncertainty, the reprojection residual under the previous frame's
+    estimated motion, the rigid-consistency degree), never its ground-truth
+    label; the column layout is :data:`vo_gym.features.FEATURE_NAMES`
+    (version :data:`vo_gym.features.FEATURE_LAYOUT_VERSION`). ``mask`` is 1 on
+    valid rows and 0 on padding (whose features are 0).
+
+    ## Rewards
+
+    Bounded in ``[-1, 1]`` (:mod:`vo_gym.rewards`), chosen by ``reward_mode``:
+
+    - ``"supervised"``: with ``e`` the pose error relative to the success bounds
+      (1 deg, max(5 cm, 5 % of the true translation)),
+      ``success_bonus * [success] + (1 - success_bonus) * (1 - e) / (1 + e)
+      - hypothesis_cost * n_hypotheses``; ``failure_reward`` when the estimate fails.
+    - ``"inliers"``: inlier fraction of the chosen model (no ground truth).
+    - ``"msac"``: normalised MSAC score ``mean_i max(0, 1 - e_i^2 / T^2)`` of the
+      chosen model under the reprojection gate T (no ground truth).
+
+    ## Starting State
+
+    ``reset(seed=...)`` draws a new trajectory and the RANSAC sampler's stream
+    from ``self.np_random``: the same seed and the same actions reproduce an
+    episode exactly (observations, rewards and infos). The estimated pose
+    starts at the true first pose (the identity).
+
+    ## Episode End
+
+    There is no terminal state: ``terminated`` is always False. The episode is
+    truncated (``truncated=True``) after ``n_frames`` steps; the observation
+    returned then is that of the next frame pair of the same trajectory, so a
+    value function can bootstrap from it.
+
+    ## Info
+
+    Every step: ``frame`` (k), the frame's metrics from
+    :func:`stereovo.metrics.frame_metrics` without wall time (``rot_err_deg``,
+    ``trans_err_m``, ``t_true_norm_m``, ``success``, ``precision``, ``recall``,
+    ``n_inliers``, ``n_hypotheses``, ``n_scored``, ``n_point_checks``,
+    ``status``), ``pose_error_ratio`` (``e`` above), ``fallback`` (the
+    constant-velocity fallback was used) and ``outlier_ratio`` (the frame's
+    contamination). At the episode's end also ``trajectory``: the
+    :class:`stereovo.metrics.TrajectoryMetrics` fields (unavailable values, e.g.
+    KITTI drift on a trajectory shorter than 100 m, are None) plus
+    ``success_rate`` and ``failed_frames``. No wall-clock time enters the info
+    or the reward.
+
+    ## Arguments
+
+    Environment:
+
+    - ``sampling``: ``"guided"`` (logits -> weights) or ``"prosac"`` (scores -> order).
+    - ``reward_mode``: ``"supervised"``, ``"inliers"`` or ``"msac"``.
+    - ``max_correspondences``: observation/action rows; None means
+      ``n_correspondences``; must be ``>= n_correspondences``.
+    - ``action_bound``: the action Box is ``[-action_bound, action_bound]`` (default 10).
+    - ``logit_scale``: guided weights are ``softmax(logit_scale * a)`` (default 1);
+      e.g. ``action_bound=1, logit_scale=10`` gives an SB3-style ``[-1, 1]`` Box.
+    - ``success_bonus`` in [0, 1] (default 0.5), ``hypothesis_cost`` >= 0 per
+      hypothesis drawn (default 0.001; a constant under a fixed budget),
+      ``failure_reward`` in [-1, 1] (default -1): reward shaping (see Rewards).
+    - ``render_mode``: None or ``"rgb_array"`` (the trajectories so far and the
+      last frame's matches coloured by the agent's weights).
+    - ``kitti_lengths``: segment lengths (m) of the episode-end KITTI drift.
+
+    Simulator (each a :class:`stereovo.simulation.SimulationConfig` field):
+    ``preset`` (``"car"``/``"free"``), ``world`` (None, ``"street"``,
+    ``"open"``), ``n_frames`` (steps per episode), ``n_correspondences``,
+    ``noise_sigma`` (px), ``outlier_ratio`` (a number or a ``(low, high)`` range
+    drawn per frame), ``outlier_mix`` (weights of random / stereo / moving-object
+    outliers), ``score_auc`` (match-score informativeness, 0.5 = useless),
+    ``z_min``, ``z_max`` (m), ``camera`` (a StereoCamera; None = KITTI-like),
+    ``speed`` (m/frame; None = the preset's).
+
+    Estimator:
+
+    - ``method``: a name from :func:`stereovo.estimation.available_methods` (default ``"msac"``).
+    - ``budget``: hypotheses per frame (default 32); None switches to adaptive termination
+      (``confidence``, ``max_iterations``).
+    - ``batch_size``: hypotheses per vectorised batch; None means ``budget`` (one batch).
+    - ``estimator_noise_sigma``: the pixel noise the estimator and the features assume;
+      None uses the simulator's ``noise_sigma`` (which must then be > 0).
+    - ``**estimator_options``: any other :class:`~stereovo.estimation.EstimatorOptions` field
+      (``threshold_px``, ``gate_probability``, ``polish_iterations``, ``refine``,
+      ``refine_iterations``, ``local_refit``, ``min_inliers``, ``confidence``,
+      ``max_iterations``) or an option of the chosen method; the environment's own
+      defaults are :data:`DEFAULT_ESTIMATOR_OPTIONS`.
+
+    Invalid values raise ``ValueError`` naming the argument; unknown keywords raise ``TypeError``.
+
+    ## Version History
+
+    - v0: initial version (feature layout version 1).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+
+    def __init__(
+        self,
+        sampling: str = "guided",
+        reward_mode: str = "supervised",
+        max_correspondences: int | None = None,
+        action_bound: float = 10.0,
+        logit_scale: float = 1.0,
+        success_bonus: float = 0.5,
+        hypothesis_cost: float = 0.001,
+        failure_reward: float = -1.0,
+        render_mode: str | None = None,
+        kitti_lengths: tuple[float, ...] = KITTI_LENGTHS,
+        # simulator
+        preset: str = "car",
+        world: str | None = None,
+        n_frames: int = 100,
+        n_correspondences: int = 500,
+        noise_sigma: float = 0.5,
+        outlier_ratio: float | tuple[float, float] = 0.5,
+        outlier_mix: tuple[float, float, float] = (0.6, 0.2, 0.2),
+        score_auc: float = 0.75,
+        z_min: float = 3.0,
+        z_max: float = 60.0,
+        camera: StereoCamera | None = None,
+        speed: float | None = None,
+        # estimator
+        method: str = "msac",
+        budget: int | None = 32,
+        batch_size: int | None = None,
+        estimator_noise_sigma: float | None = None,
+        **estimator_options: Any,
+    ) -> None:
+        super().__init__()
+        if sampling not in SAMPLING_MODES:
+            raise ValueError(f"StereoVOEnv: sampling must be one of {list(SAMPLING_MODES)}, got {sampling!r}")
+        if reward_mode not in REWARD_MODES:
+            raise ValueError(f"StereoVOEnv: reward_mode must be one of {list(REWARD_MODES)}, got {reward_mode!r}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"StereoVOEnv: render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}"
+            )
+        self.sampling = sampling
+        self.reward_mode = reward_mode
+        self.render_mode = render_mode
+        self.action_bound = _finite_number("action_bound", action_bound, 0.0, low_open=True)
+        self.logit_scale = _finite_number("logit_scale", logit_scale, 0.0, low_open=True)
+        if self.action_bound * self.logit_scale > 300:
+            raise ValueError(
+                f"StereoVOEnv: action_bound * logit_scale must be <= 300 (weights exp(+-300) stay representable), "
+                f"got {self.action_bound * self.logit_scale:g}"
+            )
+        self.success_bonus = _finite_number("success_bonus", success_bonus, 0.0, 1.0)
+        self.hypothesis_cost = _finite_number("hypothesis_cost", hypothesis_cost, 0.0)
+        self.failure_reward = _finite_number("failure_reward", failure_reward, -1.0, 1.0)
+        try:
+            self.kitti_lengths = tuple(float(x) for x in kitti_lengths)
+        except (TypeError, ValueError):
+            raise ValueError(f"StereoVOEnv: kitti_lengths must be positive numbers (m), got {kitti_lengths!r}") from None
+        if not self.kitti_lengths or not all(math.isfinite(x) and x > 0 for x in self.kitti_lengths):
+            raise ValueError(f"StereoVOEnv: kitti_lengths must be positive numbers (m), got {kitti_lengths!r}")
+
+        try:
+            self.sim_config = SimulationConfig(
+                preset=preset, world=world, n_frames=n_frames, n_correspondences=n_correspondences,
+                noise_sigma=noise_sigma, outlier_ratio=outlier_ratio, outlier_mix=outlier_mix,
+                score_auc=score_auc, z_min=z_min, z_max=z_max,
+                camera=StereoCamera() if camera is None else camera, speed=speed,
+            )
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"StereoVOEnv: invalid simulator setting: {err}") from None
+        # One spare frame pair: the observation returned at truncation is the next real frame.
+        self._sequence_config = dataclasses.replace(self.sim_config, n_frames=self.sim_config.n_frames + 1)
+        n = self.sim_config.n_correspondences
+        self.n_correspondences = n
+        self.max_correspondences = n if max_correspondences is None else _positive_int(
+            "max_correspondences", max_correspondences
+        )
+        if self.max_correspondences < n:
+            raise ValueError(
+                f"StereoVOEnv: max_correspondences={self.max_correspondences} is smaller than "
+                f"n_correspondences={n}: every frame has exactly n_correspondences matches and all must fit"
+            )
+
+        if estimator_noise_sigma is None:
+            if self.sim_config.noise_sigma <= 0:
+                raise ValueError(
+                    "StereoVOEnv: noise_sigma=0 (noise-free frames) needs estimator_noise_sigma > 0: "
+                    "the estimator's gates and the features' uncertainties need a positive pixel noise"
+                )
+            self.estimator_noise_sigma = self.sim_config.noise_sigma
+        else:
+            self.estimator_noise_sigma = _finite_number("estimator_noise_sigma", estimator_noise_sigma, 0.0, low_open=True)
+        try:
+            spec = method_spec(method)
+        except ValueError as err:
+            raise ValueError(f"StereoVOEnv: method: {err}") from None
+        self.method = method
+        self.budget = _positive_int("budget", budget, allow_none=True)
+        self.batch_size = _positive_int("batch_size", batch_size, allow_none=True)
+        if self.batch_size is None:
+            self.batch_size = self.budget if self.budget is not None else EstimatorOptions.batch_size
+        known = {f.name for f in dataclasses.fields(EstimatorOptions)}
+        reserved = {"noise_sigma", "budget", "batch_size"}
+        unknown = sorted(set(estimator_options) - (known - reserved) - set(spec.extra_options))
+        if unknown:
+            allowed = sorted((known - reserved) | set(spec.extra_options))
+            raise TypeError(
+                f"StereoVOEnv got unexpected keyword argument(s) {unknown}: not an environment or simulator "
+                f"argument nor an option of estimator method {method!r} (its options: {allowed})"
+            )
+        options = {**DEFAULT_ESTIMATOR_OPTIONS, **estimator_options}
+        shared = {k: v for k, v in options.items() if k in known}
+        try:
+            self.estimator_options = EstimatorOptions(
+                noise_sigma=self.estimator_noise_sigma, budget=self.budget, batch_size=self.batch_size, **shared
+            )
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"StereoVOEnv: invalid estimator setting: {err}") from None
+        self._estimator_kwargs = {
+            **{f.name: getattr(self.estimator_options, f.name) for f in dataclasses.fields(EstimatorOptions)},
+            **{k: v for k, v in options.items() if k not in known},
+        }
+        self._check_method_options()
+
+        M = self.max_correspondences
+        self.observation_space = spaces.Dict(
+            {
+                "features": spaces.Box(-FEATURE_BOUND, FEATURE_BOUND, shape=(M, N_FEATURES), dtype=np.float32),
+                "mask": spaces.MultiBinary(M),
+            }
+        )
+        self.action_space = spaces.Box(-self.action_bound, self.action_bound, shape=(M,), dtype=np.float32)
+        self.feature_names = FEATURE_NAMES
+        self.feature_layout_version = FEATURE_LAYOUT_VERSION
+
+        self._sequence: Sequence | None = None
+        self._ransac_rng: np.random.Generator | None = None
+        self._frame: Frame | None = None
+        self._k = 0
+        self._poses: list[np.ndarray] = []
+        self._last_motion: tuple[np.ndarray, np.ndarray] | None = None
+        self._successes: list[bool] = []
+        self._fallbacks: list[bool] = []
+        self._last_step: dict[str, Any] | None = None
+
+    # ------------------------------------------------------------------ properties
+
+    @property
+    def current_frame(self) -> Frame | None:
+        """The frame pair the next action applies to (None before ``reset``). Its ``truth`` is for tests and
+        oracles only; the observation never reads it."""
+        return self._frame
+
+    @property
+    def frame_index(self) -> int:
+        """k of the current frame pair (0 before ``reset``)."""
+        return self._k
+
+    @property
+    def estimated_poses(self) -> np.ndarray:
+        """``(k, 4, 4)`` camera-to-world poses estimated so far (the first is the true start)."""
+        return np.array(self._poses)
+
+    @property
+    def true_poses(self) -> np.ndarray:
+        """``(k, 4, 4)`` true camera-to-world poses of the frames seen so far."""
+        if self._sequence is None:
+            return np.zeros((0, 4, 4))
+        return np.array(self._sequence.true_poses[: len(self._poses)])
+
+    # ------------------------------------------------------------------ gymnasium API
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        sequence_seed = int(self.np_random.integers(0, 2**63 - 1))
+        ransac_seed = int(self.np_random.integers(0, 2**63 - 1))
+        self._sequence = Sequence(self._sequence_config, sequence_seed)
+        self._ransac_rng = np.random.default_rng(ransac_seed)
+        self._k = 1
+        self._frame = self._sequence.frame(1)
+        self._poses = [np.array(self._sequence.true_poses[0])]
+        self._last_motion = None
+        self._successes, self._fallbacks = [], []
+        self._last_step = None
+        return self._observation(), {"frame": 1}
+
+    def step(self, action):
+        if self._frame is None:
+            raise RuntimeError("StereoVOEnv: call reset() before step()")
+        if self._k > self.sim_config.n_frames:
+            raise RuntimeError("StereoVOEnv: the episode is over (truncated); call reset()")
+        values = self._validate_action(action)
+        frame = self._frame
+        priors = order = None
+        if self.sampling == "guided":
+            logits = values * self.logit_scale
+            priors = np.exp(logits - logits.max())
+            weights = priors * (frame.n / priors.sum())
+        else:
+            order = np.argsort(-values, kind="stable")
+            weights = np.empty(frame.n)
+            weights[order] = 1.0 - np.arange(frame.n) / max(frame.n - 1, 1)
+
+        est = estimate_motion(
+            frame.prev, frame.curr, frame.camera, method=self.method, priors=priors, order=order,
+            rng=self._ransac_rng, **self._estimator_kwargs,
+        )
+        metrics = frame_metrics(est, frame.truth)
+        if est.ok:
+            self._last_motion = (est.rotation, est.translation)
+        R, t = self._last_motion if self._last_motion is not None else (np.eye(3), np.zeros(3))
+        self._poses.append(pose_update(self._poses[-1], R, t))
+        self._successes.append(metrics.success)
+        self._fallbacks.append(not est.ok)
+
+        reward = self._reward(est, metrics, frame)
+        info: dict[str, Any] = {"frame": int(frame.index)}
+        info.update({k: v for k, v in metrics.as_dict().items() if k not in _NON_DETERMINISTIC_METRICS})
+        info["pose_error_ratio"] = pose_error_ratio(metrics)
+        info["fallback"] = not est.ok
+        info["outlier_ratio"] = float(frame.truth.outlier_ratio)
+        self._last_step = {"frame": frame, "weights": weights, "inliers": est.inliers}
+
+        self._k += 1
+        truncated = self._k > self.sim_config.n_frames
+        if truncated:
+            info["trajectory"] = self._trajectory_summary()
+        self._frame = self._sequence.frame(self._k)
+        return self._observation(), reward, False, truncated, info
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn(
+                "StereoVOEnv.render() called without a render_mode; make the env with render_mode='rgb_array'"
+            )
+            return None
+        if self._frame is None:
+            raise RuntimeError("StereoVOEnv: call reset() before render()")
+        from vo_gym.rendering import render_rgb
+
+        if self._last_step is None:
+            frame, weights, inliers = self._frame, None, None
+        else:
+            frame, weights, inliers = (self._last_step[key] for key in ("frame", "weights", "inliers"))
+        return render_rgb(
+            self.estimated_poses, self.true_poses, frame, weights, inliers,
+            title=f"frame {frame.index}/{self.sim_config.n_frames} ({self.sampling})",
+        )
+
+    def close(self) -> None:
+        self._sequence = None
+        self._frame = None
+
+    # ------------------------------------------------------------------ internals
+
+    def _check_method_options(self) -> None:
+        """Run the method once on a tiny frame, so that its own options and its use of priors (guided) or
+        an order (PROSAC) are checked when the environment is made rather than at the first step."""
+        probe = simulate_frame(SimulationConfig(n_frames=1, n_correspondences=16, outlier_ratio=0.0), rng=0)
+        kwargs = {**self._estimator_kwargs, "budget": 1, "batch_size": 1, "max_iterations": 1}
+        if self.sampling == "guided":
+            kwargs["priors"] = np.ones(probe.n)
+        else:
+            kwargs["order"] = np.arange(probe.n)
+        try:
+            estimate_motion(probe.prev, probe.curr, probe.camera, method=self.method, rng=0, **kwargs)
+        except (TypeError, ValueError) as err:
+            raise ValueError(
+                f"StereoVOEnv: estimator method {self.method!r} with sampling={self.sampling!r} and these "
+                f"options fails: {err}"
+            ) from None
+
+    def _validate_action(self, action) -> np.ndarray:
+        M, n = self.max_correspondences, self.n_correspondences
+        try:
+            a = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"StereoVOEnv: the action must be a numeric array of shape ({M},), got {type(action).__name__}"
+            ) from None
+        if a.shape != (M,):
+            raise ValueError(
+                f"StereoVOEnv: the action must have shape ({M},), one value per correspondence slot, got {a.shape}"
+            )
+        a = a[:n]
+        if not np.all(np.isfinite(a)):
+            bad = np.flatnonzero(~np.isfinite(a))
+            raise ValueError(
+                f"StereoVOEnv: the action has NaN or inf in {bad.size} valid slot(s) (first: slot {int(bad[0])})"
+            )
+        return np.clip(a, -self.action_bound, self.action_bound)
+
+    def _observation(self) -> dict[str, np.ndarray]:
+        frame = self._frame
+        feats = compute_features(
+            frame.prev, frame.curr, frame.scores, frame.camera, self.estimator_noise_sigma, self._last_motion
+        )
+        M, n = self.max_correspondences, frame.n
+        mask = np.zeros(M, dtype=np.int8)
+        mask[:n] = 1
+        if M > n:
+            padded = np.zeros((M, N_FEATURES), dtype=np.float32)
+            padded[:n] = feats
+            feats = padded
+        return {"features": feats, "mask": mask}
+
+    def _reward(self, est, metrics, frame: Frame) -> float:
+        cost, fail = self.hypothesis_cost, self.failure_reward
+        if self.reward_mode == "supervised":
+            return supervised_reward(metrics, self.success_bonus, cost, fail)
+        if self.reward_mode == "inliers":
+            return inlier_reward(est.ok, est.n_inliers, frame.n, est.n_hypotheses, cost, fail)
+        return msac_reward(
+            est.ok, est.rotation, est.translation, frame.prev, frame.curr, frame.camera,
+            self.estimator_options.reprojection_threshold_sq, est.n_hypotheses, cost, fail,
+        )
+
+    def _trajectory_summary(self) -> dict[str, Any]:
+        est = np.stack(self._poses)
+        true = np.asarray(self._sequence.true_poses[: len(est)])
+        summary = trajectory_metrics(est, true, kitti_lengths=self.kitti_lengths, kitti_step=KITTI_STEP).as_dict()
+        summary = {k: _nan_to_none(v) for k, v in summary.items()}
+        summary["success_rate"] = float(np.mean(self._successes))
+        summary["failed_frames"] = int(np.count_nonzero(self._fallbacks))
+        return summary

@@ -1,0 +1,268 @@
+"""Per-correspondence features: what a real stereo VO front end knows about each match.
+
+One module computes them, so the environment, the heuristic agents and the
+trainers all see the very same numbers (DESIGN.md section 6). Nothing here
+reads a ground-truth label: the inputs are the two stereo measurements of each
+match, its match score, the camera, the sensor's pixel noise and, optionally,
+the motion estimated for the previous frame pair.
+
+Layout (``FEATURE_NAMES``, version ``FEATURE_LAYOUT_VERSION``), one float32
+row per correspondence, every value clipped to ``[-FEATURE_BOUND, FEATURE_BOUND]``:
+
+====  ======================  =====================================================================
+ col  name                    definition
+====  ======================  =====================================================================
+   0  match_score             the descriptor match score in (0, 1), higher = better match
+   1  score_rank              rank of the score within the frame, 0 = best, 1 = worst
+   2  u_prev                  left-image column at k-1, mapped to [-1, 1] over the image width
+   3  v_prev                  left-image row at k-1, mapped to [-1, 1] over the image height
+   4  disparity_prev          disparity ``uL - uR`` at k-1 divided by ``fx / 10`` (= 10 b / z)
+   5  u_curr                  as ``u_prev`` at k
+   6  v_curr                  as ``v_prev`` at k
+   7  disparity_curr          as ``disparity_prev`` at k
+   8  log_depth_prev          ``log(z / 10 m)`` of the point triangulated at k-1
+   9  log_depth_curr          ``log(z / 10 m)`` at k
+  10  log_depth_std_prev      ``log(sigma_z / 1 m)``, depth std of the k-1 point (``sigma^2 J J^T``)
+  11  cv_residual             ``log(1 + r / sigma)``, r the RMS stereo reprojection error (px) of the
+                              k-1 point moved by the previous frame's motion (constant-velocity
+                              prediction); 0 when no previous motion is known
+  12  cv_available            1 when ``previous_motion`` was given, else 0 (same for every row)
+  13  rigid_consistency       fraction of anchor matches j whose 3-D distance to i is preserved
+                              between k-1 and k: ``| |X_k,i - X_k,j| - |X_k-1,i - X_k-1,j| | <
+                              3 sqrt(s_i^2 + s_j^2)``, ``s^2`` the summed traces of both
+                              triangulation covariances (Hirschmueller's consistency degree);
+                              the anchors are all other matches, or the MAX_ANCHORS best-scored
+====  ======================  =====================================================================
+
+The rigid-consistency degree is O(N A): one float32 pairwise-distance
+computation per frame between all N matches and A anchors, ``A = N`` for
+``N <= MAX_ANCHORS`` and otherwise the ``MAX_ANCHORS`` matches of highest
+match score (deterministic, no random draw, and like every column
+equivariant to a permutation of the rows). Anchoring on the best-scored
+matches also enriches the anchors in inliers: on the simulator's frames the
+degree separates inliers from outliers as well as or better than the full
+O(N^2) count, at half the cost for N = 500.
+
+A learned agent's checkpoint records ``FEATURE_NAMES`` and
+``FEATURE_LAYOUT_VERSION``; :func:`check_feature_layout` refuses another layout.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from stereovo.camera import StereoCamera
+from stereovo.estimation.reprojection import reprojection_sq
+
+__all__ = [
+    "FEATURE_NAMES",
+    "FEATURE_LAYOUT_VERSION",
+    "N_FEATURES",
+    "FEATURE_BOUND",
+    "MAX_ANCHORS",
+    "compute_features",
+    "feature_index",
+    "check_feature_layout",
+    "rigid_consistency_degree",
+]
+
+FEATURE_NAMES: tuple[str, ...] = (
+    "match_score",
+    "score_rank",
+    "u_prev",
+    "v_prev",
+    "disparity_prev",
+    "u_curr",
+    "v_curr",
+    "disparity_curr",
+    "log_depth_prev",
+    "log_depth_curr",
+    "log_depth_std_prev",
+    "cv_residual",
+    "cv_available",
+    "rigid_consistency",
+)
+"""Column names of :func:`compute_features`' output, in order."""
+
+FEATURE_LAYOUT_VERSION: int = 1
+"""Bumped whenever a column is added, removed, reordered or redefined."""
+
+N_FEATURES: int = len(FEATURE_NAMES)
+
+FEATURE_BOUND: float = 10.0
+"""Every feature is clipped to ``[-FEATURE_BOUND, FEATURE_BOUND]`` (the observation Box)."""
+
+MAX_ANCHORS: int = 256
+"""Above this many matches the consistency degree is counted against this many best-scored ones."""
+
+_DEPTH_REF_M = 10.0
+_DISPARITY_REF = 10.0  # disparity * _DISPARITY_REF / fx == _DISPARITY_REF * baseline / depth
+_CONSISTENCY_GATE = 3.0
+_INDEX = {name: i for i, name in enumerate(FEATURE_NAMES)}
+
+
+def feature_index(name: str) -> int:
+    """Column of the feature called ``name`` (see :data:`FEATURE_NAMES`)."""
+    try:
+        return _INDEX[name]
+    except KeyError:
+        raise ValueError(f"unknown feature {name!r}; features are {list(FEATURE_NAMES)}") from None
+
+
+def check_feature_layout(names: Sequence[str], version: int) -> None:
+    """Refuse a feature layout other than this module's (e.g. one recorded in a checkpoint).
+
+    Raises:
+        ValueError: naming what differs.
+    """
+    if int(version) != FEATURE_LAYOUT_VERSION or tuple(names) != FEATURE_NAMES:
+        raise ValueError(
+            f"feature layout mismatch: got version {version} with {len(tuple(names))} features "
+            f"{list(names)}, this vo_gym computes version {FEATURE_LAYOUT_VERSION} with {N_FEATURES} "
+            f"features {list(FEATURE_NAMES)}"
+        )
+
+
+def _measurements(name: str, value: np.ndarray) -> np.ndarray:
+    array = np.asarray(value, dtype=float)
+    if array.ndim != 2 or array.shape[1] != 4:
+        raise ValueError(f"{name} must have shape (N, 4) of (uL, vL, uR, vR) pixels, got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} contains NaN or inf")
+    return array
+
+
+def _validate_motion(previous_motion) -> tuple[np.ndarray, np.ndarray] | None:
+    if previous_motion is None:
+        return None
+    try:
+        R, t = previous_motion
+    except (TypeError, ValueError):
+        raise ValueError("previous_motion must be None or a pair (R (3, 3), t (3,))") from None
+    R, t = np.asarray(R, dtype=float), np.asarray(t, dtype=float)
+    if R.shape != (3, 3) or t.shape != (3,) or not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
+        raise ValueError(f"previous_motion must be finite (R (3, 3), t (3,)), got shapes {R.shape} and {t.shape}")
+    return R, t
+
+
+def rigid_consistency_degree(
+    points_prev: np.ndarray,
+    points_curr: np.ndarray,
+    spread: np.ndarray,
+    priority: np.ndarray | None = None,
+    gate: float = _CONSISTENCY_GATE,
+) -> np.ndarray:
+    """Fraction ``(N,)`` of other matches with which each match keeps its 3-D distance.
+
+    Args:
+        points_prev, points_curr: ``(N, 3)`` triangulated points at k-1 and k (m).
+        spread: ``(N,)`` per-match std (m) of a distance change, e.g. the root of
+            the summed covariance traces at k-1 and k.
+        priority: ``(N,)``; above :data:`MAX_ANCHORS` matches the fraction is over the
+            ``MAX_ANCHORS`` matches of highest priority (ties by row), None = evenly spaced rows.
+        gate: pair (i, j) is consistent when the distance change is below
+            ``gate * sqrt(spread_i^2 + spread_j^2)``.
+    """
+    n = points_prev.shape[0]
+    if n < 2:
+        return np.zeros(n, dtype=np.float32)
+    if n <= MAX_ANCHORS:
+        anchors = np.arange(n)
+    elif priority is None:
+        anchors = np.linspace(0, n - 1, MAX_ANCHORS).round().astype(np.int64)
+    else:
+        anchors = np.sort(np.argsort(-np.asarray(priority), kind="stable")[:MAX_ANCHORS])
+    # Two (N, A) float32 buffers in one allocation, every step in place: fresh large
+    # temporaries cost more in page faults than the arithmetic itself.
+    work = np.empty((2, n, anchors.size), dtype=np.float32)
+
+    def distances(points: np.ndarray, out: np.ndarray) -> np.ndarray:
+        # Centred Gram trick: one (N, A) matrix product, no (N, A, 3) temporary.
+        p = (points - points.mean(axis=0)).astype(np.float32)
+        norms = np.einsum("ij,ij->i", p, p)
+        np.matmul(p, p[anchors].T, out=out)
+        out *= np.float32(-2.0)
+        out += norms[:, None]
+        out += norms[anchors][None, :]
+        np.maximum(out, np.float32(0.0), out=out)
+        return np.sqrt(out, out=out)
+
+    change = distances(points_curr, work[0])
+    change -= distances(points_prev, work[1])
+    np.square(change, out=change)
+    s2 = np.square(spread.astype(np.float32)) * np.float32(gate * gate)
+    bound = np.add(s2[:, None], s2[anchors][None, :], out=work[1])
+    count = np.count_nonzero(np.less(change, bound), axis=1)
+    is_anchor = np.zeros(n, dtype=bool)
+    is_anchor[anchors] = True
+    count = count - is_anchor  # a match is trivially consistent with itself
+    return (count / (anchors.size - is_anchor)).astype(np.float32)
+
+
+def compute_features(
+    prev: np.ndarray,
+    curr: np.ndarray,
+    scores: np.ndarray,
+    camera: StereoCamera,
+    noise_sigma: float,
+    previous_motion: tuple[np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
+    """Features ``(N, N_FEATURES)`` float32 of N putative stereo matches (layout in the module doc).
+
+    Args:
+        prev, curr: ``(N, 4)`` stereo measurements ``(uL, vL, uR, vR)`` in pixels at k-1 and k.
+        scores: ``(N,)`` match scores.
+        camera: the rectified stereo rig.
+        noise_sigma: the sensor's pixel noise std (px, > 0), a known sensor spec.
+        previous_motion: ``(R, t)`` estimated for the previous frame pair
+            (``x_k = R x_{k-1} + t``), the constant-velocity prediction of this one; None if unknown.
+
+    Raises:
+        ValueError: on malformed input (shapes, NaN/inf, non-positive noise, no depth).
+    """
+    if not isinstance(camera, StereoCamera):
+        raise ValueError(f"camera must be a StereoCamera, got {type(camera).__name__}")
+    prev = _measurements("prev", prev)
+    curr = _measurements("curr", curr)
+    n = prev.shape[0]
+    if curr.shape[0] != n:
+        raise ValueError(f"prev and curr must have the same number of rows, got {n} and {curr.shape[0]}")
+    scores = np.asarray(scores, dtype=float)
+    if scores.shape != (n,) or not np.all(np.isfinite(scores)):
+        raise ValueError(f"scores must be a finite ({n},) array, got shape {scores.shape}")
+    if not (np.isfinite(noise_sigma) and noise_sigma > 0):
+        raise ValueError(f"noise_sigma must be a positive pixel noise, got {noise_sigma!r}")
+    motion = _validate_motion(previous_motion)
+
+    out = np.zeros((n, N_FEATURES), dtype=np.float32)
+    if n == 0:
+        return out
+    points_prev = camera.triangulate(prev)  # raises ValueError on a match without depth
+    points_curr = camera.triangulate(curr)
+    cov_prev = camera.triangulation_covariance(prev, noise_sigma)
+    cov_curr = camera.triangulation_covariance(curr, noise_sigma)
+
+    out[:, 0] = scores
+    rank = np.empty(n)
+    rank[np.argsort(-scores, kind="stable")] = np.arange(n)
+    out[:, 1] = rank / max(n - 1, 1)
+    u_scale, v_scale = 2.0 / max(camera.width - 1, 1), 2.0 / max(camera.height - 1, 1)
+    for col, meas in ((2, prev), (5, curr)):
+        out[:, col] = meas[:, 0] * u_scale - 1.0
+        out[:, col + 1] = meas[:, 1] * v_scale - 1.0
+        out[:, col + 2] = camera.disparity(meas) * (_DISPARITY_REF / camera.fx)
+    out[:, 8] = np.log(points_prev[:, 2] / _DEPTH_REF_M)
+    out[:, 9] = np.log(points_curr[:, 2] / _DEPTH_REF_M)
+    out[:, 10] = 0.5 * np.log(np.maximum(cov_prev[:, 2, 2], 1e-300))
+    if motion is not None:
+        R, t = motion
+        sq = reprojection_sq(camera, R[None], t[None], points_prev, curr)[0]  # inf behind the camera
+        with np.errstate(over="ignore", invalid="ignore"):
+            out[:, 11] = np.log1p(np.sqrt(sq / 4.0) / noise_sigma)
+        out[:, 12] = 1.0
+    spread = np.sqrt(np.trace(cov_prev, axis1=1, axis2=2) + np.trace(cov_curr, axis1=1, axis2=2))
+    out[:, 13] = rigid_consistency_degree(points_prev, points_curr, spread, priority=scores)
+    np.clip(out, -FEATURE_BOUND, FEATURE_BOUND, out=out)
+    return out

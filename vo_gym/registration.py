@@ -1,0 +1,50 @@
+"""Gymnasium ids of the environment, registered on ``import vo_gym``.
+
+``gymnasium.make("vo_gym/StereoVO-v0")`` after ``import vo_gym``, or
+``gymnasium.make("vo_gym:vo_gym/StereoVO-v0")`` without it (Gymnasium imports
+the module first). Keyword arguments of ``make`` override the registered ones;
+every one is an argument of :class:`vo_gym.env.StereoVOEnv`.
+
+Worker processes that start afresh (stable-baselines3's ``SubprocVecEnv`` uses
+``forkserver`` on Linux, ``spawn`` elsewhere) have not imported ``vo_gym``: give
+them the module-qualified id, ``make_vec_env("vo_gym:vo_gym/StereoVO-v0", ...,
+vec_env_cls=SubprocVecEnv)``. Gymnasium's own ``make_vec`` ships the spec with
+its entry point and needs nothing special.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium
+
+__all__ = ["ENV_IDS", "HARD_SETTINGS", "register_envs"]
+
+ENTRY_POINT = "vo_gym.env:StereoVOEnv"
+
+HARD_SETTINGS: dict[str, Any] = {
+    "outlier_ratio": (0.6, 0.85),
+    "outlier_mix": (0.4, 0.2, 0.4),
+    "score_auc": 0.6,
+}
+"""The benchmark setting of the *Hard* ids: high contamination drawn per frame from
+[0.6, 0.85], 40 % of the outliers on a moving object (a consensus of its own), and
+weak match scores (ROC AUC 0.6)."""
+
+ENV_IDS: dict[str, dict[str, Any]] = {
+    # Guided sampling: the action is per-correspondence logits.
+    "vo_gym/StereoVO-v0": {"sampling": "guided"},
+    # PROSAC: the action is per-correspondence scores; their ranking is the order.
+    "vo_gym/StereoVOProsac-v0": {"sampling": "prosac"},
+    # Benchmarks for learned samplers.
+    "vo_gym/StereoVOHard-v0": {"sampling": "guided", **HARD_SETTINGS},
+    "vo_gym/StereoVOProsacHard-v0": {"sampling": "prosac", **HARD_SETTINGS},
+}
+"""Registered ids and their keyword arguments."""
+
+
+def register_envs() -> None:
+    """Register every id of :data:`ENV_IDS` (idempotent)."""
+    for env_id, kwargs in ENV_IDS.items():
+        if env_id not in gymnasium.registry:
+            gymnasium.register(id=env_id, entry_point=ENTRY_POINT, kwargs=dict(kwargs))
