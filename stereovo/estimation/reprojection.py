@@ -33,19 +33,33 @@ def _project_with_jacobian(camera: StereoCamera, P: np.ndarray) -> tuple[np.ndar
     valid = z > _MIN_DEPTH
     inv_z = 1.0 / np.where(valid, z, 1.0)
     fx, fy, b = camera.fx, camera.fy, camera.baseline
-    uL = fx * x * inv_z + camera.cx
-    v = fy * y * inv_z + camera.cy
-    uR = uL - fx * b * inv_z
-    proj = np.stack([uL, v, uR, v], axis=-1)
+    proj = np.empty(P.shape[:-1] + (4,))
+    proj[..., 0] = fx * x * inv_z + camera.cx
+    proj[..., 1] = fy * y * inv_z + camera.cy
+    proj[..., 2] = proj[..., 0] - fx * b * inv_z
+    proj[..., 3] = proj[..., 1]
     J = np.zeros(P.shape[:-1] + (4, 3))
-    J[..., 0, 0] = fx * inv_z
-    J[..., 0, 2] = -fx * x * inv_z**2
+    fx_z = fx * inv_z
+    J[..., 0, 0] = fx_z
+    J[..., 0, 2] = -fx_z * x * inv_z
     J[..., 1, 1] = fy * inv_z
-    J[..., 1, 2] = -fy * y * inv_z**2
-    J[..., 2, 0] = fx * inv_z
-    J[..., 2, 2] = -fx * (x - b) * inv_z**2
+    J[..., 1, 2] = -fy * y * inv_z * inv_z
+    J[..., 2, 0] = fx_z
+    J[..., 2, 2] = -fx_z * (x - b) * inv_z
     J[..., 3, :] = J[..., 1, :]
     return proj, J, valid
+
+
+def _cross_rows(P: np.ndarray, A: np.ndarray, out: np.ndarray) -> None:
+    """``out[..., r, :] = P x A[..., r, :]`` for points ``(..., 3)`` and rows ``(..., R, 3)``.
+
+    Written out by component: ``np.cross`` on small trailing axes costs several times more.
+    """
+    p0, p1, p2 = P[..., 0, None], P[..., 1, None], P[..., 2, None]
+    a0, a1, a2 = A[..., 0], A[..., 1], A[..., 2]
+    out[..., 0] = p1 * a2 - p2 * a1
+    out[..., 1] = p2 * a0 - p0 * a2
+    out[..., 2] = p0 * a1 - p1 * a0
 
 
 def residuals_and_jacobians(
@@ -77,12 +91,14 @@ def residuals_and_jacobians(
     if not with_jacobian:
         return res, None
     # Rows a of d(proj)/dP: d/d rho = a and d/d omega = P x a for the forward point;
-    # with b = a R^T, d/d rho = -b and d/d omega = b x Y for the backward one.
-    fwd_rows = np.concatenate([Jp_f, np.cross(fwd[..., None, :], Jp_f)], axis=-1)
+    # with b = a R^T, d/d rho = -b and d/d omega = b x Y = -(Y x b) for the backward one.
+    jac = np.empty(res.shape + (6,))
+    jac[..., :4, :3] = Jp_f
+    _cross_rows(fwd, Jp_f, jac[..., :4, 3:])
     B = Jp_b @ np.swapaxes(R, -1, -2)[:, None]
-    Y = np.broadcast_to(points_curr, bwd.shape)
-    bwd_rows = np.concatenate([-B, np.cross(B, Y[..., None, :])], axis=-1)
-    jac = np.concatenate([fwd_rows, bwd_rows], axis=-2)
+    jac[..., 4:, :3] = -B
+    _cross_rows(np.broadcast_to(points_curr, bwd.shape), B, jac[..., 4:, 3:])
+    jac[..., 4:, 3:] *= -1.0
     if np.any(bad):
         jac = np.where(bad[..., None, None], 0.0, jac)
     return res, jac
@@ -161,6 +177,39 @@ def gauss_newton_steps(
         res, jac = residuals_and_jacobians(camera, R, t, *args)
         w, cost = weights_and_cost(res)
     return R, t, cost
+
+
+def gauss_newton_polish(
+    camera: StereoCamera,
+    R: np.ndarray,
+    t: np.ndarray,
+    points_prev: np.ndarray,
+    points_curr: np.ndarray,
+    meas_prev: np.ndarray,
+    meas_curr: np.ndarray,
+    iterations: int = 2,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Plain Gauss-Newton steps for many small problems (minimal samples), no step control.
+
+    Started from a Kabsch fit, the undamped steps converge in one or two iterations; a
+    hypothesis that diverges instead just scores badly, which is cheaper than checking
+    every step's cost for all of them.
+    """
+    H = R.shape[0]
+    for _ in range(iterations):
+        res, jac = residuals_and_jacobians(camera, R, t, points_prev, points_curr, meas_prev, meas_curr)
+        J = jac.reshape(H, -1, 6)
+        Jt = np.swapaxes(J, -1, -2)
+        A = Jt @ J + 1e-9 * np.eye(6)
+        g = (Jt @ res.reshape(H, -1, 1))[..., 0]
+        try:
+            delta = -np.linalg.solve(A, g[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            delta = -np.einsum("hkl,hl->hk", np.linalg.pinv(A), g)
+        dR, dt = se3_exp(delta)
+        R = dR @ R
+        t = np.einsum("hij,hj->hi", dR, t) + dt
+    return R, t
 
 
 def reprojection_sq(

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.reprojection import gauss_newton_steps
+from stereovo.estimation.reprojection import gauss_newton_polish
 
 SAMPLE_SIZE = 3
 # Pitfalls (ALGORITHMS.md): a triplet whose triangle area is below this fraction of its
@@ -89,15 +89,8 @@ def minimal_hypotheses(
     valid = ~degenerate_triplets(X, Y)
     R, t = kabsch_batch(X, Y)
     if polish_iterations > 0 and samples.shape[0] > 0:
-        R, t, _ = gauss_newton_steps(
-            problem.camera,
-            R,
-            t,
-            X,
-            Y,
-            problem.prev[samples],
-            problem.curr[samples],
-            iterations=polish_iterations,
+        R, t = gauss_newton_polish(
+            problem.camera, R, t, X, Y, problem.prev[samples], problem.curr[samples], iterations=polish_iterations
         )
     valid &= np.all(np.isfinite(t), axis=-1) & np.all(np.isfinite(R), axis=(-2, -1))
     return R, t, valid
