@@ -1,0 +1,11 @@
+#!/usr/bin/env bash
+# Reproduce the learned sampler that ships with the package (agents/checkpoints/).
+# NG-RANSAC-style training, supervised by ground-truth pose, contamination drawn from
+# [0.3, 0.9], budget 16, seed 0; about 5-10 minutes on 2 CPU cores.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+loss=${1:-supervised}
+.venv/bin/vo-gym train --algo ngransac --loss "$loss" --frames 1500 --seed 0 --out "runs/ship-$loss"
+mkdir -p agents/checkpoints
+cp "runs/ship-$loss/ngransac-$loss.pt" "agents/checkpoints/ngransac-$loss.pt"
+echo "wrote agents/checkpoints/ngransac-$loss.pt"
