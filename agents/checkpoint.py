@@ -90,3 +90,10 @@ class LearnedPolicy:
         out = torch.where(mask, (logits - mean).clamp(-LOGIT_BOUND, LOGIT_BOUND), torch.tensor(-LOGIT_BOUND))
         out = out.numpy().astype(np.float32)
         return out[0] if single else out
+
+
+def export_checkpoint(source: str | Path, destination: str | Path) -> Path:
+    """Copy a checkpoint without its optimizer state: what ships needs weights, config and layout only."""
+    net, payload = load_checkpoint(source)
+    history = payload.get("trainer_state", {}).get("history", [])
+    return save_checkpoint(destination, net, payload["config"], {"history": history})

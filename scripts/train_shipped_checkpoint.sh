@@ -6,6 +6,5 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 loss=${1:-supervised}
 .venv/bin/vo-gym train --algo ngransac --loss "$loss" --frames 1500 --seed 0 --out "runs/ship-$loss"
-mkdir -p agents/checkpoints
-cp "runs/ship-$loss/ngransac-$loss.pt" "agents/checkpoints/ngransac-$loss.pt"
+.venv/bin/python -c "from agents.checkpoint import export_checkpoint; export_checkpoint('runs/ship-$loss/ngransac-$loss.pt', 'agents/checkpoints/ngransac-$loss.pt')"
 echo "wrote agents/checkpoints/ngransac-$loss.pt"

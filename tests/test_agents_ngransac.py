@@ -121,3 +121,13 @@ def test_short_training_lowers_the_loss_on_a_fixed_seed(tmp_path):
     assert resumed.step == 100
     for a, b in zip(resumed.net.state_dict().values(), trainer.net.state_dict().values()):
         torch.testing.assert_close(a, b)
+
+
+def test_shipped_checkpoint_loads_and_is_small():
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "agents" / "checkpoints" / "ngransac-supervised.pt"
+    assert path.stat().st_size < 300_000
+    policy = LearnedPolicy.from_checkpoint(path)
+    x = np.random.default_rng(0).normal(size=(30, N_FEATURES)).astype(np.float32)
+    assert policy.act({"features": x, "mask": np.ones(30, dtype=np.int8)}).shape == (30,)
