@@ -36,6 +36,39 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     ppo.add_argument("--timesteps", type=int, default=20_000, help="PPO environment steps")
     ppo.add_argument("--env-id", default="vo_gym/StereoVO-v0")
     ppo.add_argument("--n-envs", type=int, default=2)
+    # PPO-specific settings (None: agents.ppo.PPOConfig's default); --seed, --budget, --epsilon,
+    # --eval-frames and --eval-every (environment steps here; default 2000) apply to PPO too.
+    ppo.add_argument("--vec-env", choices=("dummy", "subproc"), default=None,
+                     help="SB3 vectorised env: DummyVecEnv (default) or SubprocVecEnv")
+    ppo.add_argument("--frames-per-episode", type=int, default=None,
+                     help="frame pairs per training episode (default 8)")
+    ppo.add_argument("--ppo-lr", type=float, default=None,
+                     help="PPO learning rate (default 1e-4; --lr is NG-RANSAC's)")
+    ppo.add_argument("--n-correspondences", type=int, default=None,
+                     help="matches per training frame (default 100; the net serves any N)")
+    ppo.add_argument("--eval-n", type=int, default=None,
+                     help="matches per evaluation frame (default 500)")
+    ppo.add_argument("--reward-mode", choices=("supervised", "inliers", "msac"), default=None,
+                     help="the env's reward (default supervised)")
+    ppo.add_argument("--n-steps", type=int, default=None, help="rollout steps per env and update (default 256)")
+    ppo.add_argument("--batch-size", type=int, default=None, help="minibatch size (default 128)")
+    ppo.add_argument("--n-epochs", type=int, default=None, help="epochs per update (default 4)")
+    ppo.add_argument("--gamma", type=float, default=None, help="discount (default 0.5: a frame's action mostly "
+                     "affects its own reward, the next one's only through the constant-velocity feature)")
+    ppo.add_argument("--gae-lambda", type=float, default=None, help="GAE lambda (default 0.9)")
+    ppo.add_argument("--clip-range", type=float, default=None, help="PPO clip range (default 0.2)")
+    ppo.add_argument("--ent-coef", type=float, default=None, help="entropy bonus (default 0)")
+    ppo.add_argument("--target-kl", type=float, default=None,
+                     help="stop an update's epochs above this KL (default off)")
+    ppo.add_argument("--width", type=int, default=None, help="actor net width (default 32)")
+    ppo.add_argument("--blocks", type=int, default=None, help="actor net residual blocks (default 3)")
+    ppo.add_argument("--log-std-init", type=float, default=None, help="initial log-std of the logits (default 1)")
+    ppo.add_argument("--share-trunk", action="store_true", default=None,
+                     help="the critic pools the actor net's embeddings (default: its own trunk)")
+    ppo.add_argument("--max-minutes", type=float, default=None,
+                     help="stop after this much wall time even before --timesteps (default: no limit)")
+    ppo.add_argument("--checkpoint-every", type=int, default=None,
+                     help="environment steps between SB3 zips (default 5000)")
 
 
 def _epsilon_range(text: str) -> tuple[float, float]:

@@ -1,0 +1,139 @@
+"""``vo-gym evaluate``: same frames for every agent, tables and plots, determinism, clear errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from agents.checkpoint import save_checkpoint
+from agents.evaluation import EvalConfig, episode_frames, make_env, resolve_agent
+from agents.network import CorrespondenceNet
+from agents.policies import make_heuristic
+from vo_gym import N_FEATURES, StereoVOEnv
+from vo_gym.cli import main
+
+TINY = ["--episodes", "2", "--frames-per-episode", "3", "--n", "100", "--epsilons", "0.5,0.85", "--budget", "8",
+        "--budgets", "2,8", "--sweep-epsilon", "0.85", "--methods", "msac,guided", "--no-progress"]
+
+
+def test_frames_depend_only_on_the_seed():
+    kwargs = dict(n_frames=4, n_correspondences=60, outlier_ratio=0.6, budget=4)
+    seen = []
+    for agent in ("uniform", "oracle"):
+        env = StereoVOEnv(**kwargs)
+        obs, _ = env.reset(seed=11)
+        frames, done = [], False
+        while not done:
+            frame = env.current_frame
+            frames.append(frame)
+            action = (np.where(frame.truth.inlier, 10.0, -10.0) if agent == "oracle"
+                      else make_heuristic(agent).act(obs))
+            obs, _, _, done, _ = env.step(action)
+        seen.append(frames)
+    seen.append(episode_frames(make_env("vo_gym/StereoVO-v0", **kwargs), 11))
+    for other in seen[1:]:
+        assert len(other) == len(seen[0]) == 4
+        for a, b in zip(seen[0], other):
+            assert a.index == b.index
+            np.testing.assert_array_equal(a.prev, b.prev)
+            np.testing.assert_array_equal(a.curr, b.curr)
+            np.testing.assert_array_equal(a.scores, b.scores)
+            np.testing.assert_array_equal(a.truth.inlier, b.truth.inlier)
+
+
+def _strip_time(rows):
+    return [{k: v for k, v in r.items() if k != "time_s"} for r in rows]
+
+
+def _read_rows(path):
+    import csv
+
+    with open(path, newline="") as fh:
+        return _strip_time(list(csv.DictReader(fh)))
+
+
+def _strip_summary_times(summary):
+    text = json.dumps({k: v for k, v in summary.items() if k not in ("wall_s",)}, sort_keys=True)
+    data = json.loads(text)
+
+    def walk(node):
+        if isinstance(node, dict):
+            return {k: walk(v) for k, v in node.items() if k != "median_time_ms"}
+        if isinstance(node, list):
+            return [walk(v) for v in node]
+        return node
+
+    return walk(data)
+
+
+def test_evaluate_heuristics_writes_tables_and_plots_and_is_reproducible(tmp_path, capsys):
+    torch.manual_seed(0)
+    ckpt = save_checkpoint(tmp_path / "net.pt", CorrespondenceNet(N_FEATURES, 8, 1), {"algo": "test"})
+    agents = ["--agent", "uniform", "--agent", "consistency", "--agent", "oracle", "--agent", str(ckpt)]
+    out_a, out_b = tmp_path / "a", tmp_path / "b"
+    assert main(["evaluate", *agents, *TINY, "--workers", "1", "--out", str(out_a)]) == 0
+    printed = capsys.readouterr().out
+    assert "(a) Success rate vs contamination" in printed and "oracle (upper bound)" in printed
+    assert "Hypotheses needed for 99 % success" in printed
+    for name in ("frames.csv", "summary.json", "summary.md", "success_vs_epsilon.png", "success_vs_budget.png"):
+        assert (out_a / name).is_file(), name
+
+    summary = json.loads((out_a / "summary.json").read_text())
+    names = [m["name"] for m in summary["methods"]]
+    assert names == ["uniform", "consistency", "net", "oracle (upper bound)", "msac (fixed)",
+                     "ransac+guided (fixed)", "msac (adaptive)", "ransac+guided (adaptive)"]
+    eps = summary["epsilon_sweep"]["methods"]
+    assert eps["oracle (upper bound)"]["0.85"]["success_rate"] > eps["uniform"]["0.85"]["success_rate"]
+    assert eps["oracle (upper bound)"]["0.85"]["frames"] == 6
+    assert set(summary["budget_sweep"]["methods"]["uniform"]) == {"2", "8"}
+    assert set(summary["budget_sweep"]["adaptive"]) == {"msac (adaptive)", "ransac+guided (adaptive)"}
+    needed = summary["hypotheses_for_success"]["methods"]
+    assert needed["oracle (upper bound)"] in (2, 8) and "msac (adaptive)" not in needed
+
+    # Same seed, other worker count: the same numbers (wall time aside).
+    assert main(["evaluate", *agents, *TINY, "--workers", "2", "--out", str(out_b), "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert _strip_summary_times(printed) == _strip_summary_times(summary)
+    assert _read_rows(out_a / "frames.csv") == _read_rows(out_b / "frames.csv")
+
+
+def test_classical_rows_use_the_agents_frames():
+    from agents.evaluation import AgentSpec, run_agent_episode, run_classical_episode, classical_estimators_for
+
+    config = EvalConfig(episodes=1, frames_per_episode=2, n=60, methods=("msac",))
+    kwargs = config.env_kwargs_for(0.5, 4)
+    agent_rows = run_agent_episode(AgentSpec("uniform", "heuristic", "uniform"), config.env_id, kwargs, 7)
+    classical = run_classical_episode(classical_estimators_for(config, 4, adaptive=True), config.env_id, kwargs, 7)
+    assert [r["frame"] for r in classical] == [1, 1, 2, 2]
+    for a, c in zip(agent_rows, classical[::2]):
+        assert (a["frame"], a["n_true_inliers"], a["frame_outlier_ratio"]) == (
+            c["frame"], c["n_true_inliers"], c["frame_outlier_ratio"])
+    assert {r["method"] for r in classical} == {"msac (fixed)", "msac (adaptive)"}
+    assert all(r["n_hypotheses"] == 4 for r in classical if r["method"] == "msac (fixed)")
+
+
+def test_checkpoint_with_another_feature_layout_is_refused(tmp_path, capsys):
+    path = save_checkpoint(tmp_path / "old.pt", CorrespondenceNet(N_FEATURES, 8, 1), {"algo": "test"})
+    payload = torch.load(path, weights_only=False)
+    payload["feature_names"] = payload["feature_names"][:-1]
+    payload["feature_layout_version"] = 0
+    torch.save(payload, path)
+    with pytest.raises(ValueError, match="another feature layout"):
+        resolve_agent(str(path))
+    assert main(["evaluate", "--agent", str(path), *TINY, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "vo-gym evaluate: error:" in err and "feature layout" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_unknown_agent_and_missing_checkpoint_exit_non_zero(tmp_path, capsys):
+    assert main(["evaluate", "--agent", "clever-agent", *TINY, "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown agent 'clever-agent'" in err and "uniform" in err
+    assert main(["evaluate", "--agent", str(tmp_path / "nope.pt"), *TINY, "--out", str(tmp_path)]) == 2
+    assert "no checkpoint at" in capsys.readouterr().err
+    assert main(["evaluate", "--agent", "uniform", *TINY[:-3], "--methods", "magic", "--out", str(tmp_path)]) == 2
+    assert "unknown classical method(s): magic" in capsys.readouterr().err

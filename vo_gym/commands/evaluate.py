@@ -1,0 +1,134 @@
+"""``vo-gym evaluate``: agents side by side with classical methods on the same held-out frames.
+
+``--agent`` (repeatable) takes a heuristic (uniform, match-score, consistency,
+constant-velocity), ``oracle`` (reads the labels: an upper bound, labelled as
+such) or a checkpoint (``.pt`` from ``vo-gym train``, or a PPO ``.zip``).
+The protocol is :mod:`agents.evaluation`'s: every agent and every classical
+method of a setting sees the identical frames (the environment seeded with
+``--seed + episode``), (a) over contamination at ``--budget`` hypotheses and
+(b) over ``--budgets`` at ``--sweep-epsilon``.
+
+Writes to ``--out`` (default ``runs/evaluate``): ``frames.csv`` (one row per
+frame and method), ``summary.json``, ``summary.md`` (the tables printed here)
+and ``success_vs_epsilon.png``, ``success_vs_budget.png``. ``--json`` prints
+the summary as JSON on stdout instead of the tables.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from vo_gym.commands.baselines import _csv_list, _positive_int, _seed
+
+DEFAULT_AGENTS = ("uniform", "match-score", "consistency", "constant-velocity", "oracle")
+
+
+def add_parser(parser: argparse.ArgumentParser) -> None:
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = (
+        "agents: uniform, match-score, consistency, constant-velocity, oracle (upper bound, reads labels),"
+        " or a checkpoint path (.pt, PPO .zip)\n"
+        "default: 10 episodes x 10 frames per setting, 5 contaminations + 7 budgets, N 500 (a few minutes on 2 cores)"
+    )
+    parser.add_argument("--agent", action="append", default=None, metavar="NAME|CHECKPOINT",
+                        help=f"agent to evaluate, repeatable (default: {', '.join(DEFAULT_AGENTS)})")
+    parser.add_argument("--env-id", default="vo_gym/StereoVO-v0", help="environment id (default: vo_gym/StereoVO-v0)")
+    parser.add_argument("--episodes", type=_positive_int("--episodes"), default=10,
+                        help="episodes per setting (default: 10)")
+    parser.add_argument("--frames-per-episode", type=_positive_int("--frames-per-episode"), default=10,
+                        help="frame pairs per episode (default: 10)")
+    parser.add_argument("--seed", type=_seed, default=1000,
+                        help="seed of the first episode; episode i uses seed+i (default: 1000, away from"
+                             " training seeds)")
+    parser.add_argument("--budget", type=_positive_int("--budget"), default=16,
+                        help="hypotheses per frame of the contamination sweep (default: 16)")
+    parser.add_argument("--epsilons", type=_csv_list(float, "--epsilons"), default=[0.3, 0.5, 0.7, 0.8, 0.9],
+                        metavar="E,...", help="contaminations of sweep (a) (default: 0.3,0.5,0.7,0.8,0.9)")
+    parser.add_argument("--budgets", type=_csv_list(int, "--budgets"), default=[1, 2, 4, 8, 16, 32, 64],
+                        metavar="B,...", help="hypothesis budgets of sweep (b) (default: 1,2,4,8,16,32,64)")
+    parser.add_argument("--sweep-epsilon", type=float, default=0.8,
+                        help="contamination of the budget sweep (default: 0.8)")
+    parser.add_argument("--n", type=_positive_int("--n"), default=500, help="correspondences per frame (default: 500)")
+    parser.add_argument("--auc", type=float, default=None,
+                        help="match-score ROC AUC (default: the env id's own, 0.75 for StereoVO-v0)")
+    parser.add_argument("--methods", type=_csv_list(str, "--methods"), default=None, metavar="A,B,...",
+                        help="classical methods side by side (default: ransac,msac,prosac,guided;"
+                             " 'guided' = ransac with the match scores as sampling priors; 'none' for none)")
+    parser.add_argument("--max-iterations", type=_positive_int("--max-iterations"), default=2000,
+                        help="hypothesis cap of the adaptive classical runs (default: 2000)")
+    parser.add_argument("--env-kwargs", default=None, metavar="JSON",
+                        help="further environment keyword arguments as a JSON object, e.g. '{\"noise_sigma\": 1.0}'")
+    parser.add_argument("--workers", type=_positive_int("--workers"), default=None,
+                        help="worker processes (default: the CPUs available)")
+    parser.add_argument("--out", type=Path, default=Path("runs/evaluate"),
+                        help="output folder (default: runs/evaluate)")
+    parser.add_argument("--json", action="store_true", help="print the summary as JSON instead of the tables")
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+def _error(message: str) -> int:
+    print(f"vo-gym evaluate: error: {message}", file=sys.stderr)
+    return 2
+
+
+def run(args: argparse.Namespace) -> int:
+    from agents.evaluation import (
+        DEFAULT_METHODS,
+        EvalConfig,
+        evaluation_markdown,
+        resolve_agents,
+        run_evaluation,
+        write_evaluation,
+    )
+    from stereovo.benchmark import default_workers
+
+    env_kwargs = {}
+    if args.env_kwargs:
+        try:
+            env_kwargs = json.loads(args.env_kwargs)
+        except json.JSONDecodeError as err:
+            return _error(f"--env-kwargs is not valid JSON: {err}")
+        if not isinstance(env_kwargs, dict):
+            return _error("--env-kwargs must be a JSON object")
+    methods = DEFAULT_METHODS if args.methods is None else tuple(m for m in args.methods if m.lower() != "none")
+    try:
+        agents = resolve_agents(args.agent or DEFAULT_AGENTS)
+    except (ValueError, FileNotFoundError) as err:
+        return _error(str(err))
+    try:
+        config = EvalConfig(
+            env_id=args.env_id, episodes=args.episodes, frames_per_episode=args.frames_per_episode, seed=args.seed,
+            budget=args.budget, epsilons=tuple(args.epsilons), budgets=tuple(args.budgets),
+            sweep_epsilon=args.sweep_epsilon, n=args.n, score_auc=args.auc, methods=methods,
+            max_iterations=args.max_iterations, env_kwargs=env_kwargs,
+        )
+    except ValueError as err:
+        return _error(str(err))
+    workers = args.workers or default_workers()
+    if any(a.kind == "checkpoint" for a in agents):
+        import torch
+
+        # Worker processes run torch on one thread; so does this one, so --workers changes no number
+        # (and OpenMP threads contend badly on small shared machines).
+        torch.set_num_threads(1)
+    if not args.json:
+        print(f"vo-gym evaluate: {len(agents)} agent(s) ({', '.join(a.label for a in agents)}) and"
+              f" {len(config.methods)} classical method(s) on {config.env_id}; {len(config.settings())} settings x"
+              f" {config.episodes} episodes x {config.frames_per_episode} frames; seed {config.seed};"
+              f" {workers} worker(s)", flush=True)
+    try:
+        result = run_evaluation(config, agents, workers=workers, progress=not args.no_progress)
+    except (ValueError, TypeError) as err:
+        return _error(str(err))
+    paths = write_evaluation(result, args.out, plots=not args.no_plots)
+    if args.json:
+        print(json.dumps(json.loads((args.out / "summary.json").read_text()), indent=2))
+        return 0
+    print()
+    print(evaluation_markdown(result.summary, result.wall_s))
+    print(f"wrote {args.out}/: {', '.join(p.name for p in paths)}")
+    return 0
