@@ -319,7 +319,7 @@ def episode_frames(env, seed: int) -> list:
     """
     base = env.unwrapped
     base.reset(seed=seed)
-    sequence = getattr(base, "sequence", None) or base._sequence  # noqa: SLF001  (no public accessor yet)
+    sequence = base.sequence
     return [sequence.frame(k) for k in range(1, base.sim_config.n_frames + 1)]
 
 

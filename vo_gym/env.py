@@ -383,6 +383,16 @@ class StereoVOEnv(gym.Env):
             return np.zeros((0, 4, 4))
         return np.array(self._sequence.true_poses[: len(self._poses)])
 
+    @property
+    def sequence(self) -> Sequence | None:
+        """The simulated sequence of the current episode (None before the first reset).
+
+        Its frames depend on the reset seed only, never on the actions, so evaluations
+        can run classical methods on exactly the frames an agent saw. Their ``truth``
+        is ground truth: for reports, never for an agent.
+        """
+        return self._sequence
+
     # ------------------------------------------------------------------ gymnasium API
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
