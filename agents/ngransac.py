@@ -21,6 +21,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import itertools
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterator
@@ -130,11 +131,9 @@ def run_pool(problem: StereoProblem, samples: np.ndarray, method: str, options: 
         raise ValueError(f"method {method!r} is not a sampling method and cannot train a sampler")
     components = spec.build(problem, options, None, None, {})
     components.sampler = ReplaySampler(samples, problem.n)
+    start = time.perf_counter()
     report = run_ransac(problem, components, rng)
-    return MotionEstimate(
-        report.rotation, report.translation, report.inliers, report.status, report.n_hypotheses,
-        report.n_scored, report.n_point_checks, 0.0, method, report.score, report,
-    )
+    return MotionEstimate.from_report(report, method, time.perf_counter() - start)
 
 
 def ordered_triplet_log_prob(log_p: torch.Tensor, samples: torch.Tensor) -> torch.Tensor:

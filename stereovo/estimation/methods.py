@@ -297,6 +297,23 @@ class MotionEstimate:
     score: float = float("-inf")
     report: RansacReport | None = None
 
+    @classmethod
+    def from_report(cls, report: RansacReport, method: str, time_s: float) -> "MotionEstimate":
+        """The public view of one run of the loop (or of a direct estimator)."""
+        return cls(
+            rotation=report.rotation,
+            translation=report.translation,
+            inliers=report.inliers,
+            status=report.status,
+            n_hypotheses=report.n_hypotheses,
+            n_scored=report.n_scored,
+            n_point_checks=report.n_point_checks,
+            time_s=time_s,
+            method=method,
+            score=report.score,
+            report=report,
+        )
+
     @property
     def ok(self) -> bool:
         return self.status == "ok"
@@ -376,16 +393,4 @@ def estimate_motion(
     if order is not None:
         order = validate_order(order, problem.n)
     report = spec.run(problem, shared, priors, order, extra, generator)
-    return MotionEstimate(
-        rotation=report.rotation,
-        translation=report.translation,
-        inliers=report.inliers,
-        status=report.status,
-        n_hypotheses=report.n_hypotheses,
-        n_scored=report.n_scored,
-        n_point_checks=report.n_point_checks,
-        time_s=time.perf_counter() - start,
-        method=method,
-        score=report.score,
-        report=report,
-    )
+    return MotionEstimate.from_report(report, method, time.perf_counter() - start)
