@@ -40,6 +40,7 @@ from stereovo.simulation import Frame, Sequence, SimulationConfig
 from vo_gym.env import DEFAULT_ESTIMATOR_OPTIONS
 from vo_gym.features import N_FEATURES, compute_features
 
+LOSSES = ("supervised", "self-supervised", "self-supervised-smooth")
 LOSS_CAP = 4.0  # a pose that misses the success region by 4x or more all counts the same
 
 
@@ -48,7 +49,10 @@ class NGRansacConfig:
     """Training settings (saved in every checkpoint).
 
     Attributes:
-        loss: "supervised" (pose error against ground truth) or "self-supervised" (-inliers / N).
+        loss: "supervised" (pose error against ground truth), "self-supervised" (-inliers / N) or
+            "self-supervised-smooth" (-inliers / N plus a penalty on the change from the previous
+            frame's estimated motion: a vehicle's motion is smooth, a moving object's consensus is
+            not the camera's; still no ground truth).
         epsilon_range: contamination drawn per frame.
         budget: hypotheses per pool (M), the environment's budget.
         pools: pools per frame (K); their mean loss is the baseline.
@@ -77,8 +81,8 @@ class NGRansacConfig:
     keep_best: bool = True  # end with the weights that evaluated best, not the last ones
 
     def __post_init__(self) -> None:
-        if self.loss not in ("supervised", "self-supervised"):
-            raise ValueError(f"loss must be 'supervised' or 'self-supervised', got {self.loss!r}")
+        if self.loss not in LOSSES:
+            raise ValueError(f"loss must be one of {LOSSES}, got {self.loss!r}")
         lo, hi = self.epsilon_range
         if not 0 <= lo <= hi < 1:
             raise ValueError(f"epsilon_range must satisfy 0 <= low <= high < 1, got {self.epsilon_range}")
@@ -119,9 +123,32 @@ def pose_loss(estimate: MotionEstimate, frame: Frame) -> float:
     return min(max(r_deg / SUCCESS_ROT_DEG, t_err / max(SUCCESS_TRANS_M, SUCCESS_TRANS_REL * t_true)), LOSS_CAP)
 
 
-def inlier_loss(estimate: MotionEstimate, frame: Frame) -> float:
+def inlier_loss(estimate: MotionEstimate, frame: Frame, previous_motion=None) -> float:
     """Self-supervised task loss: minus the inlier fraction of the chosen model (no ground truth)."""
     return -estimate.n_inliers / max(frame.n, 1)
+
+
+SMOOTHNESS_WEIGHT = 0.5
+SMOOTHNESS_SCALE_M = 0.25  # a change of 25 cm/frame in translation costs the full weight
+SMOOTHNESS_SCALE_DEG = 1.0
+
+
+def smooth_inlier_loss(estimate: MotionEstimate, frame: Frame, previous_motion=None) -> float:
+    """Inlier loss plus a capped penalty on the change from the previous estimated motion."""
+    loss = inlier_loss(estimate, frame)
+    if previous_motion is None or not estimate.ok:
+        return loss
+    R_prev, t_prev = previous_motion
+    change = float(np.linalg.norm(estimate.translation - t_prev)) / SMOOTHNESS_SCALE_M
+    change += float(np.degrees(rotation_error(estimate.rotation, R_prev))) / SMOOTHNESS_SCALE_DEG
+    return loss + SMOOTHNESS_WEIGHT * min(change, 1.0)
+
+
+def _pose_loss(estimate: MotionEstimate, frame: Frame, previous_motion=None) -> float:
+    return pose_loss(estimate, frame)
+
+
+LOSS_FUNCTIONS = {"supervised": _pose_loss, "self-supervised": inlier_loss, "self-supervised-smooth": smooth_inlier_loss}
 
 
 def run_pool(problem: StereoProblem, samples: np.ndarray, method: str, options: EstimatorOptions, rng: np.random.Generator) -> MotionEstimate:
@@ -176,7 +203,7 @@ class NGRansacTrainer:
             noise_sigma=self.config.noise_sigma, budget=self.config.budget, batch_size=self.config.budget,
             **DEFAULT_ESTIMATOR_OPTIONS,
         )
-        self.loss_fn = pose_loss if self.config.loss == "supervised" else inlier_loss
+        self.loss_fn = LOSS_FUNCTIONS[self.config.loss]
 
     def _frame_loss(self, frame: Frame, previous_motion) -> tuple[torch.Tensor, list[float], list[bool], MotionEstimate]:
         feats = compute_features(frame.prev, frame.curr, frame.scores, frame.camera, frame.noise_sigma, previous_motion)
@@ -189,7 +216,7 @@ class NGRansacTrainer:
         samples = sampler.draw(K * M, self.rng)
         log_prob = ordered_triplet_log_prob(log_p, torch.from_numpy(samples)).view(K, M).sum(dim=1)
         estimates = [run_pool(problem, samples[k * M : (k + 1) * M], self.config.method, self.options, self.rng) for k in range(K)]
-        losses = [self.loss_fn(e, frame) for e in estimates]
+        losses = [self.loss_fn(e, frame, previous_motion) for e in estimates]
         success = [pose_loss(e, frame) < 1.0 for e in estimates]
         advantage = torch.tensor(losses) - float(np.mean(losses))
         objective = (advantage * log_prob).mean()

@@ -131,3 +131,24 @@ def test_shipped_checkpoint_loads_and_is_small():
     policy = LearnedPolicy.from_checkpoint(path)
     x = np.random.default_rng(0).normal(size=(30, N_FEATURES)).astype(np.float32)
     assert policy.act({"features": x, "mask": np.ones(30, dtype=np.int8)}).shape == (30,)
+
+
+def test_smoothness_loss_prefers_the_motion_that_continues_the_previous_one():
+    from agents.ngransac import inlier_loss, smooth_inlier_loss
+    from stereovo.estimation import MotionEstimate
+    from stereovo.simulation import SimulationConfig, simulate_frame
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=50), np.random.default_rng(0))
+    inliers = np.zeros(50, dtype=bool)
+    inliers[:20] = True
+
+    def estimate(t):
+        return MotionEstimate(np.eye(3), np.asarray(t, float), inliers, "ok", 16, 16, 800, 0.0, "msac")
+
+    previous = (np.eye(3), np.array([0.0, 0.0, -1.0]))
+    camera_like = smooth_inlier_loss(estimate([0.0, 0.0, -1.02]), frame, previous)
+    object_like = smooth_inlier_loss(estimate([0.8, 0.0, -1.5]), frame, previous)
+    assert inlier_loss(estimate([0.8, 0.0, -1.5]), frame) == pytest.approx(-0.4)
+    assert object_like > camera_like + 0.3
+    # Without a previous motion (first frame) it is the plain inlier loss.
+    assert smooth_inlier_loss(estimate([0.8, 0.0, -1.5]), frame, None) == pytest.approx(-0.4)

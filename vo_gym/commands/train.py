@@ -22,8 +22,9 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--resume", default=None, help="checkpoint to continue from")
     parser.add_argument("--no-progress", action="store_true")
     ng = parser.add_argument_group("ngransac")
-    ng.add_argument("--loss", choices=("supervised", "self-supervised"), default="supervised",
-                    help="task loss: pose error against ground truth, or minus the inlier fraction (no ground truth)")
+    ng.add_argument("--loss", choices=("supervised", "self-supervised", "self-supervised-smooth"), default="supervised",
+                    help="task loss: pose error against ground truth; minus the inlier fraction (no ground truth); "
+                         "or that plus a motion-smoothness penalty (no ground truth)")
     ng.add_argument("--frames", type=int, default=None,
                     help="total training frames (policy-gradient steps; default 1500); with --resume, the new total")
     ng.add_argument("--epsilon", default="0.3:0.9", help="training contamination, a value or a range lo:hi")
