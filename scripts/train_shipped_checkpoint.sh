@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Reproduce the learned sampler that ships with the package (agents/checkpoints/).
-# NG-RANSAC-style training, supervised by ground-truth pose, contamination drawn from
-# [0.3, 0.9], budget 16, seed 0; about 5-10 minutes on 2 CPU cores.
+# NG-RANSAC-style training (loss: supervised | self-supervised | self-supervised-smooth),
+# contamination drawn from [0.3, 0.9], budget 16, seed 0; about 5-10 minutes on 2 CPU cores.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 loss=${1:-supervised}
