@@ -393,7 +393,7 @@ def run_classical_episode(
     Each estimator's generator is seeded from ``(base_seed, epsilon, budget, seed, frame, name)``.
     An estimator that raises is recorded as a failure with ``status = "error: ..."``.
     """
-    from stereovo.metrics import frame_metrics
+    from stereovo.benchmark import measure_estimator
 
     env = make_env(env_id, **env_kwargs)
     try:
@@ -410,20 +410,7 @@ def run_classical_episode(
                 base_seed, spawn_key=(_CLASSICAL_TAG, eps_key, common["budget"], seed, frame.index,
                                       zlib.crc32(label.encode()))
             )
-            rng = np.random.default_rng(ss)
-            start = time.perf_counter()
-            try:
-                estimate = estimator(frame, rng)
-            except Exception as err:  # noqa: BLE001 - recorded as a failure, counted in n_errors
-                elapsed = time.perf_counter() - start
-                metrics = {"success": False, "rot_err_deg": math.nan, "trans_err_m": math.nan,
-                           "t_true_norm_m": float(np.linalg.norm(frame.truth.translation)),
-                           "precision": math.nan, "recall": math.nan, "n_inliers": 0, "n_hypotheses": 0,
-                           "n_scored": 0, "n_point_checks": 0,
-                           "status": f"error: {type(err).__name__}: {' '.join(str(err).split())[:200]}"}
-            else:
-                elapsed = time.perf_counter() - start
-                metrics = frame_metrics(estimate, frame.truth).as_dict()
+            metrics, elapsed = measure_estimator(estimator, frame, np.random.default_rng(ss))
             row = {**common, "episode": episode, "seed": seed, "frame": frame.index, "method": label, "kind": kind,
                    **{k: metrics[k] for k in _METRIC_KEYS}, "n_true_inliers": n_true,
                    "frame_outlier_ratio": float(frame.truth.outlier_ratio), "reward": math.nan, "time_s": elapsed}

@@ -451,15 +451,39 @@ _STR_COLUMNS = {"outlier_kind", "method", "status"}
 _BOOL_COLUMNS = {"success"}
 
 
+def measure_estimator(estimator: Estimator, frame: Frame, rng: np.random.Generator) -> tuple[dict[str, Any], float]:
+    """Run one estimator on one frame: its frame metrics (no wall time) and the wall time in seconds.
+
+    An estimator that raises is recorded, not propagated: ``status = "error: <type>: <message>"``,
+    NaN errors and ``success = False``. ``n_hypotheses_to_best`` is the loop report's
+    ``best_found_at`` (NaN for estimators without one).
+    """
+    start = time.perf_counter()
+    try:
+        estimate = estimator(frame, rng)
+    except Exception as err:  # noqa: BLE001 - recorded, counted and reported by the caller
+        elapsed = time.perf_counter() - start
+        message = " ".join(str(err).split())[:200]
+        return {
+            "success": False, "rot_err_deg": math.nan, "trans_err_m": math.nan,
+            "t_true_norm_m": float(np.linalg.norm(frame.truth.translation)),
+            "precision": math.nan, "recall": math.nan, "n_inliers": 0, "n_hypotheses": 0,
+            "n_scored": 0, "n_point_checks": 0, "status": f"error: {type(err).__name__}: {message}",
+            "n_hypotheses_to_best": math.nan,
+        }, elapsed
+    elapsed = time.perf_counter() - start
+    metrics = frame_metrics(estimate, frame.truth).as_dict()
+    metrics.pop("time_s")
+    found_at = getattr(getattr(estimate, "report", None), "best_found_at", None)
+    metrics["n_hypotheses_to_best"] = math.nan if found_at is None else float(found_at)
+    return metrics, elapsed
+
+
 def run_trial(trial: Trial, estimators: Sequence[tuple[str, Estimator]], seed: int) -> list[dict[str, Any]]:
     """Simulate the trial's frame once and run every estimator on it: one row per estimator.
 
-    ``n_hypotheses_to_best`` is the number of hypotheses drawn when the final best
-    model was found (the loop report's ``best_found_at``; NaN for estimators without one).
-
-    ``time_s`` is the wall time of the whole estimator call (for a learned agent it
-    includes the network). An estimator that raises is recorded with
-    ``status = "error: <type>: <message>"``, NaN errors and ``success = False``.
+    Columns as :func:`measure_estimator`; ``time_s`` is the wall time of the whole
+    estimator call (for a learned agent it includes the network).
     """
     frame = simulate_trial(trial, seed)
     base = {"trial": trial.index, "cell": trial.cell_index, "repeat": trial.repeat, **trial.cell.as_dict()}
@@ -467,25 +491,7 @@ def run_trial(trial: Trial, estimators: Sequence[tuple[str, Estimator]], seed: i
     rows = []
     for name, estimator in estimators:
         rng = np.random.default_rng(estimator_seed(seed, trial.cell, trial.repeat, name))
-        start = time.perf_counter()
-        try:
-            estimate = estimator(frame, rng)
-        except Exception as err:  # noqa: BLE001 - recorded, counted and reported by the caller
-            elapsed = time.perf_counter() - start
-            message = " ".join(str(err).split())[:200]
-            metrics = {
-                "success": False, "rot_err_deg": math.nan, "trans_err_m": math.nan,
-                "t_true_norm_m": float(np.linalg.norm(frame.truth.translation)),
-                "precision": math.nan, "recall": math.nan, "n_inliers": 0, "n_hypotheses": 0,
-                "n_scored": 0, "n_point_checks": 0, "status": f"error: {type(err).__name__}: {message}",
-            }
-        else:
-            elapsed = time.perf_counter() - start
-            metrics = frame_metrics(estimate, frame.truth).as_dict()
-            metrics.pop("time_s")
-            found_at = getattr(getattr(estimate, "report", None), "best_found_at", None)
-            metrics["n_hypotheses_to_best"] = math.nan if found_at is None else float(found_at)
-        metrics.setdefault("n_hypotheses_to_best", math.nan)
+        metrics, elapsed = measure_estimator(estimator, frame, rng)
         row = {**base, "method": name, **metrics, "n_true_inliers": n_true, "time_s": elapsed}
         rows.append({column: row[column] for column in TRIAL_COLUMNS})
     return rows

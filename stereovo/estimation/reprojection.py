@@ -104,6 +104,29 @@ def residuals_and_jacobians(
     return res, jac
 
 
+def _step(
+    R: np.ndarray, t: np.ndarray, res: np.ndarray, jac: np.ndarray, w: np.ndarray | None, damping: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One (damped) Gauss-Newton step per hypothesis: solve the weighted normal equations with
+    ``damping (H,)`` relative to their diagonal, apply ``exp(delta)`` on the left.
+
+    Returns the new ``(R, t)`` and the steps ``delta (H, 6)``.
+    """
+    H = R.shape[0]
+    J = jac.reshape(H, -1, 6)
+    JtW = np.swapaxes(J if w is None else J * np.repeat(w, jac.shape[2], axis=1)[..., None], -1, -2)
+    A = JtW @ J
+    g = (JtW @ res.reshape(H, -1, 1))[..., 0]
+    scale = np.maximum(np.einsum("hkk->hk", A), 1e-9)
+    A = A + (damping[:, None] * scale)[:, :, None] * np.eye(6)
+    try:
+        delta = -np.linalg.solve(A, g[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        delta = -np.einsum("hkl,hl->hk", np.linalg.pinv(A), g)
+    dR, dt = se3_exp(delta)
+    return dR @ R, np.einsum("hij,hj->hi", dR, t) + dt, delta
+
+
 def gauss_newton_steps(
     camera: StereoCamera,
     R: np.ndarray,
@@ -147,19 +170,7 @@ def gauss_newton_steps(
     res, jac = residuals_and_jacobians(camera, R, t, *args)
     w, cost = weights_and_cost(res)
     for _ in range(iterations):
-        J = jac.reshape(H, -1, 6)
-        JtW = np.swapaxes(J * np.repeat(w, jac.shape[2], axis=1)[..., None], -1, -2)
-        A = JtW @ J
-        g = (JtW @ res.reshape(H, -1, 1))[..., 0]
-        scale = np.maximum(np.einsum("hkk->hk", A), 1e-9)
-        A_damped = A + (lam[:, None] * scale)[:, :, None] * np.eye(6)
-        try:
-            delta = -np.linalg.solve(A_damped, g[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            delta = -np.einsum("hkl,hl->hk", np.linalg.pinv(A_damped), g)
-        dR, dt = se3_exp(delta)
-        R_new = dR @ R
-        t_new = np.einsum("hij,hj->hi", dR, t) + dt
+        R_new, t_new, delta = _step(R, t, res, jac, w, lam)
         res_new, _ = residuals_and_jacobians(camera, R_new, t_new, *args, with_jacobian=False)
         w_new, cost_new = weights_and_cost(res_new)
         better = cost_new <= cost
@@ -195,20 +206,10 @@ def gauss_newton_polish(
     hypothesis that diverges instead just scores badly, which is cheaper than checking
     every step's cost for all of them.
     """
-    H = R.shape[0]
+    damping = np.full(R.shape[0], 1e-9)  # only guards a singular system, no step control
     for _ in range(iterations):
         res, jac = residuals_and_jacobians(camera, R, t, points_prev, points_curr, meas_prev, meas_curr)
-        J = jac.reshape(H, -1, 6)
-        Jt = np.swapaxes(J, -1, -2)
-        A = Jt @ J + 1e-9 * np.eye(6)
-        g = (Jt @ res.reshape(H, -1, 1))[..., 0]
-        try:
-            delta = -np.linalg.solve(A, g[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            delta = -np.einsum("hkl,hl->hk", np.linalg.pinv(A), g)
-        dR, dt = se3_exp(delta)
-        R = dR @ R
-        t = np.einsum("hij,hj->hi", dR, t) + dt
+        R, t, _ = _step(R, t, res, jac, None, damping)
     return R, t
 
 
