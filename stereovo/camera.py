@@ -113,8 +113,22 @@ class StereoCamera:
         """
         if not np.isfinite(sigma) or sigma <= 0:
             raise ValueError(f"sigma must be a positive pixel noise, got {sigma!r}")
-        J = self.triangulation_jacobian(measurements)
-        return sigma**2 * J @ np.swapaxes(J, -1, -2)
+        X = self.triangulate(measurements)
+        d = self.disparity(measurements)
+        # J J^T written out from the sparse rows of triangulation_jacobian:
+        # (z/fx - x/d, 0, x/d, 0), (-y/d, z/2fy, y/d, z/2fy), (-z/d, 0, z/d, 0).
+        x_d, y_d, z_d = X[..., 0] / d, X[..., 1] / d, X[..., 2] / d
+        a = X[..., 2] / self.fx - x_d
+        h = X[..., 2] / (2 * self.fy)
+        s2 = sigma * sigma
+        C = np.empty(X.shape[:-1] + (3, 3))
+        C[..., 0, 0] = s2 * (a * a + x_d * x_d)
+        C[..., 0, 1] = C[..., 1, 0] = s2 * (x_d - a) * y_d
+        C[..., 0, 2] = C[..., 2, 0] = s2 * (x_d - a) * z_d
+        C[..., 1, 1] = s2 * 2 * (y_d * y_d + h * h)
+        C[..., 1, 2] = C[..., 2, 1] = s2 * 2 * y_d * z_d
+        C[..., 2, 2] = s2 * 2 * z_d * z_d
+        return C
 
     def in_image(self, measurements: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """Mask of measurements whose left and right pixels lie inside the image."""

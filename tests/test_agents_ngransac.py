@@ -53,7 +53,7 @@ def test_policy_gradient_raises_probability_of_all_inlier_sets():
         return float(np.exp(q.log_probability(triplets)).sum())
 
     before = all_inlier_probability()
-    for _ in range(60):
+    for _ in range(150):
         log_p = torch.log_softmax(logits, 0)
         samples = WeightedSampler(log_p.detach().exp().double().numpy()).draw(4 * 2, rng)
         lp = ordered_triplet_log_prob(log_p, torch.from_numpy(samples)).view(4, 2).sum(1)
@@ -64,7 +64,7 @@ def test_policy_gradient_raises_probability_of_all_inlier_sets():
         opt.step()
     after = all_inlier_probability()
     assert before == pytest.approx(4 * 3 * 2 / (12 * 11 * 10))
-    assert after > 5 * before
+    assert after > 10 * before  # ~40x after 150 steps, for any sampler seed
 
 
 def test_checkpoint_round_trip_and_layout_refusal(tmp_path):

@@ -70,9 +70,10 @@ class WeightedSampler:
     """Guided sampling (Tordoff & Murray): P(i) proportional to ``priors[i]``.
 
     The three indices are drawn one after another without replacement,
-    renormalising each time; the Gumbel-top-k trick does exactly that for a whole
-    batch at once. :meth:`log_probability` gives the log-probability of the ordered
-    draw, which the policy-gradient trainer differentiates.
+    renormalising each time, by inverting the cumulative weights with the points
+    already drawn cut out: three uniforms and a few binary searches per sample,
+    vectorised over the batch. :meth:`log_probability` gives the log-probability of
+    the ordered draw, which the policy-gradient trainer differentiates.
     """
 
     def __init__(self, priors: np.ndarray) -> None:
@@ -82,13 +83,45 @@ class WeightedSampler:
         self.n = self.priors.shape[0]
         with np.errstate(divide="ignore"):
             self._log_w = np.log(self.priors / self.priors.sum())
+        self._w = self.priors / self.priors.sum()
+        self._cdf = np.cumsum(self._w)  # inclusive: mass of [0, i]
+        self._before = np.concatenate([[0.0], self._cdf[:-1]])  # exclusive: mass of [0, i)
+
+    def _invert(self, mass: np.ndarray) -> np.ndarray:
+        """Smallest index whose inclusive cumulative weight exceeds ``mass``."""
+        return np.minimum(np.searchsorted(self._cdf, mass, side="right"), self.n - 1)
 
     def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
-        keys = self._log_w[None, :] + rng.gumbel(size=(batch, self.n))
-        top = np.argpartition(-keys, SAMPLE_SIZE - 1, axis=1)[:, :SAMPLE_SIZE]
-        # Order the three by key: that is the order of the equivalent sequential draw.
-        order = np.argsort(-np.take_along_axis(keys, top, axis=1), axis=1)
-        return np.take_along_axis(top, order, axis=1)
+        w, before, total = self._w, self._before, self._cdf[-1]
+        u = rng.random((batch, SAMPLE_SIZE))
+        a = self._invert(u[:, 0] * total)
+        # Second draw without a: a position x in the remaining mass maps to x itself if it lies
+        # before a, and past a's interval otherwise.
+        x = u[:, 1] * (total - w[a])
+        b = self._invert(np.where(x < before[a], x, x + w[a]))
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        x = u[:, 2] * (total - w[a] - w[b])
+        x = np.where(x < before[lo], x, x + w[lo])
+        c = self._invert(np.where(x < before[hi], x, x + w[hi]))
+        samples = np.stack([a, b, c], axis=1)
+        # Rounding at an interval's edge can land on a drawn or zero-weight index; redo those rows exactly.
+        bad = (b == a) | (c == a) | (c == b) | (w[b] == 0) | (w[c] == 0) | (w[a] == 0)
+        for row in np.flatnonzero(bad):
+            samples[row] = self._draw_exactly(u[row])
+        return samples
+
+    def _draw_exactly(self, u: np.ndarray) -> np.ndarray:
+        """One ordered draw from explicitly renormalised weights (the rare fix-up path)."""
+        w = self._w.copy()
+        picked = np.empty(SAMPLE_SIZE, dtype=np.int64)
+        for k in range(SAMPLE_SIZE):
+            cdf = np.cumsum(w)
+            i = int(np.searchsorted(cdf, u[k] * cdf[-1], side="right"))
+            positive = np.flatnonzero(w > 0)
+            i = i if i < self.n and w[i] > 0 else int(positive[np.argmin(np.abs(positive - i))])
+            picked[k] = i
+            w[i] = 0.0
+        return picked
 
     def log_probability(self, samples: np.ndarray) -> np.ndarray:
         """Log-probability ``(B,)`` of drawing each ordered triplet sequentially without replacement."""

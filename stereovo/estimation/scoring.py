@@ -15,6 +15,7 @@ from typing import Protocol
 import numpy as np
 from scipy.stats import chi2
 
+from stereovo.estimation import kernels
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.reprojection import reprojection_sq
 
@@ -32,39 +33,6 @@ class ResidualModel(Protocol):
         ...
 
 
-_ROWS = np.array([0, 0, 0, 1, 1, 2])  # unique entries (a, b) of a symmetric 3x3, a <= b
-_COLS = np.array([0, 1, 2, 1, 2, 2])
-
-
-def _unique_entries(S: np.ndarray) -> np.ndarray:
-    """``(..., 6)`` entries S00, S01, S02, S11, S12, S22 of symmetric ``(..., 3, 3)`` matrices."""
-    return S[..., _ROWS, _COLS]
-
-
-def rotated_covariance_map(R: np.ndarray) -> np.ndarray:
-    """``(H, 6, 6)`` maps taking the unique entries of S to those of ``R S R^T``."""
-    a, b = _ROWS[:, None], _COLS[:, None]
-    k, l = _ROWS[None, :], _COLS[None, :]
-    M = R[:, a, k] * R[:, b, l]
-    off_diagonal = (k != l).astype(float)
-    return M + off_diagonal * R[:, a, l] * R[:, b, k]
-
-
-def _quadratic_form_inverse_unique(C: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """``r^T C^-1 r`` with C given by its unique entries ``(H, 6, N)`` and ``r (H, N, 3)``."""
-    a, b, c, d, e, f = (C[:, i] for i in range(6))
-    A00 = d * f - e * e
-    A01 = c * e - b * f
-    A02 = b * e - c * d
-    A11 = a * f - c * c
-    A12 = b * c - a * e
-    A22 = a * d - b * b
-    det = a * A00 + b * A01 + c * A02
-    x, y, z = r[..., 0], r[..., 1], r[..., 2]
-    quad = A00 * x * x + A11 * y * y + A22 * z * z + 2 * (A01 * x * y + A02 * x * z + A12 * y * z)
-    return quad / np.maximum(det, 1e-300)
-
-
 @dataclass(frozen=True)
 class MahalanobisResidual:
     """Brink et al.: ``r_i = Y_i - (R X_i + t)`` under ``R Sigma_X R^T + Sigma_Y``; unit-free, chi-square(3)."""
@@ -73,12 +41,10 @@ class MahalanobisResidual:
     name: str = "mahalanobis"
 
     def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray) -> np.ndarray:
-        r = problem.points_curr[None] - (problem.points_prev @ np.swapaxes(R, -1, -2) + t[:, None, :])
-        # R S R^T on the 6 unique entries of symmetric S is one (6, 6) linear map per
-        # hypothesis, so all H x N rotated covariances come from a single batched matmul.
-        rotated = rotated_covariance_map(R) @ _unique_entries(problem.cov_prev).T  # (H, 6, N)
-        C = rotated + _unique_entries(problem.cov_curr).T[None]
-        return _quadratic_form_inverse_unique(C, r)
+        return kernels.mahalanobis_sq(
+            np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float),
+            problem.points_prev, problem.points_curr, problem.cov_prev, problem.cov_curr,
+        )
 
 
 @dataclass(frozen=True)

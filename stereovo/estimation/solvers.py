@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from stereovo.estimation import kernels
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.reprojection import gauss_newton_polish
 
@@ -32,20 +33,12 @@ def kabsch_batch(X: np.ndarray, Y: np.ndarray, weights: np.ndarray | None = None
     Returns:
         ``R (H, 3, 3)`` with det +1 and ``t (H, 3)``.
     """
-    if weights is None:
-        weights = np.ones(X.shape[:2])
-    w = weights / np.maximum(np.sum(weights, axis=1, keepdims=True), 1e-300)
-    mx = np.einsum("hm,hmi->hi", w, X)
-    my = np.einsum("hm,hmi->hi", w, Y)
-    cov = np.einsum("hm,hmi,hmj->hij", w, Y - my[:, None], X - mx[:, None])
-    U, _, Vt = np.linalg.svd(cov)
-    # Reflection fix: flip the last singular direction when U V^T is a reflection.
-    d = np.sign(np.linalg.det(U @ Vt))
-    d = np.where(d == 0, 1.0, d)
-    U[:, :, 2] *= d[:, None]
-    R = U @ Vt
-    t = my - np.einsum("hij,hj->hi", R, mx)
-    return R, t
+    X = np.ascontiguousarray(X, dtype=float)
+    Y = np.ascontiguousarray(Y, dtype=float)
+    w = np.ones(X.shape[:2]) if weights is None else np.ascontiguousarray(weights, dtype=float)
+    mx, my, cov = kernels.centred_cross_covariances(X, Y, w)
+    U, _, Vt = np.linalg.svd(cov)  # one batched SVD call for all hypotheses
+    return kernels.proper_rotations(U, Vt, mx, my)
 
 
 def fit_rigid(X: np.ndarray, Y: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -60,15 +53,9 @@ def degenerate_triplets(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
     Args:
         X, Y: ``(H, 3, 3)`` triplets of points at k-1 and k.
     """
-    bad = np.zeros(X.shape[0], dtype=bool)
-    for P in (X, Y):
-        e1 = P[:, 1] - P[:, 0]
-        e2 = P[:, 2] - P[:, 0]
-        e3 = P[:, 2] - P[:, 1]
-        area2 = np.linalg.norm(np.cross(e1, e2), axis=-1)  # twice the area
-        longest2 = np.max(np.stack([np.sum(e**2, axis=-1) for e in (e1, e2, e3)]), axis=0)
-        bad |= ~(area2 / 2 >= DEGENERATE_AREA_RATIO * longest2) | (longest2 < 1e-12)
-    return bad
+    return kernels.degenerate_triplets(
+        np.ascontiguousarray(X, dtype=float), np.ascontiguousarray(Y, dtype=float), DEGENERATE_AREA_RATIO
+    )
 
 
 def minimal_hypotheses(

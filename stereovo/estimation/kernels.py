@@ -1,0 +1,414 @@
+"""Compiled (numba) kernels behind the hot paths of the estimator core.
+
+The numpy formulation of these computations builds ``(H, N, 8, 6)`` Jacobians and
+a dozen ``(H, N)`` temporaries per call, and the core calls them a few hundred
+times per frame; memory traffic and per-call overhead, not arithmetic, set the
+time. Each kernel here walks the hypotheses and points once, keeps a point's
+residual and Jacobian in registers and accumulates what the caller needs (the
+normal equations, a cost, one squared residual). The Python wrappers in
+:mod:`stereovo.estimation.reprojection` and :mod:`stereovo.estimation.scoring`
+keep the shapes and documentation; nothing outside them calls this module.
+
+Conventions (as in :mod:`stereovo.estimation.reprojection`): a motion maps
+``x_k = R x_{k-1} + t``; the perturbation is ``T <- exp(delta^) T`` with
+``delta = (rho, omega)``; a point's symmetric residual has 8 rows (forward
+uL, vL, uR, vR at k, then backward at k-1), in pixels.
+
+Array arguments: ``R (H, 3, 3)``, ``t (H, 3)``; point arrays ``(G, M, .)`` where
+``G`` is 1 (shared by all hypotheses) or H (one set per hypothesis); ``cam`` is
+``(fx, fy, cx, cy, baseline)``. All float64, C-contiguous (the wrappers ensure it).
+No kernel draws random numbers or reduces in parallel, so results are
+bit-for-bit repeatable.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+MIN_DEPTH = 1e-3  # a transformed point this close to the camera plane cannot be projected
+BEHIND_CAMERA_RESIDUAL = 1e3  # its residual rows are set to this and its Jacobian zeroed
+_SMALL_ANGLE = 1e-4  # below it, Rodrigues coefficients use their Taylor series
+
+_jit = njit(cache=True, nogil=True, error_model="numpy")
+
+
+@_jit
+def _forward_row(jac, r, a0, a1, a2, p0, p1, p2):
+    """Row ``r`` for projection gradient ``a`` at the forward point P: d/d rho = a, d/d omega = P x a."""
+    jac[r, 0], jac[r, 1], jac[r, 2] = a0, a1, a2
+    jac[r, 3] = p1 * a2 - p2 * a1
+    jac[r, 4] = p2 * a0 - p0 * a2
+    jac[r, 5] = p0 * a1 - p1 * a0
+
+
+@_jit
+def _backward_row(jac, r, a0, a1, a2, R, Y):
+    """Row ``r`` for gradient ``a`` at Q = R^T (Y - t): with c = a R^T, d/d rho = -c, d/d omega = -(Y x c)."""
+    c0 = a0 * R[0, 0] + a1 * R[0, 1] + a2 * R[0, 2]
+    c1 = a0 * R[1, 0] + a1 * R[1, 1] + a2 * R[1, 2]
+    c2 = a0 * R[2, 0] + a1 * R[2, 1] + a2 * R[2, 2]
+    jac[r, 0], jac[r, 1], jac[r, 2] = -c0, -c1, -c2
+    jac[r, 3] = Y[2] * c1 - Y[1] * c2
+    jac[r, 4] = Y[0] * c2 - Y[2] * c0
+    jac[r, 5] = Y[1] * c0 - Y[0] * c1
+
+
+@_jit
+def _point_rows(R, t, X, Y, mp, mc, cam, res, jac, want_jac):
+    """Fill ``res (8,)`` (and ``jac (8, 6)``) for one point; False if it is behind a camera."""
+    fx, fy, cx, cy, b = cam[0], cam[1], cam[2], cam[3], cam[4]
+    p0 = R[0, 0] * X[0] + R[0, 1] * X[1] + R[0, 2] * X[2] + t[0]
+    p1 = R[1, 0] * X[0] + R[1, 1] * X[1] + R[1, 2] * X[2] + t[1]
+    p2 = R[2, 0] * X[0] + R[2, 1] * X[1] + R[2, 2] * X[2] + t[2]
+    d0, d1, d2 = Y[0] - t[0], Y[1] - t[1], Y[2] - t[2]
+    q0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2
+    q1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
+    q2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
+    if p2 <= MIN_DEPTH or q2 <= MIN_DEPTH:
+        for r in range(8):
+            res[r] = BEHIND_CAMERA_RESIDUAL
+        if want_jac:
+            jac[:, :] = 0.0
+        return False
+    ip = 1.0 / p2
+    iq = 1.0 / q2
+    res[0] = fx * p0 * ip + cx - mc[0]
+    res[1] = fy * p1 * ip + cy - mc[1]
+    res[2] = fx * (p0 - b) * ip + cx - mc[2]
+    res[3] = fy * p1 * ip + cy - mc[3]
+    res[4] = fx * q0 * iq + cx - mp[0]
+    res[5] = fy * q1 * iq + cy - mp[1]
+    res[6] = fx * (q0 - b) * iq + cx - mp[2]
+    res[7] = fy * q1 * iq + cy - mp[3]
+    if not want_jac:
+        return True
+    # d(projection)/d(point) rows of the forward point P (row 3 equals row 1) ...
+    _forward_row(jac, 0, fx * ip, 0.0, -fx * p0 * ip * ip, p0, p1, p2)
+    _forward_row(jac, 1, 0.0, fy * ip, -fy * p1 * ip * ip, p0, p1, p2)
+    _forward_row(jac, 2, fx * ip, 0.0, -fx * (p0 - b) * ip * ip, p0, p1, p2)
+    jac[3, :] = jac[1, :]
+    # ... and of the backward point Q
+    _backward_row(jac, 4, fx * iq, 0.0, -fx * q0 * iq * iq, R, Y)
+    _backward_row(jac, 5, 0.0, fy * iq, -fy * q1 * iq * iq, R, Y)
+    _backward_row(jac, 6, fx * iq, 0.0, -fx * (q0 - b) * iq * iq, R, Y)
+    jac[7, :] = jac[5, :]
+    return True
+
+
+@_jit
+def symmetric_residuals(R, t, X, Y, mp, mc, cam, want_jac):
+    """Residuals ``(H, M, 8)`` and, if ``want_jac``, Jacobians ``(H, M, 8, 6)`` (else ``(0, 0, 8, 6)``)."""
+    H, M = R.shape[0], X.shape[1]
+    res = np.empty((H, M, 8))
+    jac = np.zeros((H, M, 8, 6)) if want_jac else np.zeros((0, 0, 8, 6))
+    scratch = np.zeros((8, 6))
+    for h in range(H):
+        g = h if X.shape[0] > 1 else 0
+        for m in range(M):
+            _point_rows(R[h], t[h], X[g, m], Y[g, m], mp[g, m], mc[g, m], cam, res[h, m], scratch, want_jac)
+            if want_jac:
+                jac[h, m] = scratch
+    return res, jac
+
+
+@_jit
+def _irls_weight(base, sq, huber):
+    """The point's weight: its base weight, times Huber's ``huber / |r|`` beyond the threshold."""
+    if huber > 0.0:
+        norm = np.sqrt(sq)
+        if norm > huber:
+            return base * huber / max(norm, 1e-12)
+    return base
+
+
+@_jit
+def _cost_and_normal_equations(R, t, X, Y, mp, mc, cam, w, huber, A, g, want_system, res, jac):
+    """Weighted squared cost of one hypothesis; fills ``A (6, 6)``, ``g (6,)`` if ``want_system``.
+
+    ``res (8,)`` and ``jac (8, 6)`` are scratch space.
+    """
+    cost = 0.0
+    if want_system:
+        A[:, :] = 0.0
+        g[:] = 0.0
+    for m in range(X.shape[0]):
+        if w[m] == 0.0:
+            continue
+        _point_rows(R, t, X[m], Y[m], mp[m], mc[m], cam, res, jac, want_system)
+        sq = 0.0
+        for r in range(8):
+            sq += res[r] * res[r]
+        wm = _irls_weight(w[m], sq, huber)
+        cost += wm * sq
+        if want_system:
+            for r in range(8):
+                for i in range(6):
+                    wji = wm * jac[r, i]
+                    g[i] += wji * res[r]
+                    for j in range(i, 6):
+                        A[i, j] += wji * jac[r, j]
+    if want_system:
+        for i in range(6):
+            for j in range(i):
+                A[i, j] = A[j, i]
+    return cost
+
+
+@_jit
+def _solve_damped(A, g, damping, delta, L, y):
+    """``delta = -(A + damping diag(A)) ^-1 g`` by Cholesky; False if not positive definite.
+
+    ``L (6, 6)`` and ``y (6,)`` are scratch space.
+    """
+    for i in range(6):
+        for j in range(i + 1):
+            s = A[i, j]
+            if i == j:
+                s += damping * max(A[i, i], 1e-9)
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            if i == j:
+                if s <= 0.0:
+                    return False
+                L[i, i] = np.sqrt(s)
+            else:
+                L[i, j] = s / L[j, j]
+    for i in range(6):
+        s = -g[i]
+        for k in range(i):
+            s -= L[i, k] * y[k]
+        y[i] = s / L[i, i]
+    for i in range(5, -1, -1):
+        s = y[i]
+        for k in range(i + 1, 6):
+            s -= L[k, i] * delta[k]
+        delta[i] = s / L[i, i]
+    return True
+
+
+@_jit
+def _apply_twist(R, t, delta, R_out, t_out, dR, dt):
+    """``(R_out, t_out) = exp(delta^) (R, t)`` with ``delta = (rho, omega)`` (left perturbation).
+
+    ``dR (3, 3)`` and ``dt (3,)`` are scratch space.
+    """
+    w0, w1, w2 = delta[3], delta[4], delta[5]
+    theta = np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    if theta < _SMALL_ANGLE:
+        th2 = theta * theta
+        ca = 1.0 - th2 / 6.0 + th2 * th2 / 120.0
+        cb = 0.5 - th2 / 24.0 + th2 * th2 / 720.0
+        cc = 1.0 / 6.0 - th2 / 120.0 + th2 * th2 / 5040.0
+    else:
+        ca = np.sin(theta) / theta
+        cb = (1.0 - np.cos(theta)) / (theta * theta)
+        cc = (theta - np.sin(theta)) / (theta * theta * theta)
+    # W = hat(w), W^2 = w w^T - theta^2 I: dR = I + ca W + cb W^2, V = I + cb W + cc W^2
+    ww = ((w0 * w0, w0 * w1, w0 * w2), (w1 * w0, w1 * w1, w1 * w2), (w2 * w0, w2 * w1, w2 * w2))
+    Wm = ((0.0, -w2, w1), (w2, 0.0, -w0), (-w1, w0, 0.0))
+    th2 = theta * theta
+    for i in range(3):
+        dt[i] = 0.0
+        for j in range(3):
+            W2 = ww[i][j] - (th2 if i == j else 0.0)
+            eye = 1.0 if i == j else 0.0
+            dR[i, j] = eye + ca * Wm[i][j] + cb * W2
+            dt[i] += (eye + cb * Wm[i][j] + cc * W2) * delta[j]
+    for i in range(3):
+        t_out[i] = dR[i, 0] * t[0] + dR[i, 1] * t[1] + dR[i, 2] * t[2] + dt[i]
+        for j in range(3):
+            R_out[i, j] = dR[i, 0] * R[0, j] + dR[i, 1] * R[1, j] + dR[i, 2] * R[2, j]
+
+
+@_jit
+def gauss_newton(R, t, X, Y, mp, mc, cam, weights, huber, iterations, damping, tolerance, step_control):
+    """Per-hypothesis Gauss-Newton / Levenberg-Marquardt on the weighted symmetric reprojection error.
+
+    With ``step_control`` a step that raises the cost is rejected and the damping multiplied
+    by 10 (0.3 after an accepted step), and a hypothesis stops once its step is below
+    ``tolerance`` or its cost falls by less than a relative 1e-9. Without it every step is
+    taken (minimal samples started from a Kabsch fit converge in one or two).
+
+    Returns refined ``R (H, 3, 3)``, ``t (H, 3)`` and the final weighted cost ``(H,)`` (px^2).
+    """
+    H = R.shape[0]
+    R_out = R.copy()
+    t_out = t.copy()
+    cost_out = np.empty(H)
+    A = np.empty((6, 6))
+    g = np.empty(6)
+    delta = np.empty(6)
+    R_new = np.empty((3, 3))
+    t_new = np.empty(3)
+    res, jac, L, y, dR, dt = np.empty(8), np.empty((8, 6)), np.empty((6, 6)), np.empty(6), np.empty((3, 3)), np.empty(3)
+    for h in range(H):
+        gx = h if X.shape[0] > 1 else 0
+        gw = h if weights.shape[0] > 1 else 0
+        Xh, Yh, mph, mch, wh = X[gx], Y[gx], mp[gx], mc[gx], weights[gw]
+        Rh, th = R_out[h], t_out[h]
+        lam = damping
+        cost = _cost_and_normal_equations(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, A, g, True, res, jac)
+        for _ in range(iterations):
+            if not _solve_damped(A, g, lam, delta, L, y):
+                break
+            _apply_twist(Rh, th, delta, R_new, t_new, dR, dt)
+            if not step_control:
+                Rh[:, :] = R_new
+                th[:] = t_new
+                cost = _cost_and_normal_equations(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, A, g, True, res, jac)
+                continue
+            cost_new = _cost_and_normal_equations(R_new, t_new, Xh, Yh, mph, mch, cam, wh, huber, A, g, False, res, jac)
+            if not cost_new <= cost:
+                lam *= 10.0
+                # A and g were left untouched by the cost-only call above: retry with more damping
+                continue
+            lam *= 0.3
+            small = True
+            for i in range(6):
+                if abs(delta[i]) >= tolerance:
+                    small = False
+            converged = small or cost - cost_new <= 1e-9 * cost
+            Rh[:, :] = R_new
+            th[:] = t_new
+            if converged:
+                cost = cost_new
+                break
+            cost = _cost_and_normal_equations(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, A, g, True, res, jac)
+        cost_out[h] = cost
+    return R_out, t_out, cost_out
+
+
+@_jit
+def forward_reprojection_sq(R, t, X, mc, cam):
+    """``(H, N)`` squared forward reprojection errors (px^2) of ``X (N, 3)`` in both images at k; inf behind."""
+    fx, fy, cx, cy, b = cam[0], cam[1], cam[2], cam[3], cam[4]
+    H, N = R.shape[0], X.shape[0]
+    out = np.empty((H, N))
+    for h in range(H):
+        r = R[h]
+        for n in range(N):
+            x0, x1, x2 = X[n, 0], X[n, 1], X[n, 2]
+            p2 = r[2, 0] * x0 + r[2, 1] * x1 + r[2, 2] * x2 + t[h, 2]
+            if p2 <= MIN_DEPTH:
+                out[h, n] = np.inf
+                continue
+            ip = 1.0 / p2
+            p0 = r[0, 0] * x0 + r[0, 1] * x1 + r[0, 2] * x2 + t[h, 0]
+            p1 = r[1, 0] * x0 + r[1, 1] * x1 + r[1, 2] * x2 + t[h, 1]
+            uL = fx * p0 * ip + cx
+            v = fy * p1 * ip + cy
+            uR = uL - fx * b * ip
+            e0, e1, e2, e3 = uL - mc[n, 0], v - mc[n, 1], uR - mc[n, 2], v - mc[n, 3]
+            out[h, n] = e0 * e0 + e2 * e2 + e1 * e1 + e3 * e3
+    return out
+
+
+@_jit
+def mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr):
+    """``(H, N)`` squared Mahalanobis distances of ``Y - (R X + t)`` under ``R S_X R^T + S_Y``."""
+    H, N = R.shape[0], X.shape[0]
+    out = np.empty((H, N))
+    RS = np.empty((3, 3))
+    C = np.empty((3, 3))
+    for h in range(H):
+        r = R[h]
+        for n in range(N):
+            S = cov_prev[n]
+            # C = R S R^T + S_Y (symmetric: six unique entries), RS rows first
+            for i in range(3):
+                for j in range(3):
+                    RS[i, j] = r[i, 0] * S[0, j] + r[i, 1] * S[1, j] + r[i, 2] * S[2, j]
+            for i in range(3):
+                for j in range(i, 3):
+                    C[i, j] = RS[i, 0] * r[j, 0] + RS[i, 1] * r[j, 1] + RS[i, 2] * r[j, 2] + cov_curr[n, i, j]
+            a, bb, c, d, e, f = C[0, 0], C[0, 1], C[0, 2], C[1, 1], C[1, 2], C[2, 2]
+            A00 = d * f - e * e
+            A01 = c * e - bb * f
+            A02 = bb * e - c * d
+            A11 = a * f - c * c
+            A12 = bb * c - a * e
+            A22 = a * d - bb * bb
+            det = a * A00 + bb * A01 + c * A02
+            x = Y[n, 0] - (r[0, 0] * X[n, 0] + r[0, 1] * X[n, 1] + r[0, 2] * X[n, 2] + t[h, 0])
+            y = Y[n, 1] - (r[1, 0] * X[n, 0] + r[1, 1] * X[n, 1] + r[1, 2] * X[n, 2] + t[h, 1])
+            z = Y[n, 2] - (r[2, 0] * X[n, 0] + r[2, 1] * X[n, 1] + r[2, 2] * X[n, 2] + t[h, 2])
+            quad = A00 * x * x + A11 * y * y + A22 * z * z + 2.0 * (A01 * x * y + A02 * x * z + A12 * y * z)
+            out[h, n] = quad / max(det, 1e-300)
+    return out
+
+
+@_jit
+def centred_cross_covariances(X, Y, w):
+    """Weighted means ``mx, my (H, 3)`` and cross-covariances ``sum w (y - my)(x - mx)^T`` ``(H, 3, 3)``.
+
+    ``X, Y (H, M, 3)``; ``w (H, M)`` non-negative weights, normalised per hypothesis here.
+    """
+    H, M = X.shape[0], X.shape[1]
+    cov = np.zeros((H, 3, 3))
+    mx = np.zeros((H, 3))
+    my = np.zeros((H, 3))
+    for h in range(H):
+        total = 0.0
+        for m in range(M):
+            total += w[h, m]
+        scale = 1.0 / max(total, 1e-300)
+        for m in range(M):
+            wm = w[h, m] * scale
+            for i in range(3):
+                mx[h, i] += wm * X[h, m, i]
+                my[h, i] += wm * Y[h, m, i]
+        for m in range(M):
+            wm = w[h, m] * scale
+            for i in range(3):
+                dy = wm * (Y[h, m, i] - my[h, i])
+                for j in range(3):
+                    cov[h, i, j] += dy * (X[h, m, j] - mx[h, j])
+    return mx, my, cov
+
+
+@_jit
+def proper_rotations(U, Vt, mx, my):
+    """``R = U diag(1, 1, det(U Vt)) Vt`` (never a reflection) and ``t = my - R mx`` per hypothesis."""
+    H = U.shape[0]
+    R = np.empty((H, 3, 3))
+    t = np.empty((H, 3))
+    for h in range(H):
+        u, v = U[h], Vt[h]
+        det = (
+            u[0, 0] * (u[1, 1] * u[2, 2] - u[1, 2] * u[2, 1])
+            - u[0, 1] * (u[1, 0] * u[2, 2] - u[1, 2] * u[2, 0])
+            + u[0, 2] * (u[1, 0] * u[2, 1] - u[1, 1] * u[2, 0])
+        ) * (
+            v[0, 0] * (v[1, 1] * v[2, 2] - v[1, 2] * v[2, 1])
+            - v[0, 1] * (v[1, 0] * v[2, 2] - v[1, 2] * v[2, 0])
+            + v[0, 2] * (v[1, 0] * v[2, 1] - v[1, 1] * v[2, 0])
+        )
+        d = -1.0 if det < 0.0 else 1.0
+        for i in range(3):
+            for j in range(3):
+                R[h, i, j] = u[i, 0] * v[0, j] + u[i, 1] * v[1, j] + d * u[i, 2] * v[2, j]
+        for i in range(3):
+            t[h, i] = my[h, i] - (R[h, i, 0] * mx[h, 0] + R[h, i, 1] * mx[h, 1] + R[h, i, 2] * mx[h, 2])
+    return R, t
+
+
+@_jit
+def degenerate_triplets(X, Y, area_ratio):
+    """``(H,)`` True where a triplet ``(H, 3, 3)`` is near-collinear or near-coincident in X or Y:
+    twice-area / 2 below ``area_ratio`` times the squared longest side, or that side below 1e-6 m."""
+    H = X.shape[0]
+    bad = np.zeros(H, dtype=np.bool_)
+    for h in range(H):
+        for P in (X[h], Y[h]):
+            e1 = P[1] - P[0]
+            e2 = P[2] - P[0]
+            e3 = P[2] - P[1]
+            c0 = e1[1] * e2[2] - e1[2] * e2[1]
+            c1 = e1[2] * e2[0] - e1[0] * e2[2]
+            c2 = e1[0] * e2[1] - e1[1] * e2[0]
+            area = 0.5 * np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+            longest = max(np.sum(e1 * e1), np.sum(e2 * e2), np.sum(e3 * e3))
+            if not (area >= area_ratio * longest) or longest < 1e-12:
+                bad[h] = True
+    return bad
