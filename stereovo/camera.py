@@ -55,10 +55,17 @@ class StereoCamera:
         """
         X = np.asarray(points, dtype=float)
         inv_z = 1.0 / X[..., 2]
-        uL = self.fx * X[..., 0] * inv_z + self.cx
-        v = self.fy * X[..., 1] * inv_z + self.cy
-        uR = uL - self.fx * self.baseline * inv_z
-        return np.stack([uL, v, uR, v], axis=-1)
+        out = np.empty(X.shape[:-1] + (4,))
+        np.multiply(X[..., 0], inv_z, out=out[..., 0])
+        out[..., 0] *= self.fx
+        out[..., 0] += self.cx
+        np.multiply(X[..., 1], inv_z, out=out[..., 1])
+        out[..., 1] *= self.fy
+        out[..., 1] += self.cy
+        np.multiply(inv_z, -self.fx * self.baseline, out=out[..., 2])
+        out[..., 2] += out[..., 0]
+        out[..., 3] = out[..., 1]
+        return out
 
     def disparity(self, measurements: np.ndarray) -> np.ndarray:
         """Disparity ``uL - uR`` in pixels of measurements ``(..., 4)``."""
@@ -133,9 +140,12 @@ class StereoCamera:
     def in_image(self, measurements: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """Mask of measurements whose left and right pixels lie inside the image."""
         z = np.asarray(measurements, dtype=float)
-        u_ok = (z[..., [0, 2]] >= margin) & (z[..., [0, 2]] <= self.width - 1 - margin)
-        v_ok = (z[..., [1, 3]] >= margin) & (z[..., [1, 3]] <= self.height - 1 - margin)
-        return np.all(u_ok, axis=-1) & np.all(v_ok, axis=-1)
+        u_max, v_max = self.width - 1 - margin, self.height - 1 - margin
+        ok = (z[..., 0] >= margin) & (z[..., 0] <= u_max)
+        ok &= (z[..., 2] >= margin) & (z[..., 2] <= u_max)
+        ok &= (z[..., 1] >= margin) & (z[..., 1] <= v_max)
+        ok &= (z[..., 3] >= margin) & (z[..., 3] <= v_max)
+        return ok
 
     def is_visible(
         self, points: np.ndarray, z_min: float = 0.5, z_max: float = np.inf, margin: float = 0.0

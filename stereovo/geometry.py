@@ -126,7 +126,7 @@ def compose(R1: np.ndarray, t1: np.ndarray, R2: np.ndarray, t2: np.ndarray) -> t
 
 def transform_points(R: np.ndarray, t: np.ndarray, X: np.ndarray) -> np.ndarray:
     """Apply ``x -> R x + t`` to points ``(N, 3)``; batched ``R (H, 3, 3)`` gives ``(H, N, 3)``."""
-    return np.einsum("...ij,nj->...ni", R, X) + np.asarray(t)[..., None, :]
+    return np.asarray(X, dtype=float) @ np.swapaxes(np.asarray(R, dtype=float), -1, -2) + np.asarray(t)[..., None, :]
 
 
 def pose_update(pose_prev: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:

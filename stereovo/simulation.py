@@ -44,6 +44,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numba import njit
 from scipy.signal import lfilter
 from scipy.special import ndtr, ndtri
 
@@ -419,6 +420,42 @@ def _valid(meas: np.ndarray, cam: StereoCamera) -> np.ndarray:
     return cam.in_image(meas) & cam.has_depth(meas)
 
 
+@njit(cache=True, nogil=True)
+def _seen_by_both(points, to_prev, to_curr, cam, z_min, z_max):
+    """Points ``(n, 3)`` mapped by the rigid transforms ``to_prev``, ``to_curr`` (4x4) into cameras
+    k-1 and k, and the mask of those visible in both (as :meth:`StereoCamera.is_visible`).
+
+    ``cam`` is ``(fx, fy, cx, cy, baseline, width, height, min_disparity)``. One fused pass:
+    the simulator asks this of thousands of candidate landmarks per frame.
+    """
+    n = points.shape[0]
+    fx, fy, cx, cy, b, width, height, min_disp = cam[0], cam[1], cam[2], cam[3], cam[4], cam[5], cam[6], cam[7]
+    X_prev = np.empty((n, 3))
+    X_curr = np.empty((n, 3))
+    ok = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        visible = True
+        for T, out in ((to_prev, X_prev), (to_curr, X_curr)):
+            for r in range(3):
+                out[i, r] = T[r, 0] * points[i, 0] + T[r, 1] * points[i, 1] + T[r, 2] * points[i, 2] + T[r, 3]
+            z = out[i, 2]
+            if not (z >= z_min and z <= z_max):
+                visible = False
+                continue
+            uL = fx * out[i, 0] / z + cx
+            v = fy * out[i, 1] / z + cy
+            disparity = fx * b / z
+            uR = uL - disparity
+            inside = uL >= 0.0 and uL <= width - 1 and uR >= 0.0 and uR <= width - 1 and v >= 0.0 and v <= height - 1
+            visible = visible and inside and disparity > min_disp
+        ok[i] = visible
+    return X_prev, X_curr, ok
+
+
+def _camera_vector(cam: StereoCamera) -> np.ndarray:
+    return np.array([cam.fx, cam.fy, cam.cx, cam.cy, cam.baseline, cam.width, cam.height, cam.min_disparity])
+
+
 class _StreetLayout:
     """One frame's street, in the frame of camera k-1: facades at ``x = -left, +right``."""
 
@@ -474,6 +511,7 @@ def _visible_landmarks(
     cam, world = config.camera, config.resolved_world
     layout = _StreetLayout(rng) if world == "street" else None
     acceptance = _ACCEPTANCE_GUESS[world]
+    cam_vector = _camera_vector(cam)
     kept_prev, kept_curr, count = [], [], 0
     for _ in range(_MAX_BATCHES):
         if count >= n:
@@ -485,10 +523,7 @@ def _visible_landmarks(
             local = _sample_open(rng, batch, cam, config.z_min, config.z_max)
         local = local[np.isfinite(local[:, 0])]
         # Landmarks live in world coordinates; the cameras see them through their poses.
-        landmarks = _apply(pose_prev, local)
-        X_prev, X_curr = _apply(world_to_prev, landmarks), _apply(world_to_curr, landmarks)
-        ok = cam.is_visible(X_prev, config.z_min, config.z_max)
-        ok &= cam.is_visible(X_curr, config.z_min, config.z_max)
+        X_prev, X_curr, ok = _seen_by_both(local, world_to_prev @ pose_prev, world_to_curr @ pose_prev, cam_vector, config.z_min, config.z_max)
         kept_prev.append(X_prev[ok])
         kept_curr.append(X_curr[ok])
         count += int(ok.sum())
@@ -587,6 +622,7 @@ def _moving_object(
     if n == 0:
         return np.empty((0, 3)), np.empty((0, 3))
     cam = config.camera
+    cam_vector = _camera_vector(cam)
     tau = _outlier_threshold(config.noise_sigma)
     street = config.resolved_world == "street"
     z_lo, z_hi = max(5.0, config.z_min + 2.0), min(25.0, config.z_max - 2.0)
@@ -615,6 +651,12 @@ def _moving_object(
         # Object motion in camera k-1 coordinates: rotate about its centre, then translate.
         obj_R, obj_t = spin, centre - spin @ centre + velocity
         areas = np.array([half[1] * half[2], half[0] * half[2], half[0] * half[1]])
+        # Object points live in camera k-1 coordinates: the cameras see them through these transforms.
+        obj = np.eye(4)
+        obj[:3, :3], obj[:3, 3] = obj_R, obj_t
+        to_prev = world_to_prev @ pose_prev
+        to_curr_static = world_to_curr @ pose_prev
+        to_curr_moved = to_curr_static @ obj
 
         def draw(size: int) -> tuple[np.ndarray, np.ndarray]:
             local = half * rng.uniform(-1.0, 1.0, (size, 3))
@@ -625,16 +667,14 @@ def _moving_object(
             normal[np.arange(size), axis] = sign
             Y = local @ orientation.T + centre
             facing = np.einsum("ij,ij->i", normal @ orientation.T, Y) < 0
-            landmarks, moved = _apply(pose_prev, Y), _apply(pose_prev, Y @ obj_R.T + obj_t)
-            X_prev, X_curr = _apply(world_to_prev, landmarks), _apply(world_to_curr, moved)
-            X_static = _apply(world_to_curr, landmarks)
-            ok = facing & cam.is_visible(X_prev, config.z_min, config.z_max)
-            ok &= cam.is_visible(X_curr, config.z_min, config.z_max)
+            X_prev, X_curr, ok = _seen_by_both(Y, to_prev, to_curr_moved, cam_vector, config.z_min, config.z_max)
+            ok &= facing
+            X_prev, X_curr, Y = X_prev[ok], X_curr[ok], Y[ok]
+            X_static = _apply(to_curr_static, Y)
             ahead = X_static[:, 2] > 1e-6
             static_meas = cam.project(np.where(ahead[:, None], X_static, 1.0))
-            moved_meas = cam.project(np.where(ok[:, None], X_curr, 1.0))
-            ok &= ~ahead | (_pixel_distance(moved_meas, static_meas) >= tau)
-            return X_prev[ok], X_curr[ok]
+            shows = ~ahead | (_pixel_distance(cam.project(X_curr), static_meas) >= tau)
+            return X_prev[shows], X_curr[shows]
 
         probe = max(64, 2 * n)
         X_prev, X_curr = draw(probe)

@@ -52,6 +52,7 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
+from numba import njit
 
 from stereovo.camera import StereoCamera
 from stereovo.estimation.reprojection import reprojection_sq
@@ -174,31 +175,40 @@ def rigid_consistency_degree(
         anchors = np.linspace(0, n - 1, MAX_ANCHORS).round().astype(np.int64)
     else:
         anchors = np.sort(np.argsort(-np.asarray(priority), kind="stable")[:MAX_ANCHORS])
-    # Two (N, A) float32 buffers in one allocation, every step in place: fresh large
-    # temporaries cost more in page faults than the arithmetic itself.
-    work = np.empty((2, n, anchors.size), dtype=np.float32)
-
-    def distances(points: np.ndarray, out: np.ndarray) -> np.ndarray:
-        # Centred Gram trick: one (N, A) matrix product, no (N, A, 3) temporary.
-        p = (points - points.mean(axis=0)).astype(np.float32)
-        norms = np.einsum("ij,ij->i", p, p)
-        np.matmul(p, p[anchors].T, out=out)
-        out *= np.float32(-2.0)
-        out += norms[:, None]
-        out += norms[anchors][None, :]
-        np.maximum(out, np.float32(0.0), out=out)
-        return np.sqrt(out, out=out)
-
-    change = distances(points_curr, work[0])
-    change -= distances(points_prev, work[1])
-    np.square(change, out=change)
-    s2 = np.square(spread.astype(np.float32)) * np.float32(gate * gate)
-    bound = np.add(s2[:, None], s2[anchors][None, :], out=work[1])
-    count = np.count_nonzero(np.less(change, bound), axis=1)
+    s2 = np.square(np.asarray(spread, dtype=float)) * (gate * gate)
+    count = _consistent_pairs(
+        np.ascontiguousarray(points_prev, dtype=float), np.ascontiguousarray(points_curr, dtype=float),
+        s2, np.ascontiguousarray(anchors, dtype=np.int64),
+    )
     is_anchor = np.zeros(n, dtype=bool)
     is_anchor[anchors] = True
     count = count - is_anchor  # a match is trivially consistent with itself
     return (count / (anchors.size - is_anchor)).astype(np.float32)
+
+
+@njit(cache=True, nogil=True)
+def _consistent_pairs(points_prev, points_curr, s2, anchors):
+    """``(N,)`` counts of anchors j with ``(|Q_i - Q_j| - |P_i - P_j|)^2 < s2_i + s2_j``.
+
+    One pass over the N x A pairs; the anchors' coordinates are gathered first so the
+    inner loop reads contiguous memory.
+    """
+    n, a = points_prev.shape[0], anchors.shape[0]
+    px, py, pz = points_prev[anchors, 0].copy(), points_prev[anchors, 1].copy(), points_prev[anchors, 2].copy()
+    qx, qy, qz = points_curr[anchors, 0].copy(), points_curr[anchors, 1].copy(), points_curr[anchors, 2].copy()
+    s2_anchor = s2[anchors]
+    counts = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        p0, p1, p2 = points_prev[i, 0], points_prev[i, 1], points_prev[i, 2]
+        q0, q1, q2 = points_curr[i, 0], points_curr[i, 1], points_curr[i, 2]
+        s2i = s2[i]
+        c = 0
+        for k in range(a):
+            dp = np.sqrt((px[k] - p0) ** 2 + (py[k] - p1) ** 2 + (pz[k] - p2) ** 2)
+            dq = np.sqrt((qx[k] - q0) ** 2 + (qy[k] - q1) ** 2 + (qz[k] - q2) ** 2)
+            c += (dq - dp) ** 2 < s2i + s2_anchor[k]
+        counts[i] = c
+    return counts
 
 
 def compute_features(
