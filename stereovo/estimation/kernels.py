@@ -43,25 +43,27 @@ def _forward_row(jac, r, a0, a1, a2, p0, p1, p2):
 
 
 @_jit
-def _backward_row(jac, r, a0, a1, a2, R, Y):
+def _backward_row(jac, r, a0, a1, a2, R, y0, y1, y2):
     """Row ``r`` for gradient ``a`` at Q = R^T (Y - t): with c = a R^T, d/d rho = -c, d/d omega = -(Y x c)."""
     c0 = a0 * R[0, 0] + a1 * R[0, 1] + a2 * R[0, 2]
     c1 = a0 * R[1, 0] + a1 * R[1, 1] + a2 * R[1, 2]
     c2 = a0 * R[2, 0] + a1 * R[2, 1] + a2 * R[2, 2]
     jac[r, 0], jac[r, 1], jac[r, 2] = -c0, -c1, -c2
-    jac[r, 3] = Y[2] * c1 - Y[1] * c2
-    jac[r, 4] = Y[0] * c2 - Y[2] * c0
-    jac[r, 5] = Y[1] * c0 - Y[0] * c1
+    jac[r, 3] = y2 * c1 - y1 * c2
+    jac[r, 4] = y0 * c2 - y2 * c0
+    jac[r, 5] = y1 * c0 - y0 * c1
 
 
 @_jit
-def _point_rows(R, t, X, Y, mp, mc, cam, res, jac, want_jac):
-    """Fill ``res (8,)`` (and ``jac (8, 6)``) for one point; False if it is behind a camera."""
+def _point_rows(R, t, X, Y, mp, mc, m, cam, res, jac, want_jac):
+    """Fill ``res (8,)`` (and ``jac (8, 6)``) for point ``m`` of ``X, Y (M, 3)``, ``mp, mc (M, 4)``;
+    False if it is behind a camera. (Indexing here rather than passing row views keeps the
+    hot loop free of per-point array views.)"""
     fx, fy, cx, cy, b = cam[0], cam[1], cam[2], cam[3], cam[4]
-    p0 = R[0, 0] * X[0] + R[0, 1] * X[1] + R[0, 2] * X[2] + t[0]
-    p1 = R[1, 0] * X[0] + R[1, 1] * X[1] + R[1, 2] * X[2] + t[1]
-    p2 = R[2, 0] * X[0] + R[2, 1] * X[1] + R[2, 2] * X[2] + t[2]
-    d0, d1, d2 = Y[0] - t[0], Y[1] - t[1], Y[2] - t[2]
+    p0 = R[0, 0] * X[m, 0] + R[0, 1] * X[m, 1] + R[0, 2] * X[m, 2] + t[0]
+    p1 = R[1, 0] * X[m, 0] + R[1, 1] * X[m, 1] + R[1, 2] * X[m, 2] + t[1]
+    p2 = R[2, 0] * X[m, 0] + R[2, 1] * X[m, 1] + R[2, 2] * X[m, 2] + t[2]
+    d0, d1, d2 = Y[m, 0] - t[0], Y[m, 1] - t[1], Y[m, 2] - t[2]
     q0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2
     q1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
     q2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
@@ -73,14 +75,14 @@ def _point_rows(R, t, X, Y, mp, mc, cam, res, jac, want_jac):
         return False
     ip = 1.0 / p2
     iq = 1.0 / q2
-    res[0] = fx * p0 * ip + cx - mc[0]
-    res[1] = fy * p1 * ip + cy - mc[1]
-    res[2] = fx * (p0 - b) * ip + cx - mc[2]
-    res[3] = fy * p1 * ip + cy - mc[3]
-    res[4] = fx * q0 * iq + cx - mp[0]
-    res[5] = fy * q1 * iq + cy - mp[1]
-    res[6] = fx * (q0 - b) * iq + cx - mp[2]
-    res[7] = fy * q1 * iq + cy - mp[3]
+    res[0] = fx * p0 * ip + cx - mc[m, 0]
+    res[1] = fy * p1 * ip + cy - mc[m, 1]
+    res[2] = fx * (p0 - b) * ip + cx - mc[m, 2]
+    res[3] = fy * p1 * ip + cy - mc[m, 3]
+    res[4] = fx * q0 * iq + cx - mp[m, 0]
+    res[5] = fy * q1 * iq + cy - mp[m, 1]
+    res[6] = fx * (q0 - b) * iq + cx - mp[m, 2]
+    res[7] = fy * q1 * iq + cy - mp[m, 3]
     if not want_jac:
         return True
     # d(projection)/d(point) rows of the forward point P (row 3 equals row 1) ...
@@ -89,9 +91,9 @@ def _point_rows(R, t, X, Y, mp, mc, cam, res, jac, want_jac):
     _forward_row(jac, 2, fx * ip, 0.0, -fx * (p0 - b) * ip * ip, p0, p1, p2)
     jac[3, :] = jac[1, :]
     # ... and of the backward point Q
-    _backward_row(jac, 4, fx * iq, 0.0, -fx * q0 * iq * iq, R, Y)
-    _backward_row(jac, 5, 0.0, fy * iq, -fy * q1 * iq * iq, R, Y)
-    _backward_row(jac, 6, fx * iq, 0.0, -fx * (q0 - b) * iq * iq, R, Y)
+    _backward_row(jac, 4, fx * iq, 0.0, -fx * q0 * iq * iq, R, Y[m, 0], Y[m, 1], Y[m, 2])
+    _backward_row(jac, 5, 0.0, fy * iq, -fy * q1 * iq * iq, R, Y[m, 0], Y[m, 1], Y[m, 2])
+    _backward_row(jac, 6, fx * iq, 0.0, -fx * (q0 - b) * iq * iq, R, Y[m, 0], Y[m, 1], Y[m, 2])
     jac[7, :] = jac[5, :]
     return True
 
@@ -106,7 +108,7 @@ def symmetric_residuals(R, t, X, Y, mp, mc, cam, want_jac):
     for h in range(H):
         g = h if X.shape[0] > 1 else 0
         for m in range(M):
-            _point_rows(R[h], t[h], X[g, m], Y[g, m], mp[g, m], mc[g, m], cam, res[h, m], scratch, want_jac)
+            _point_rows(R[h], t[h], X[g], Y[g], mp[g], mc[g], m, cam, res[h, m], scratch, want_jac)
             if want_jac:
                 jac[h, m] = scratch
     return res, jac
@@ -135,17 +137,21 @@ def _cost_and_normal_equations(R, t, X, Y, mp, mc, cam, w, huber, A, g, want_sys
     for m in range(X.shape[0]):
         if w[m] == 0.0:
             continue
-        _point_rows(R, t, X[m], Y[m], mp[m], mc[m], cam, res, jac, want_system)
+        _point_rows(R, t, X, Y, mp, mc, m, cam, res, jac, want_system)
         sq = 0.0
         for r in range(8):
             sq += res[r] * res[r]
         wm = _irls_weight(w[m], sq, huber)
         cost += wm * sq
         if want_system:
-            for r in range(8):
+            # Rows 3 and 7 (vR) have the Jacobians of rows 1 and 5 (vL): fold them in.
+            for r in (0, 1, 2, 4, 5, 6):
+                twin = r == 1 or r == 5
+                rr = res[r] + res[r + 2] if twin else res[r]
+                wr = 2.0 * wm if twin else wm
                 for i in range(6):
-                    wji = wm * jac[r, i]
-                    g[i] += wji * res[r]
+                    g[i] += wm * jac[r, i] * rr
+                    wji = wr * jac[r, i]
                     for j in range(i, 6):
                         A[i, j] += wji * jac[r, j]
     if want_system:
