@@ -58,6 +58,11 @@ class NGRansacConfig:
         pools: pools per frame (K); their mean loss is the baseline.
         frames: training frames (policy-gradient steps).
         method: core method that fits and scores each pool.
+        max_grad_norm: the policy gradient's norm is clipped to this (None: no clipping). One
+            outsized step can push the softmax onto a few points whose triplets all fail; then
+            every pool has the same loss, the advantage is zero and training never recovers.
+        entropy_weight: weight of the sampling distribution's entropy (normalised by log N)
+            subtracted from the objective, which keeps the mass from collapsing onto a few points.
     """
 
     loss: str = "supervised"
@@ -79,6 +84,8 @@ class NGRansacConfig:
     eval_frames: int = 60
     eval_epsilon: float = 0.8
     keep_best: bool = True  # end with the weights that evaluated best, not the last ones
+    max_grad_norm: float | None = 1.0
+    entropy_weight: float = 0.0
 
     def __post_init__(self) -> None:
         if self.loss not in LOSSES:
@@ -89,6 +96,10 @@ class NGRansacConfig:
         for name in ("budget", "pools", "frames", "frames_per_sequence", "width", "blocks", "eval_frames"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.max_grad_norm is not None and not self.max_grad_norm > 0:
+            raise ValueError(f"max_grad_norm must be None or > 0, got {self.max_grad_norm}")
+        if not self.entropy_weight >= 0:
+            raise ValueError(f"entropy_weight must be >= 0, got {self.entropy_weight}")
         if self.pools < 2:
             raise ValueError("pools must be >= 2: the baseline is the mean loss of the pools")
         self.epsilon_range = (float(lo), float(hi))
@@ -177,6 +188,7 @@ class TrainingLog:
     mean_loss: float
     success_rate: float  # of the pools' estimates in this reporting window
     eval_success: float | None = None
+    grad_norm: float | None = None  # median policy-gradient norm (before clipping) in the window
 
 
 @dataclass
@@ -220,6 +232,9 @@ class NGRansacTrainer:
         success = [pose_loss(e, frame) < 1.0 for e in estimates]
         advantage = torch.tensor(losses) - float(np.mean(losses))
         objective = (advantage * log_prob).mean()
+        if self.config.entropy_weight > 0:
+            entropy = -(log_p.exp() * log_p).sum() / float(np.log(max(frame.n, 2)))
+            objective = objective - self.config.entropy_weight * entropy
         return objective, losses, success, estimates[0]
 
     def train(self, frames: int | None = None, progress: bool = False) -> CorrespondenceNet:
@@ -228,7 +243,7 @@ class NGRansacTrainer:
         frames = self.config.frames if frames is None else frames
         stream = frame_stream(self.config.simulation(), self.config.seed * 7919 + self.step)
         previous_motion = None
-        window_loss, window_success = [], []
+        window_loss, window_success, window_norm = [], [], []
         self.net.train()
         bar = tqdm(total=frames, desc=f"ngransac ({self.config.loss})", disable=not progress, unit="frame")
         for i in range(frames):
@@ -238,6 +253,10 @@ class NGRansacTrainer:
             objective, losses, success, first = self._frame_loss(frame, previous_motion)
             self.optimizer.zero_grad()
             objective.backward()
+            norm = torch.nn.utils.clip_grad_norm_(
+                self.net.parameters(), self.config.max_grad_norm if self.config.max_grad_norm else float("inf")
+            )
+            window_norm.append(float(norm))
             self.optimizer.step()
             if first.ok:  # like the environment: a failed frame keeps the last good motion
                 previous_motion = (first.rotation, first.translation)
@@ -246,7 +265,9 @@ class NGRansacTrainer:
             self.step += 1
             bar.update()
             if self.step % self.config.eval_every == 0 or i == frames - 1:
-                entry = TrainingLog(self.step, float(np.mean(window_loss)), float(np.mean(window_success)))
+                entry = TrainingLog(
+                    self.step, float(np.mean(window_loss)), float(np.mean(window_success)), grad_norm=float(np.median(window_norm))
+                )
                 entry.eval_success = self.evaluate(self.config.eval_frames)
                 self.history.append(entry)
                 if entry.eval_success >= self.best_eval:
@@ -256,7 +277,7 @@ class NGRansacTrainer:
                 bar.set_postfix(loss=f"{entry.mean_loss:.3f}", train_succ=f"{entry.success_rate:.2f}", eval_succ=f"{entry.eval_success:.2f}")
                 if self.on_log:
                     self.on_log(entry)
-                window_loss, window_success = [], []
+                window_loss, window_success, window_norm = [], [], []
                 self.net.train()
         bar.close()
         if self.config.keep_best and self.best_state is not None:

@@ -123,6 +123,31 @@ def test_short_training_lowers_the_loss_on_a_fixed_seed(tmp_path):
         torch.testing.assert_close(a, b)
 
 
+def test_entropy_bonus_keeps_the_sampling_distribution_spread_and_settings_are_validated():
+    from stereovo.simulation import simulate_frame
+    from vo_gym.features import compute_features
+
+    def trained_entropy(weight: float) -> float:
+        config = NGRansacConfig(
+            n_correspondences=100, epsilon_range=(0.6, 0.6), budget=4, pools=2, frames=30, learning_rate=3e-2,
+            width=16, blocks=1, eval_every=1000, eval_frames=1, frames_per_sequence=10, seed=5, keep_best=False,
+            max_grad_norm=None, entropy_weight=weight,
+        )
+        trainer = NGRansacTrainer(config)
+        trainer.train()
+        frame = simulate_frame(config.simulation(0.6), np.random.default_rng(7))
+        feats = compute_features(frame.prev, frame.curr, frame.scores, frame.camera, frame.noise_sigma)
+        with torch.no_grad():
+            log_p = torch.log_softmax(trainer.net(torch.from_numpy(feats)[None], torch.ones(1, frame.n, dtype=torch.bool))[0], 0)
+        return float(-(log_p.exp() * log_p).sum())
+
+    assert trained_entropy(5.0) > trained_entropy(0.0) + 0.05
+    with pytest.raises(ValueError, match="entropy_weight"):
+        NGRansacConfig(entropy_weight=-1.0)
+    with pytest.raises(ValueError, match="max_grad_norm"):
+        NGRansacConfig(max_grad_norm=0.0)
+
+
 def test_shipped_checkpoint_loads_and_is_small():
     from pathlib import Path
 

@@ -31,6 +31,10 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     ng.add_argument("--budget", type=int, default=16, help="hypotheses per pool (the env's budget)")
     ng.add_argument("--pools", type=int, default=4, help="pools per frame; their mean loss is the baseline")
     ng.add_argument("--lr", type=float, default=3e-4)
+    ng.add_argument("--max-grad-norm", type=float, default=1.0,
+                    help="clip the policy gradient's norm to this (0: no clipping)")
+    ng.add_argument("--entropy-weight", type=float, default=0.0,
+                    help="entropy bonus on the sampling distribution (normalised by log N)")
     ng.add_argument("--eval-every", type=int, default=250)
     ng.add_argument("--eval-frames", type=int, default=100)
     ppo = parser.add_argument_group("ppo")
@@ -97,7 +101,8 @@ def _train_ngransac(args: argparse.Namespace, out: Path) -> int:
             config = NGRansacConfig(
                 loss=args.loss, epsilon_range=_epsilon_range(args.epsilon), budget=args.budget, pools=args.pools,
                 frames=1500 if args.frames is None else args.frames, learning_rate=args.lr, seed=args.seed, eval_every=args.eval_every,
-                eval_frames=args.eval_frames,
+                eval_frames=args.eval_frames, max_grad_norm=args.max_grad_norm or None,
+                entropy_weight=args.entropy_weight,
             )
             trainer = NGRansacTrainer(config)
     except (ValueError, FileNotFoundError) as err:
@@ -108,6 +113,8 @@ def _train_ngransac(args: argparse.Namespace, out: Path) -> int:
     def log(entry) -> None:
         writer.add_scalar("train/mean_loss", entry.mean_loss, entry.step)
         writer.add_scalar("train/pool_success", entry.success_rate, entry.step)
+        if entry.grad_norm is not None:
+            writer.add_scalar("train/grad_norm", entry.grad_norm, entry.step)
         if entry.eval_success is not None:
             writer.add_scalar(f"eval/success_eps{trainer.config.eval_epsilon}", entry.eval_success, entry.step)
         trainer.save(checkpoint)  # periodic checkpoint at every evaluation
