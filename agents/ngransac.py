@@ -71,7 +71,9 @@ class NGRansacConfig:
     noise_sigma: float = 0.5
     score_auc: float = 0.75
     outlier_mix: tuple[float, float, float] = (0.6, 0.2, 0.2)
-    frames_per_sequence: int = 25
+    # Short sequences, as in `vo-gym evaluate` (10-frame episodes): every sequence's first frame
+    # has no constant-velocity prediction, the hardest case, and training must see enough of them.
+    frames_per_sequence: int = 10
     budget: int = 16  # the agents' benchmark budget (the env's default is 32)
     pools: int = 4
     frames: int = 3000

@@ -35,6 +35,8 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                     help="clip the policy gradient's norm to this (0: no clipping)")
     ng.add_argument("--entropy-weight", type=float, default=0.0,
                     help="entropy bonus on the sampling distribution (normalised by log N)")
+    ng.add_argument("--frames-per-sequence", type=int, default=10,
+                    help="frames per simulated training sequence; each starts without a constant-velocity prediction")
     ng.add_argument("--eval-every", type=int, default=250)
     ng.add_argument("--eval-frames", type=int, default=100)
     ppo = parser.add_argument_group("ppo")
@@ -102,7 +104,7 @@ def _train_ngransac(args: argparse.Namespace, out: Path) -> int:
                 loss=args.loss, epsilon_range=_epsilon_range(args.epsilon), budget=args.budget, pools=args.pools,
                 frames=1500 if args.frames is None else args.frames, learning_rate=args.lr, seed=args.seed, eval_every=args.eval_every,
                 eval_frames=args.eval_frames, max_grad_norm=args.max_grad_norm or None,
-                entropy_weight=args.entropy_weight,
+                entropy_weight=args.entropy_weight, frames_per_sequence=args.frames_per_sequence,
             )
             trainer = NGRansacTrainer(config)
     except (ValueError, FileNotFoundError) as err:
