@@ -26,19 +26,22 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                     help="task loss: pose error against ground truth; minus the inlier fraction (no ground truth); "
                          "or that plus a motion-smoothness penalty (no ground truth)")
     ng.add_argument("--frames", type=int, default=None,
-                    help="total training frames (policy-gradient steps; default 1500); with --resume, the new total")
+                    help="total training frames (policy-gradient steps; default 8000); with --resume, the new total")
     ng.add_argument("--epsilon", default="0.3:0.9", help="training contamination, a value or a range lo:hi")
-    ng.add_argument("--budget", type=int, default=16, help="hypotheses per pool (the env's budget)")
-    ng.add_argument("--pools", type=int, default=4, help="pools per frame; their mean loss is the baseline")
-    ng.add_argument("--lr", type=float, default=3e-4)
-    ng.add_argument("--max-grad-norm", type=float, default=1.0,
-                    help="clip the policy gradient's norm to this (0: no clipping)")
-    ng.add_argument("--entropy-weight", type=float, default=0.0,
-                    help="entropy bonus on the sampling distribution (normalised by log N)")
-    ng.add_argument("--frames-per-sequence", type=int, default=10,
-                    help="frames per simulated training sequence; each starts without a constant-velocity prediction")
-    ng.add_argument("--eval-every", type=int, default=250)
-    ng.add_argument("--eval-frames", type=int, default=100)
+    # Defaults of None take agents.ngransac.NGRansacConfig's.
+    ng.add_argument("--budget", type=int, default=None, help="hypotheses per pool (default 11)")
+    ng.add_argument("--pools", type=int, default=None,
+                    help="pools per frame; their mean loss is the baseline (default 8)")
+    ng.add_argument("--lr", type=float, default=None, help="Adam learning rate (default 1e-4)")
+    ng.add_argument("--max-grad-norm", type=float, default=None,
+                    help="clip the policy gradient's norm to this (default 5; 0: no clipping)")
+    ng.add_argument("--entropy-weight", type=float, default=None,
+                    help="entropy bonus on the sampling distribution, normalised by log N (default 0)")
+    ng.add_argument("--frames-per-sequence", type=int, default=None,
+                    help="frames per simulated training sequence; each starts without a constant-velocity "
+                         "prediction (default 10)")
+    ng.add_argument("--eval-every", type=int, default=None, help="frames between evaluations (default 1000)")
+    ng.add_argument("--eval-frames", type=int, default=None, help="frames per evaluation (default 300)")
     ppo = parser.add_argument_group("ppo")
     ppo.add_argument("--timesteps", type=int, default=20_000, help="PPO environment steps")
     ppo.add_argument("--env-id", default="vo_gym/StereoVO-v0")
@@ -100,12 +103,15 @@ def _train_ngransac(args: argparse.Namespace, out: Path) -> int:
             overrides = {} if args.frames is None else {"frames": args.frames}
             trainer = NGRansacTrainer.resume(args.resume, **overrides)
         else:
-            config = NGRansacConfig(
-                loss=args.loss, epsilon_range=_epsilon_range(args.epsilon), budget=args.budget, pools=args.pools,
-                frames=1500 if args.frames is None else args.frames, learning_rate=args.lr, seed=args.seed, eval_every=args.eval_every,
-                eval_frames=args.eval_frames, max_grad_norm=args.max_grad_norm or None,
+            given = dict(
+                budget=args.budget, pools=args.pools, frames=args.frames, learning_rate=args.lr,
                 entropy_weight=args.entropy_weight, frames_per_sequence=args.frames_per_sequence,
+                eval_every=args.eval_every, eval_frames=args.eval_frames,
             )
+            given = {k: v for k, v in given.items() if v is not None}
+            if args.max_grad_norm is not None:
+                given["max_grad_norm"] = args.max_grad_norm or None  # 0 switches clipping off
+            config = NGRansacConfig(loss=args.loss, epsilon_range=_epsilon_range(args.epsilon), seed=args.seed, **given)
             trainer = NGRansacTrainer(config)
     except (ValueError, FileNotFoundError) as err:
         raise SystemExit(f"vo-gym train: error: {err}")
