@@ -400,6 +400,12 @@ def _loguniform(rng: np.random.Generator, low: float, high: float, size: int) ->
     return low * np.exp(rng.random(size) * math.log(high / low))
 
 
+def _rotation_about_y(angle: float) -> np.ndarray:
+    """``so3_exp((0, angle, 0))`` in closed form (a heading change on the street)."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
 def _uniform_between(rng: np.random.Generator, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Uniform draws in ``[low, high]`` elementwise, and the mask where the interval is non-empty."""
     return low + (high - low) * rng.random(np.shape(low)), high >= low
@@ -639,9 +645,9 @@ def _moving_object(
             half = 0.5 * np.array([rng.uniform(1.6, 2.0), rng.uniform(1.4, 1.8), rng.uniform(3.5, 5.0)])
             centre[1] = _CAMERA_HEIGHT - half[1]
             heading = rng.uniform(-np.pi, np.pi)
-            orientation = so3_exp(np.array([0.0, heading, 0.0]))
+            orientation = _rotation_about_y(heading)
             velocity = orientation[:, 2] * rng.uniform(0.5, 2.0) * rng.choice([-1.0, 1.0])
-            spin = so3_exp(np.array([0.0, rng.uniform(-1, 1) * np.radians(3.0), 0.0]))
+            spin = _rotation_about_y(rng.uniform(-1, 1) * np.radians(3.0))
         else:
             half = 0.5 * rng.uniform(0.8, 3.0, 3)
             orientation = random_rotation(rng)
@@ -651,6 +657,8 @@ def _moving_object(
         # Object motion in camera k-1 coordinates: rotate about its centre, then translate.
         obj_R, obj_t = spin, centre - spin @ centre + velocity
         areas = np.array([half[1] * half[2], half[0] * half[2], half[0] * half[1]])
+        face_cdf = np.cumsum(areas)
+        face_cdf /= face_cdf[-1]
         # Object points live in camera k-1 coordinates: the cameras see them through these transforms.
         obj = np.eye(4)
         obj[:3, :3], obj[:3, 3] = obj_R, obj_t
@@ -660,8 +668,10 @@ def _moving_object(
 
         def draw(size: int) -> tuple[np.ndarray, np.ndarray]:
             local = half * rng.uniform(-1.0, 1.0, (size, 3))
-            axis = rng.choice(3, size=size, p=areas / areas.sum())
-            sign = rng.choice([-1.0, 1.0], size=size)
+            # rng.choice(3, size, p=face_cdf) and rng.choice([-1.0, 1.0], size), drawn from the same
+            # stream without choice()'s per-call validation, which costs more than the draws here.
+            axis = face_cdf.searchsorted(rng.random(size), side="right")
+            sign = np.where(rng.integers(0, 2, size=size, dtype=np.int64) == 0, -1.0, 1.0)
             local[np.arange(size), axis] = sign * half[axis]
             normal = np.zeros((size, 3))
             normal[np.arange(size), axis] = sign
