@@ -111,16 +111,19 @@ class StereoCamera:
         J[..., 2, 2] = depth / d
         return J
 
-    def triangulation_covariance(self, measurements: np.ndarray, sigma: float) -> np.ndarray:
+    def triangulation_covariance(
+        self, measurements: np.ndarray, sigma: float, points: np.ndarray | None = None
+    ) -> np.ndarray:
         """Covariances ``(..., 3, 3)`` in m^2 of triangulated points: ``sigma^2 J J^T``.
 
         Args:
             measurements: ``(..., 4)`` stereo measurements in pixels.
             sigma: isotropic pixel noise standard deviation (pixels).
+            points: ``self.triangulate(measurements)`` if the caller has it already.
         """
         if not np.isfinite(sigma) or sigma <= 0:
             raise ValueError(f"sigma must be a positive pixel noise, got {sigma!r}")
-        X = self.triangulate(measurements)
+        X = self.triangulate(measurements) if points is None else points
         d = self.disparity(measurements)
         # J J^T written out from the sparse rows of triangulation_jacobian:
         # (z/fx - x/d, 0, x/d, 0), (-y/d, z/2fy, y/d, z/2fy), (-z/d, 0, z/d, 0).

@@ -529,7 +529,9 @@ def _visible_landmarks(
             local = _sample_open(rng, batch, cam, config.z_min, config.z_max)
         local = local[np.isfinite(local[:, 0])]
         # Landmarks live in world coordinates; the cameras see them through their poses.
-        X_prev, X_curr, ok = _seen_by_both(local, world_to_prev @ pose_prev, world_to_curr @ pose_prev, cam_vector, config.z_min, config.z_max)
+        X_prev, X_curr, ok = _seen_by_both(
+            local, world_to_prev @ pose_prev, world_to_curr @ pose_prev, cam_vector, config.z_min, config.z_max
+        )
         kept_prev.append(X_prev[ok])
         kept_curr.append(X_curr[ok])
         count += int(ok.sum())

@@ -251,8 +251,8 @@ def compute_features(
         return out
     points_prev = camera.triangulate(prev)  # raises ValueError on a match without depth
     points_curr = camera.triangulate(curr)
-    cov_prev = camera.triangulation_covariance(prev, noise_sigma)
-    cov_curr = camera.triangulation_covariance(curr, noise_sigma)
+    cov_prev = camera.triangulation_covariance(prev, noise_sigma, points_prev)
+    cov_curr = camera.triangulation_covariance(curr, noise_sigma, points_curr)
 
     out[:, 0] = scores
     rank = np.empty(n)

@@ -80,8 +80,8 @@ class StereoProblem:
             noise_sigma=float(noise_sigma),
             points_prev=points_prev,
             points_curr=points_curr,
-            cov_prev=camera.triangulation_covariance(prev, noise_sigma),
-            cov_curr=camera.triangulation_covariance(curr, noise_sigma),
+            cov_prev=camera.triangulation_covariance(prev, noise_sigma, points_prev),
+            cov_curr=camera.triangulation_covariance(curr, noise_sigma, points_curr),
         )
 
     @property
