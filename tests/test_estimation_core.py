@@ -280,3 +280,24 @@ def test_gauss_newton_refinement_reaches_the_noise_free_motion():
     assert rotation_error(R[0], R_true) < 1e-9
     assert np.linalg.norm(t[0] - t_true) < 1e-9
     assert cost[0] < 1e-12
+
+
+@pytest.mark.parametrize(
+    "priors",
+    [np.array([0.0, 0.0, 1e-300, 1.0, 1.0, 0.0]), np.array([1e12, 1.0, 1e-12, 0.0, 3.0]), np.array([0.0, 1.0, 1.0, 1.0])],
+)
+def test_weighted_sampler_draws_three_distinct_positive_weight_indices_under_extreme_priors(priors):
+    draws = WeightedSampler(priors).draw(5000, np.random.default_rng(1))
+    assert draws.shape == (5000, 3)
+    assert np.all(priors[draws] > 0)
+    assert np.all((draws[:, 0] != draws[:, 1]) & (draws[:, 0] != draws[:, 2]) & (draws[:, 1] != draws[:, 2]))
+
+
+def test_weighted_sampler_fix_up_path_draws_distinct_positive_indices():
+    # The vectorised draw hands rows that rounding pushed past the last interval to this exact path.
+    sampler = WeightedSampler(np.array([0.0, 2.0, 1.0, 1.0, 0.0]))
+    top = 1.0 - 2.0**-53  # the largest value Generator.random() returns
+    for u in (np.array([top, top, top]), np.array([0.0, 0.0, 0.0]), np.array([0.5, top, 0.0])):
+        picked = sampler._draw_exactly(u)
+        assert len(set(picked.tolist())) == 3 and set(picked.tolist()) <= {1, 2, 3}
+    assert sampler._draw_exactly(np.array([0.0, 0.0, 0.0])).tolist() == [1, 2, 3]
