@@ -6,8 +6,9 @@ times per frame; memory traffic and per-call overhead, not arithmetic, set the
 time. Each kernel here walks the hypotheses and points once, keeps a point's
 residual and Jacobian in registers and accumulates what the caller needs (the
 normal equations, a cost, one squared residual). The Python wrappers in
-:mod:`stereovo.estimation.reprojection` and :mod:`stereovo.estimation.scoring`
-keep the shapes and documentation; nothing outside them calls this module.
+:mod:`stereovo.estimation.reprojection`, :mod:`stereovo.estimation.scoring` and
+:mod:`stereovo.estimation.solvers` keep the shapes and documentation; nothing
+outside them calls this module.
 
 Conventions (as in :mod:`stereovo.estimation.reprojection`): a motion maps
 ``x_k = R x_{k-1} + t``; the perturbation is ``T <- exp(delta^) T`` with
