@@ -76,7 +76,7 @@ class NGRansacConfig:
     frames_per_sequence: int = 10
     budget: int = 11  # the agents' target budget: 99 % success within 575 / 50 hypotheses
     pools: int = 8
-    frames: int = 8000
+    frames: int = 16000
     learning_rate: float = 1e-4
     width: int = 64
     blocks: int = 3

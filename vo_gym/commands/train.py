@@ -26,7 +26,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                     help="task loss: pose error against ground truth; minus the inlier fraction (no ground truth); "
                          "or that plus a motion-smoothness penalty (no ground truth)")
     ng.add_argument("--frames", type=int, default=None,
-                    help="total training frames (policy-gradient steps; default 8000); with --resume, the new total")
+                    help="total training frames (policy-gradient steps; default 16000); with --resume, the new total")
     ng.add_argument("--epsilon", default="0.3:0.9", help="training contamination, a value or a range lo:hi")
     # Defaults of None take agents.ngransac.NGRansacConfig's.
     ng.add_argument("--budget", type=int, default=None, help="hypotheses per pool (default 11)")
