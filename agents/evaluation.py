@@ -37,8 +37,8 @@ import math
 import os
 import time
 import zlib
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
@@ -472,6 +472,8 @@ def run_evaluation(
     """Run every agent and classical method on every setting's episodes; rows in a fixed order."""
     from tqdm.auto import tqdm
 
+    from stereovo.benchmark import ordered_map
+
     if int(workers) != workers or workers < 1:
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
     make_env(config.env_id, **config.env_kwargs_for(config.sweep_epsilon, config.budget)).close()  # validates
@@ -484,29 +486,12 @@ def run_evaluation(
             if config.methods:
                 n_est = n_fixed * (2 if budget == config.budget else 1)
                 units.append(_Unit(epsilon, budget, episode, seed, None, config.frames_per_episode * n_est))
-    results: list[list[dict[str, Any]] | None] = [None] * len(units)
     start = time.perf_counter()
     bar = tqdm(total=sum(u.weight for u in units), desc="evaluate", unit="frame", disable=not progress,
                dynamic_ncols=True)
     try:
-        if workers == 1 or len(units) <= 1:
-            for i, unit in enumerate(units):
-                results[i] = _run_unit(unit, config)
-                bar.update(unit.weight)
-        else:
-            with ProcessPoolExecutor(max_workers=min(int(workers), len(units)), initializer=_worker_init) as pool:
-                pending = {pool.submit(_run_unit, unit, config): i for i, unit in enumerate(units)}
-                try:
-                    while pending:
-                        done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                        for future in done:
-                            i = pending.pop(future)
-                            results[i] = future.result()
-                            bar.update(units[i].weight)
-                except BaseException:
-                    for future in pending:
-                        future.cancel()
-                    raise
+        results = ordered_map(partial(_run_unit, config=config), units, workers, bar,
+                              weights=[u.weight for u in units], initializer=_worker_init)
     finally:
         bar.close()
     wall = time.perf_counter() - start

@@ -40,6 +40,7 @@ import time
 import zlib
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field, replace
+from functools import partial
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
@@ -68,6 +69,7 @@ __all__ = [
     "simulate_trial",
     "run_trial",
     "run_benchmark",
+    "ordered_map",
     "read_trials_csv",
     "BenchmarkSummary",
     "aggregate",
@@ -505,6 +507,45 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def ordered_map(
+    fn: Callable[[Any], Any],
+    jobs: Sequence[Any],
+    workers: int,
+    bar: Any,
+    weights: Sequence[float] | None = None,
+    initializer: Callable[[], None] | None = None,
+) -> list[Any]:
+    """``[fn(job) for job in jobs]`` in this process (``workers == 1``) or in a process pool.
+
+    Results come back in job order either way, so nothing downstream depends on the worker
+    count or on completion order. ``bar`` (a tqdm bar) advances by each job's weight (1 by
+    default) as the job finishes; a failure cancels the jobs that have not started and is
+    re-raised. ``fn`` must be picklable for ``workers > 1``.
+    """
+    jobs = list(jobs)
+    weights = [1] * len(jobs) if weights is None else list(weights)
+    results: list[Any] = [None] * len(jobs)
+    if workers == 1 or len(jobs) <= 1:
+        for i, job in enumerate(jobs):
+            results[i] = fn(job)
+            bar.update(weights[i])
+        return results
+    with ProcessPoolExecutor(max_workers=min(int(workers), len(jobs)), initializer=initializer) as pool:
+        pending = {pool.submit(fn, job): i for i, job in enumerate(jobs)}
+        try:
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    i = pending.pop(future)
+                    results[i] = future.result()
+                    bar.update(weights[i])
+        except BaseException:
+            for future in pending:
+                future.cancel()
+            raise
+    return results
+
+
 def run_benchmark(
     trials: Sequence[Trial],
     estimators: Sequence[tuple[str, Estimator]],
@@ -535,26 +576,9 @@ def run_benchmark(
     from tqdm.auto import tqdm
 
     trials = list(trials)
-    results: list[list[dict[str, Any]] | None] = [None] * len(trials)
     bar = tqdm(total=len(trials), desc=desc, unit="frame", disable=not progress, dynamic_ncols=True)
     try:
-        if workers == 1 or len(trials) <= 1:
-            for i, trial in enumerate(trials):
-                results[i] = run_trial(trial, estimators, seed)
-                bar.update(1)
-        else:
-            with ProcessPoolExecutor(max_workers=min(int(workers), len(trials))) as pool:
-                pending = {pool.submit(run_trial, trial, estimators, seed): i for i, trial in enumerate(trials)}
-                try:
-                    while pending:
-                        done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                        for future in done:
-                            results[pending.pop(future)] = future.result()
-                            bar.update(1)
-                except BaseException:
-                    for future in pending:
-                        future.cancel()
-                    raise
+        results = ordered_map(partial(run_trial, estimators=estimators, seed=seed), trials, workers, bar)
     finally:
         bar.close()
     return [row for rows in results for row in rows]  # type: ignore[union-attr]

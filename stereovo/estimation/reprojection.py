@@ -43,6 +43,12 @@ def _motions(R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float)
 
 
+def _kernel_problem(camera, R, t, points_prev, points_curr, meas_prev, meas_curr) -> tuple:
+    """``(R, t, X, Y, meas_prev, meas_curr, cam)`` in the layout the kernels take."""
+    return (*_motions(R, t), _grouped(points_prev, 3), _grouped(points_curr, 3), _grouped(meas_prev, 4),
+            _grouped(meas_curr, 4), _camera_vector(camera))
+
+
 def residuals_and_jacobians(
     camera: StereoCamera,
     R: np.ndarray,
@@ -63,11 +69,8 @@ def residuals_and_jacobians(
 
     A point behind either camera gets residual rows of ``1e3`` px and a zero Jacobian.
     """
-    R, t = _motions(R, t)
-    res, jac = kernels.symmetric_residuals(
-        R, t, _grouped(points_prev, 3), _grouped(points_curr, 3), _grouped(meas_prev, 4), _grouped(meas_curr, 4),
-        _camera_vector(camera), with_jacobian,
-    )
+    args = _kernel_problem(camera, R, t, points_prev, points_curr, meas_prev, meas_curr)
+    res, jac = kernels.symmetric_residuals(*args, with_jacobian)
     return res, (jac if with_jacobian else None)
 
 
@@ -84,6 +87,7 @@ def gauss_newton_steps(
     damping: float = 1e-6,
     huber: float | None = None,
     tolerance: float = 1e-12,
+    step_control: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Levenberg-Marquardt iterations on the symmetric reprojection error, for H hypotheses at once.
 
@@ -93,18 +97,19 @@ def gauss_newton_steps(
         huber: optional Huber threshold in pixels on each point's residual norm.
         tolerance: a hypothesis stops once its step is below this (radians / metres) or its
             cost fell by less than a relative 1e-9.
+        step_control: False takes every step (plain Gauss-Newton, see :func:`gauss_newton_polish`).
 
     Returns:
         ``(R, t, cost)``: refined motions and the final weighted squared cost ``(H,)`` (pixels^2).
-        A step that raises the cost is rejected for that hypothesis and its damping raised.
+        With step control, a step that raises the cost is rejected for that hypothesis and its
+        damping raised.
     """
-    R, t = _motions(R, t)
-    X = _grouped(points_prev, 3)
-    w = np.ones((1, X.shape[1])) if weights is None else np.asarray(weights, dtype=float)
+    args = _kernel_problem(camera, R, t, points_prev, points_curr, meas_prev, meas_curr)
+    w = np.ones((1, args[2].shape[1])) if weights is None else np.asarray(weights, dtype=float)
     w = np.ascontiguousarray(w[None] if w.ndim == 1 else w)
     return kernels.gauss_newton(
-        R, t, X, _grouped(points_curr, 3), _grouped(meas_prev, 4), _grouped(meas_curr, 4), _camera_vector(camera),
-        w, 0.0 if huber is None else float(huber), int(iterations), float(damping), float(tolerance), True,
+        *args, w, 0.0 if huber is None else float(huber), int(iterations), float(damping), float(tolerance),
+        step_control,
     )
 
 
@@ -124,11 +129,9 @@ def gauss_newton_polish(
     hypothesis that diverges instead just scores badly, which is cheaper than checking
     every step's cost for all of them.
     """
-    R, t = _motions(R, t)
-    X = _grouped(points_prev, 3)
-    R, t, _ = kernels.gauss_newton(
-        R, t, X, _grouped(points_curr, 3), _grouped(meas_prev, 4), _grouped(meas_curr, 4), _camera_vector(camera),
-        np.ones((1, X.shape[1])), 0.0, int(iterations), 1e-9, 0.0, False,  # damping only guards a singular system
+    R, t, _ = gauss_newton_steps(
+        camera, R, t, points_prev, points_curr, meas_prev, meas_curr, iterations=iterations,
+        damping=1e-9, tolerance=0.0, step_control=False,  # the damping only guards a singular system
     )
     return R, t
 

@@ -81,8 +81,6 @@ class WeightedSampler:
             raise ValueError(f"priors must be a 1-D array, one weight per correspondence, got shape {np.shape(priors)}")
         self.priors = validate_priors(priors, len(priors))
         self.n = self.priors.shape[0]
-        with np.errstate(divide="ignore"):
-            self._log_w = np.log(self.priors / self.priors.sum())
         self._w = self.priors / self.priors.sum()
         self._cdf = np.cumsum(self._w)  # inclusive: mass of [0, i]
         self._before = np.concatenate([[0.0], self._cdf[:-1]])  # exclusive: mass of [0, i)
@@ -125,8 +123,7 @@ class WeightedSampler:
 
     def log_probability(self, samples: np.ndarray) -> np.ndarray:
         """Log-probability ``(B,)`` of drawing each ordered triplet sequentially without replacement."""
-        w = np.exp(self._log_w)
-        picked = w[samples]
+        picked = self._w[samples]
         taken = np.cumsum(picked, axis=1) - picked
         return np.sum(np.log(picked) - np.log1p(-np.minimum(taken, 1 - 1e-12)), axis=1)
 
