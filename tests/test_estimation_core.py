@@ -16,7 +16,7 @@ from stereovo.estimation.samplers import (
     distinct_uniform_triplets,
     prosac_growth,
 )
-from stereovo.estimation.scoring import MahalanobisResidual
+from stereovo.estimation.scoring import MahalanobisResidual, PixelMahalanobisResidual
 from stereovo.estimation.solvers import degenerate_triplets, kabsch_batch
 from stereovo.estimation.termination import required_iterations
 from stereovo.geometry import random_rotation, rotation_error, se3_exp
@@ -142,6 +142,57 @@ def test_mahalanobis_matches_explicit_inverse():
         C = Rs[h] @ problem.cov_prev @ Rs[h].T + problem.cov_curr
         expected = np.einsum("ni,ni->n", r, np.linalg.solve(C, r[..., None])[..., 0])
         np.testing.assert_allclose(got[h], expected, rtol=1e-8)
+
+
+def test_pixel_mahalanobis_matches_explicit_propagated_covariance():
+    rng = np.random.default_rng(1)
+    R, t = random_rotation(rng, 0.1), rng.normal(size=3)
+    prev, curr = noise_free_pair(rng, R, t, 30)
+    curr = curr + rng.normal(0, 0.5, curr.shape)
+    problem = StereoProblem.build(prev, curr, CAMERA, 0.5)
+    Rs = np.stack([R, random_rotation(rng, 0.1)])
+    ts = np.stack([t, t + 0.1])
+    got = PixelMahalanobisResidual().squared(problem, Rs, ts)
+    fx, fy, b = CAMERA.fx, CAMERA.fy, CAMERA.baseline
+    for h in range(2):
+        Y = problem.points_prev @ Rs[h].T + ts[h]
+        x, y, z = Y.T
+        J = np.zeros((len(z), 4, 3))
+        J[:, 0] = np.stack([fx / z, 0 * z, -fx * x / z**2], -1)
+        J[:, 1] = np.stack([0 * z, fy / z, -fy * y / z**2], -1)
+        J[:, 2] = np.stack([fx / z, 0 * z, -fx * (x - b) / z**2], -1)
+        J[:, 3] = J[:, 1]
+        C = J @ (Rs[h] @ problem.cov_prev @ Rs[h].T) @ np.swapaxes(J, 1, 2) + 0.25 * np.eye(4)
+        r = CAMERA.project(Y) - curr
+        expected = np.einsum("ni,ni->n", r, np.linalg.solve(C, r[..., None])[..., 0])
+        np.testing.assert_allclose(got[h], expected, rtol=1e-8)
+
+
+def test_pixel_gate_keeps_the_inliers_it_promises_where_the_3d_gate_misses_far_points():
+    from stereovo.simulation import SimulationConfig, simulate_frame
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=1000, outlier_ratio=0.3), np.random.default_rng(3))
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    truth = frame.truth.inlier
+    R, t = frame.truth.rotation[None], frame.truth.translation[None]
+    pixel = PixelMahalanobisResidual().squared(problem, R, t)[0] < PixelMahalanobisResidual().threshold_sq
+    metric = MahalanobisResidual().squared(problem, R, t)[0] < MahalanobisResidual().threshold_sq
+    assert np.mean(pixel[truth]) > 0.97  # a 99 % gate
+    assert np.mean(pixel[truth]) > np.mean(metric[truth]) + 0.03
+    assert np.mean(pixel[~truth]) < 0.05
+
+
+def test_probabilistic_final_inliers_recall_the_true_inliers():
+    from stereovo.simulation import SimulationConfig, simulate_frame
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=500, outlier_ratio=0.5), np.random.default_rng(4))
+    est = estimate_motion(frame.prev, frame.curr, frame.camera, rng=0)
+    truth = frame.truth.inlier
+    assert est.ok
+    assert np.mean(est.inliers[truth]) > 0.95
+    assert np.mean(est.inliers[~truth]) < 0.02
+    with pytest.raises(ValueError, match="refine_gate_probability"):
+        estimate_motion(frame.prev, frame.curr, frame.camera, refine_gate_probability=1.0)
 
 
 # ----------------------------------------------------------------------------- the public contract

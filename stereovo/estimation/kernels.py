@@ -346,6 +346,80 @@ def mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr):
 
 
 @_jit
+def pixel_mahalanobis_sq(R, t, X, cov_prev, mc, cam, sigma_sq):
+    """``(H, N)`` squared Mahalanobis distances of the forward reprojection residuals at k.
+
+    The residual ``e = pi(R X + t) - m_k`` (uL, vL, uR, vR) has covariance
+    ``C = sigma^2 I + J R S_X R^T J^T`` (J: the projection's 4x3 Jacobian at the moved point).
+    Its vL and vR rows of J are equal, so in the basis ``((e1 + e3) / sqrt 2, (e1 - e3) / sqrt 2)``
+    C splits into a 3x3 block (rows a, sqrt(2) b, c) plus ``sigma^2`` for the vertical
+    difference; both are inverted in closed form. ``inf`` where the moved point is behind.
+    """
+    fx, fy, cx, cy, bl = cam[0], cam[1], cam[2], cam[3], cam[4]
+    H, N = R.shape[0], X.shape[0]
+    out = np.empty((H, N))
+    RS = np.empty((3, 3))
+    S = np.empty((3, 3))
+    J = np.empty((3, 3))
+    JS = np.empty((3, 3))
+    root2 = np.sqrt(2.0)
+    for h in range(H):
+        r = R[h]
+        for n in range(N):
+            p0 = r[0, 0] * X[n, 0] + r[0, 1] * X[n, 1] + r[0, 2] * X[n, 2] + t[h, 0]
+            p1 = r[1, 0] * X[n, 0] + r[1, 1] * X[n, 1] + r[1, 2] * X[n, 2] + t[h, 1]
+            p2 = r[2, 0] * X[n, 0] + r[2, 1] * X[n, 1] + r[2, 2] * X[n, 2] + t[h, 2]
+            if p2 <= MIN_DEPTH:
+                out[h, n] = np.inf
+                continue
+            ip = 1.0 / p2
+            uL = fx * p0 * ip + cx
+            v = fy * p1 * ip + cy
+            uR = uL - fx * bl * ip
+            e0 = uL - mc[n, 0]
+            e1 = v - mc[n, 1]
+            e2 = uR - mc[n, 2]
+            e3 = v - mc[n, 3]
+            s_sum = (e1 + e3) / root2
+            s_diff = (e1 - e3) / root2
+            # S = R S_X R^T
+            cp = cov_prev[n]
+            for i in range(3):
+                for j in range(3):
+                    RS[i, j] = r[i, 0] * cp[0, j] + r[i, 1] * cp[1, j] + r[i, 2] * cp[2, j]
+            for i in range(3):
+                for j in range(i, 3):
+                    S[i, j] = RS[i, 0] * r[j, 0] + RS[i, 1] * r[j, 1] + RS[i, 2] * r[j, 2]
+                    S[j, i] = S[i, j]
+            # rows of the rotated Jacobian: uL, sqrt(2) v, uR
+            J[0, 0], J[0, 1], J[0, 2] = fx * ip, 0.0, -fx * p0 * ip * ip
+            J[1, 0], J[1, 1], J[1, 2] = 0.0, root2 * fy * ip, -root2 * fy * p1 * ip * ip
+            J[2, 0], J[2, 1], J[2, 2] = fx * ip, 0.0, -fx * (p0 - bl) * ip * ip
+            for i in range(3):
+                for j in range(3):
+                    JS[i, j] = J[i, 0] * S[0, j] + J[i, 1] * S[1, j] + J[i, 2] * S[2, j]
+            a = JS[0, 0] * J[0, 0] + JS[0, 1] * J[0, 1] + JS[0, 2] * J[0, 2] + sigma_sq
+            bb = JS[0, 0] * J[1, 0] + JS[0, 1] * J[1, 1] + JS[0, 2] * J[1, 2]
+            c = JS[0, 0] * J[2, 0] + JS[0, 1] * J[2, 1] + JS[0, 2] * J[2, 2]
+            d = JS[1, 0] * J[1, 0] + JS[1, 1] * J[1, 1] + JS[1, 2] * J[1, 2] + sigma_sq
+            e = JS[1, 0] * J[2, 0] + JS[1, 1] * J[2, 1] + JS[1, 2] * J[2, 2]
+            f = JS[2, 0] * J[2, 0] + JS[2, 1] * J[2, 1] + JS[2, 2] * J[2, 2] + sigma_sq
+            A00 = d * f - e * e
+            A01 = c * e - bb * f
+            A02 = bb * e - c * d
+            A11 = a * f - c * c
+            A12 = bb * c - a * e
+            A22 = a * d - bb * bb
+            det = a * A00 + bb * A01 + c * A02
+            quad = (
+                A00 * e0 * e0 + A11 * s_sum * s_sum + A22 * e2 * e2
+                + 2.0 * (A01 * e0 * s_sum + A02 * e0 * e2 + A12 * s_sum * e2)
+            )
+            out[h, n] = quad / max(det, 1e-300) + s_diff * s_diff / sigma_sq
+    return out
+
+
+@_jit
 def centred_cross_covariances(X, Y, w):
     """Weighted means ``mx, my (H, 3)`` and cross-covariances ``sum w (y - my)(x - mx)^T`` ``(H, 3, 3)``.
 

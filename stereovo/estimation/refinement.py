@@ -2,8 +2,10 @@
 
 Minimises the symmetric stereo reprojection error (the k-1 point into both
 images at k, the k point into both images at k-1) over the inliers, then
-re-selects inliers with the caller's gate and repeats, because a better model
-admits inliers the first gate missed.
+re-selects inliers and repeats, because a better model admits inliers the first
+gate missed. The re-selection uses the caller's gate unless the refiner carries
+its own (the probabilistic RANSAC judges hypotheses by 3-D Mahalanobis distance
+but selects the final inliers in pixels, see :class:`PixelMahalanobisResidual`).
 """
 
 from __future__ import annotations
@@ -25,11 +27,14 @@ class ReprojectionRefiner:
         iterations: LM iterations per round.
         rounds: refine / re-select rounds.
         huber_px: Huber threshold (pixels) on each point's residual norm; None for plain least squares.
+        gate: optional ``(residual_model, threshold_sq)`` for re-selecting inliers after each round,
+            in place of the caller's.
     """
 
     iterations: int = 6
     rounds: int = 2
     huber_px: float | None = None
+    gate: tuple[ResidualModel, float] | None = None
 
     def refine(
         self,
@@ -40,7 +45,14 @@ class ReprojectionRefiner:
         residual_model: ResidualModel,
         threshold_sq: float,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Return the refined ``(R, t)`` and its inlier mask ``(N,)`` under ``threshold_sq``."""
+        """Return the refined ``(R, t)`` and its inlier mask ``(N,)`` under ``threshold_sq``
+        (or under the refiner's own gate)."""
+        if self.gate is not None:
+            residual_model, threshold_sq = self.gate
+            # Start from the refiner's own gate: the caller's inliers were selected by another rule.
+            regated = residual_model.squared(problem, R[None], t[None])[0] < threshold_sq
+            if np.count_nonzero(regated) >= np.count_nonzero(inliers) // 2:
+                inliers = regated
         for _ in range(self.rounds):
             if np.count_nonzero(inliers) < 3:
                 break

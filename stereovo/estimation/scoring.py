@@ -20,6 +20,7 @@ from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.reprojection import reprojection_sq
 
 CHI2_3_95 = float(chi2.ppf(0.95, 3))  # 7.81: Mahalanobis gate on 3-D residuals
+CHI2_4_99 = float(chi2.ppf(0.99, 4))  # 13.28: Mahalanobis gate on the 4 pixel residuals at k
 
 
 class ResidualModel(Protocol):
@@ -48,6 +49,29 @@ class MahalanobisResidual:
 
 
 @dataclass(frozen=True)
+class PixelMahalanobisResidual:
+    """The k-1 point moved and projected into both images at k, whitened; unit-free, chi-square(4).
+
+    The residual ``pi(R X_i + t) - m_i`` (pixels) has covariance ``sigma^2 I + J R Sigma_X R^T J^T``:
+    the pixel noise at k plus the triangulation noise of ``X_i`` carried through the motion and the
+    projection. Unlike the 3-D Mahalanobis distance this linearises the smooth map from the pixels at
+    k-1 to the predicted pixels at k rather than triangulation itself, whose depth error is skewed
+    for far points, so its chi-square gate keeps the inliers it promises (far points included).
+    """
+
+    threshold_sq: float = CHI2_4_99
+    name: str = "pixel-mahalanobis"
+
+    def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+        return kernels.pixel_mahalanobis_sq(
+            np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float),
+            problem.points_prev, problem.cov_prev, problem.curr,
+            np.array([problem.camera.fx, problem.camera.fy, problem.camera.cx, problem.camera.cy, problem.camera.baseline]),
+            problem.noise_sigma**2,
+        )
+
+
+@dataclass(frozen=True)
 class ReprojectionResidual:
     """Pixels^2: the k-1 point moved by the hypothesis and projected into both images at k."""
 
@@ -70,7 +94,12 @@ class EuclideanResidual:
         return np.sum((problem.points_curr[None] - moved) ** 2, axis=-1)
 
 
-RESIDUAL_MODELS = {"mahalanobis": MahalanobisResidual, "reprojection": ReprojectionResidual, "euclidean": EuclideanResidual}
+RESIDUAL_MODELS = {
+    "mahalanobis": MahalanobisResidual,
+    "pixel-mahalanobis": PixelMahalanobisResidual,
+    "reprojection": ReprojectionResidual,
+    "euclidean": EuclideanResidual,
+}
 
 
 class Quality(Protocol):
