@@ -18,7 +18,7 @@ from stereovo.estimation.samplers import (
 )
 from stereovo.estimation.scoring import MahalanobisResidual, PixelMahalanobisResidual
 from stereovo.estimation.solvers import degenerate_triplets, kabsch_batch
-from stereovo.estimation.termination import required_iterations
+from stereovo.estimation.termination import AdaptiveTermination, required_iterations
 from stereovo.geometry import random_rotation, rotation_error, se3_exp
 
 CAMERA = StereoCamera()
@@ -125,6 +125,10 @@ def test_required_iterations_without_replacement():
     assert required_iterations(6, 20, 0.99) == 261
     assert required_iterations(2, 20, 0.99, max_iterations=10_000) == 10_000
     assert required_iterations(20, 20, 0.99) == 1
+    stop = AdaptiveTermination(0.99, 10_000)  # its scalar form, asked after every batch, agrees
+    for n in (3, 7, 200, 1000):
+        counts = np.arange(n + 1)
+        assert [stop.required(int(i), n) for i in counts] == list(required_iterations(counts, n, 0.99, 10_000))
 
 
 def test_mahalanobis_matches_explicit_inverse():
@@ -142,6 +146,24 @@ def test_mahalanobis_matches_explicit_inverse():
         C = Rs[h] @ problem.cov_prev @ Rs[h].T + problem.cov_curr
         expected = np.einsum("ni,ni->n", r, np.linalg.solve(C, r[..., None])[..., 0])
         np.testing.assert_allclose(got[h], expected, rtol=1e-8)
+
+
+def test_capped_mahalanobis_is_exact_below_the_cap_and_at_least_the_cap_above():
+    rng = np.random.default_rng(2)
+    R, t = random_rotation(rng, 0.1), rng.normal(size=3)
+    prev, curr = noise_free_pair(rng, R, t, 200)
+    curr = curr + rng.normal(0, 0.5, curr.shape)
+    curr[:80] = curr[80:160][::-1]  # mismatches
+    problem = StereoProblem.build(prev, curr, CAMERA, 0.5)
+    Rs = np.stack([R, random_rotation(rng, 0.1), R])
+    ts = np.stack([t, t + 0.3, t + 0.02])
+    exact = MahalanobisResidual().squared(problem, Rs, ts)
+    cap = MahalanobisResidual().threshold_sq
+    capped = MahalanobisResidual().squared(problem, Rs, ts, cap=cap)
+    below = exact < cap
+    np.testing.assert_array_equal(capped[below], exact[below])
+    assert np.all(capped[~below] >= cap) and np.all(capped[~below] <= exact[~below] * (1 + 1e-12))
+    assert np.any(capped[~below] < exact[~below])  # the bound did skip some solves
 
 
 def test_pixel_mahalanobis_matches_explicit_propagated_covariance():
@@ -234,6 +256,23 @@ def test_bad_method_option_priors_and_order_raise():
         estimate_motion(prev, curr, CAMERA, order=np.zeros(30, dtype=int))
     with pytest.raises(ValueError, match="not both"):
         estimate_motion(prev, curr, CAMERA, priors=np.ones(30), order=np.arange(30))
+
+
+def test_estimate_problem_equals_estimate_motion_on_the_same_frame():
+    from stereovo.estimation import estimate_problem
+
+    rng = np.random.default_rng(5)
+    prev, curr = noise_free_pair(rng, random_rotation(rng, 0.05), np.array([0.1, 0.0, -1.0]), 60)
+    curr = curr + rng.normal(0, 0.5, curr.shape)
+    curr[:10] = curr[10:20]  # mismatches
+    problem = StereoProblem.build(prev, curr, CAMERA, 0.5)
+    for method in ("probabilistic", "msac"):
+        a = estimate_motion(prev, curr, CAMERA, method=method, rng=3, noise_sigma=0.5)
+        b = estimate_problem(problem, method=method, rng=3)
+        np.testing.assert_array_equal(a.rotation, b.rotation)
+        np.testing.assert_array_equal(a.inliers, b.inliers)
+    with pytest.raises(ValueError, match="differs from the problem"):
+        estimate_problem(problem, noise_sigma=1.0)
 
 
 def test_hopeless_frames_fail_without_raising():

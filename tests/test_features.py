@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 from scipy.stats import rankdata
 
 from stereovo.camera import StereoCamera
+from stereovo.estimation import StereoProblem
 from stereovo.geometry import relative_motion
 from stereovo.simulation import Sequence, SimulationConfig
 from vo_gym import features as F
@@ -58,7 +60,22 @@ def test_check_feature_layout_refuses_other_layouts():
 
 def test_inputs_carry_no_label():
     params = list(inspect.signature(compute_features).parameters)
-    assert params == ["prev", "curr", "scores", "camera", "noise_sigma", "previous_motion"]
+    assert params == ["prev", "curr", "scores", "camera", "noise_sigma", "previous_motion", "problem"]
+    # the optional problem holds only what the estimator sees: measurements, camera, noise, triangulation
+    assert {f.name for f in dataclasses.fields(StereoProblem)} == {
+        "prev", "curr", "camera", "noise_sigma", "points_prev", "points_curr", "cov_prev", "cov_curr"
+    }
+
+
+def test_features_from_a_prebuilt_problem_are_identical_and_checked(sequence):
+    frame = sequence.frame(2)
+    motion = (frame.truth.rotation, frame.truth.translation)
+    args = (frame.prev, frame.curr, frame.scores, frame.camera, frame.noise_sigma, motion)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    np.testing.assert_array_equal(compute_features(*args, problem=problem), compute_features(*args))
+    other = StereoProblem.build(frame.prev, frame.curr, frame.camera, 2 * frame.noise_sigma)
+    with pytest.raises(ValueError, match="same prev, curr, camera and noise_sigma"):
+        compute_features(*args, problem=other)
 
 
 def test_shape_dtype_bounds(sequence):

@@ -18,7 +18,7 @@ import numpy as np
 from gymnasium import spaces
 
 from stereovo.camera import StereoCamera
-from stereovo.estimation import EstimatorOptions, estimate_motion, method_spec
+from stereovo.estimation import EstimatorOptions, StereoProblem, estimate_motion, estimate_problem, method_spec
 from stereovo.geometry import pose_update
 from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, frame_metrics, trajectory_metrics
 from stereovo.simulation import Frame, Sequence, SimulationConfig, simulate_frame
@@ -351,6 +351,7 @@ class StereoVOEnv(gym.Env):
         self._sequence: Sequence | None = None
         self._ransac_rng: np.random.Generator | None = None
         self._frame: Frame | None = None
+        self._problem: StereoProblem | None = None  # the current frame's, built with its observation
         self._k = 0
         self._poses: list[np.ndarray] = []
         self._last_motion: tuple[np.ndarray, np.ndarray] | None = None
@@ -426,8 +427,8 @@ class StereoVOEnv(gym.Env):
             weights = np.empty(frame.n)
             weights[order] = 1.0 - np.arange(frame.n) / max(frame.n - 1, 1)
 
-        est = estimate_motion(
-            frame.prev, frame.curr, frame.camera, method=self.method, priors=priors, order=order,
+        est = estimate_problem(
+            self._problem, method=self.method, priors=priors, order=order,
             rng=self._ransac_rng, **self._estimator_kwargs,
         )
         metrics = frame_metrics(est, frame.truth)
@@ -475,6 +476,7 @@ class StereoVOEnv(gym.Env):
     def close(self) -> None:
         self._sequence = None
         self._frame = None
+        self._problem = None
 
     # ------------------------------------------------------------------ internals
 
@@ -517,8 +519,11 @@ class StereoVOEnv(gym.Env):
 
     def _observation(self) -> dict[str, np.ndarray]:
         frame = self._frame
+        # Built once per frame: the features read its triangulated points, the step's estimate reuses it.
+        self._problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, self.estimator_noise_sigma)
         feats = compute_features(
-            frame.prev, frame.curr, frame.scores, frame.camera, self.estimator_noise_sigma, self._last_motion
+            frame.prev, frame.curr, frame.scores, frame.camera, self.estimator_noise_sigma, self._last_motion,
+            problem=self._problem,
         )
         M, n = self.max_correspondences, frame.n
         mask = np.zeros(M, dtype=np.int8)

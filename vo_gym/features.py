@@ -55,6 +55,7 @@ import numpy as np
 from numba import njit
 
 from stereovo.camera import StereoCamera
+from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.reprojection import reprojection_sq
 
 __all__ = [
@@ -218,6 +219,7 @@ def compute_features(
     camera: StereoCamera,
     noise_sigma: float,
     previous_motion: tuple[np.ndarray, np.ndarray] | None = None,
+    problem: StereoProblem | None = None,
 ) -> np.ndarray:
     """Features ``(N, N_FEATURES)`` float32 of N putative stereo matches (layout in the module doc).
 
@@ -228,9 +230,13 @@ def compute_features(
         noise_sigma: the sensor's pixel noise std (px, > 0), a known sensor spec.
         previous_motion: ``(R, t)`` estimated for the previous frame pair
             (``x_k = R x_{k-1} + t``), the constant-velocity prediction of this one; None if unknown.
+        problem: the same frame's :class:`StereoProblem` (same measurements, camera and noise),
+            if the caller built one for the estimator: its triangulated points and covariances
+            are reused instead of recomputed.
 
     Raises:
-        ValueError: on malformed input (shapes, NaN/inf, non-positive noise, no depth).
+        ValueError: on malformed input (shapes, NaN/inf, non-positive noise, no depth), or a
+            ``problem`` of another frame.
     """
     if not isinstance(camera, StereoCamera):
         raise ValueError(f"camera must be a StereoCamera, got {type(camera).__name__}")
@@ -249,10 +255,19 @@ def compute_features(
     out = np.zeros((n, N_FEATURES), dtype=np.float32)
     if n == 0:
         return out
-    points_prev = camera.triangulate(prev)  # raises ValueError on a match without depth
-    points_curr = camera.triangulate(curr)
-    cov_prev = camera.triangulation_covariance(prev, noise_sigma, points_prev)
-    cov_curr = camera.triangulation_covariance(curr, noise_sigma, points_curr)
+    if problem is not None:
+        if not (
+            problem.camera == camera and problem.noise_sigma == noise_sigma
+            and np.array_equal(problem.prev, prev) and np.array_equal(problem.curr, curr)
+        ):
+            raise ValueError("problem must be built from the same prev, curr, camera and noise_sigma")
+        points_prev, points_curr = problem.points_prev, problem.points_curr
+        cov_prev, cov_curr = problem.cov_prev, problem.cov_curr
+    else:
+        points_prev = camera.triangulate(prev)  # raises ValueError on a match without depth
+        points_curr = camera.triangulate(curr)
+        cov_prev = camera.triangulation_covariance(prev, noise_sigma, points_prev)
+        cov_curr = camera.triangulation_covariance(curr, noise_sigma, points_curr)
 
     out[:, 0] = scores
     rank = np.empty(n)

@@ -1,6 +1,7 @@
 """The shared estimator core: one RANSAC loop, roles as components, named methods.
 
-Public entry point: :func:`estimate_motion`; the registry: :func:`available_methods`.
+Public entry point: :func:`estimate_motion` (:func:`estimate_problem` for a prebuilt
+:class:`StereoProblem`); the registry: :func:`available_methods`.
 """
 
 from stereovo.estimation.methods import (
@@ -8,6 +9,7 @@ from stereovo.estimation.methods import (
     MotionEstimate,
     available_methods,
     estimate_motion,
+    estimate_problem,
     method_spec,
     register_method,
 )
@@ -20,6 +22,7 @@ __all__ = [
     "StereoProblem",
     "available_methods",
     "estimate_motion",
+    "estimate_problem",
     "method_spec",
     "register_method",
 ]

@@ -6,8 +6,8 @@ times per frame; memory traffic and per-call overhead, not arithmetic, set the
 time. Each kernel here walks the hypotheses and points once, keeps a point's
 residual and Jacobian in registers and accumulates what the caller needs (the
 normal equations, a cost, one squared residual). The Python wrappers in
-:mod:`stereovo.estimation.reprojection`, :mod:`stereovo.estimation.scoring` and
-:mod:`stereovo.estimation.solvers` keep the shapes and documentation; nothing
+:mod:`stereovo.estimation.reprojection`, :mod:`stereovo.estimation.scoring`,
+:mod:`stereovo.estimation.solvers` and :mod:`stereovo.estimation.samplers` keep the shapes and documentation; nothing
 outside them calls this module.
 
 Conventions (as in :mod:`stereovo.estimation.reprojection`): a motion maps
@@ -229,6 +229,50 @@ def _apply_twist(R, t, delta, R_out, t_out, dR, dt):
 
 
 @_jit
+def _lm_scratch():
+    """Scratch arrays of one Levenberg-Marquardt run: A, g, delta, R_new, t_new, res, jac, L, y, dR, dt."""
+    return (
+        np.empty((6, 6)), np.empty(6), np.empty(6), np.empty((3, 3)), np.empty(3), np.empty(8),
+        np.empty((8, 6)), np.empty((6, 6)), np.empty(6), np.empty((3, 3)), np.empty(3),
+    )
+
+
+@_jit
+def _levenberg_marquardt(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, iterations, damping, tolerance, step_control, scratch):
+    """Refine one motion ``Rh, th`` in place; return its final weighted cost (see :func:`gauss_newton`)."""
+    A, g, delta, R_new, t_new, res, jac, L, y, dR, dt = scratch
+    lam = damping
+    cost = _cost_and_normal_equations(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, A, g, True, res, jac)
+    for _ in range(iterations):
+        if not _solve_damped(A, g, lam, delta, L, y):
+            break
+        _apply_twist(Rh, th, delta, R_new, t_new, dR, dt)
+        if not step_control:
+            Rh[:, :] = R_new
+            th[:] = t_new
+            cost = _cost_and_normal_equations(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, A, g, True, res, jac)
+            continue
+        cost_new = _cost_and_normal_equations(R_new, t_new, Xh, Yh, mph, mch, cam, wh, huber, A, g, False, res, jac)
+        if not cost_new <= cost:
+            lam *= 10.0
+            # A and g were left untouched by the cost-only call above: retry with more damping
+            continue
+        lam *= 0.3
+        small = True
+        for i in range(6):
+            if abs(delta[i]) >= tolerance:
+                small = False
+        converged = small or cost - cost_new <= 1e-9 * cost
+        Rh[:, :] = R_new
+        th[:] = t_new
+        if converged:
+            cost = cost_new
+            break
+        cost = _cost_and_normal_equations(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, A, g, True, res, jac)
+    return cost
+
+
+@_jit
 def gauss_newton(R, t, X, Y, mp, mc, cam, weights, huber, iterations, damping, tolerance, step_control):
     """Per-hypothesis Gauss-Newton / Levenberg-Marquardt on the weighted symmetric reprojection error.
 
@@ -243,46 +287,14 @@ def gauss_newton(R, t, X, Y, mp, mc, cam, weights, huber, iterations, damping, t
     R_out = R.copy()
     t_out = t.copy()
     cost_out = np.empty(H)
-    A = np.empty((6, 6))
-    g = np.empty(6)
-    delta = np.empty(6)
-    R_new = np.empty((3, 3))
-    t_new = np.empty(3)
-    res, jac, L, y, dR, dt = np.empty(8), np.empty((8, 6)), np.empty((6, 6)), np.empty(6), np.empty((3, 3)), np.empty(3)
+    scratch = _lm_scratch()
     for h in range(H):
         gx = h if X.shape[0] > 1 else 0
         gw = h if weights.shape[0] > 1 else 0
-        Xh, Yh, mph, mch, wh = X[gx], Y[gx], mp[gx], mc[gx], weights[gw]
-        Rh, th = R_out[h], t_out[h]
-        lam = damping
-        cost = _cost_and_normal_equations(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, A, g, True, res, jac)
-        for _ in range(iterations):
-            if not _solve_damped(A, g, lam, delta, L, y):
-                break
-            _apply_twist(Rh, th, delta, R_new, t_new, dR, dt)
-            if not step_control:
-                Rh[:, :] = R_new
-                th[:] = t_new
-                cost = _cost_and_normal_equations(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, A, g, True, res, jac)
-                continue
-            cost_new = _cost_and_normal_equations(R_new, t_new, Xh, Yh, mph, mch, cam, wh, huber, A, g, False, res, jac)
-            if not cost_new <= cost:
-                lam *= 10.0
-                # A and g were left untouched by the cost-only call above: retry with more damping
-                continue
-            lam *= 0.3
-            small = True
-            for i in range(6):
-                if abs(delta[i]) >= tolerance:
-                    small = False
-            converged = small or cost - cost_new <= 1e-9 * cost
-            Rh[:, :] = R_new
-            th[:] = t_new
-            if converged:
-                cost = cost_new
-                break
-            cost = _cost_and_normal_equations(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, A, g, True, res, jac)
-        cost_out[h] = cost
+        cost_out[h] = _levenberg_marquardt(
+            R_out[h], t_out[h], X[gx], Y[gx], mp[gx], mc[gx], cam, weights[gw], huber,
+            iterations, damping, tolerance, step_control, scratch,
+        )
     return R_out, t_out, cost_out
 
 
@@ -312,15 +324,36 @@ def forward_reprojection_sq(R, t, X, mc, cam):
 
 
 @_jit
-def mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr):
-    """``(H, N)`` squared Mahalanobis distances of ``Y - (R X + t)`` under ``R S_X R^T + S_Y``."""
+def mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr, cap):
+    """``(H, N)`` squared Mahalanobis distances of ``Y - (R X + t)`` under ``R S_X R^T + S_Y``.
+
+    With ``cap > 0`` a distance at or above ``cap`` may come back as any value >= cap: a point
+    whose ``|r|^2 / (tr S_X + tr S_Y)`` already reaches ``cap`` gets that lower bound (the trace
+    bounds C's largest eigenvalue, and is the same for every rotation) and skips the 3x3 solve.
+    Most points of a bad hypothesis are settled this way.
+    """
     H, N = R.shape[0], X.shape[0]
     out = np.empty((H, N))
     RS = np.empty((3, 3))
     C = np.empty((3, 3))
+    trace = np.empty(N)
+    for n in range(N):
+        trace[n] = max(
+            cov_prev[n, 0, 0] + cov_prev[n, 1, 1] + cov_prev[n, 2, 2]
+            + cov_curr[n, 0, 0] + cov_curr[n, 1, 1] + cov_curr[n, 2, 2],
+            1e-300,
+        )
     for h in range(H):
         r = R[h]
         for n in range(N):
+            x = Y[n, 0] - (r[0, 0] * X[n, 0] + r[0, 1] * X[n, 1] + r[0, 2] * X[n, 2] + t[h, 0])
+            y = Y[n, 1] - (r[1, 0] * X[n, 0] + r[1, 1] * X[n, 1] + r[1, 2] * X[n, 2] + t[h, 1])
+            z = Y[n, 2] - (r[2, 0] * X[n, 0] + r[2, 1] * X[n, 1] + r[2, 2] * X[n, 2] + t[h, 2])
+            if cap > 0.0:
+                bound = (x * x + y * y + z * z) / trace[n]
+                if bound >= cap:
+                    out[h, n] = bound
+                    continue
             S = cov_prev[n]
             # C = R S R^T + S_Y (symmetric: six unique entries), RS rows first
             for i in range(3):
@@ -337,9 +370,6 @@ def mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr):
             A12 = bb * c - a * e
             A22 = a * d - bb * bb
             det = a * A00 + bb * A01 + c * A02
-            x = Y[n, 0] - (r[0, 0] * X[n, 0] + r[0, 1] * X[n, 1] + r[0, 2] * X[n, 2] + t[h, 0])
-            y = Y[n, 1] - (r[1, 0] * X[n, 0] + r[1, 1] * X[n, 1] + r[1, 2] * X[n, 2] + t[h, 1])
-            z = Y[n, 2] - (r[2, 0] * X[n, 0] + r[2, 1] * X[n, 1] + r[2, 2] * X[n, 2] + t[h, 2])
             quad = A00 * x * x + A11 * y * y + A22 * z * z + 2.0 * (A01 * x * y + A02 * x * z + A12 * y * z)
             out[h, n] = quad / max(det, 1e-300)
     return out
@@ -420,32 +450,62 @@ def pixel_mahalanobis_sq(R, t, X, cov_prev, mc, cam, sigma_sq):
 
 
 @_jit
+def _centred_cross_covariance(X, Y, w, mx, my, cov):
+    """Fill weighted means ``mx, my (3,)`` and ``cov (3, 3) = sum w (y - my)(x - mx)^T`` of ``X, Y (M, 3)``."""
+    M = X.shape[0]
+    total = 0.0
+    for m in range(M):
+        total += w[m]
+    scale = 1.0 / max(total, 1e-300)
+    mx[:] = 0.0
+    my[:] = 0.0
+    cov[:, :] = 0.0
+    for m in range(M):
+        wm = w[m] * scale
+        for i in range(3):
+            mx[i] += wm * X[m, i]
+            my[i] += wm * Y[m, i]
+    for m in range(M):
+        wm = w[m] * scale
+        for i in range(3):
+            dy = wm * (Y[m, i] - my[i])
+            for j in range(3):
+                cov[i, j] += dy * (X[m, j] - mx[j])
+
+
+@_jit
 def centred_cross_covariances(X, Y, w):
     """Weighted means ``mx, my (H, 3)`` and cross-covariances ``sum w (y - my)(x - mx)^T`` ``(H, 3, 3)``.
 
     ``X, Y (H, M, 3)``; ``w (H, M)`` non-negative weights, normalised per hypothesis here.
     """
-    H, M = X.shape[0], X.shape[1]
+    H = X.shape[0]
     cov = np.zeros((H, 3, 3))
     mx = np.zeros((H, 3))
     my = np.zeros((H, 3))
     for h in range(H):
-        total = 0.0
-        for m in range(M):
-            total += w[h, m]
-        scale = 1.0 / max(total, 1e-300)
-        for m in range(M):
-            wm = w[h, m] * scale
-            for i in range(3):
-                mx[h, i] += wm * X[h, m, i]
-                my[h, i] += wm * Y[h, m, i]
-        for m in range(M):
-            wm = w[h, m] * scale
-            for i in range(3):
-                dy = wm * (Y[h, m, i] - my[h, i])
-                for j in range(3):
-                    cov[h, i, j] += dy * (X[h, m, j] - mx[h, j])
+        _centred_cross_covariance(X[h], Y[h], w[h], mx[h], my[h], cov[h])
     return mx, my, cov
+
+
+@_jit
+def _det3(m):
+    return (
+        m[0, 0] * (m[1, 1] * m[2, 2] - m[1, 2] * m[2, 1])
+        - m[0, 1] * (m[1, 0] * m[2, 2] - m[1, 2] * m[2, 0])
+        + m[0, 2] * (m[1, 0] * m[2, 1] - m[1, 1] * m[2, 0])
+    )
+
+
+@_jit
+def _proper_rotation(u, v, mx, my, R, t):
+    """``R = u diag(1, 1, det(u v)) v`` (never a reflection) and ``t = my - R mx``, filled in place."""
+    d = -1.0 if _det3(u) * _det3(v) < 0.0 else 1.0
+    for i in range(3):
+        for j in range(3):
+            R[i, j] = u[i, 0] * v[0, j] + u[i, 1] * v[1, j] + d * u[i, 2] * v[2, j]
+    for i in range(3):
+        t[i] = my[i] - (R[i, 0] * mx[0] + R[i, 1] * mx[1] + R[i, 2] * mx[2])
 
 
 @_jit
@@ -455,41 +515,99 @@ def proper_rotations(U, Vt, mx, my):
     R = np.empty((H, 3, 3))
     t = np.empty((H, 3))
     for h in range(H):
-        u, v = U[h], Vt[h]
-        det = (
-            u[0, 0] * (u[1, 1] * u[2, 2] - u[1, 2] * u[2, 1])
-            - u[0, 1] * (u[1, 0] * u[2, 2] - u[1, 2] * u[2, 0])
-            + u[0, 2] * (u[1, 0] * u[2, 1] - u[1, 1] * u[2, 0])
-        ) * (
-            v[0, 0] * (v[1, 1] * v[2, 2] - v[1, 2] * v[2, 1])
-            - v[0, 1] * (v[1, 0] * v[2, 2] - v[1, 2] * v[2, 0])
-            + v[0, 2] * (v[1, 0] * v[2, 1] - v[1, 1] * v[2, 0])
-        )
-        d = -1.0 if det < 0.0 else 1.0
-        for i in range(3):
-            for j in range(3):
-                R[h, i, j] = u[i, 0] * v[0, j] + u[i, 1] * v[1, j] + d * u[i, 2] * v[2, j]
-        for i in range(3):
-            t[h, i] = my[h, i] - (R[h, i, 0] * mx[h, 0] + R[h, i, 1] * mx[h, 1] + R[h, i, 2] * mx[h, 2])
+        _proper_rotation(U[h], Vt[h], mx[h], my[h], R[h], t[h])
     return R, t
 
 
 @_jit
+def _triplet_degenerate(P, area_ratio):
+    """True if the triangle ``P (3, 3)`` has twice-area / 2 below ``area_ratio`` times its squared
+    longest side, or that side is below 1e-6 m."""
+    e1 = P[1] - P[0]
+    e2 = P[2] - P[0]
+    e3 = P[2] - P[1]
+    c0 = e1[1] * e2[2] - e1[2] * e2[1]
+    c1 = e1[2] * e2[0] - e1[0] * e2[2]
+    c2 = e1[0] * e2[1] - e1[1] * e2[0]
+    area = 0.5 * np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+    longest = max(np.sum(e1 * e1), np.sum(e2 * e2), np.sum(e3 * e3))
+    return not (area >= area_ratio * longest) or longest < 1e-12
+
+
+@_jit
 def degenerate_triplets(X, Y, area_ratio):
-    """``(H,)`` True where a triplet ``(H, 3, 3)`` is near-collinear or near-coincident in X or Y:
-    twice-area / 2 below ``area_ratio`` times the squared longest side, or that side below 1e-6 m."""
+    """``(H,)`` True where a triplet ``(H, 3, 3)`` is near-collinear or near-coincident in X or Y."""
     H = X.shape[0]
     bad = np.zeros(H, dtype=np.bool_)
     for h in range(H):
-        for P in (X[h], Y[h]):
-            e1 = P[1] - P[0]
-            e2 = P[2] - P[0]
-            e3 = P[2] - P[1]
-            c0 = e1[1] * e2[2] - e1[2] * e2[1]
-            c1 = e1[2] * e2[0] - e1[0] * e2[2]
-            c2 = e1[0] * e2[1] - e1[1] * e2[0]
-            area = 0.5 * np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
-            longest = max(np.sum(e1 * e1), np.sum(e2 * e2), np.sum(e3 * e3))
-            if not (area >= area_ratio * longest) or longest < 1e-12:
-                bad[h] = True
+        bad[h] = _triplet_degenerate(X[h], area_ratio) or _triplet_degenerate(Y[h], area_ratio)
     return bad
+
+
+@_jit
+def distinct_triplets(u, m):
+    """Three distinct indices per row from uniforms ``u (B, 3)`` and pool sizes ``m (B,)``.
+
+    Draws from ``range(m)``, ``range(m - 1)``, ``range(m - 2)`` and shifts each index past
+    those already taken: exact sampling without replacement, no rejection.
+    """
+    B = u.shape[0]
+    out = np.empty((B, 3), dtype=np.int64)
+    for k in range(B):
+        mk = m[k]
+        a = min(np.int64(u[k, 0] * mk), mk - 1)
+        b = min(np.int64(u[k, 1] * (mk - 1)), mk - 2)
+        c = min(np.int64(u[k, 2] * (mk - 2)), mk - 3)
+        if b >= a:
+            b += 1
+        lo, hi = min(a, b), max(a, b)
+        if c >= lo:
+            c += 1
+        if c >= hi:
+            c += 1
+        out[k, 0], out[k, 1], out[k, 2] = a, b, c
+    return out
+
+
+@_jit
+def minimal_fits(samples, X, Y, mp, mc, cam, area_ratio, polish_iterations):
+    """One motion per minimal sample: degeneracy test, Kabsch fit, Gauss-Newton polish, in one pass.
+
+    ``samples (H, 3)`` index the problem's ``X, Y (N, 3)`` and ``mp, mc (N, 4)``. The polish is
+    plain Gauss-Newton on the sample's symmetric reprojection error (damping 1e-9 only guards a
+    singular system). Returns ``R (H, 3, 3)``, ``t (H, 3)`` and ``valid (H,)``: False for a
+    degenerate triplet (its motion is left as the identity) or a non-finite result.
+    """
+    H = samples.shape[0]
+    R = np.zeros((H, 3, 3))
+    t = np.zeros((H, 3))
+    valid = np.zeros(H, dtype=np.bool_)
+    Xs, Ys = np.empty((3, 3)), np.empty((3, 3))
+    mps, mcs = np.empty((3, 4)), np.empty((3, 4))
+    ones = np.ones(3)
+    mx, my, cov = np.empty(3), np.empty(3), np.empty((3, 3))
+    scratch = _lm_scratch()
+    for h in range(H):
+        for k in range(3):
+            i = samples[h, k]
+            Xs[k] = X[i]
+            Ys[k] = Y[i]
+            mps[k] = mp[i]
+            mcs[k] = mc[i]
+        if _triplet_degenerate(Xs, area_ratio) or _triplet_degenerate(Ys, area_ratio):
+            R[h, 0, 0] = R[h, 1, 1] = R[h, 2, 2] = 1.0
+            continue
+        _centred_cross_covariance(Xs, Ys, ones, mx, my, cov)
+        u, _, v = np.linalg.svd(cov)
+        _proper_rotation(u, v, mx, my, R[h], t[h])
+        if polish_iterations > 0:
+            _levenberg_marquardt(R[h], t[h], Xs, Ys, mps, mcs, cam, ones, 0.0, polish_iterations, 1e-9, 0.0, False, scratch)
+        ok = True
+        for i in range(3):
+            if not np.isfinite(t[h, i]):
+                ok = False
+            for j in range(3):
+                if not np.isfinite(R[h, i, j]):
+                    ok = False
+        valid[h] = ok
+    return R, t, valid

@@ -401,6 +401,43 @@ def estimate_motion(
     spec = method_spec(method)
     shared, extra = _split_options(spec, options)
     problem = StereoProblem.build(prev, curr, camera, shared.noise_sigma)
+    return _estimate(problem, spec, shared, extra, priors, order, rng, start)
+
+
+def estimate_problem(
+    problem: StereoProblem,
+    method: str = "probabilistic",
+    priors: np.ndarray | None = None,
+    order: np.ndarray | None = None,
+    rng: np.random.Generator | int | None = 0,
+    **options,
+) -> MotionEstimate:
+    """:func:`estimate_motion` on an already built :class:`StereoProblem`.
+
+    For callers that use the same frame's triangulated points elsewhere (the environment
+    computes its observation features from them): the problem is built, validated and
+    triangulated once. The result is identical to ``estimate_motion(problem.prev,
+    problem.curr, problem.camera, ..., noise_sigma=problem.noise_sigma)``.
+
+    Raises:
+        ValueError: as :func:`estimate_motion`, and if a ``noise_sigma`` option differs from
+            the one the problem was built with.
+    """
+    start = time.perf_counter()
+    if not isinstance(problem, StereoProblem):
+        raise ValueError(f"problem must be a StereoProblem, got {type(problem).__name__}")
+    spec = method_spec(method)
+    if "noise_sigma" in options and options["noise_sigma"] != problem.noise_sigma:
+        raise ValueError(
+            f"noise_sigma={options['noise_sigma']!r} differs from the problem's {problem.noise_sigma!r}, "
+            "with which its covariances were computed"
+        )
+    shared, extra = _split_options(spec, {**options, "noise_sigma": problem.noise_sigma})
+    return _estimate(problem, spec, shared, extra, priors, order, rng, start)
+
+
+def _estimate(problem, spec, shared, extra, priors, order, rng, start) -> MotionEstimate:
+    method = spec.name
     if priors is not None and order is not None:
         raise ValueError("give either priors (guided sampling) or order (PROSAC), not both")
     for name, value in (("priors", priors), ("order", order)):

@@ -119,6 +119,7 @@ class MlesacQuality:
     em_iterations: int = 5
     em_tolerance: float = 1e-4
     name: str = "mlesac"
+    saturates: bool = False  # the mixture likelihood needs every residual exactly
 
     @classmethod
     def for_problem(cls, problem: StereoProblem, em_iterations: int = 5, em_tolerance: float = 1e-4) -> "MlesacQuality":
@@ -143,6 +144,7 @@ class GuidedMlesacQuality:
     log_p_out: np.ndarray  # (N,)
     gamma: np.ndarray  # (N,) in (0, 1)
     name: str = "guided-mlesac"
+    saturates: bool = False
 
     @classmethod
     def for_problem(cls, problem: StereoProblem, gamma: np.ndarray) -> "GuidedMlesacQuality":

@@ -25,7 +25,8 @@ from stereovo.camera import StereoCamera
 from stereovo.estimation import kernels
 
 
-def _camera_vector(camera: StereoCamera) -> np.ndarray:
+def camera_vector(camera: StereoCamera) -> np.ndarray:
+    """``(fx, fy, cx, cy, baseline)``, the camera as the kernels take it."""
     return np.array([camera.fx, camera.fy, camera.cx, camera.cy, camera.baseline], dtype=float)
 
 
@@ -46,7 +47,7 @@ def _motions(R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _kernel_problem(camera, R, t, points_prev, points_curr, meas_prev, meas_curr) -> tuple:
     """``(R, t, X, Y, meas_prev, meas_curr, cam)`` in the layout the kernels take."""
     return (*_motions(R, t), _grouped(points_prev, 3), _grouped(points_curr, 3), _grouped(meas_prev, 4),
-            _grouped(meas_curr, 4), _camera_vector(camera))
+            _grouped(meas_curr, 4), camera_vector(camera))
 
 
 def residuals_and_jacobians(
@@ -97,7 +98,7 @@ def gauss_newton_steps(
         huber: optional Huber threshold in pixels on each point's residual norm.
         tolerance: a hypothesis stops once its step is below this (radians / metres) or its
             cost fell by less than a relative 1e-9.
-        step_control: False takes every step (plain Gauss-Newton, see :func:`gauss_newton_polish`).
+        step_control: False takes every step (plain Gauss-Newton, as the minimal-sample polish does).
 
     Returns:
         ``(R, t, cost)``: refined motions and the final weighted squared cost ``(H,)`` (pixels^2).
@@ -113,29 +114,6 @@ def gauss_newton_steps(
     )
 
 
-def gauss_newton_polish(
-    camera: StereoCamera,
-    R: np.ndarray,
-    t: np.ndarray,
-    points_prev: np.ndarray,
-    points_curr: np.ndarray,
-    meas_prev: np.ndarray,
-    meas_curr: np.ndarray,
-    iterations: int = 2,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Plain Gauss-Newton steps for many small problems (minimal samples), no step control.
-
-    Started from a Kabsch fit, the undamped steps converge in one or two iterations; a
-    hypothesis that diverges instead just scores badly, which is cheaper than checking
-    every step's cost for all of them.
-    """
-    R, t, _ = gauss_newton_steps(
-        camera, R, t, points_prev, points_curr, meas_prev, meas_curr, iterations=iterations,
-        damping=1e-9, tolerance=0.0, step_control=False,  # the damping only guards a singular system
-    )
-    return R, t
-
-
 def reprojection_sq(
     camera: StereoCamera, R: np.ndarray, t: np.ndarray, points_prev: np.ndarray, meas_curr: np.ndarray
 ) -> np.ndarray:
@@ -146,5 +124,5 @@ def reprojection_sq(
     R, t = _motions(R, t)
     return kernels.forward_reprojection_sq(
         R, t, np.ascontiguousarray(points_prev, dtype=float), np.ascontiguousarray(meas_curr, dtype=float),
-        _camera_vector(camera),
+        camera_vector(camera),
     )

@@ -11,6 +11,8 @@ from typing import Protocol
 
 import numpy as np
 
+from stereovo.estimation import kernels
+
 SAMPLE_SIZE = 3
 
 
@@ -28,16 +30,8 @@ def distinct_uniform_triplets(pool_sizes: np.ndarray, rng: np.random.Generator) 
     Exact sampling without replacement in closed form: draw from shrinking ranges and
     shift past the indices already taken, so no rejection loop is needed.
     """
-    m = np.asarray(pool_sizes, dtype=np.int64)
-    u = rng.random((m.shape[0], 3))
-    a = np.minimum((u[:, 0] * m).astype(np.int64), m - 1)
-    b = np.minimum((u[:, 1] * (m - 1)).astype(np.int64), m - 2)
-    c = np.minimum((u[:, 2] * (m - 2)).astype(np.int64), m - 3)
-    b = b + (b >= a)
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    c = c + (c >= lo)
-    c = c + (c >= hi)
-    return np.stack([a, b, c], axis=1)
+    m = np.ascontiguousarray(pool_sizes, dtype=np.int64)
+    return kernels.distinct_triplets(rng.random((m.shape[0], 3)), m)
 
 
 class UniformSampler:

@@ -17,7 +17,7 @@ from scipy.stats import chi2
 
 from stereovo.estimation import kernels
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.reprojection import reprojection_sq
+from stereovo.estimation.reprojection import camera_vector, reprojection_sq
 
 CHI2_3_95 = float(chi2.ppf(0.95, 3))  # 7.81: Mahalanobis gate on 3-D residuals
 CHI2_4_99 = float(chi2.ppf(0.99, 4))  # 13.28: Mahalanobis gate on the 4 pixel residuals at k
@@ -29,8 +29,12 @@ class ResidualModel(Protocol):
     name: str
     threshold_sq: float  # inlier gate on the squared residual, in the model's units
 
-    def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """``(H, N)`` squared residuals for motions ``R (H, 3, 3)``, ``t (H, 3)``."""
+    def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray, cap: float | None = None) -> np.ndarray:
+        """``(H, N)`` squared residuals for motions ``R (H, 3, 3)``, ``t (H, 3)``.
+
+        With a ``cap``, a residual at or above it may be returned as any value >= cap (a model
+        may bound rather than compute it); values below the cap are exact.
+        """
         ...
 
 
@@ -41,10 +45,11 @@ class MahalanobisResidual:
     threshold_sq: float = CHI2_3_95
     name: str = "mahalanobis"
 
-    def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray, cap: float | None = None) -> np.ndarray:
         return kernels.mahalanobis_sq(
             np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float),
             problem.points_prev, problem.points_curr, problem.cov_prev, problem.cov_curr,
+            0.0 if cap is None else float(cap),
         )
 
 
@@ -62,11 +67,11 @@ class PixelMahalanobisResidual:
     threshold_sq: float = CHI2_4_99
     name: str = "pixel-mahalanobis"
 
-    def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray, cap: float | None = None) -> np.ndarray:
         return kernels.pixel_mahalanobis_sq(
             np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float),
             problem.points_prev, problem.cov_prev, problem.curr,
-            np.array([problem.camera.fx, problem.camera.fy, problem.camera.cx, problem.camera.cy, problem.camera.baseline]),
+            camera_vector(problem.camera),
             problem.noise_sigma**2,
         )
 
@@ -78,7 +83,7 @@ class ReprojectionResidual:
     threshold_sq: float = 9.0  # (3 px)^2; estimate_motion scales it with the pixel noise
     name: str = "reprojection"
 
-    def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray, cap: float | None = None) -> np.ndarray:
         return reprojection_sq(problem.camera, R, t, problem.points_prev, problem.curr)
 
 
@@ -89,7 +94,7 @@ class EuclideanResidual:
     threshold_sq: float = 0.25
     name: str = "euclidean"
 
-    def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray, cap: float | None = None) -> np.ndarray:
         moved = problem.points_prev @ np.swapaxes(R, -1, -2) + t[:, None, :]
         return np.sum((problem.points_curr[None] - moved) ** 2, axis=-1)
 
@@ -103,9 +108,14 @@ RESIDUAL_MODELS = {
 
 
 class Quality(Protocol):
-    """Score ``(H,)`` (higher is better) from squared residuals ``(H, N)`` and the gate."""
+    """Score ``(H,)`` (higher is better) from squared residuals ``(H, N)`` and the gate.
+
+    A quality that depends on a residual only through ``min(e^2, T^2)`` sets ``saturates = True``;
+    it is then scored on residuals capped at the gate (see :meth:`ResidualModel.squared`).
+    """
 
     name: str
+    saturates: bool
 
     def score(self, residual_sq: np.ndarray, threshold_sq: float) -> np.ndarray: ...
 
@@ -115,6 +125,7 @@ class InlierCount:
     """RANSAC (Fischler & Bolles 1981): the number of residuals under the gate."""
 
     name: str = "count"
+    saturates: bool = True
 
     def score(self, residual_sq: np.ndarray, threshold_sq: float) -> np.ndarray:
         return np.count_nonzero(residual_sq < threshold_sq, axis=-1).astype(float)
@@ -129,6 +140,7 @@ class TruncatedQuadratic:
     """
 
     name: str = "msac"
+    saturates: bool = True
 
     def score(self, residual_sq: np.ndarray, threshold_sq: float) -> np.ndarray:
         return -np.sum(np.minimum(residual_sq, threshold_sq), axis=-1) / threshold_sq

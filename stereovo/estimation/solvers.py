@@ -1,8 +1,8 @@
 """Rigid-motion solvers: the batched 3-point minimal solver and the non-minimal fit.
 
 Both are Kabsch/Horn (Arun et al. 1987) with the det(R) = +1 correction;
-the minimal solver handles a whole batch of hypotheses with one SVD call on
-``(H, 3, 3)`` cross-covariances. Because depth noise makes a 3-point fit on
+the minimal solver handles a whole batch of hypotheses in one compiled pass
+(gather, degeneracy test, fit, polish). Because depth noise makes a 3-point fit on
 triangulated points badly conditioned (DESIGN.md section 5), the minimal
 solver can polish each hypothesis with a few batched Gauss-Newton steps on
 the stereo reprojection error of its own three points (as libviso2 does):
@@ -15,7 +15,7 @@ import numpy as np
 
 from stereovo.estimation import kernels
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.reprojection import gauss_newton_polish
+from stereovo.estimation.reprojection import camera_vector
 
 SAMPLE_SIZE = 3
 # Pitfalls (ALGORITHMS.md): a triplet whose triangle area is below this fraction of its
@@ -69,15 +69,15 @@ def minimal_hypotheses(
             error after the Kabsch fit (0 keeps the plain Kabsch hypothesis).
 
     Returns:
-        ``(R (H, 3, 3), t (H, 3), valid (H,))``; invalid hypotheses came from degenerate samples.
+        ``(R (H, 3, 3), t (H, 3), valid (H,))``; invalid hypotheses came from degenerate samples
+        (their motion is the identity) or did not stay finite.
+
+    The degeneracy test, Kabsch fit and polish run in one compiled pass per batch
+    (:func:`stereovo.estimation.kernels.minimal_fits`), with the same arithmetic as
+    :func:`degenerate_triplets`, :func:`kabsch_batch` and plain Gauss-Newton steps
+    (:func:`stereovo.estimation.reprojection.gauss_newton_steps` without step control).
     """
-    X = problem.points_prev[samples]
-    Y = problem.points_curr[samples]
-    valid = ~degenerate_triplets(X, Y)
-    R, t = kabsch_batch(X, Y)
-    if polish_iterations > 0 and samples.shape[0] > 0:
-        R, t = gauss_newton_polish(
-            problem.camera, R, t, X, Y, problem.prev[samples], problem.curr[samples], iterations=polish_iterations
-        )
-    valid &= np.all(np.isfinite(t), axis=-1) & np.all(np.isfinite(R), axis=(-2, -1))
-    return R, t, valid
+    return kernels.minimal_fits(
+        np.ascontiguousarray(samples, dtype=np.int64), problem.points_prev, problem.points_curr,
+        problem.prev, problem.curr, camera_vector(problem.camera), DEGENERATE_AREA_RATIO, int(polish_iterations),
+    )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,8 +57,17 @@ class AdaptiveTermination:
             )
 
     def required(self, n_inliers: int, n: int) -> int:
-        k = int(required_iterations(n_inliers, n, self.confidence, self.max_iterations))
-        return max(k, self.min_iterations)
+        # Scalar arithmetic of required_iterations: the loop asks after every batch.
+        q = 1.0
+        for i in range(SAMPLE_SIZE):
+            q *= max(n_inliers - i, 0) / max(n - i, 1)
+        if q <= 0.0:
+            k = self.max_iterations
+        elif q >= 1.0:
+            k = 1
+        else:
+            k = min(max(math.ceil(math.log1p(-self.confidence) / math.log1p(-q)), 1), self.max_iterations)
+        return max(int(k), self.min_iterations)
 
 
 @dataclass

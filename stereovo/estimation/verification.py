@@ -31,7 +31,8 @@ class ScoringContext:
 
     def score(self, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Scores ``(H,)`` and inlier masks ``(H, N)`` of hypotheses on all points."""
-        sq = self.residuals(R, t)
+        cap = self.threshold_sq if self.quality.saturates else None
+        sq = self.residual_model.squared(self.problem, R, t, cap=cap)
         return self.quality.score(sq, self.threshold_sq), sq < self.threshold_sq
 
 
