@@ -56,15 +56,16 @@ class ReprojectionRefiner:
         for _ in range(self.rounds):
             if np.count_nonzero(inliers) < 3:
                 break
-            idx = np.flatnonzero(inliers)
+            # Outliers get weight 0, which the kernel skips: same sums as on the gathered inliers, no copies.
             R_new, t_new, _ = gauss_newton_steps(
                 problem.camera,
                 R[None],
                 t[None],
-                problem.points_prev[idx],
-                problem.points_curr[idx],
-                problem.prev[idx],
-                problem.curr[idx],
+                problem.points_prev,
+                problem.points_curr,
+                problem.prev,
+                problem.curr,
+                weights=inliers.astype(float),
                 iterations=self.iterations,
                 huber=self.huber_px,
             )
