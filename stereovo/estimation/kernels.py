@@ -324,6 +324,21 @@ def forward_reprojection_sq(R, t, X, mc, cam):
 
 
 @_jit
+def _symmetric_quadratic(a, bb, c, d, e, f, x, y, z):
+    """``v^T C^-1 v`` for the symmetric 3x3 ``C = [[a, bb, c], [bb, d, e], [c, e, f]]`` and ``v = (x, y, z)``,
+    by the adjugate (no pivoting needed: C is a covariance)."""
+    A00 = d * f - e * e
+    A01 = c * e - bb * f
+    A02 = bb * e - c * d
+    A11 = a * f - c * c
+    A12 = bb * c - a * e
+    A22 = a * d - bb * bb
+    det = a * A00 + bb * A01 + c * A02
+    quad = A00 * x * x + A11 * y * y + A22 * z * z + 2.0 * (A01 * x * y + A02 * x * z + A12 * y * z)
+    return quad / max(det, 1e-300)
+
+
+@_jit
 def mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr, cap):
     """``(H, N)`` squared Mahalanobis distances of ``Y - (R X + t)`` under ``R S_X R^T + S_Y``.
 
@@ -362,16 +377,7 @@ def mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr, cap):
             for i in range(3):
                 for j in range(i, 3):
                     C[i, j] = RS[i, 0] * r[j, 0] + RS[i, 1] * r[j, 1] + RS[i, 2] * r[j, 2] + cov_curr[n, i, j]
-            a, bb, c, d, e, f = C[0, 0], C[0, 1], C[0, 2], C[1, 1], C[1, 2], C[2, 2]
-            A00 = d * f - e * e
-            A01 = c * e - bb * f
-            A02 = bb * e - c * d
-            A11 = a * f - c * c
-            A12 = bb * c - a * e
-            A22 = a * d - bb * bb
-            det = a * A00 + bb * A01 + c * A02
-            quad = A00 * x * x + A11 * y * y + A22 * z * z + 2.0 * (A01 * x * y + A02 * x * z + A12 * y * z)
-            out[h, n] = quad / max(det, 1e-300)
+            out[h, n] = _symmetric_quadratic(C[0, 0], C[0, 1], C[0, 2], C[1, 1], C[1, 2], C[2, 2], x, y, z)
     return out
 
 
@@ -434,18 +440,7 @@ def pixel_mahalanobis_sq(R, t, X, cov_prev, mc, cam, sigma_sq):
             d = JS[1, 0] * J[1, 0] + JS[1, 1] * J[1, 1] + JS[1, 2] * J[1, 2] + sigma_sq
             e = JS[1, 0] * J[2, 0] + JS[1, 1] * J[2, 1] + JS[1, 2] * J[2, 2]
             f = JS[2, 0] * J[2, 0] + JS[2, 1] * J[2, 1] + JS[2, 2] * J[2, 2] + sigma_sq
-            A00 = d * f - e * e
-            A01 = c * e - bb * f
-            A02 = bb * e - c * d
-            A11 = a * f - c * c
-            A12 = bb * c - a * e
-            A22 = a * d - bb * bb
-            det = a * A00 + bb * A01 + c * A02
-            quad = (
-                A00 * e0 * e0 + A11 * s_sum * s_sum + A22 * e2 * e2
-                + 2.0 * (A01 * e0 * s_sum + A02 * e0 * e2 + A12 * s_sum * e2)
-            )
-            out[h, n] = quad / max(det, 1e-300) + s_diff * s_diff / sigma_sq
+            out[h, n] = _symmetric_quadratic(a, bb, c, d, e, f, e0, s_sum, e2) + s_diff * s_diff / sigma_sq
     return out
 
 
