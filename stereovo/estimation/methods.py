@@ -436,7 +436,17 @@ def estimate_problem(
     return _estimate(problem, spec, shared, extra, priors, order, rng, start)
 
 
-def _estimate(problem, spec, shared, extra, priors, order, rng, start) -> MotionEstimate:
+def _estimate(
+    problem: StereoProblem,
+    spec: MethodSpec,
+    shared: EstimatorOptions,
+    extra: dict,
+    priors: np.ndarray | None,
+    order: np.ndarray | None,
+    rng: np.random.Generator | int | None,
+    start: float,
+) -> MotionEstimate:
+    """Validate priors/order, run the method on ``problem``; ``start`` is the caller's perf_counter."""
     method = spec.name
     if priors is not None and order is not None:
         raise ValueError("give either priors (guided sampling) or order (PROSAC), not both")

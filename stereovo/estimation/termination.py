@@ -14,11 +14,12 @@ def all_inlier_probability(n_inliers: int | np.ndarray, n: int, sample_size: int
     """Chance ``q`` that a uniform minimal sample is all-inlier, drawn without replacement.
 
     ``q = prod_{i<s} (I - i) / (N - i)`` (Schoenberger, Larsson & Pollefeys 2025), not ``w^s``.
+    Elementwise over an array of counts; a 0-d array for one count.
     """
     I = np.asarray(n_inliers, dtype=float)
     q = np.ones_like(I)
     for i in range(sample_size):
-        q = q * np.clip(I - i, 0, None) / max(n - i, 1)
+        q = q * np.maximum(I - i, 0.0) / max(n - i, 1)
     return q
 
 
@@ -28,16 +29,23 @@ def required_iterations(
     confidence: float = 0.99,
     max_iterations: int = 10_000,
     sample_size: int = SAMPLE_SIZE,
-) -> np.ndarray:
+) -> int | np.ndarray:
     """``k = ceil(log(1 - p) / log(1 - q))``, clipped to ``[1, max_iterations]``.
 
     ``I < s`` gives ``q = 0`` and ``max_iterations`` (never a division by log 1); ``I = N`` gives 1.
+    One count gives an ``int`` (scalar arithmetic: the loop asks after every batch); an array of
+    counts gives an int64 array of the same shape.
     """
-    q = all_inlier_probability(n_inliers, n, sample_size)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        k = np.ceil(np.log1p(-confidence) / np.log1p(-np.minimum(q, 1.0)))
-    k = np.where(q <= 0, max_iterations, np.where(q >= 1, 1, k))
-    return np.clip(k, 1, max_iterations).astype(np.int64)
+    if np.ndim(n_inliers) > 0:
+        counts = np.asarray(n_inliers)
+        bounds = [required_iterations(int(i), n, confidence, max_iterations, sample_size) for i in counts.ravel()]
+        return np.array(bounds, dtype=np.int64).reshape(counts.shape)
+    q = float(all_inlier_probability(n_inliers, n, sample_size))
+    if q <= 0.0:
+        return int(max_iterations)
+    if q >= 1.0:
+        return 1
+    return int(min(max(math.ceil(math.log1p(-confidence) / math.log1p(-q)), 1), max_iterations))
 
 
 @dataclass
@@ -57,17 +65,7 @@ class AdaptiveTermination:
             )
 
     def required(self, n_inliers: int, n: int) -> int:
-        # Scalar arithmetic of required_iterations: the loop asks after every batch.
-        q = 1.0
-        for i in range(SAMPLE_SIZE):
-            q *= max(n_inliers - i, 0) / max(n - i, 1)
-        if q <= 0.0:
-            k = self.max_iterations
-        elif q >= 1.0:
-            k = 1
-        else:
-            k = min(max(math.ceil(math.log1p(-self.confidence) / math.log1p(-q)), 1), self.max_iterations)
-        return max(int(k), self.min_iterations)
+        return max(required_iterations(n_inliers, n, self.confidence, self.max_iterations), self.min_iterations)
 
 
 @dataclass
