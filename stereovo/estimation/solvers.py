@@ -1,7 +1,9 @@
 """Rigid-motion solvers: the batched 3-point minimal solver and the non-minimal fit.
 
-Both are Kabsch/Horn (Arun et al. 1987) with the det(R) = +1 correction;
-the minimal solver handles a whole batch of hypotheses in one compiled pass
+Both solve the weighted least-squares rigid fit in closed form with Horn's
+unit quaternion (1987): the same minimiser as Kabsch/Arun's SVD with the
+det(R) = +1 correction, always a proper rotation, compiled without a LAPACK
+call (a 3x3 SVD cost more than the rest of a minimal fit). The minimal solver handles a whole batch of hypotheses in one compiled pass
 (gather, degeneracy test, fit, polish). Because depth noise makes a 3-point fit on
 triangulated points badly conditioned (DESIGN.md section 5), the minimal
 solver can polish each hypothesis with a few batched Gauss-Newton steps on
@@ -36,9 +38,7 @@ def kabsch_batch(X: np.ndarray, Y: np.ndarray, weights: np.ndarray | None = None
     X = np.ascontiguousarray(X, dtype=float)
     Y = np.ascontiguousarray(Y, dtype=float)
     w = np.ones(X.shape[:2]) if weights is None else np.ascontiguousarray(weights, dtype=float)
-    mx, my, cov = kernels.centred_cross_covariances(X, Y, w)
-    U, _, Vt = np.linalg.svd(cov)  # one batched SVD call for all hypotheses
-    return kernels.proper_rotations(U, Vt, mx, my)
+    return kernels.rigid_fits(X, Y, w)
 
 
 def fit_rigid(X: np.ndarray, Y: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -66,13 +66,13 @@ def minimal_hypotheses(
     Args:
         samples: ``(H, 3)`` int indices into the problem's correspondences.
         polish_iterations: Gauss-Newton steps on the three points' stereo reprojection
-            error after the Kabsch fit (0 keeps the plain Kabsch hypothesis).
+            error after the closed-form fit (0 keeps the plain least-squares hypothesis).
 
     Returns:
         ``(R (H, 3, 3), t (H, 3), valid (H,))``; invalid hypotheses came from degenerate samples
         (their motion is the identity) or did not stay finite.
 
-    The degeneracy test, Kabsch fit and polish run in one compiled pass per batch
+    The degeneracy test, closed-form fit and polish run in one compiled pass per batch
     (:func:`stereovo.estimation.kernels.minimal_fits`), with the same arithmetic as
     :func:`degenerate_triplets`, :func:`kabsch_batch` and plain Gauss-Newton steps
     (:func:`stereovo.estimation.reprojection.gauss_newton_steps` without step control).

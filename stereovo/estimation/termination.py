@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -40,12 +41,21 @@ def required_iterations(
         counts = np.asarray(n_inliers)
         bounds = [required_iterations(int(i), n, confidence, max_iterations, sample_size) for i in counts.ravel()]
         return np.array(bounds, dtype=np.int64).reshape(counts.shape)
-    q = float(all_inlier_probability(n_inliers, n, sample_size))
+    return _required_for_count(int(n_inliers), int(n), float(confidence), int(max_iterations), int(sample_size))
+
+
+@functools.lru_cache(maxsize=4096)
+def _required_for_count(n_inliers: int, n: int, confidence: float, max_iterations: int, sample_size: int) -> int:
+    # The loop asks after every batch, mostly with a count it asked before: cache the bound.
+    # Python floats, same operations in the same order as all_inlier_probability.
+    q = 1.0
+    for i in range(sample_size):
+        q = q * max(n_inliers - i, 0.0) / max(n - i, 1)
     if q <= 0.0:
-        return int(max_iterations)
+        return max_iterations
     if q >= 1.0:
         return 1
-    return int(min(max(math.ceil(math.log1p(-confidence) / math.log1p(-q)), 1), max_iterations))
+    return min(max(math.ceil(math.log1p(-confidence) / math.log1p(-q)), 1), max_iterations)
 
 
 @dataclass
