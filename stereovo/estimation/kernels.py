@@ -353,9 +353,9 @@ def mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr, cap):
     out = np.empty((H, N))
     RS = np.empty((3, 3))
     C = np.empty((3, 3))
-    trace = np.empty(N)
+    inv_trace = np.empty(N)
     for n in range(N):
-        trace[n] = max(
+        inv_trace[n] = 1.0 / max(
             cov_prev[n, 0, 0] + cov_prev[n, 1, 1] + cov_prev[n, 2, 2]
             + cov_curr[n, 0, 0] + cov_curr[n, 1, 1] + cov_curr[n, 2, 2],
             1e-300,
@@ -367,7 +367,7 @@ def mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr, cap):
             y = Y[n, 1] - (r[1, 0] * X[n, 0] + r[1, 1] * X[n, 1] + r[1, 2] * X[n, 2] + t[h, 1])
             z = Y[n, 2] - (r[2, 0] * X[n, 0] + r[2, 1] * X[n, 1] + r[2, 2] * X[n, 2] + t[h, 2])
             if cap > 0.0:
-                bound = (x * x + y * y + z * z) / trace[n]
+                bound = (x * x + y * y + z * z) * inv_trace[n]  # a product: a division per point costs more
                 if bound >= cap:
                     out[h, n] = bound
                     continue
