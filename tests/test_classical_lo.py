@@ -25,7 +25,7 @@ def test_lo_never_lowers_the_score_and_returns_the_input_when_it_cannot_improve(
     improved = 0
     for h in np.flatnonzero(valid):
         Rh, th = R[h], t[h]
-        score, inliers = ctx.score(Rh[None], th[None])
+        score, inliers = ctx.score_and_inliers(Rh[None], th[None])
         mask = inliers[0]
         R2, t2, in2, s2, checks = lo.improve(ctx, Rh, th, mask, float(score[0]), rng)
         assert s2 >= score[0]
@@ -34,7 +34,7 @@ def test_lo_never_lowers_the_score_and_returns_the_input_when_it_cannot_improve(
         else:
             improved += 1
             # The returned score and inliers are those of the returned model.
-            s_check, in_check = ctx.score(R2[None], t2[None])
+            s_check, in_check = ctx.score_and_inliers(R2[None], t2[None])
             assert s_check[0] == s2
             np.testing.assert_array_equal(in_check[0], in2)
         if inliers[0].sum() < 6:

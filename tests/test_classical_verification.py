@@ -90,7 +90,7 @@ def test_tdd_pass_rates_and_exact_cost():
     # Cost: one check per failing hypothesis, N per survivor (d + P(pass) (N - d) on average).
     assert checks == (~passed).sum() * 1 + passed.sum() * problem.n
     # Survivors carry their full score.
-    np.testing.assert_array_equal(scores[passed], ctx.score(R[passed], t[passed])[0])
+    np.testing.assert_array_equal(scores[passed], ctx.score(R[passed], t[passed]))
 
 
 def test_tdd_bound_is_ransac_bound_stretched_by_alpha():
@@ -252,7 +252,7 @@ def test_preemptive_verifier_counts_exactly_and_keeps_the_best():
     assert verifier.last_preemption_evaluations == 98_800  # stopped at i = 800 whatever the data
     assert checks == 98_800 + (900 - 799)  # plus the winner's unseen observations
     assert np.argmax(scores) == 0 and np.sum(np.isfinite(scores)) == 1
-    assert scores[0] == pytest.approx(ctx.score(R[:1], t[:1])[0][0])  # the winner's full MSAC score
+    assert scores[0] == pytest.approx(ctx.score(R[:1], t[:1])[0])  # the winner's full MSAC score
 
 
 def test_preemptive_uses_a_constant_hypothesis_count():

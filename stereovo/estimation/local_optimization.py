@@ -36,7 +36,7 @@ class ConsensusRefit:
         if np.count_nonzero(inliers) < 3:
             return R, t, inliers, score, 0
         R_new, t_new, _ = self.refiner.refine(ctx.problem, R, t, inliers, ctx.residual_model, ctx.threshold_sq)
-        new_score, new_inliers = ctx.score(R_new[None], t_new[None])
+        new_score, new_inliers = ctx.score_and_inliers(R_new[None], t_new[None])
         checks = ctx.problem.n * (self.refiner.rounds + 1)
         if new_score[0] > score:
             return R_new, t_new, new_inliers[0], float(new_score[0]), checks

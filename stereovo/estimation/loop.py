@@ -125,11 +125,13 @@ def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.ran
         samples = c.sampler.draw(batch, rng)
         R, t, valid = minimal_hypotheses(problem, samples, c.polish_iterations)
         drawn += batch
-        degenerate += int(np.count_nonzero(~valid))
-        if np.any(valid):
-            R, t = R[valid], t[valid]
+        n_valid = int(np.count_nonzero(valid))
+        degenerate += len(valid) - n_valid
+        if n_valid:
+            if n_valid < len(valid):
+                R, t, samples = R[valid], t[valid], samples[valid]
             if uses_samples:
-                scores, spent = c.verifier.verify(ctx, R, t, rng, samples=samples[valid])
+                scores, spent = c.verifier.verify(ctx, R, t, rng, samples=samples)
             else:
                 scores, spent = c.verifier.verify(ctx, R, t, rng)
             scored += R.shape[0]

@@ -189,7 +189,7 @@ class SprtVerification:
         test = self.current
         H, n = R.shape[0], ctx.problem.n
         if not test.active:
-            scores, _ = ctx.score(R, t)
+            scores = ctx.score(R, t)
             self.n_accepted += H
             return scores, H * n
 

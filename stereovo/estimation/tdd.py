@@ -65,7 +65,7 @@ class TddVerification:
         d = min(self.d, n - SAMPLE_SIZE)
         scores = np.full(H, -np.inf)
         if d < 1:  # nothing outside the sample to pre-test on
-            scores, _ = ctx.score(R, t)
+            scores = ctx.score(R, t)
             return scores, H * n
         idx = random_points_excluding(samples, n, d, rng)
         consistent = residuals_at(ctx, R, t, idx) < ctx.threshold_sq  # (H, d)
@@ -74,7 +74,7 @@ class TddVerification:
         first_fail = np.argmin(consistent, axis=1) + 1
         checks = int(np.sum(first_fail[~passed]))
         if np.any(passed):
-            scores[passed], _ = ctx.score(R[passed], t[passed])
+            scores[passed] = ctx.score(R[passed], t[passed])
             checks += int(np.count_nonzero(passed)) * n
         self.n_passed += int(np.count_nonzero(passed))
         self.n_tested += H

@@ -29,11 +29,19 @@ class ScoringContext:
     def residuals(self, R: np.ndarray, t: np.ndarray) -> np.ndarray:
         return self.residual_model.squared(self.problem, R, t)
 
-    def score(self, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Scores ``(H,)`` and inlier masks ``(H, N)`` of hypotheses on all points."""
+    def _scored_residuals(self, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         cap = self.threshold_sq if self.quality.saturates else None
         sq = self.residual_model.squared(self.problem, R, t, cap=cap)
-        return self.quality.score(sq, self.threshold_sq), sq < self.threshold_sq
+        return self.quality.score(sq, self.threshold_sq), sq
+
+    def score(self, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """Scores ``(H,)`` of hypotheses on all points."""
+        return self._scored_residuals(R, t)[0]
+
+    def score_and_inliers(self, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Scores ``(H,)`` and inlier masks ``(H, N)`` of hypotheses on all points."""
+        scores, sq = self._scored_residuals(R, t)
+        return scores, sq < self.threshold_sq
 
 
 class Verifier(Protocol):
@@ -51,5 +59,5 @@ class FullVerification:
     def verify(
         self, ctx: ScoringContext, R: np.ndarray, t: np.ndarray, rng: np.random.Generator
     ) -> tuple[np.ndarray, int]:
-        scores, _ = ctx.score(R, t)
+        scores = ctx.score(R, t)
         return scores, R.shape[0] * ctx.problem.n
