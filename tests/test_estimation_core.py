@@ -365,6 +365,25 @@ def test_fixed_budget_draws_exactly_budget():
     assert est.n_hypotheses == 17 and est.ok
 
 
+def test_consensus_refit_is_skipped_only_in_the_batch_that_ends_the_search():
+    """A low-contamination frame ends after its first batch: the light refit of that batch's
+    best is left to the final refinement, but Lo-RANSAC's inner RANSAC (a search) still runs,
+    and so does the refit when later batches follow."""
+    rng = np.random.default_rng(5)
+    R_true = random_rotation(rng, 0.05)
+    prev, curr = noise_free_pair(rng, R_true, np.array([0.1, 0.0, -1.0]), 200)
+    curr = curr + rng.normal(0, 0.5, curr.shape)
+    curr[:, 3] = curr[:, 1]
+    curr[:20] = curr[rng.permutation(20)]  # 10 % mismatched: the bound falls below one batch at once
+    ends_at_once = estimate_motion(prev, curr, CAMERA, method="msac", rng=0)
+    assert ends_at_once.n_hypotheses == 32 and ends_at_once.report.n_local_optimizations == 0
+    assert np.degrees(rotation_error(ends_at_once.rotation, R_true)) < 0.1  # the refinement did its work
+    searching = estimate_motion(prev, curr, CAMERA, method="msac", rng=0, batch_size=1)
+    assert searching.report.n_local_optimizations >= 1  # new bests before the last batch are refit
+    lo = estimate_motion(prev, curr, CAMERA, method="lo-ransac", rng=0)
+    assert lo.report.n_local_optimizations >= 1
+    assert ends_at_once.ok and searching.ok and lo.ok
+
 def test_priors_and_order_reach_the_sampler():
     # Only the first 20 correspondences are correct; priors or an order naming them
     # finds the motion within the first batch, uniform sampling at 90 % outliers rarely does.

@@ -62,6 +62,7 @@ class InnerRansacLO:
     steps: int = 4
     fit_cap: int = 84
     fit_iterations: int = 3
+    subsumed_by_refinement: bool = False  # its inner RANSAC searches; the refinement does not
 
     def __post_init__(self) -> None:
         for name, ok in (

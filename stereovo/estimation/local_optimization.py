@@ -23,6 +23,7 @@ class ConsensusRefit:
     """Refit on the consensus set and keep the result if its score is higher."""
 
     refiner: ReprojectionRefiner = ReprojectionRefiner(iterations=3, rounds=2)
+    subsumed_by_refinement: bool = True  # the final refinement refits on the consensus too
 
     def improve(
         self,

@@ -22,6 +22,15 @@ from stereovo.estimation.verification import FullVerification, ScoringContext, V
 
 
 class LocalOptimizer(Protocol):
+    """Improves each new best model during the search.
+
+    ``subsumed_by_refinement``: True when the optimiser only refits the model on its consensus,
+    which the final refinement repeats; the loop then skips it on a best found in the batch that
+    ends the search. An optimiser that searches (Lo-RANSAC's inner RANSAC) leaves it False.
+    """
+
+    subsumed_by_refinement: bool
+
     def improve(
         self,
         ctx: ScoringContext,
@@ -50,7 +59,8 @@ class RansacComponents:
         residual_model, quality, threshold_sq: how a hypothesis is judged.
         verifier: full scoring or an early-rejection strategy.
         termination: adaptive bound or fixed budget.
-        local_optimizer: optional, runs on every new best hypothesis.
+        local_optimizer: optional, runs on every new best hypothesis (a mere consensus refit is
+            skipped on a best from the batch that ends the search: the refiner does that work).
         refiner: final LM refinement on the inliers; None keeps the best hypothesis as is.
         batch_size: hypotheses fitted and scored per vectorised batch.
         polish_iterations: Gauss-Newton steps on each minimal sample's reprojection error.
@@ -107,6 +117,15 @@ class LoopState:
     best_score: float
 
 
+def local_refit_redundant(c: RansacComponents, drawn: int, best_inliers: np.ndarray, n: int) -> bool:
+    """True if the new best's local refit would only repeat the final refinement's work: the
+    optimiser just refits on the consensus, a refiner follows, and this batch ends the search."""
+    if c.refiner is None or not c.local_optimizer.subsumed_by_refinement:
+        return False
+    required = c.termination.required(int(np.count_nonzero(best_inliers)), n)
+    return drawn >= min(required, c.termination.max_iterations)
+
+
 def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.random.Generator) -> RansacReport:
     """Run the RANSAC loop described by ``components`` on ``problem``."""
     c = components
@@ -142,7 +161,7 @@ def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.ran
                 best_inliers = ctx.residuals(best_R[None], best_t[None])[0] < c.threshold_sq
                 checks += n
                 found_at = drawn
-                if c.local_optimizer is not None:
+                if c.local_optimizer is not None and not local_refit_redundant(c, drawn, best_inliers, n):
                     best_R, best_t, best_inliers, best_score, spent = c.local_optimizer.improve(
                         ctx, best_R, best_t, best_inliers, best_score, rng
                     )

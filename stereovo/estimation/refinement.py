@@ -25,14 +25,14 @@ class ReprojectionRefiner:
 
     Args:
         iterations: LM iterations per round.
-        rounds: refine / re-select rounds.
+        rounds: at most this many refine / re-select rounds (they stop once the inliers stay the same).
         huber_px: Huber threshold (pixels) on each point's residual norm; None for plain least squares.
         gate: optional ``(residual_model, threshold_sq)`` for re-selecting inliers after each round,
             in place of the caller's.
     """
 
     iterations: int = 6
-    rounds: int = 2
+    rounds: int = 3
     huber_px: float | None = None
     gate: tuple[ResidualModel, float] | None = None
 
