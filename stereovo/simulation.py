@@ -57,7 +57,6 @@ from .geometry import (
     relative_motion,
     se3_exp,
     so3_exp,
-    transform_points,
 )
 
 __all__ = [
@@ -406,11 +405,6 @@ def _rotation_about_y(angle: float) -> np.ndarray:
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
-def _uniform_between(rng: np.random.Generator, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Uniform draws in ``[low, high]`` elementwise, and the mask where the interval is non-empty."""
-    return low + (high - low) * rng.random(np.shape(low)), high >= low
-
-
 def _frustum(cam: StereoCamera) -> tuple[float, float, float, float]:
     """Tangent bounds ``(left, right, top, bottom)`` of the left camera's view, widened by the slack."""
     s = _FRUSTUM_SLACK
@@ -418,43 +412,141 @@ def _frustum(cam: StereoCamera) -> tuple[float, float, float, float]:
             -s * cam.cy / cam.fy, s * (cam.height - 1 - cam.cy) / cam.fy)
 
 
-def _apply(T: np.ndarray, X: np.ndarray) -> np.ndarray:
-    return transform_points(T[:3, :3], T[:3, 3], X)
-
-
 def _valid(meas: np.ndarray, cam: StereoCamera) -> np.ndarray:
     return cam.in_image(meas) & cam.has_depth(meas)
 
 
 @njit(cache=True, nogil=True)
+def _see_point(p0, p1, p2, to_prev, to_curr, cam, z_min, z_max, X_prev, X_curr, i):
+    """Map the point ``(p0, p1, p2)`` by ``to_prev``, ``to_curr`` (4x4) into row ``i`` of
+    ``X_prev``, ``X_curr``; True if both stereo cameras see it (as :meth:`StereoCamera.is_visible`).
+
+    ``cam`` is ``(fx, fy, cx, cy, baseline, width, height, min_disparity)``.
+    """
+    fx, fy, cx, cy, b, width, height, min_disp = cam[0], cam[1], cam[2], cam[3], cam[4], cam[5], cam[6], cam[7]
+    visible = True
+    for T, out in ((to_prev, X_prev), (to_curr, X_curr)):
+        for r in range(3):
+            out[i, r] = T[r, 0] * p0 + T[r, 1] * p1 + T[r, 2] * p2 + T[r, 3]
+        z = out[i, 2]
+        if not (z >= z_min and z <= z_max):
+            visible = False
+            continue
+        uL = fx * out[i, 0] / z + cx
+        v = fy * out[i, 1] / z + cy
+        disparity = fx * b / z
+        uR = uL - disparity
+        inside = uL >= 0.0 and uL <= width - 1 and uR >= 0.0 and uR <= width - 1 and v >= 0.0 and v <= height - 1
+        visible = visible and inside and disparity > min_disp
+    return visible
+
+
+@njit(cache=True, nogil=True)
 def _seen_by_both(points, to_prev, to_curr, cam, z_min, z_max):
     """Points ``(n, 3)`` mapped by the rigid transforms ``to_prev``, ``to_curr`` (4x4) into cameras
-    k-1 and k, and the mask of those visible in both (as :meth:`StereoCamera.is_visible`).
-
-    ``cam`` is ``(fx, fy, cx, cy, baseline, width, height, min_disparity)``. One fused pass:
-    the simulator asks this of thousands of candidate landmarks per frame.
-    """
+    k-1 and k, and the mask of those visible in both (see :func:`_see_point`)."""
     n = points.shape[0]
-    fx, fy, cx, cy, b, width, height, min_disp = cam[0], cam[1], cam[2], cam[3], cam[4], cam[5], cam[6], cam[7]
     X_prev = np.empty((n, 3))
     X_curr = np.empty((n, 3))
     ok = np.empty(n, dtype=np.bool_)
     for i in range(n):
-        visible = True
-        for T, out in ((to_prev, X_prev), (to_curr, X_curr)):
-            for r in range(3):
-                out[i, r] = T[r, 0] * points[i, 0] + T[r, 1] * points[i, 1] + T[r, 2] * points[i, 2] + T[r, 3]
-            z = out[i, 2]
-            if not (z >= z_min and z <= z_max):
-                visible = False
-                continue
-            uL = fx * out[i, 0] / z + cx
-            v = fy * out[i, 1] / z + cy
-            disparity = fx * b / z
-            uR = uL - disparity
-            inside = uL >= 0.0 and uL <= width - 1 and uR >= 0.0 and uR <= width - 1 and v >= 0.0 and v <= height - 1
-            visible = visible and inside and disparity > min_disp
-        ok[i] = visible
+        ok[i] = _see_point(points[i, 0], points[i, 1], points[i, 2], to_prev, to_curr, cam, z_min, z_max, X_prev, X_curr, i)
+    return X_prev, X_curr, ok
+
+
+@njit(cache=True, nogil=True)
+def _street_candidates(u, g, walls, frustum, z_min, z_max, to_prev, to_curr, cam):
+    """Street landmarks from uniforms ``u (7, n)`` and normals ``g (2, n)``, seen through the
+    cameras: ``X_prev, X_curr (n, 3)`` and the mask of those drawn and visible in both.
+
+    ``walls`` is ``(left, right, height_left, height_right)`` (m), ``frustum`` the tangent bounds
+    ``(left, right, top, bottom)``. A candidate is on the ground, a facade or clutter with the
+    odds of ``_STREET_PARTS``; its depth is log-uniform in ``[z_min, z_max]``. Rows of ``u``:
+    depth, part, ground x, facade side, facade height, clutter x, clutter height; of ``g``:
+    ground roughness, facade relief.
+    """
+    n = u.shape[1]
+    h = _CAMERA_HEIGHT
+    left_wall, right_wall, height_left, height_right = walls[0], walls[1], walls[2], walls[3]
+    log_range = math.log(z_max / z_min)
+    ground_end = _STREET_PARTS[0]
+    facade_end = _STREET_PARTS[0] + _STREET_PARTS[1]
+    total = _STREET_PARTS[0] + _STREET_PARTS[1] + _STREET_PARTS[2]
+    X_prev = np.empty((n, 3))
+    X_curr = np.empty((n, 3))
+    ok = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        z = z_min * math.exp(u[0, i] * log_range)
+        x_lo, x_hi = max(frustum[0] * z, -left_wall), min(frustum[1] * z, right_wall)
+        y_top = frustum[2] * z
+        part = u[1, i] * total
+        if part < ground_end:  # rough ground plane h below the camera, between the facades
+            drawn = x_hi >= x_lo
+            x = x_lo + (x_hi - x_lo) * u[2, i]
+            y = h + 0.02 * g[0, i]
+        elif part < facade_end:  # a facade, with some relief, up to its building's height
+            on_right = u[3, i] < 0.5
+            x = (right_wall if on_right else -left_wall) + 0.1 * g[1, i]
+            y_lo = max(y_top, h - (height_right if on_right else height_left))
+            drawn = h >= y_lo
+            y = y_lo + (h - y_lo) * u[4, i]
+        else:  # clutter up to 3 m: poles, parked cars, vegetation
+            cx_lo, cx_hi = max(x_lo, 0.5 - left_wall), min(x_hi, right_wall - 0.5)
+            cy_lo = max(y_top, h - 3.0)
+            drawn = cx_hi >= cx_lo and h >= cy_lo
+            x = cx_lo + (cx_hi - cx_lo) * u[5, i]
+            y = cy_lo + (h - cy_lo) * u[6, i]
+        seen = _see_point(x, y, z, to_prev, to_curr, cam, z_min, z_max, X_prev, X_curr, i)
+        ok[i] = drawn and seen
+    return X_prev, X_curr, ok
+
+
+@njit(cache=True, nogil=True)
+def _object_candidates(u, half, face_cdf, orientation, centre, to_prev, to_curr_moved, to_curr_static, cam, z_min, z_max, tau):
+    """Points on the faces of a box, from uniforms ``u (n, 5)``: ``X_prev, X_curr (n, 3)`` in the
+    cameras and the mask of those that both cameras see, on a face turned towards camera k-1,
+    whose frame-k image lies at least ``tau`` px (over uL, v, uR) from where a static point
+    would be (or that would be behind camera k if static).
+
+    Columns of ``u``: the position along the three box axes, the face (area-weighted through
+    ``face_cdf``), its side. ``half (3,)`` are the box's half sizes, ``orientation (3, 3)`` and
+    ``centre (3,)`` its pose in camera k-1; ``to_curr_moved`` sees the box after its own motion.
+    """
+    n = u.shape[0]
+    fx, fy, cx, cy, b = cam[0], cam[1], cam[2], cam[3], cam[4]
+    X_prev = np.empty((n, 3))
+    X_curr = np.empty((n, 3))
+    ok = np.empty(n, dtype=np.bool_)
+    local = np.empty(3)
+    p = np.empty(3)
+    for i in range(n):
+        for k in range(3):
+            local[k] = half[k] * (2.0 * u[i, k] - 1.0)
+        axis = 0
+        while axis < 2 and face_cdf[axis] <= u[i, 3]:
+            axis += 1
+        sign = -1.0 if u[i, 4] < 0.5 else 1.0
+        local[axis] = sign * half[axis]
+        facing = 0.0
+        for r in range(3):
+            p[r] = orientation[r, 0] * local[0] + orientation[r, 1] * local[1] + orientation[r, 2] * local[2] + centre[r]
+        for r in range(3):
+            facing += sign * orientation[r, axis] * p[r]  # outward normal . ray from camera k-1
+        seen = _see_point(p[0], p[1], p[2], to_prev, to_curr_moved, cam, z_min, z_max, X_prev, X_curr, i)
+        if not (seen and facing < 0.0):
+            ok[i] = False
+            continue
+        s0 = to_curr_static[0, 0] * p[0] + to_curr_static[0, 1] * p[1] + to_curr_static[0, 2] * p[2] + to_curr_static[0, 3]
+        s1 = to_curr_static[1, 0] * p[0] + to_curr_static[1, 1] * p[1] + to_curr_static[1, 2] * p[2] + to_curr_static[1, 3]
+        s2 = to_curr_static[2, 0] * p[0] + to_curr_static[2, 1] * p[1] + to_curr_static[2, 2] * p[2] + to_curr_static[2, 3]
+        if s2 <= 1e-6:
+            ok[i] = True  # a static point there would be behind camera k: the motion shows
+            continue
+        zc = X_curr[i, 2]
+        du = fx * (X_curr[i, 0] / zc - s0 / s2)
+        dv = fy * (X_curr[i, 1] / zc - s1 / s2)
+        dd = fx * b * (1.0 / zc - 1.0 / s2)  # uR = uL - fx b / z
+        ok[i] = math.sqrt(du * du + dv * dv + (du - dd) * (du - dd)) >= tau
     return X_prev, X_curr, ok
 
 
@@ -466,34 +558,18 @@ class _StreetLayout:
     """One frame's street, in the frame of camera k-1: facades at ``x = -left, +right``."""
 
     def __init__(self, rng: np.random.Generator) -> None:
-        self.left, self.right = rng.uniform(4.0, 10.0, 2)
-        self.height_left, self.height_right = rng.uniform(6.0, 20.0, 2)
+        left, right = rng.uniform(4.0, 10.0, 2)
+        height_left, height_right = rng.uniform(6.0, 20.0, 2)
+        self.walls = np.array([left, right, height_left, height_right])
 
-    def sample(self, rng: np.random.Generator, n: int, cam: StereoCamera, z_min: float, z_max: float) -> np.ndarray:
-        """Candidate landmarks ``(n, 3)`` (m) in the camera k-1 frame; empty slots are NaN."""
-        h = _CAMERA_HEIGHT
-        left, right, top, bottom = _frustum(cam)
-        z = _loguniform(rng, z_min, z_max, n)
-        part = np.searchsorted(np.cumsum(_STREET_PARTS), rng.random(n) * sum(_STREET_PARTS), side="right")
-        x_lo, x_hi = np.maximum(left * z, -self.left), np.minimum(right * z, self.right)
-        y_top = top * z
-        # Ground: rough plane h below the camera, between the facades.
-        gx, gx_ok = _uniform_between(rng, x_lo, x_hi)
-        gy = h + 0.02 * rng.standard_normal(n)
-        # Facades: one side or the other, with some relief, up to the building height.
-        on_right = rng.random(n) < 0.5
-        fx = np.where(on_right, self.right, -self.left) + 0.1 * rng.standard_normal(n)
-        building = np.where(on_right, self.height_right, self.height_left)
-        fy, fy_ok = _uniform_between(rng, np.maximum(y_top, h - building), np.full(n, h))
-        # Clutter: poles, parked cars, vegetation up to 3 m, between the facades.
-        cx, cx_ok = _uniform_between(rng, np.maximum(x_lo, 0.5 - self.left), np.minimum(x_hi, self.right - 0.5))
-        cy, cy_ok = _uniform_between(rng, np.maximum(y_top, h - 3.0), np.full(n, h))
-        x = np.choose(part, [gx, fx, cx])
-        y = np.choose(part, [gy, fy, cy])
-        ok = np.choose(part, [gx_ok, fy_ok, cx_ok & cy_ok])
-        points = np.stack([x, y, z], axis=1)
-        points[~ok] = np.nan
-        return points
+    def sample_visible(self, rng, n, cam, z_min, z_max, to_prev, to_curr):
+        """``n`` candidates seen through ``to_prev``, ``to_curr``: ``X_prev, X_curr (n, 3)`` and the
+        mask of those drawn and visible in both cameras (see :func:`_street_candidates`)."""
+        u = rng.random((7, n))
+        g = rng.standard_normal((2, n))
+        return _street_candidates(
+            u, g, self.walls, np.array(_frustum(cam)), z_min, z_max, to_prev, to_curr, _camera_vector(cam)
+        )
 
 
 def _sample_open(rng: np.random.Generator, n: int, cam: StereoCamera, z_min: float, z_max: float) -> np.ndarray:
@@ -523,15 +599,13 @@ def _visible_landmarks(
         if count >= n:
             break
         batch = min(_MAX_BATCH_SIZE, int(1.3 * (n - count) / acceptance) + 32)
+        # Landmarks live in world coordinates; the cameras see them through their poses.
+        to_prev, to_curr = world_to_prev @ pose_prev, world_to_curr @ pose_prev
         if layout is not None:
-            local = layout.sample(rng, batch, cam, config.z_min, config.z_max)
+            X_prev, X_curr, ok = layout.sample_visible(rng, batch, cam, config.z_min, config.z_max, to_prev, to_curr)
         else:
             local = _sample_open(rng, batch, cam, config.z_min, config.z_max)
-        local = local[np.isfinite(local[:, 0])]
-        # Landmarks live in world coordinates; the cameras see them through their poses.
-        X_prev, X_curr, ok = _seen_by_both(
-            local, world_to_prev @ pose_prev, world_to_curr @ pose_prev, cam_vector, config.z_min, config.z_max
-        )
+            X_prev, X_curr, ok = _seen_by_both(local, to_prev, to_curr, cam_vector, config.z_min, config.z_max)
         kept_prev.append(X_prev[ok])
         kept_curr.append(X_curr[ok])
         count += int(ok.sum())
@@ -669,24 +743,11 @@ def _moving_object(
         to_curr_moved = to_curr_static @ obj
 
         def draw(size: int) -> tuple[np.ndarray, np.ndarray]:
-            local = half * rng.uniform(-1.0, 1.0, (size, 3))
-            # rng.choice(3, size, p=face_cdf) and rng.choice([-1.0, 1.0], size), drawn from the same
-            # stream without choice()'s per-call validation, which costs more than the draws here.
-            axis = face_cdf.searchsorted(rng.random(size), side="right")
-            sign = np.where(rng.integers(0, 2, size=size, dtype=np.int64) == 0, -1.0, 1.0)
-            local[np.arange(size), axis] = sign * half[axis]
-            normal = np.zeros((size, 3))
-            normal[np.arange(size), axis] = sign
-            Y = local @ orientation.T + centre
-            facing = np.einsum("ij,ij->i", normal @ orientation.T, Y) < 0
-            X_prev, X_curr, ok = _seen_by_both(Y, to_prev, to_curr_moved, cam_vector, config.z_min, config.z_max)
-            ok &= facing
-            X_prev, X_curr, Y = X_prev[ok], X_curr[ok], Y[ok]
-            X_static = _apply(to_curr_static, Y)
-            ahead = X_static[:, 2] > 1e-6
-            static_meas = cam.project(np.where(ahead[:, None], X_static, 1.0))
-            shows = ~ahead | (_pixel_distance(cam.project(X_curr), static_meas) >= tau)
-            return X_prev[shows], X_curr[shows]
+            X_prev, X_curr, ok = _object_candidates(
+                rng.random((size, 5)), half, face_cdf, orientation, centre, to_prev, to_curr_moved,
+                to_curr_static, cam_vector, config.z_min, config.z_max, tau,
+            )
+            return X_prev[ok], X_curr[ok]
 
         probe = max(64, 2 * n)
         X_prev, X_curr = draw(probe)

@@ -99,22 +99,30 @@ def _inlier_mass(net, frames) -> float:
     return float(np.mean(masses))
 
 
-def test_short_training_lowers_the_loss_on_a_fixed_seed(tmp_path):
+def test_short_training_lowers_the_loss_on_fixed_seeds(tmp_path):
     from stereovo.simulation import simulate_frame
 
-    config = NGRansacConfig(
-        n_correspondences=150, epsilon_range=(0.75, 0.75), outlier_mix=(0.8, 0.2, 0.0), budget=6, pools=4,
-        frames=100, learning_rate=1e-2, width=16, blocks=1, eval_every=50, eval_frames=10, frames_per_sequence=10, seed=3,
-        keep_best=False,
-    )
-    held_out = [simulate_frame(config.simulation(0.75), np.random.default_rng(1000 + i)) for i in range(20)]
-    trainer = NGRansacTrainer(config)
+    def config(seed: int) -> NGRansacConfig:
+        return NGRansacConfig(
+            n_correspondences=150, epsilon_range=(0.75, 0.75), outlier_mix=(0.8, 0.2, 0.0), budget=6, pools=4,
+            frames=100, learning_rate=1e-2, width=16, blocks=1, eval_every=50, eval_frames=10, frames_per_sequence=10,
+            seed=seed, keep_best=False,
+        )
+
+    held_out = [simulate_frame(config(3).simulation(0.75), np.random.default_rng(1000 + i)) for i in range(20)]
+    trainer = NGRansacTrainer(config(3))
     mass_before = _inlier_mass(trainer.net, held_out)
     trainer.train()
     mass_after = _inlier_mass(trainer.net, held_out)
-    # The policy learns where to sample: more mass on inliers, and a lower pool loss late in training.
+    # The policy learns where to sample: more mass on inliers ...
     assert mass_after > mass_before + 0.05
-    assert trainer.history[-1].mean_loss < trainer.history[0].mean_loss
+    # ... and a lower pool loss late in training. One run's two 50-frame windows see different
+    # frames, so a single seed can go either way: the loss falls on average over three.
+    others = [NGRansacTrainer(config(seed)) for seed in (4, 5)]
+    for other in others:
+        other.train()
+    histories = [trainer.history] + [other.history for other in others]
+    assert np.mean([h[-1].mean_loss for h in histories]) < np.mean([h[0].mean_loss for h in histories]) - 0.2
     # Resuming restores the step count and weights.
     path = trainer.save(tmp_path / "ng.pt")
     resumed = NGRansacTrainer.resume(path)
