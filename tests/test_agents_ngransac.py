@@ -135,10 +135,10 @@ def test_entropy_bonus_keeps_the_sampling_distribution_spread_and_settings_are_v
     from stereovo.simulation import simulate_frame
     from vo_gym.features import compute_features
 
-    def trained_entropy(weight: float) -> float:
+    def trained_entropy(weight: float, seed: int) -> float:
         config = NGRansacConfig(
             n_correspondences=100, epsilon_range=(0.6, 0.6), budget=4, pools=2, frames=30, learning_rate=3e-2,
-            width=16, blocks=1, eval_every=1000, eval_frames=1, frames_per_sequence=10, seed=5, keep_best=False,
+            width=16, blocks=1, eval_every=1000, eval_frames=1, frames_per_sequence=10, seed=seed, keep_best=False,
             max_grad_norm=None, entropy_weight=weight,
         )
         trainer = NGRansacTrainer(config)
@@ -149,7 +149,14 @@ def test_entropy_bonus_keeps_the_sampling_distribution_spread_and_settings_are_v
             log_p = torch.log_softmax(trainer.net(torch.from_numpy(feats)[None], torch.ones(1, frame.n, dtype=torch.bool))[0], 0)
         return float(-(log_p.exp() * log_p).sum())
 
-    assert trained_entropy(5.0) > trained_entropy(0.0) + 0.05
+    # The entropy's gradient vanishes at the near-uniform start, so the bonus shows only where
+    # the policy gradient pulls towards a collapse, which some seeds do within 30 frames and
+    # others not: compare means over three seeds.
+    seeds = (5, 6, 7)
+    spread = np.mean([trained_entropy(20.0, seed) for seed in seeds])
+    plain = np.mean([trained_entropy(0.0, seed) for seed in seeds])
+    assert spread > plain + 0.3
+    assert spread > 0.9 * np.log(100)  # close to uniform over the 100 correspondences
     with pytest.raises(ValueError, match="entropy_weight"):
         NGRansacConfig(entropy_weight=-1.0)
     with pytest.raises(ValueError, match="max_grad_norm"):

@@ -298,6 +298,8 @@ def test_bad_method_option_priors_and_order_raise():
         estimate_motion(prev, curr, CAMERA, threshhold=3)
     with pytest.raises(ValueError, match="confidence"):
         estimate_motion(prev, curr, CAMERA, confidence=1.5)
+    with pytest.raises(ValueError, match="refine_rounds"):
+        estimate_motion(prev, curr, CAMERA, refine_rounds=0)
     with pytest.raises(ValueError, match="priors must have shape"):
         estimate_motion(prev, curr, CAMERA, priors=np.ones(3))
     with pytest.raises(ValueError, match="non-negative"):

@@ -282,7 +282,10 @@ def _run_inlier_detection(problem, options, priors, order, extra, rng):
         raise ValueError(
             "method 'inlier-detection' does not sample hypotheses: priors= and order= have no role in it; pass neither"
         )
-    refiner = ReprojectionRefiner(iterations=options.refine_iterations) if options.refine else None
+    refiner = (
+        ReprojectionRefiner(iterations=options.refine_iterations, rounds=int(options.refine_rounds))
+        if options.refine else None
+    )
     return detect_inliers(
         problem,
         options.reprojection_threshold_sq,

@@ -58,6 +58,7 @@ class EstimatorOptions:
         polish_iterations: Gauss-Newton steps on each minimal sample's reprojection error.
         refine: run the final Levenberg-Marquardt refinement on the inliers.
         refine_iterations: LM iterations per refinement round.
+        refine_rounds: at most this many refine / re-select-inliers rounds.
         local_refit: refit each new best on its consensus (a light local optimisation).
         min_inliers: fewer inliers in the final model is reported as "no consensus".
     """
@@ -73,6 +74,7 @@ class EstimatorOptions:
     polish_iterations: int = 2
     refine: bool = True
     refine_iterations: int = 6
+    refine_rounds: int = 3
     local_refit: bool = True
     min_inliers: int = 6
 
@@ -98,6 +100,8 @@ class EstimatorOptions:
             fail("refine_gate_probability", "in (0, 1)")
         if self.polish_iterations < 0 or self.refine_iterations < 0:
             fail("polish_iterations" if self.polish_iterations < 0 else "refine_iterations", ">= 0")
+        if int(self.refine_rounds) != self.refine_rounds or self.refine_rounds < 1:
+            fail("refine_rounds", "an integer >= 1")
         if self.min_inliers < SAMPLE_SIZE:
             fail("min_inliers", f">= {SAMPLE_SIZE}")
 
@@ -235,7 +239,10 @@ def base_components(
     threshold_sq: float,
 ) -> RansacComponents:
     """The plain loop with the given judge; named methods replace roles of this."""
-    refiner = ReprojectionRefiner(iterations=options.refine_iterations) if options.refine else None
+    refiner = (
+        ReprojectionRefiner(iterations=options.refine_iterations, rounds=int(options.refine_rounds))
+        if options.refine else None
+    )
     return RansacComponents(
         sampler=default_sampler(problem, priors, order),
         residual_model=residual_model,
