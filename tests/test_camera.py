@@ -53,6 +53,21 @@ def test_covariance_is_sigma2_JJt_and_depth_error_grows_quadratically(camera):
     np.testing.assert_allclose(depth_std, X[:, 2] ** 2 / (camera.fx * camera.baseline) * np.sqrt(2) * 0.5, rtol=1e-12)
 
 
+def test_triangulation_with_covariance_equals_the_two_separate_calls_at_any_shape(camera):
+    rng = np.random.default_rng(2)
+    X = np.column_stack([rng.uniform(-10, 10, 60), rng.uniform(-2, 2, 60), rng.uniform(3, 60, 60)])
+    z = camera.project(X).reshape(3, 20, 4)
+    points, cov = camera.triangulate_with_covariance(z, 0.7)
+    assert points.shape == (3, 20, 3) and cov.shape == (3, 20, 3, 3)
+    np.testing.assert_allclose(points, X.reshape(3, 20, 3), rtol=1e-12)
+    J = camera.triangulation_jacobian(z)
+    np.testing.assert_allclose(cov, 0.49 * J @ np.swapaxes(J, -1, -2), rtol=1e-10)
+    np.testing.assert_array_equal(cov, camera.triangulation_covariance(z, 0.7))
+    z[1, 7, 2] = z[1, 7, 0]  # no disparity anywhere in the batch: refused, never divided by
+    with pytest.raises(ValueError, match="1 measurement"):
+        camera.triangulate_with_covariance(z, 0.7)
+
+
 def test_triangulation_refuses_points_without_depth(camera):
     with pytest.raises(ValueError, match="disparity"):
         camera.triangulate(np.array([[600.0, 100.0, 600.0, 100.0]]))

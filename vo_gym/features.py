@@ -264,10 +264,9 @@ def compute_features(
         points_prev, points_curr = problem.points_prev, problem.points_curr
         cov_prev, cov_curr = problem.cov_prev, problem.cov_curr
     else:
-        points_prev = camera.triangulate(prev)  # raises ValueError on a match without depth
-        points_curr = camera.triangulate(curr)
-        cov_prev = camera.triangulation_covariance(prev, noise_sigma, points_prev)
-        cov_curr = camera.triangulation_covariance(curr, noise_sigma, points_curr)
+        # raises ValueError on a match without depth
+        points_prev, cov_prev = camera.triangulate_with_covariance(prev, noise_sigma)
+        points_curr, cov_curr = camera.triangulate_with_covariance(curr, noise_sigma)
 
     out[:, 0] = scores
     rank = np.empty(n)

@@ -71,8 +71,8 @@ class StereoProblem:
                     f"{name} has {int(low.sum())} row(s) with disparity uL - uR <= {camera.min_disparity} px "
                     f"(first at row {int(np.argmax(low))}): no depth can be triangulated"
                 )
-        points_prev = camera.triangulate(prev)
-        points_curr = camera.triangulate(curr)
+        points_prev, cov_prev = camera.triangulate_with_covariance(prev, noise_sigma)
+        points_curr, cov_curr = camera.triangulate_with_covariance(curr, noise_sigma)
         return cls(
             prev=prev,
             curr=curr,
@@ -80,8 +80,8 @@ class StereoProblem:
             noise_sigma=float(noise_sigma),
             points_prev=points_prev,
             points_curr=points_curr,
-            cov_prev=camera.triangulation_covariance(prev, noise_sigma, points_prev),
-            cov_curr=camera.triangulation_covariance(curr, noise_sigma, points_curr),
+            cov_prev=cov_prev,
+            cov_curr=cov_curr,
         )
 
     @property
