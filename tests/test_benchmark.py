@@ -168,7 +168,7 @@ def test_same_seed_same_rows_any_worker_count_and_different_seed_differs():
     other = bm.run_benchmark(trials, estimators, seed=6, workers=1, progress=False)
     assert _without_time(other) != _without_time(one)
     assert all(r["time_s"] > 0 for r in one)
-    assert all(32 <= r["n_hypotheses_to_best"] <= r["n_hypotheses"] for r in one)
+    assert all(16 <= r["n_hypotheses_to_best"] <= r["n_hypotheses"] for r in one)  # a first batch of 16
     assert list(one[0]) == list(bm.TRIAL_COLUMNS)
 
 

@@ -300,6 +300,8 @@ def test_bad_method_option_priors_and_order_raise():
         estimate_motion(prev, curr, CAMERA, confidence=1.5)
     with pytest.raises(ValueError, match="refine_rounds"):
         estimate_motion(prev, curr, CAMERA, refine_rounds=0)
+    with pytest.raises(ValueError, match="first_batch_size"):
+        estimate_motion(prev, curr, CAMERA, first_batch_size=0)
     with pytest.raises(ValueError, match="priors must have shape"):
         estimate_motion(prev, curr, CAMERA, priors=np.ones(3))
     with pytest.raises(ValueError, match="non-negative"):
@@ -367,7 +369,7 @@ def test_fixed_budget_draws_exactly_budget():
     assert est.n_hypotheses == 17 and est.ok
 
 
-def test_consensus_refit_is_skipped_only_in_the_batch_that_ends_the_search():
+def test_small_first_batch_and_refit_skipped_only_in_the_batch_that_ends_the_search():
     """A low-contamination frame ends after its first batch: the light refit of that batch's
     best is left to the final refinement, but Lo-RANSAC's inner RANSAC (a search) still runs,
     and so does the refit when later batches follow."""
@@ -378,7 +380,10 @@ def test_consensus_refit_is_skipped_only_in_the_batch_that_ends_the_search():
     curr[:, 3] = curr[:, 1]
     curr[:20] = curr[rng.permutation(20)]  # 10 % mismatched: the bound falls below one batch at once
     ends_at_once = estimate_motion(prev, curr, CAMERA, method="msac", rng=0)
-    assert ends_at_once.n_hypotheses == 32 and ends_at_once.report.n_local_optimizations == 0
+    # one first batch of first_batch_size (16) hypotheses, not batch_size (32): the bound is met
+    assert ends_at_once.n_hypotheses == 16 and ends_at_once.report.n_local_optimizations == 0
+    assert estimate_motion(prev, curr, CAMERA, method="msac", rng=0, first_batch_size=32).n_hypotheses == 32
+    assert estimate_motion(prev, curr, CAMERA, method="msac", rng=0, budget=40).n_hypotheses == 40
     assert np.degrees(rotation_error(ends_at_once.rotation, R_true)) < 0.1  # the refinement did its work
     searching = estimate_motion(prev, curr, CAMERA, method="msac", rng=0, batch_size=1)
     assert searching.report.n_local_optimizations >= 1  # new bests before the last batch are refit

@@ -36,13 +36,13 @@ from stereovo.estimation.loop import RansacComponents
 from stereovo.estimation.methods import (
     EstimatorOptions,
     base_components,
+    final_refiner,
     register_estimator,
     register_method,
 )
 from stereovo.estimation.mlesac import GuidedMlesacQuality, MlesacQuality
 from stereovo.estimation.preemptive import PreemptiveVerification
 from stereovo.estimation.prosac import ProsacTermination
-from stereovo.estimation.refinement import ReprojectionRefiner
 from stereovo.estimation.samplers import ProsacSampler, WeightedSampler
 from stereovo.estimation.scoring import InlierCount, MahalanobisResidual, ReprojectionResidual, TruncatedQuadratic
 from stereovo.estimation.sprt import SprtTermination, SprtVerification
@@ -240,6 +240,7 @@ def _build_preemptive(problem, options, priors, order, extra) -> RansacComponent
     components.verifier = PreemptiveVerification(m, block)
     components.termination = FixedBudget(m)
     components.batch_size = m  # the whole hypothesis set reaches the verifier at once
+    components.first_batch_size = None
     return components
 
 
@@ -282,15 +283,11 @@ def _run_inlier_detection(problem, options, priors, order, extra, rng):
         raise ValueError(
             "method 'inlier-detection' does not sample hypotheses: priors= and order= have no role in it; pass neither"
         )
-    refiner = (
-        ReprojectionRefiner(iterations=options.refine_iterations, rounds=int(options.refine_rounds))
-        if options.refine else None
-    )
     return detect_inliers(
         problem,
         options.reprojection_threshold_sq,
         min_inliers=int(options.min_inliers),
-        refiner=refiner,
+        refiner=final_refiner(options),
         c=_number(extra, "clique_c", 3.0, low=0, low_open=True),
         exact_max=_number(extra, "clique_exact_max", 60, integer=True, low=0),
         time_limit_s=_number(extra, "clique_time_limit_s", 0.5, low=0, low_open=True),

@@ -63,6 +63,7 @@ class RansacComponents:
             skipped on a best from the batch that ends the search: the refiner does that work).
         refiner: final LM refinement on the inliers; None keeps the best hypothesis as is.
         batch_size: hypotheses fitted and scored per vectorised batch.
+        first_batch_size: the first batch's size if smaller than ``batch_size``; None for ``batch_size``.
         polish_iterations: Gauss-Newton steps on each minimal sample's reprojection error.
         min_inliers: fewer inliers in the best model means "no consensus".
         listeners: objects whose ``on_new_best(inliers, loop_state)`` is called on each new best
@@ -87,6 +88,7 @@ class RansacComponents:
     local_optimizer: LocalOptimizer | None = None
     refiner: ReprojectionRefiner | None = field(default_factory=ReprojectionRefiner)
     batch_size: int = 32
+    first_batch_size: int | None = None
     polish_iterations: int = 2
     min_inliers: int = 6
     listeners: list[Any] = field(default_factory=list)
@@ -140,7 +142,8 @@ def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.ran
     uses_samples = bool(getattr(c.verifier, "uses_samples", False))
     batch_listeners = [listener for listener in c.listeners if hasattr(listener, "on_batch")]
     while drawn < required:
-        batch = int(min(c.batch_size, required - drawn))
+        size = min(c.first_batch_size, c.batch_size) if drawn == 0 and c.first_batch_size else c.batch_size
+        batch = int(min(size, required - drawn))
         samples = c.sampler.draw(batch, rng)
         R, t, valid = minimal_hypotheses(problem, samples, c.polish_iterations)
         drawn += batch

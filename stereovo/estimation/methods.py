@@ -50,6 +50,8 @@ class EstimatorOptions:
         max_iterations: hard cap on hypotheses drawn.
         budget: if set, draw exactly this many hypotheses (fixed budget) instead of stopping adaptively.
         batch_size: hypotheses fitted and scored per vectorised batch.
+        first_batch_size: the first batch of an adaptive search (no ``budget``); smaller than
+            ``batch_size`` because at low contamination the stopping bound falls below it at once.
         threshold_px: reprojection inlier gate (px); None means ``6 * noise_sigma`` (the k-1 point
             carries its own triangulation noise into frame k, so residuals exceed the pixel noise).
         gate_probability: chi-square(3) quantile of the Mahalanobis inlier gate.
@@ -68,6 +70,7 @@ class EstimatorOptions:
     max_iterations: int = 10_000
     budget: int | None = None
     batch_size: int = 32
+    first_batch_size: int = 16
     threshold_px: float | None = None
     gate_probability: float = 0.95
     refine_gate_probability: float = 0.99
@@ -92,6 +95,8 @@ class EstimatorOptions:
             fail("budget", "None or an integer >= 1")
         if self.batch_size < 1:
             fail("batch_size", ">= 1")
+        if int(self.first_batch_size) != self.first_batch_size or self.first_batch_size < 1:
+            fail("first_batch_size", "an integer >= 1")
         if self.threshold_px is not None and not (np.isfinite(self.threshold_px) and self.threshold_px > 0):
             fail("threshold_px", "None or a positive number of pixels")
         if not 0 < self.gate_probability < 1:
@@ -229,6 +234,13 @@ def default_termination(options: EstimatorOptions):
     return AdaptiveTermination(options.confidence, int(options.max_iterations))
 
 
+def final_refiner(options: EstimatorOptions) -> ReprojectionRefiner | None:
+    """The final LM refinement the options ask for (None without ``refine``)."""
+    if not options.refine:
+        return None
+    return ReprojectionRefiner(iterations=options.refine_iterations, rounds=int(options.refine_rounds))
+
+
 def base_components(
     problem: StereoProblem,
     options: EstimatorOptions,
@@ -239,10 +251,6 @@ def base_components(
     threshold_sq: float,
 ) -> RansacComponents:
     """The plain loop with the given judge; named methods replace roles of this."""
-    refiner = (
-        ReprojectionRefiner(iterations=options.refine_iterations, rounds=int(options.refine_rounds))
-        if options.refine else None
-    )
     return RansacComponents(
         sampler=default_sampler(problem, priors, order),
         residual_model=residual_model,
@@ -250,8 +258,10 @@ def base_components(
         threshold_sq=threshold_sq,
         termination=default_termination(options),
         local_optimizer=ConsensusRefit() if options.local_refit else None,
-        refiner=refiner,
+        refiner=final_refiner(options),
         batch_size=int(options.batch_size),
+        # An adaptive search may be over after a few hypotheses; a budget draws them all anyway.
+        first_batch_size=int(options.first_batch_size) if options.budget is None else None,
         polish_iterations=int(options.polish_iterations),
         min_inliers=int(options.min_inliers),
     )
