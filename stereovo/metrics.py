@@ -11,7 +11,7 @@ Units: errors are computed in metres and radians; fields whose name ends in
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from typing import Any, Sequence
 
 import numpy as np
@@ -95,7 +95,8 @@ class FrameMetrics:
     status: str
 
     def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        # Every field is a scalar: a shallow dict equals asdict() without its recursive copying.
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
 def frame_metrics(estimate: Any, truth: Any) -> FrameMetrics:
