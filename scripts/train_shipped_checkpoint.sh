@@ -2,7 +2,7 @@
 # Reproduce a learned sampler that ships with the package (agents/checkpoints/).
 # NG-RANSAC-style training with the trainer's defaults (loss: supervised | self-supervised |
 # self-supervised-smooth): contamination drawn from [0.3, 0.9], budget 11, 8 pools a frame,
-# 16000 frames, seed 0; about 7-10 minutes on one CPU core. One thread, so that the run is
+# 16000 frames, seed 0; about 6-10 minutes on one CPU core. One thread, so that the run is
 # bit-for-bit repeatable (a different thread count changes torch's reduction order).
 set -euo pipefail
 cd "$(dirname "$0")/.."
