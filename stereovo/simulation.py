@@ -562,9 +562,12 @@ class _StreetLayout:
         height_left, height_right = rng.uniform(6.0, 20.0, 2)
         self.walls = np.array([left, right, height_left, height_right])
 
-    def sample_visible(self, rng, n, cam, z_min, z_max, to_prev, to_curr):
-        """``n`` candidates seen through ``to_prev``, ``to_curr``: ``X_prev, X_curr (n, 3)`` and the
-        mask of those drawn and visible in both cameras (see :func:`_street_candidates`)."""
+    def sample_visible(
+        self, rng: np.random.Generator, n: int, cam: StereoCamera, z_min: float, z_max: float,
+        to_prev: np.ndarray, to_curr: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``n`` candidates seen through the 4x4 ``to_prev``, ``to_curr``: ``X_prev, X_curr (n, 3)``
+        (m) and the mask of those drawn and visible in both cameras (see :func:`_street_candidates`)."""
         u = rng.random((7, n))
         g = rng.standard_normal((2, n))
         return _street_candidates(
@@ -594,13 +597,13 @@ def _visible_landmarks(
     layout = _StreetLayout(rng) if world == "street" else None
     acceptance = _ACCEPTANCE_GUESS[world]
     cam_vector = _camera_vector(cam)
+    # Landmarks live in world coordinates; the cameras see them through their poses.
+    to_prev, to_curr = world_to_prev @ pose_prev, world_to_curr @ pose_prev
     kept_prev, kept_curr, count = [], [], 0
     for _ in range(_MAX_BATCHES):
         if count >= n:
             break
         batch = min(_MAX_BATCH_SIZE, int(1.3 * (n - count) / acceptance) + 32)
-        # Landmarks live in world coordinates; the cameras see them through their poses.
-        to_prev, to_curr = world_to_prev @ pose_prev, world_to_curr @ pose_prev
         if layout is not None:
             X_prev, X_curr, ok = layout.sample_visible(rng, batch, cam, config.z_min, config.z_max, to_prev, to_curr)
         else:
