@@ -373,8 +373,11 @@ def as_generator(rng: np.random.Generator | int | np.random.SeedSequence | None)
     return np.random.default_rng(rng)
 
 
+_SHARED_OPTIONS = frozenset(f.name for f in dataclasses.fields(EstimatorOptions))
+
+
 def _split_options(spec: MethodSpec, options: dict) -> tuple[EstimatorOptions, dict]:
-    known = {f.name for f in dataclasses.fields(EstimatorOptions)}
+    known = _SHARED_OPTIONS
     unknown = set(options) - known - set(spec.extra_options)
     if unknown:
         allowed = sorted(known | set(spec.extra_options))
