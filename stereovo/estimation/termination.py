@@ -47,10 +47,7 @@ def required_iterations(
 @functools.lru_cache(maxsize=4096)
 def _required_for_count(n_inliers: int, n: int, confidence: float, max_iterations: int, sample_size: int) -> int:
     # The loop asks after every batch, mostly with a count it asked before: cache the bound.
-    # Python floats, same operations in the same order as all_inlier_probability.
-    q = 1.0
-    for i in range(sample_size):
-        q = q * max(n_inliers - i, 0.0) / max(n - i, 1)
+    q = float(all_inlier_probability(n_inliers, n, sample_size))
     if q <= 0.0:
         return max_iterations
     if q >= 1.0:
