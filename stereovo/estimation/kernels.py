@@ -340,6 +340,21 @@ def _symmetric_quadratic(a, bb, c, d, e, f, x, y, z):
     return quad / max(det, 1e-300)
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")  # inlined: it runs once per point
+def _congruence(A, S, AS, out):
+    """``out (3, 3) = A S A^T`` for a symmetric ``S``: a covariance carried through the linear map ``A``.
+
+    ``AS (3, 3)`` is scratch space; the upper triangle is computed and mirrored.
+    """
+    for i in range(3):
+        for j in range(3):
+            AS[i, j] = A[i, 0] * S[0, j] + A[i, 1] * S[1, j] + A[i, 2] * S[2, j]
+    for i in range(3):
+        for j in range(i, 3):
+            out[i, j] = AS[i, 0] * A[j, 0] + AS[i, 1] * A[j, 1] + AS[i, 2] * A[j, 2]
+            out[j, i] = out[i, j]
+
+
 @_jit
 def mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr, cap):
     """``(H, N)`` squared Mahalanobis distances of ``Y - (R X + t)`` under ``R S_X R^T + S_Y``.
@@ -371,15 +386,12 @@ def mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr, cap):
                 if bound >= cap:
                     out[h, n] = bound
                     continue
-            S = cov_prev[n]
-            # C = R S R^T + S_Y (symmetric: six unique entries), RS rows first
-            for i in range(3):
-                for j in range(3):
-                    RS[i, j] = r[i, 0] * S[0, j] + r[i, 1] * S[1, j] + r[i, 2] * S[2, j]
-            for i in range(3):
-                for j in range(i, 3):
-                    C[i, j] = RS[i, 0] * r[j, 0] + RS[i, 1] * r[j, 1] + RS[i, 2] * r[j, 2] + cov_curr[n, i, j]
-            out[h, n] = _symmetric_quadratic(C[0, 0], C[0, 1], C[0, 2], C[1, 1], C[1, 2], C[2, 2], x, y, z)
+            _congruence(r, cov_prev[n], RS, C)  # C = R S_X R^T, plus S_Y below
+            Sy = cov_curr[n]
+            out[h, n] = _symmetric_quadratic(
+                C[0, 0] + Sy[0, 0], C[0, 1] + Sy[0, 1], C[0, 2] + Sy[0, 2],
+                C[1, 1] + Sy[1, 1], C[1, 2] + Sy[1, 2], C[2, 2] + Sy[2, 2], x, y, z,
+            )
     return out
 
 
@@ -400,6 +412,7 @@ def pixel_mahalanobis_sq(R, t, X, cov_prev, mc, cam, sigma_sq):
     S = np.empty((3, 3))
     J = np.empty((3, 3))
     JS = np.empty((3, 3))
+    C = np.empty((3, 3))
     root2 = np.sqrt(2.0)
     for h in range(H):
         r = R[h]
@@ -420,29 +433,15 @@ def pixel_mahalanobis_sq(R, t, X, cov_prev, mc, cam, sigma_sq):
             e3 = v - mc[n, 3]
             s_sum = (e1 + e3) / root2
             s_diff = (e1 - e3) / root2
-            # S = R S_X R^T
-            cp = cov_prev[n]
-            for i in range(3):
-                for j in range(3):
-                    RS[i, j] = r[i, 0] * cp[0, j] + r[i, 1] * cp[1, j] + r[i, 2] * cp[2, j]
-            for i in range(3):
-                for j in range(i, 3):
-                    S[i, j] = RS[i, 0] * r[j, 0] + RS[i, 1] * r[j, 1] + RS[i, 2] * r[j, 2]
-                    S[j, i] = S[i, j]
+            _congruence(r, cov_prev[n], RS, S)  # S = R S_X R^T
             # rows of the rotated Jacobian: uL, sqrt(2) v, uR
             J[0, 0], J[0, 1], J[0, 2] = fx * ip, 0.0, -fx * p0 * ip * ip
             J[1, 0], J[1, 1], J[1, 2] = 0.0, root2 * fy * ip, -root2 * fy * p1 * ip * ip
             J[2, 0], J[2, 1], J[2, 2] = fx * ip, 0.0, -fx * (p0 - bl) * ip * ip
-            for i in range(3):
-                for j in range(3):
-                    JS[i, j] = J[i, 0] * S[0, j] + J[i, 1] * S[1, j] + J[i, 2] * S[2, j]
-            a = JS[0, 0] * J[0, 0] + JS[0, 1] * J[0, 1] + JS[0, 2] * J[0, 2] + sigma_sq
-            bb = JS[0, 0] * J[1, 0] + JS[0, 1] * J[1, 1] + JS[0, 2] * J[1, 2]
-            c = JS[0, 0] * J[2, 0] + JS[0, 1] * J[2, 1] + JS[0, 2] * J[2, 2]
-            d = JS[1, 0] * J[1, 0] + JS[1, 1] * J[1, 1] + JS[1, 2] * J[1, 2] + sigma_sq
-            e = JS[1, 0] * J[2, 0] + JS[1, 1] * J[2, 1] + JS[1, 2] * J[2, 2]
-            f = JS[2, 0] * J[2, 0] + JS[2, 1] * J[2, 1] + JS[2, 2] * J[2, 2] + sigma_sq
-            out[h, n] = _symmetric_quadratic(a, bb, c, d, e, f, e0, s_sum, e2) + s_diff * s_diff / sigma_sq
+            _congruence(J, S, JS, C)  # C = J S J^T, plus sigma^2 I below
+            out[h, n] = _symmetric_quadratic(
+                C[0, 0] + sigma_sq, C[0, 1], C[0, 2], C[1, 1] + sigma_sq, C[1, 2], C[2, 2] + sigma_sq, e0, s_sum, e2,
+            ) + s_diff * s_diff / sigma_sq
     return out
 
 
