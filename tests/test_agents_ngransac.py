@@ -110,19 +110,19 @@ def test_short_training_lowers_the_loss_on_fixed_seeds(tmp_path):
         )
 
     held_out = [simulate_frame(config(3).simulation(0.75), np.random.default_rng(1000 + i)) for i in range(20)]
-    trainer = NGRansacTrainer(config(3))
-    mass_before = _inlier_mass(trainer.net, held_out)
-    trainer.train()
-    mass_after = _inlier_mass(trainer.net, held_out)
+    # One 100-frame run at this learning rate is chaotic (a change in the estimator's last digits
+    # moves a seed's gain by 0.3), so the policy's gains are judged on average over three seeds.
+    trainers = [NGRansacTrainer(config(seed)) for seed in (3, 4, 5)]
+    mass_before = [_inlier_mass(trainer.net, held_out) for trainer in trainers]
+    for trainer in trainers:
+        trainer.train()
+    mass_after = [_inlier_mass(trainer.net, held_out) for trainer in trainers]
     # The policy learns where to sample: more mass on inliers ...
-    assert mass_after > mass_before + 0.05
-    # ... and a lower pool loss late in training. One run's two 50-frame windows see different
-    # frames, so a single seed can go either way: the loss falls on average over three.
-    others = [NGRansacTrainer(config(seed)) for seed in (4, 5)]
-    for other in others:
-        other.train()
-    histories = [trainer.history] + [other.history for other in others]
+    assert np.mean(mass_after) > np.mean(mass_before) + 0.1
+    # ... and a lower pool loss late in training (each run's two 50-frame windows see different frames).
+    histories = [trainer.history for trainer in trainers]
     assert np.mean([h[-1].mean_loss for h in histories]) < np.mean([h[0].mean_loss for h in histories]) - 0.2
+    trainer = trainers[0]
     # Resuming restores the step count and weights.
     path = trainer.save(tmp_path / "ng.pt")
     resumed = NGRansacTrainer.resume(path)

@@ -96,8 +96,9 @@ def gauss_newton_steps(
         weights: optional ``(H, M)`` or ``(M,)`` per-point weights (0 drops a point).
         damping: LM damping added to the normal equations' diagonal (relative to its scale).
         huber: optional Huber threshold in pixels on each point's residual norm.
-        tolerance: a hypothesis stops once its step is below this (radians / metres) or its
-            cost fell by less than a relative 1e-9.
+        tolerance: a hypothesis stops once its step is below this (radians / metres) or, with
+            step control, once the next step would move it by less than 1 % of the pose's standard
+            deviation (:data:`stereovo.estimation.kernels.CONVERGED_STEP_IN_STD`).
         step_control: False takes every step (plain Gauss-Newton, as the minimal-sample polish does).
 
     Returns:
