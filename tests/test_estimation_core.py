@@ -431,6 +431,38 @@ def test_symmetric_reprojection_jacobian_matches_finite_differences():
     np.testing.assert_allclose(jac, numeric, rtol=1e-4, atol=1e-3)
 
 
+
+@pytest.mark.parametrize("huber", [None, 2.0])
+def test_gauss_newton_step_solves_the_normal_equations_of_the_jacobian_rows(huber):
+    # The LM kernel sums J^T W J from each side's 3x3 terms rather than the 8 x 6 rows: one
+    # plain Gauss-Newton step must equal the step computed here from the rows themselves.
+    from stereovo.estimation.reprojection import gauss_newton_steps, residuals_and_jacobians
+
+    rng = np.random.default_rng(8)
+    R_true, t_true = se3_exp(np.array([0.3, -0.1, 1.2, 0.03, -0.02, 0.05]))
+    prev, curr = noise_free_pair(rng, R_true, t_true, n=60)
+    curr = curr + rng.normal(0, 1.0, curr.shape)
+    problem = StereoProblem.build(prev, curr, CAMERA)
+    dR, dt = se3_exp(rng.normal(scale=0.01, size=6))
+    R0, t0 = dR @ R_true, dR @ t_true + dt
+    weights = rng.uniform(0.2, 1.0, 60) * (rng.random(60) > 0.3)
+    args = (problem.points_prev, problem.points_curr, problem.prev, problem.curr)
+    res, jac = residuals_and_jacobians(CAMERA, R0[None], t0[None], *args)
+    res, jac = res[0], jac[0]
+    w = weights.copy()
+    if huber is not None:
+        norm = np.linalg.norm(res, axis=1)
+        w[norm > huber] *= huber / norm[norm > huber]
+    A = np.einsum("m,mri,mrj->ij", w, jac, jac)
+    g = np.einsum("m,mri,mr->i", w, jac, res)
+    delta = -np.linalg.solve(A + 1e-9 * np.diag(np.diag(A)), g)
+    dR_ref, dt_ref = se3_exp(delta)
+    R, t, _ = gauss_newton_steps(
+        CAMERA, R0[None], t0[None], *args, weights=weights, iterations=1, damping=1e-9, huber=huber, step_control=False
+    )
+    np.testing.assert_allclose(R[0], dR_ref @ R0, atol=1e-12)
+    np.testing.assert_allclose(t[0], dR_ref @ t0 + dt_ref, atol=1e-10)
+
 def test_gauss_newton_refinement_reaches_the_noise_free_motion():
     from stereovo.estimation.reprojection import gauss_newton_steps
 

@@ -129,37 +129,138 @@ def _irls_weight(base, sq, huber):
     return base
 
 
+@_inline_jit
+def _stereo_terms(p0, p1, p2, fx, fy, cx, cy, b, u_l, v_l, u_r, v_r):
+    """One point ``p`` seen in a rectified stereo pair against its measurement ``(u_l, v_l, u_r, v_r)``.
+
+    Returns its squared residual (px^2), and the Gauss-Newton terms over its four pixel rows, with
+    ``a_r = d(pixel_r)/dp``: ``M = sum a_r a_r^T`` (upper triangle m00, m02, m11, m12, m22; m01 is 0
+    because no row depends on both x and y) and ``v = sum a_r res_r``. ``p2`` must be positive.
+    """
+    ip = 1.0 / p2
+    r0 = fx * p0 * ip + cx - u_l
+    r1 = fy * p1 * ip + cy - v_l
+    r2 = fx * (p0 - b) * ip + cx - u_r
+    r3 = fy * p1 * ip + cy - v_r
+    sq = r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3
+    ex, ey = fx * ip, fy * ip
+    # the rows' depth derivatives; both v rows share a_v = (0, ey, cv)
+    cl, cv, cr = -fx * p0 * ip * ip, -fy * p1 * ip * ip, -fx * (p0 - b) * ip * ip
+    rv = r1 + r3
+    return (
+        sq,
+        2.0 * ex * ex, ex * (cl + cr), 2.0 * ey * ey, 2.0 * ey * cv, cl * cl + cr * cr + 2.0 * cv * cv,
+        ex * (r0 + r2), ey * rv, cl * r0 + cr * r2 + cv * rv,
+    )
+
+
+@_inline_jit
+def _add_point_block(A, g, wm, p0, p1, p2, m00, m02, m11, m12, m22, v0, v1, v2):
+    """``A += wm G^T M G`` (upper triangle) and ``g += wm G^T v`` for ``G = [I | -p^]`` (3, 6), the
+    derivative of a point ``p`` under the left perturbation ``exp(delta^)``, ``M`` symmetric with m01 = 0.
+
+    Written out in scalars because ``G^T M G`` has this fixed structure: the rotation blocks are
+    ``C = -M p^`` (row i of C is ``p x`` row i of M) and ``p^ C``.
+    """
+    m00, m02, m11, m12, m22 = wm * m00, wm * m02, wm * m11, wm * m12, wm * m22
+    v0, v1, v2 = wm * v0, wm * v1, wm * v2
+    # rows of M: (m00, 0, m02), (0, m11, m12), (m02, m12, m22)
+    c00, c01, c02 = p1 * m02, p2 * m00 - p0 * m02, -p1 * m00
+    c10, c11, c12 = p1 * m12 - p2 * m11, -p0 * m12, p0 * m11
+    c20, c21, c22 = p1 * m22 - p2 * m12, p2 * m02 - p0 * m22, p0 * m12 - p1 * m02
+    A[0, 0] += m00
+    A[0, 2] += m02
+    A[1, 1] += m11
+    A[1, 2] += m12
+    A[2, 2] += m22
+    A[0, 3] += c00
+    A[0, 4] += c01
+    A[0, 5] += c02
+    A[1, 3] += c10
+    A[1, 4] += c11
+    A[1, 5] += c12
+    A[2, 3] += c20
+    A[2, 4] += c21
+    A[2, 5] += c22
+    # (p^ C)_ij = (p x column j of C)_i
+    A[3, 3] += p1 * c20 - p2 * c10
+    A[3, 4] += p1 * c21 - p2 * c11
+    A[3, 5] += p1 * c22 - p2 * c12
+    A[4, 4] += p2 * c01 - p0 * c21
+    A[4, 5] += p2 * c02 - p0 * c22
+    A[5, 5] += p0 * c12 - p1 * c02
+    g[0] += v0
+    g[1] += v1
+    g[2] += v2
+    g[3] += p1 * v2 - p2 * v1
+    g[4] += p2 * v0 - p0 * v2
+    g[5] += p0 * v1 - p1 * v0
+
+
 @_jit
-def _cost_and_normal_equations(R, t, X, Y, mp, mc, cam, w, huber, A, g, want_system, res, jac):
+def _cost_and_normal_equations(R, t, X, Y, mp, mc, cam, w, huber, A, g, want_system, A_back, g_back):
     """Weighted squared cost of one hypothesis; fills ``A (6, 6)``, ``g (6,)`` if ``want_system``.
 
-    ``res (8,)`` and ``jac (8, 6)`` are scratch space.
+    The same sums as ``J^T W J`` and ``J^T W r`` over the Jacobian rows of :func:`_point_rows`, built
+    from each side's 3x3 terms (:func:`_add_point_block`) instead of its 8 x 6 rows. The backward
+    rows ``-a^T R^T [I | -Y^]`` equal ``-a^T [I | -Y'^] diag(R^T, R^T)`` with ``Y' = R^T Y``, so
+    they are summed in that rotated frame (``A_back (6, 6)``, ``g_back (6,)``, scratch space) and
+    rotated into ``A, g`` once.
     """
+    fx, fy, cx, cy, b = cam[0], cam[1], cam[2], cam[3], cam[4]
+    # R^T t: the backward point Q = R^T (Y - t) plus it is Y' = R^T Y
+    s0 = R[0, 0] * t[0] + R[1, 0] * t[1] + R[2, 0] * t[2]
+    s1 = R[0, 1] * t[0] + R[1, 1] * t[1] + R[2, 1] * t[2]
+    s2 = R[0, 2] * t[0] + R[1, 2] * t[1] + R[2, 2] * t[2]
     cost = 0.0
     if want_system:
         A[:, :] = 0.0
         g[:] = 0.0
+        A_back[:, :] = 0.0
+        g_back[:] = 0.0
     for m in range(X.shape[0]):
         if w[m] == 0.0:
             continue
-        _point_rows(R, t, X, Y, mp, mc, m, cam, res, jac, want_system)
-        sq = 0.0
-        for r in range(8):
-            sq += res[r] * res[r]
+        x0, x1, x2 = X[m, 0], X[m, 1], X[m, 2]
+        p0 = R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2 + t[0]
+        p1 = R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2 + t[1]
+        p2 = R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2 + t[2]
+        d0, d1, d2 = Y[m, 0] - t[0], Y[m, 1] - t[1], Y[m, 2] - t[2]
+        q0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2
+        q1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
+        q2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
+        if p2 <= MIN_DEPTH or q2 <= MIN_DEPTH:
+            # residual rows of BEHIND_CAMERA_RESIDUAL and no Jacobian, as in _point_rows
+            cost += _irls_weight(w[m], 8.0 * BEHIND_CAMERA_RESIDUAL**2, huber) * 8.0 * BEHIND_CAMERA_RESIDUAL**2
+            continue
+        fwd = _stereo_terms(p0, p1, p2, fx, fy, cx, cy, b, mc[m, 0], mc[m, 1], mc[m, 2], mc[m, 3])
+        bwd = _stereo_terms(q0, q1, q2, fx, fy, cx, cy, b, mp[m, 0], mp[m, 1], mp[m, 2], mp[m, 3])
+        sq = fwd[0] + bwd[0]
         wm = _irls_weight(w[m], sq, huber)
         cost += wm * sq
         if want_system:
-            # Rows 3 and 7 (vR) have the Jacobians of rows 1 and 5 (vL): fold them in.
-            for r in (0, 1, 2, 4, 5, 6):
-                twin = r == 1 or r == 5
-                rr = res[r] + res[r + 2] if twin else res[r]
-                wr = 2.0 * wm if twin else wm
-                for i in range(6):
-                    g[i] += wm * jac[r, i] * rr
-                    wji = wr * jac[r, i]
-                    for j in range(i, 6):
-                        A[i, j] += wji * jac[r, j]
+            _add_point_block(A, g, wm, p0, p1, p2, fwd[1], fwd[2], fwd[3], fwd[4], fwd[5], fwd[6], fwd[7], fwd[8])
+            _add_point_block(
+                A_back, g_back, wm, q0 + s0, q1 + s1, q2 + s2, bwd[1], bwd[2], bwd[3], bwd[4], bwd[5], bwd[6], bwd[7],
+                bwd[8],
+            )
     if want_system:
+        for i in range(6):
+            for j in range(i):
+                A_back[i, j] = A_back[j, i]
+        # A += diag(R, R) A_back diag(R, R)^T, g -= diag(R, R) g_back (the backward rows carry a minus sign)
+        for bi in range(0, 6, 3):
+            for bj in range(bi, 6, 3):
+                B = A_back[bi:bi + 3, bj:bj + 3]
+                for i in range(3):
+                    # row i of R B, then its products with the rows of R
+                    r0 = R[i, 0] * B[0, 0] + R[i, 1] * B[1, 0] + R[i, 2] * B[2, 0]
+                    r1 = R[i, 0] * B[0, 1] + R[i, 1] * B[1, 1] + R[i, 2] * B[2, 1]
+                    r2 = R[i, 0] * B[0, 2] + R[i, 1] * B[1, 2] + R[i, 2] * B[2, 2]
+                    for j in range(3):
+                        A[bi + i, bj + j] += r0 * R[j, 0] + r1 * R[j, 1] + r2 * R[j, 2]
+            for i in range(3):
+                g[bi + i] -= R[i, 0] * g_back[bi] + R[i, 1] * g_back[bi + 1] + R[i, 2] * g_back[bi + 2]
         for i in range(6):
             for j in range(i):
                 A[i, j] = A[j, i]
@@ -235,10 +336,10 @@ def _apply_twist(R, t, delta, R_out, t_out, dR, dt):
 @_jit
 def _lm_scratch():
     """Scratch arrays of one Levenberg-Marquardt run:
-    A, g, delta, R_new, t_new, res, jac, L, y, dR, dt, A_trial, g_trial."""
+    A, g, delta, R_new, t_new, A_back, g_back, L, y, dR, dt, A_trial, g_trial."""
     return (
-        np.empty((6, 6)), np.empty(6), np.empty(6), np.empty((3, 3)), np.empty(3), np.empty(8),
-        np.empty((8, 6)), np.empty((6, 6)), np.empty(6), np.empty((3, 3)), np.empty(3),
+        np.empty((6, 6)), np.empty(6), np.empty(6), np.empty((3, 3)), np.empty(3), np.empty((6, 6)),
+        np.empty(6), np.empty((6, 6)), np.empty(6), np.empty((3, 3)), np.empty(3),
         np.empty((6, 6)), np.empty(6),
     )
 
@@ -251,9 +352,9 @@ CONVERGED_STEP_IN_STD = 0.01
 @_jit
 def _levenberg_marquardt(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, iterations, damping, tolerance, step_control, scratch):
     """Refine one motion ``Rh, th`` in place; return its final weighted cost (see :func:`gauss_newton`)."""
-    A, g, delta, R_new, t_new, res, jac, L, y, dR, dt, A_trial, g_trial = scratch
+    A, g, delta, R_new, t_new, A_back, g_back, L, y, dR, dt, A_trial, g_trial = scratch
     lam = damping
-    cost = _cost_and_normal_equations(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, A, g, True, res, jac)
+    cost = _cost_and_normal_equations(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, A, g, True, A_back, g_back)
     # residual degrees of freedom: 8 rows per weighted point, 6 pose parameters
     n_rows = 0
     for m in range(wh.shape[0]):
@@ -278,12 +379,12 @@ def _levenberg_marquardt(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, iterations, d
         if not step_control:
             Rh[:, :] = R_new
             th[:] = t_new
-            cost = _cost_and_normal_equations(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, A, g, not last, res, jac)
+            cost = _cost_and_normal_equations(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, A, g, not last, A_back, g_back)
             continue
         # The trial pose's system is built in the same pass as its cost: near convergence every
         # step is accepted, so a separate cost-only pass would double the work.
         cost_new = _cost_and_normal_equations(
-            R_new, t_new, Xh, Yh, mph, mch, cam, wh, huber, A_trial, g_trial, not last, res, jac
+            R_new, t_new, Xh, Yh, mph, mch, cam, wh, huber, A_trial, g_trial, not last, A_back, g_back
         )
         if not cost_new <= cost:
             lam *= 10.0
