@@ -95,6 +95,25 @@ def test_closed_form_fit_is_the_svd_kabsch_minimiser():
         np.testing.assert_allclose(t_fit[h], t_ref, atol=1e-8)
     np.testing.assert_allclose(np.linalg.det(R_fit), 1.0, atol=1e-12)
     np.testing.assert_allclose(np.einsum("hij,hkj->hik", R_fit, R_fit), np.broadcast_to(np.eye(3), (H, 3, 3)), atol=1e-12)
+    # Minimal samples: three points, a rank-2 cross-covariance.
+    R3, t3 = kabsch_batch(X[:, :3], Y[:, :3])
+    for h in range(H):
+        R_ref, t_ref = _svd_kabsch(X[h, :3], Y[h, :3], np.ones(3))
+        np.testing.assert_allclose(R3[h], R_ref, atol=1e-9)
+
+
+def test_closed_form_fit_of_collinear_points_still_aligns_them():
+    """Collinear points leave the rotation about their line free (a repeated top eigenvalue of
+    Horn's 4x4, where the eigenvector is not unique): the fit must still map them exactly."""
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        R, t = random_rotation(rng), rng.normal(size=3)
+        direction = rng.normal(size=3)
+        X = rng.normal(size=(4, 1)) * direction + rng.normal(size=3)
+        Y = X @ R.T + t
+        R_fit, t_fit = kabsch_batch(X[None], Y[None])
+        np.testing.assert_allclose(X @ R_fit[0].T + t_fit[0], Y, atol=1e-9)
+        assert np.linalg.det(R_fit[0]) == pytest.approx(1.0)
 
 
 def test_degenerate_triplets_detected():

@@ -651,6 +651,89 @@ def _jacobi_top_eigenvector(N, V):
     return top
 
 
+@_inline_jit
+def _det3(a00, a01, a02, a10, a11, a12, a20, a21, a22):
+    return a00 * (a11 * a22 - a12 * a21) - a01 * (a10 * a22 - a12 * a20) + a02 * (a10 * a21 - a11 * a20)
+
+
+@_jit
+def _top_eigenvector_newton(N, V):
+    """Unit eigenvector ``V[:, 0]`` of the largest eigenvalue of the symmetric, traceless ``N (4, 4)``;
+    False if that eigenvalue is not well separated (the caller then uses Jacobi sweeps).
+
+    The eigenvalue is the largest root of the characteristic quartic ``l^4 + a2 l^2 + a1 l + a0``,
+    found by Newton's method from the upper bound ``sqrt(3/4 tr N^2)``: beyond the largest root
+    the quartic is increasing and convex, so the iterates fall monotonically onto it. The
+    eigenvector is the largest row of the adjugate of ``N - l I`` (Theobald's QCP, 2005). About a
+    fifth of the Jacobi sweeps' time on the 4x4 of a rigid fit.
+    """
+    n00, n01, n02, n03 = N[0, 0], N[0, 1], N[0, 2], N[0, 3]
+    n11, n12, n13 = N[1, 1], N[1, 2], N[1, 3]
+    n22, n23, n33 = N[2, 2], N[2, 3], N[3, 3]
+    trace_sq = (
+        n00 * n00 + n11 * n11 + n22 * n22 + n33 * n33
+        + 2.0 * (n01 * n01 + n02 * n02 + n03 * n03 + n12 * n12 + n13 * n13 + n23 * n23)
+    )
+    if not trace_sq > 0.0:
+        return False
+    a2 = -0.5 * trace_sq
+    a1 = -(
+        _det3(n00, n01, n02, n01, n11, n12, n02, n12, n22) + _det3(n00, n01, n03, n01, n11, n13, n03, n13, n33)
+        + _det3(n00, n02, n03, n02, n22, n23, n03, n23, n33) + _det3(n11, n12, n13, n12, n22, n23, n13, n23, n33)
+    )
+    a0 = (
+        n00 * _det3(n11, n12, n13, n12, n22, n23, n13, n23, n33)
+        - n01 * _det3(n01, n12, n13, n02, n22, n23, n03, n23, n33)
+        + n02 * _det3(n01, n11, n13, n02, n12, n23, n03, n13, n33)
+        - n03 * _det3(n01, n11, n12, n02, n12, n22, n03, n13, n23)
+    )
+    bound = np.sqrt(0.75 * trace_sq)
+    lam = bound
+    for _ in range(60):
+        slope = 4.0 * lam * lam * lam + 2.0 * a2 * lam + a1
+        if not slope > 0.0:
+            break
+        step = (((lam * lam + a2) * lam + a1) * lam + a0) / slope
+        lam -= step
+        if step <= 1e-15 * bound:
+            break
+    # rows of adj(N - lam I): each is proportional to the eigenvector; take the largest
+    b00, b11, b22, b33 = n00 - lam, n11 - lam, n22 - lam, n33 - lam
+    best = 0.0
+    for row in range(4):
+        if row == 0:
+            v0 = _det3(b11, n12, n13, n12, b22, n23, n13, n23, b33)
+            v1 = -_det3(n01, n12, n13, n02, b22, n23, n03, n23, b33)
+            v2 = _det3(n01, b11, n13, n02, n12, n23, n03, n13, b33)
+            v3 = -_det3(n01, b11, n12, n02, n12, b22, n03, n13, n23)
+        elif row == 1:
+            v0 = -_det3(n01, n02, n03, n12, b22, n23, n13, n23, b33)
+            v1 = _det3(b00, n02, n03, n02, b22, n23, n03, n23, b33)
+            v2 = -_det3(b00, n01, n03, n02, n12, n23, n03, n13, b33)
+            v3 = _det3(b00, n01, n02, n02, n12, b22, n03, n13, n23)
+        elif row == 2:
+            v0 = _det3(n01, n02, n03, b11, n12, n13, n13, n23, b33)
+            v1 = -_det3(b00, n02, n03, n01, n12, n13, n03, n23, b33)
+            v2 = _det3(b00, n01, n03, n01, b11, n13, n03, n13, b33)
+            v3 = -_det3(b00, n01, n02, n01, b11, n12, n03, n13, n23)
+        else:
+            v0 = -_det3(n01, n02, n03, b11, n12, n13, n12, b22, n23)
+            v1 = _det3(b00, n02, n03, n01, n12, n13, n02, b22, n23)
+            v2 = -_det3(b00, n01, n03, n01, b11, n13, n02, n12, n23)
+            v3 = _det3(b00, n01, n02, n01, b11, n12, n02, n12, b22)
+        size = v0 * v0 + v1 * v1 + v2 * v2 + v3 * v3
+        if size > best:
+            best = size
+            V[0, 0], V[1, 0], V[2, 0], V[3, 0] = v0, v1, v2, v3
+    # |adj| is the product of the three gaps below lam: too small means a repeated top eigenvalue
+    if not best > (1e-6 * bound**3) ** 2:
+        return False
+    inv_norm = 1.0 / np.sqrt(best)
+    for i in range(4):
+        V[i, 0] *= inv_norm
+    return True
+
+
 @_jit
 def _horn_fit(cov, mx, my, R, t, N, V):
     """Least-squares rigid motion from a centred cross-covariance, filled in place.
@@ -675,7 +758,7 @@ def _horn_fit(cov, mx, my, R, t, N, V):
     N[2, 2] = -sxx + syy - szz
     N[2, 3] = N[3, 2] = syz + szy
     N[3, 3] = -sxx - syy + szz
-    top = _jacobi_top_eigenvector(N, V)
+    top = 0 if _top_eigenvector_newton(N, V) else _jacobi_top_eigenvector(N, V)
     inv_norm = 1.0 / np.sqrt(V[0, top] ** 2 + V[1, top] ** 2 + V[2, top] ** 2 + V[3, top] ** 2)
     qw, qx, qy, qz = V[0, top] * inv_norm, V[1, top] * inv_norm, V[2, top] * inv_norm, V[3, top] * inv_norm
     R[0, 0] = qw * qw + qx * qx - qy * qy - qz * qz
@@ -708,18 +791,19 @@ def rigid_fits(X, Y, w):
     return R, t
 
 
-@_jit
+@_inline_jit
 def _triplet_degenerate(P, area_ratio):
     """True if the triangle ``P (3, 3)`` has twice-area / 2 below ``area_ratio`` times its squared
     longest side, or that side is below 1e-6 m."""
-    e1 = P[1] - P[0]
-    e2 = P[2] - P[0]
-    e3 = P[2] - P[1]
-    c0 = e1[1] * e2[2] - e1[2] * e2[1]
-    c1 = e1[2] * e2[0] - e1[0] * e2[2]
-    c2 = e1[0] * e2[1] - e1[1] * e2[0]
+    # in scalars: array expressions here would allocate temporaries for every hypothesis
+    a0, a1, a2 = P[1, 0] - P[0, 0], P[1, 1] - P[0, 1], P[1, 2] - P[0, 2]
+    b0, b1, b2 = P[2, 0] - P[0, 0], P[2, 1] - P[0, 1], P[2, 2] - P[0, 2]
+    c0 = a1 * b2 - a2 * b1
+    c1 = a2 * b0 - a0 * b2
+    c2 = a0 * b1 - a1 * b0
     area = 0.5 * np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
-    longest = max(np.sum(e1 * e1), np.sum(e2 * e2), np.sum(e3 * e3))
+    d0, d1, d2 = b0 - a0, b1 - a1, b2 - a2
+    longest = max(a0 * a0 + a1 * a1 + a2 * a2, b0 * b0 + b1 * b1 + b2 * b2, d0 * d0 + d1 * d1 + d2 * d2)
     return not (area >= area_ratio * longest) or longest < 1e-12
 
 
