@@ -62,8 +62,10 @@ class RansacComponents:
         local_optimizer: optional, runs on every new best hypothesis (a mere consensus refit is
             skipped on a best from the batch that ends the search: the refiner does that work).
         refiner: final LM refinement on the inliers; None keeps the best hypothesis as is.
-        batch_size: hypotheses fitted and scored per vectorised batch.
-        first_batch_size: the first batch's size if smaller than ``batch_size``; None for ``batch_size``.
+        batch_size: hypotheses fitted and scored per vectorised batch (the largest batch when
+            ``first_batch_size`` is set).
+        first_batch_size: the first batch's size if smaller than ``batch_size``, after which each
+            batch doubles up to ``batch_size``; None for batches of ``batch_size`` throughout.
         polish_iterations: Gauss-Newton steps on each minimal sample's reprojection error.
         min_inliers: fewer inliers in the best model means "no consensus".
         listeners: objects whose ``on_new_best(inliers, loop_state)`` is called on each new best
@@ -141,8 +143,11 @@ def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.ran
 
     uses_samples = bool(getattr(c.verifier, "uses_samples", False))
     batch_listeners = [listener for listener in c.listeners if hasattr(listener, "on_batch")]
+    # An adaptive search starts small (the bound often falls below a full batch at once) and doubles
+    # its batches up to batch_size: each batch costs ~50 us of bookkeeping here, as much as several
+    # hypotheses, so a long search (high contamination) should take few, large ones.
+    size = min(c.first_batch_size, c.batch_size) if c.first_batch_size else c.batch_size
     while drawn < required:
-        size = min(c.first_batch_size, c.batch_size) if drawn == 0 and c.first_batch_size else c.batch_size
         batch = int(min(size, required - drawn))
         samples = c.sampler.draw(batch, rng)
         R, t, valid = minimal_hypotheses(problem, samples, c.polish_iterations)
@@ -179,6 +184,7 @@ def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.ran
                 listener.on_batch(state)
         if best_score > -np.inf:
             required = min(c.termination.required(int(np.count_nonzero(best_inliers)), n), c.termination.max_iterations)
+        size = min(2 * size, c.batch_size)
 
     report = dict(
         n_hypotheses=drawn,

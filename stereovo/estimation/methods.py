@@ -49,9 +49,12 @@ class EstimatorOptions:
         confidence: probability of drawing at least one all-inlier sample (adaptive stop).
         max_iterations: hard cap on hypotheses drawn.
         budget: if set, draw exactly this many hypotheses (fixed budget) instead of stopping adaptively.
-        batch_size: hypotheses fitted and scored per vectorised batch.
-        first_batch_size: the first batch of an adaptive search (no ``budget``); smaller than
-            ``batch_size`` because at low contamination the stopping bound falls below it at once.
+        batch_size: hypotheses fitted and scored per vectorised batch under a fixed ``budget``; the
+            largest batch of an adaptive search.
+        first_batch_size: the first batch of an adaptive search (no ``budget``), after which each
+            batch doubles up to ``batch_size`` (16, 32, 64, 128, 128, ...): small first because at low
+            contamination the stopping bound falls below a batch at once, large later because the
+            bookkeeping between batches costs as much as several hypotheses.
         threshold_px: reprojection inlier gate (px); None means ``6 * noise_sigma`` (the k-1 point
             carries its own triangulation noise into frame k, so residuals exceed the pixel noise).
         gate_probability: chi-square(3) quantile of the Mahalanobis inlier gate.
@@ -69,7 +72,7 @@ class EstimatorOptions:
     confidence: float = 0.99
     max_iterations: int = 10_000
     budget: int | None = None
-    batch_size: int = 32
+    batch_size: int = 128
     first_batch_size: int = 16
     threshold_px: float | None = None
     gate_probability: float = 0.95
