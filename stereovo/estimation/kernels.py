@@ -884,3 +884,46 @@ def minimal_fits(samples, X, Y, mp, mc, cam, area_ratio, polish_iterations):
                     ok = False
         valid[h] = ok
     return R, t, valid
+
+
+@_inline_jit
+def _pair_rigidity_sq(X, Y, cov_prev, cov_curr, a, b):
+    """``(|Y_a - Y_b| - |X_a - X_b|)^2 / var``: the squared standardised change of the distance between
+    points ``a`` and ``b`` from k-1 to k; ``var`` carries both points' triangulation covariances in
+    both frames onto the direction between them (first order). inf for coincident points."""
+    x0, x1, x2 = X[a, 0] - X[b, 0], X[a, 1] - X[b, 1], X[a, 2] - X[b, 2]
+    y0, y1, y2 = Y[a, 0] - Y[b, 0], Y[a, 1] - Y[b, 1], Y[a, 2] - Y[b, 2]
+    lx_sq = x0 * x0 + x1 * x1 + x2 * x2
+    ly_sq = y0 * y0 + y1 * y1 + y2 * y2
+    if not (lx_sq > 0.0 and ly_sq > 0.0):
+        return np.inf
+    var_x = 0.0
+    var_y = 0.0
+    for i in range(3):
+        for j in range(3):
+            xi = x0 if i == 0 else (x1 if i == 1 else x2)
+            xj = x0 if j == 0 else (x1 if j == 1 else x2)
+            yi = y0 if i == 0 else (y1 if i == 1 else y2)
+            yj = y0 if j == 0 else (y1 if j == 1 else y2)
+            var_x += xi * (cov_prev[a, i, j] + cov_prev[b, i, j]) * xj
+            var_y += yi * (cov_curr[a, i, j] + cov_curr[b, i, j]) * yj
+    lx, ly = np.sqrt(lx_sq), np.sqrt(ly_sq)
+    change = ly - lx
+    # u^T S u with u the unit direction: the quadratic forms above divided by the squared lengths
+    return change * change / max(var_x / lx_sq + var_y / ly_sq, 1e-300)
+
+
+@_jit
+def rigid_triplets(samples, X, Y, cov_prev, cov_curr, threshold_sq):
+    """``(H,)`` True where all three pairwise distances of a sample agree between k-1 and k within
+    ``threshold_sq`` (a chi-square(1) quantile) of their standardised change."""
+    H = samples.shape[0]
+    keep = np.empty(H, dtype=np.bool_)
+    for h in range(H):
+        i, j, k = samples[h, 0], samples[h, 1], samples[h, 2]
+        keep[h] = (
+            _pair_rigidity_sq(X, Y, cov_prev, cov_curr, i, j) <= threshold_sq
+            and _pair_rigidity_sq(X, Y, cov_prev, cov_curr, i, k) <= threshold_sq
+            and _pair_rigidity_sq(X, Y, cov_prev, cov_curr, j, k) <= threshold_sq
+        )
+    return keep

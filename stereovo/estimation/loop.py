@@ -44,6 +44,12 @@ class LocalOptimizer(Protocol):
         ...
 
 
+class SampleCheck(Protocol):
+    def accept(self, problem: StereoProblem, samples: np.ndarray) -> np.ndarray:
+        """``(H,)`` bool: which of the ``(H, 3)`` samples go on to be fitted."""
+        ...
+
+
 class Termination(Protocol):
     max_iterations: int
 
@@ -56,6 +62,8 @@ class RansacComponents:
 
     Attributes:
         sampler: draws ``(B, 3)`` minimal samples.
+        sample_check: optional; removes samples before they are fitted (they still count as
+            drawn), e.g. :class:`stereovo.estimation.sample_check.RigidityCheck`.
         residual_model, quality, threshold_sq: how a hypothesis is judged.
         verifier: full scoring or an early-rejection strategy.
         termination: adaptive bound or fixed budget.
@@ -94,6 +102,7 @@ class RansacComponents:
     polish_iterations: int = 2
     min_inliers: int = 6
     listeners: list[Any] = field(default_factory=list)
+    sample_check: SampleCheck | None = None
 
 
 @dataclass
@@ -111,6 +120,7 @@ class RansacReport:
     n_degenerate: int
     n_local_optimizations: int
     best_found_at: int  # hypotheses drawn when the final best was first found
+    n_rejected_samples: int = 0  # samples the sample check removed before fitting
 
 
 @dataclass
@@ -138,7 +148,7 @@ def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.ran
     best_R, best_t = np.eye(3), np.zeros(3)
     best_inliers = np.zeros(n, dtype=bool)
     best_score = -np.inf
-    drawn = scored = checks = degenerate = local_runs = found_at = 0
+    drawn = scored = checks = degenerate = rejected = local_runs = found_at = 0
     required = c.termination.max_iterations
 
     uses_samples = bool(getattr(c.verifier, "uses_samples", False))
@@ -150,8 +160,12 @@ def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.ran
     while drawn < required:
         batch = int(min(size, required - drawn))
         samples = c.sampler.draw(batch, rng)
-        R, t, valid = minimal_hypotheses(problem, samples, c.polish_iterations)
         drawn += batch
+        if c.sample_check is not None:
+            keep = c.sample_check.accept(problem, samples)
+            rejected += batch - int(np.count_nonzero(keep))
+            samples = samples[keep]
+        R, t, valid = minimal_hypotheses(problem, samples, c.polish_iterations)
         n_valid = int(np.count_nonzero(valid))
         degenerate += len(valid) - n_valid
         if n_valid:
@@ -191,11 +205,15 @@ def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.ran
         n_scored=scored,
         n_point_checks=checks,
         n_degenerate=degenerate,
+        n_rejected_samples=rejected,
         n_local_optimizations=local_runs,
         best_found_at=found_at,
     )
     if scored == 0:
-        return RansacReport(np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), -np.inf, "failed: all samples degenerate", **report)
+        reason = "all samples degenerate" if rejected == 0 else (
+            f"no sample passed the sample check ({rejected} of {drawn} rejected, {degenerate} degenerate)"
+        )
+        return RansacReport(np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), -np.inf, f"failed: {reason}", **report)
     if c.refiner is not None and np.count_nonzero(best_inliers) >= 3:
         best_R, best_t, best_inliers = c.refiner.refine(problem, best_R, best_t, best_inliers, c.residual_model, c.threshold_sq)
         best_score = float(c.quality.score(ctx.residuals(best_R[None], best_t[None]), c.threshold_sq)[0])

@@ -21,6 +21,7 @@ from stereovo.estimation.local_optimization import ConsensusRefit
 from stereovo.estimation.loop import RansacComponents, RansacReport, run_ransac
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.refinement import ReprojectionRefiner
+from stereovo.estimation.sample_check import RigidityCheck
 from stereovo.estimation.samplers import (
     SAMPLE_SIZE,
     ProsacSampler,
@@ -60,6 +61,9 @@ class EstimatorOptions:
         gate_probability: chi-square(3) quantile of the Mahalanobis inlier gate.
         refine_gate_probability: chi-square(4) quantile of the pixel Mahalanobis gate with which
             ``probabilistic`` re-selects inliers during its final refinement.
+        rigidity_gate_probability: chi-square(1) quantile of ``probabilistic``'s rigidity check,
+            which drops a minimal sample before fitting if a pairwise distance changes between
+            the frames by more than its triangulation noise allows; None turns the check off.
         polish_iterations: Gauss-Newton steps on each minimal sample's reprojection error.
         refine: run the final Levenberg-Marquardt refinement on the inliers.
         refine_iterations: LM iterations per refinement round.
@@ -77,6 +81,7 @@ class EstimatorOptions:
     threshold_px: float | None = None
     gate_probability: float = 0.95
     refine_gate_probability: float = 0.99
+    rigidity_gate_probability: float | None = 0.999
     polish_iterations: int = 2
     refine: bool = True
     refine_iterations: int = 6
@@ -106,6 +111,8 @@ class EstimatorOptions:
             fail("gate_probability", "in (0, 1)")
         if not 0 < self.refine_gate_probability < 1:
             fail("refine_gate_probability", "in (0, 1)")
+        if self.rigidity_gate_probability is not None and not 0 < self.rigidity_gate_probability < 1:
+            fail("rigidity_gate_probability", "None or in (0, 1)")
         if self.polish_iterations < 0 or self.refine_iterations < 0:
             fail("polish_iterations" if self.polish_iterations < 0 else "refine_iterations", ">= 0")
         if int(self.refine_rounds) != self.refine_rounds or self.refine_rounds < 1:
@@ -295,6 +302,7 @@ def _build_msac(problem, options, priors, order, extra) -> RansacComponents:
 @register_method(
     "probabilistic",
     "Mahalanobis-gated consensus with triangulation covariances, chi-square(3) gate; "
+    "samples whose pairwise distances are not rigid within their noise are dropped unfitted; "
     "final inliers by a chi-square(4) gate on the whitened pixel residuals",
     "Brink et al.",
 )
@@ -303,6 +311,8 @@ def _build_probabilistic(problem, options, priors, order, extra) -> RansacCompon
     components = base_components(
         problem, options, priors, order, MahalanobisResidual(threshold), InlierCount(), threshold
     )
+    if options.rigidity_gate_probability is not None:
+        components.sample_check = RigidityCheck(_chi2_quantile(options.rigidity_gate_probability, 1))
     if components.refiner is not None:
         # The 3-D gate misses about a tenth of the inliers, mostly far points (triangulation's
         # skewed depth error), and those carry the rotation; the pixel gate keeps them.
