@@ -457,7 +457,7 @@ def forward_reprojection_sq(R, t, X, mc, cam):
     return out
 
 
-@_jit
+@_inline_jit
 def _symmetric_quadratic(a, bb, c, d, e, f, x, y, z):
     """``v^T C^-1 v`` for the symmetric 3x3 ``C = [[a, bb, c], [bb, d, e], [c, e, f]]`` and ``v = (x, y, z)``,
     by the adjugate (no pivoting needed: C is a covariance)."""
@@ -473,18 +473,28 @@ def _symmetric_quadratic(a, bb, c, d, e, f, x, y, z):
 
 
 @_inline_jit
-def _congruence(A, S, AS, out):
-    """``out (3, 3) = A S A^T`` for a symmetric ``S``: a covariance carried through the linear map ``A``.
-
-    ``AS (3, 3)`` is scratch space; the upper triangle is computed and mirrored.
-    """
-    for i in range(3):
-        for j in range(3):
-            AS[i, j] = A[i, 0] * S[0, j] + A[i, 1] * S[1, j] + A[i, 2] * S[2, j]
-    for i in range(3):
-        for j in range(i, 3):
-            out[i, j] = AS[i, 0] * A[j, 0] + AS[i, 1] * A[j, 1] + AS[i, 2] * A[j, 2]
-            out[j, i] = out[i, j]
+def _congruence(a00, a01, a02, a10, a11, a12, a20, a21, a22, s00, s01, s02, s11, s12, s22):
+    """Upper triangle ``(c00, c01, c02, c11, c12, c22)`` of ``A S A^T`` for a symmetric ``S``: a
+    covariance carried through the linear map ``A``. In scalars, so that the per-point covariance
+    stays in registers (through scratch arrays it cost twice as much)."""
+    # rows of A S
+    b00 = a00 * s00 + a01 * s01 + a02 * s02
+    b01 = a00 * s01 + a01 * s11 + a02 * s12
+    b02 = a00 * s02 + a01 * s12 + a02 * s22
+    b10 = a10 * s00 + a11 * s01 + a12 * s02
+    b11 = a10 * s01 + a11 * s11 + a12 * s12
+    b12 = a10 * s02 + a11 * s12 + a12 * s22
+    b20 = a20 * s00 + a21 * s01 + a22 * s02
+    b21 = a20 * s01 + a21 * s11 + a22 * s12
+    b22 = a20 * s02 + a21 * s12 + a22 * s22
+    return (
+        b00 * a00 + b01 * a01 + b02 * a02,
+        b00 * a10 + b01 * a11 + b02 * a12,
+        b00 * a20 + b01 * a21 + b02 * a22,
+        b10 * a10 + b11 * a11 + b12 * a12,
+        b10 * a20 + b11 * a21 + b12 * a22,
+        b20 * a20 + b21 * a21 + b22 * a22,
+    )
 
 
 @_jit
@@ -498,8 +508,6 @@ def mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr, cap):
     """
     H, N = R.shape[0], X.shape[0]
     out = np.empty((H, N))
-    RS = np.empty((3, 3))
-    C = np.empty((3, 3))
     inv_trace = np.empty(N)
     for n in range(N):
         inv_trace[n] = 1.0 / max(
@@ -508,21 +516,28 @@ def mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr, cap):
             1e-300,
         )
     for h in range(H):
-        r = R[h]
+        r00, r01, r02 = R[h, 0, 0], R[h, 0, 1], R[h, 0, 2]
+        r10, r11, r12 = R[h, 1, 0], R[h, 1, 1], R[h, 1, 2]
+        r20, r21, r22 = R[h, 2, 0], R[h, 2, 1], R[h, 2, 2]
+        t0, t1, t2 = t[h, 0], t[h, 1], t[h, 2]
         for n in range(N):
-            x = Y[n, 0] - (r[0, 0] * X[n, 0] + r[0, 1] * X[n, 1] + r[0, 2] * X[n, 2] + t[h, 0])
-            y = Y[n, 1] - (r[1, 0] * X[n, 0] + r[1, 1] * X[n, 1] + r[1, 2] * X[n, 2] + t[h, 1])
-            z = Y[n, 2] - (r[2, 0] * X[n, 0] + r[2, 1] * X[n, 1] + r[2, 2] * X[n, 2] + t[h, 2])
+            x0, x1, x2 = X[n, 0], X[n, 1], X[n, 2]
+            x = Y[n, 0] - (r00 * x0 + r01 * x1 + r02 * x2 + t0)
+            y = Y[n, 1] - (r10 * x0 + r11 * x1 + r12 * x2 + t1)
+            z = Y[n, 2] - (r20 * x0 + r21 * x1 + r22 * x2 + t2)
             if cap > 0.0:
                 bound = (x * x + y * y + z * z) * inv_trace[n]  # a product: a division per point costs more
                 if bound >= cap:
                     out[h, n] = bound
                     continue
-            _congruence(r, cov_prev[n], RS, C)  # C = R S_X R^T, plus S_Y below
-            Sy = cov_curr[n]
+            Sx, Sy = cov_prev[n], cov_curr[n]
+            c00, c01, c02, c11, c12, c22 = _congruence(  # R S_X R^T, plus S_Y below
+                r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                Sx[0, 0], Sx[0, 1], Sx[0, 2], Sx[1, 1], Sx[1, 2], Sx[2, 2],
+            )
             out[h, n] = _symmetric_quadratic(
-                C[0, 0] + Sy[0, 0], C[0, 1] + Sy[0, 1], C[0, 2] + Sy[0, 2],
-                C[1, 1] + Sy[1, 1], C[1, 2] + Sy[1, 2], C[2, 2] + Sy[2, 2], x, y, z,
+                c00 + Sy[0, 0], c01 + Sy[0, 1], c02 + Sy[0, 2], c11 + Sy[1, 1], c12 + Sy[1, 2], c22 + Sy[2, 2],
+                x, y, z,
             )
     return out
 
@@ -540,18 +555,19 @@ def pixel_mahalanobis_sq(R, t, X, cov_prev, mc, cam, sigma_sq):
     fx, fy, cx, cy, bl = cam[0], cam[1], cam[2], cam[3], cam[4]
     H, N = R.shape[0], X.shape[0]
     out = np.empty((H, N))
-    RS = np.empty((3, 3))
-    S = np.empty((3, 3))
-    J = np.empty((3, 3))
-    JS = np.empty((3, 3))
-    C = np.empty((3, 3))
     root2 = np.sqrt(2.0)
+    inv_root2 = 1.0 / root2
+    inv_sigma_sq = 1.0 / sigma_sq
     for h in range(H):
-        r = R[h]
+        r00, r01, r02 = R[h, 0, 0], R[h, 0, 1], R[h, 0, 2]
+        r10, r11, r12 = R[h, 1, 0], R[h, 1, 1], R[h, 1, 2]
+        r20, r21, r22 = R[h, 2, 0], R[h, 2, 1], R[h, 2, 2]
+        t0, t1, t2 = t[h, 0], t[h, 1], t[h, 2]
         for n in range(N):
-            p0 = r[0, 0] * X[n, 0] + r[0, 1] * X[n, 1] + r[0, 2] * X[n, 2] + t[h, 0]
-            p1 = r[1, 0] * X[n, 0] + r[1, 1] * X[n, 1] + r[1, 2] * X[n, 2] + t[h, 1]
-            p2 = r[2, 0] * X[n, 0] + r[2, 1] * X[n, 1] + r[2, 2] * X[n, 2] + t[h, 2]
+            x0, x1, x2 = X[n, 0], X[n, 1], X[n, 2]
+            p0 = r00 * x0 + r01 * x1 + r02 * x2 + t0
+            p1 = r10 * x0 + r11 * x1 + r12 * x2 + t1
+            p2 = r20 * x0 + r21 * x1 + r22 * x2 + t2
             if p2 <= MIN_DEPTH:
                 out[h, n] = np.inf
                 continue
@@ -563,17 +579,23 @@ def pixel_mahalanobis_sq(R, t, X, cov_prev, mc, cam, sigma_sq):
             e1 = v - mc[n, 1]
             e2 = uR - mc[n, 2]
             e3 = v - mc[n, 3]
-            s_sum = (e1 + e3) / root2
-            s_diff = (e1 - e3) / root2
-            _congruence(r, cov_prev[n], RS, S)  # S = R S_X R^T
-            # rows of the rotated Jacobian: uL, sqrt(2) v, uR
-            J[0, 0], J[0, 1], J[0, 2] = fx * ip, 0.0, -fx * p0 * ip * ip
-            J[1, 0], J[1, 1], J[1, 2] = 0.0, root2 * fy * ip, -root2 * fy * p1 * ip * ip
-            J[2, 0], J[2, 1], J[2, 2] = fx * ip, 0.0, -fx * (p0 - bl) * ip * ip
-            _congruence(J, S, JS, C)  # C = J S J^T, plus sigma^2 I below
+            s_sum = (e1 + e3) * inv_root2
+            s_diff = (e1 - e3) * inv_root2
+            Sx = cov_prev[n]
+            s00, s01, s02, s11, s12, s22 = _congruence(  # R S_X R^T
+                r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                Sx[0, 0], Sx[0, 1], Sx[0, 2], Sx[1, 1], Sx[1, 2], Sx[2, 2],
+            )
+            # J S J^T for the rotated Jacobian's rows uL, sqrt(2) v, uR; sigma^2 I added below
+            c00, c01, c02, c11, c12, c22 = _congruence(
+                fx * ip, 0.0, -fx * p0 * ip * ip,
+                0.0, root2 * fy * ip, -root2 * fy * p1 * ip * ip,
+                fx * ip, 0.0, -fx * (p0 - bl) * ip * ip,
+                s00, s01, s02, s11, s12, s22,
+            )
             out[h, n] = _symmetric_quadratic(
-                C[0, 0] + sigma_sq, C[0, 1], C[0, 2], C[1, 1] + sigma_sq, C[1, 2], C[2, 2] + sigma_sq, e0, s_sum, e2,
-            ) + s_diff * s_diff / sigma_sq
+                c00 + sigma_sq, c01, c02, c11 + sigma_sq, c12, c22 + sigma_sq, e0, s_sum, e2,
+            ) + s_diff * s_diff * inv_sigma_sq
     return out
 
 
