@@ -64,15 +64,17 @@ class StereoProblem:
             raise ValueError(f"prev and curr must have the same number of rows, got {prev.shape[0]} and {curr.shape[0]}")
         if not np.isfinite(noise_sigma) or noise_sigma <= 0:
             raise ValueError(f"noise_sigma must be a positive pixel noise, got {noise_sigma!r}")
+        triangulated = []
         for name, meas in (("prev", prev), ("curr", curr)):
-            low = ~camera.has_depth(meas)
-            if np.any(low):
+            try:  # triangulation checks every disparity itself; the rows are named only on failure
+                triangulated.append(camera.triangulate_with_covariance(meas, noise_sigma))
+            except ValueError:
+                low = ~camera.has_depth(meas)
                 raise ValueError(
                     f"{name} has {int(low.sum())} row(s) with disparity uL - uR <= {camera.min_disparity} px "
                     f"(first at row {int(np.argmax(low))}): no depth can be triangulated"
-                )
-        points_prev, cov_prev = camera.triangulate_with_covariance(prev, noise_sigma)
-        points_curr, cov_curr = camera.triangulate_with_covariance(curr, noise_sigma)
+                ) from None
+        (points_prev, cov_prev), (points_curr, cov_curr) = triangulated
         return cls(
             prev=prev,
             curr=curr,

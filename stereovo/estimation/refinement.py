@@ -73,7 +73,7 @@ class ReprojectionRefiner:
             if np.count_nonzero(new_inliers) < np.count_nonzero(inliers) // 2:
                 break  # refinement ran away from the consensus: keep what we had
             R, t = R_new[0], t_new[0]
-            same = np.array_equal(new_inliers, inliers)
+            same = not np.any(new_inliers != inliers)
             inliers = new_inliers
             if same:
                 break
