@@ -313,13 +313,17 @@ def _build_probabilistic(problem, options, priors, order, extra) -> RansacCompon
     )
     if options.rigidity_gate_probability is not None:
         components.sample_check = RigidityCheck(_chi2_quantile(options.rigidity_gate_probability, 1))
+    # The 3-D gate misses about a tenth of the inliers, mostly far points (triangulation's skewed
+    # depth error), and those carry the rotation; the pixel gate keeps them. Both refits select
+    # their inliers with it: the local refit then hands the final refinement a model it has
+    # already converged on the same inliers.
+    pixel_threshold = options.pixel_mahalanobis_threshold_sq
+    pixel_gate = (PixelMahalanobisResidual(pixel_threshold), pixel_threshold)
     if components.refiner is not None:
-        # The 3-D gate misses about a tenth of the inliers, mostly far points (triangulation's
-        # skewed depth error), and those carry the rotation; the pixel gate keeps them.
-        pixel_threshold = options.pixel_mahalanobis_threshold_sq
-        components.refiner = dataclasses.replace(
-            components.refiner, gate=(PixelMahalanobisResidual(pixel_threshold), pixel_threshold)
-        )
+        components.refiner = dataclasses.replace(components.refiner, gate=pixel_gate)
+    if isinstance(components.local_optimizer, ConsensusRefit):
+        refit = components.local_optimizer
+        components.local_optimizer = dataclasses.replace(refit, refiner=dataclasses.replace(refit.refiner, gate=pixel_gate))
     return components
 
 
