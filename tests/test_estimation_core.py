@@ -401,7 +401,7 @@ def test_small_first_batch_and_refit_skipped_only_in_the_batch_that_ends_the_sea
     curr[:, 3] = curr[:, 1]
     curr[:20] = curr[rng.permutation(20)]  # 10 % mismatched: the bound falls below one batch at once
     ends_at_once = estimate_motion(prev, curr, CAMERA, method="msac", rng=0)
-    # one first batch of first_batch_size (16) hypotheses, not batch_size (32): the bound is met
+    # one first batch of first_batch_size (16) hypotheses, not batch_size (128): the bound is met
     assert ends_at_once.n_hypotheses == 16 and ends_at_once.report.n_local_optimizations == 0
     assert estimate_motion(prev, curr, CAMERA, method="msac", rng=0, first_batch_size=32).n_hypotheses == 32
     assert estimate_motion(prev, curr, CAMERA, method="msac", rng=0, budget=40).n_hypotheses == 40
@@ -411,6 +411,37 @@ def test_small_first_batch_and_refit_skipped_only_in_the_batch_that_ends_the_sea
     lo = estimate_motion(prev, curr, CAMERA, method="lo-ransac", rng=0)
     assert lo.report.n_local_optimizations >= 1
     assert ends_at_once.ok and searching.ok and lo.ok
+
+def test_adaptive_batches_double_from_the_first_up_to_batch_size():
+    from stereovo.estimation.loop import run_ransac
+    from stereovo.estimation.methods import EstimatorOptions, method_spec
+
+    class BatchRecorder:
+        def __init__(self):
+            self.drawn = []
+
+        def on_new_best(self, inliers, state):
+            pass
+
+        def on_batch(self, state):
+            self.drawn.append(state.n_hypotheses)
+
+    rng = np.random.default_rng(2)
+    prev, _ = noise_free_pair(rng, np.eye(3), np.zeros(3), 60)
+    curr, _ = noise_free_pair(rng, np.eye(3), np.zeros(3), 60)  # unrelated points: no consensus ends the search
+    problem = StereoProblem.build(prev, curr, CAMERA)
+    drawn = {}
+    for batch_size, budget in ((128, None), (128, 300), (8, None)):
+        options = EstimatorOptions(max_iterations=300, batch_size=batch_size, budget=budget)
+        components = method_spec("msac").build(problem, options, None, None, {})
+        recorder = BatchRecorder()
+        components.listeners.append(recorder)
+        run_ransac(problem, components, np.random.default_rng(0))
+        drawn[batch_size, budget] = recorder.drawn
+    assert drawn[128, None] == [16, 48, 112, 240, 300]  # 16, 32, 64, 128, then what the cap leaves
+    assert drawn[128, 300] == [128, 256, 300]  # a fixed budget keeps batch_size throughout
+    assert drawn[8, None] == list(range(8, 301, 8)) + [300]  # batch_size caps the first batch too
+
 
 def _pairwise_rigidity_reference(problem, samples):
     """Largest squared standardised change of a sample's three pairwise distances (numpy)."""
