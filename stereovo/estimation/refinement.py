@@ -53,8 +53,9 @@ class ReprojectionRefiner:
             regated = residual_model.squared(problem, R[None], t[None])[0] < threshold_sq
             if np.count_nonzero(regated) >= np.count_nonzero(inliers) // 2:
                 inliers = regated
+        n_inliers = int(np.count_nonzero(inliers))
         for _ in range(self.rounds):
-            if np.count_nonzero(inliers) < 3:
+            if n_inliers < 3:
                 break
             # Outliers get weight 0, which the kernel skips: same sums as on the gathered inliers, no copies.
             R_new, t_new, _ = gauss_newton_steps(
@@ -70,11 +71,12 @@ class ReprojectionRefiner:
                 huber=self.huber_px,
             )
             new_inliers = residual_model.squared(problem, R_new, t_new)[0] < threshold_sq
-            if np.count_nonzero(new_inliers) < np.count_nonzero(inliers) // 2:
+            n_new = int(np.count_nonzero(new_inliers))
+            if n_new < n_inliers // 2:
                 break  # refinement ran away from the consensus: keep what we had
             R, t = R_new[0], t_new[0]
-            same = not np.any(new_inliers != inliers)
-            inliers = new_inliers
+            same = n_new == n_inliers and not np.any(new_inliers != inliers)
+            inliers, n_inliers = new_inliers, n_new
             if same:
                 break
         return R, t, inliers

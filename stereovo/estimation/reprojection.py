@@ -32,6 +32,10 @@ def camera_vector(camera: StereoCamera) -> np.ndarray:
 
 def _grouped(array: np.ndarray, width: int) -> np.ndarray:
     """``(G, M, width)`` contiguous float view: ``(M, width)`` becomes one group shared by all hypotheses."""
+    if type(array) is np.ndarray and array.dtype == np.float64 and array.ndim == 2 and array.flags.c_contiguous:
+        if array.shape[1] != width:
+            raise ValueError(f"expected points of shape (M, {width}) or (H, M, {width}), got {array.shape}")
+        return array[None]  # the common case (a problem's own arrays): a view, no checks or copies
     array = np.asarray(array, dtype=float)
     if array.ndim == 2:
         array = array[None]
