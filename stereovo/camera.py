@@ -8,6 +8,7 @@ metres, ``(N, 4)`` measurements in pixels.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,6 +79,14 @@ class StereoCamera:
         for name in ("cx", "cy"):
             if not np.isfinite(getattr(self, name)):
                 raise ValueError(f"StereoCamera.{name} must be finite, got {getattr(self, name)!r}")
+
+    @functools.cached_property
+    def parameters(self) -> np.ndarray:
+        """``(fx, fy, cx, cy, baseline)`` as one read-only float array: the layout compiled kernels
+        take, built once per camera (the estimator passes it a few dozen times per frame)."""
+        vector = np.array([self.fx, self.fy, self.cx, self.cy, self.baseline], dtype=float)
+        vector.flags.writeable = False
+        return vector
 
     @property
     def intrinsics(self) -> np.ndarray:

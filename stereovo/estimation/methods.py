@@ -299,6 +299,26 @@ def _build_msac(problem, options, priors, order, extra) -> RansacComponents:
     )
 
 
+@functools.lru_cache(maxsize=64)
+def _pixel_gated_refits(options: EstimatorOptions) -> tuple[ReprojectionRefiner | None, ConsensusRefit | None]:
+    """``probabilistic``'s final refinement and local refit: both select their inliers with the pixel gate.
+
+    The 3-D gate misses about a tenth of the inliers, mostly far points (triangulation's skewed
+    depth error), and those carry the rotation; the pixel gate keeps them. With the local refit
+    on the same gate, the final refinement starts from a model already converged on its inliers.
+    """
+    threshold = options.pixel_mahalanobis_threshold_sq
+    gate = (PixelMahalanobisResidual(threshold), threshold)
+    refiner = final_refiner(options)
+    if refiner is not None:
+        refiner = dataclasses.replace(refiner, gate=gate)
+    refit = None
+    if options.local_refit:
+        refit = ConsensusRefit()
+        refit = dataclasses.replace(refit, refiner=dataclasses.replace(refit.refiner, gate=gate))
+    return refiner, refit
+
+
 @register_method(
     "probabilistic",
     "Mahalanobis-gated consensus with triangulation covariances, chi-square(3) gate; "
@@ -313,17 +333,7 @@ def _build_probabilistic(problem, options, priors, order, extra) -> RansacCompon
     )
     if options.rigidity_gate_probability is not None:
         components.sample_check = RigidityCheck(_chi2_quantile(options.rigidity_gate_probability, 1))
-    # The 3-D gate misses about a tenth of the inliers, mostly far points (triangulation's skewed
-    # depth error), and those carry the rotation; the pixel gate keeps them. Both refits select
-    # their inliers with it: the local refit then hands the final refinement a model it has
-    # already converged on the same inliers.
-    pixel_threshold = options.pixel_mahalanobis_threshold_sq
-    pixel_gate = (PixelMahalanobisResidual(pixel_threshold), pixel_threshold)
-    if components.refiner is not None:
-        components.refiner = dataclasses.replace(components.refiner, gate=pixel_gate)
-    if isinstance(components.local_optimizer, ConsensusRefit):
-        refit = components.local_optimizer
-        components.local_optimizer = dataclasses.replace(refit, refiner=dataclasses.replace(refit.refiner, gate=pixel_gate))
+    components.refiner, components.local_optimizer = _pixel_gated_refits(options)
     return components
 
 

@@ -47,13 +47,14 @@ class ReprojectionRefiner:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return the refined ``(R, t)`` and its inlier mask ``(N,)`` under ``threshold_sq``
         (or under the refiner's own gate)."""
+        n_inliers = int(np.count_nonzero(inliers))
         if self.gate is not None:
             residual_model, threshold_sq = self.gate
             # Start from the refiner's own gate: the caller's inliers were selected by another rule.
             regated = residual_model.squared(problem, R[None], t[None])[0] < threshold_sq
-            if np.count_nonzero(regated) >= np.count_nonzero(inliers) // 2:
-                inliers = regated
-        n_inliers = int(np.count_nonzero(inliers))
+            n_regated = int(np.count_nonzero(regated))
+            if n_regated >= n_inliers // 2:
+                inliers, n_inliers = regated, n_regated
         for _ in range(self.rounds):
             if n_inliers < 3:
                 break

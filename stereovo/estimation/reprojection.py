@@ -26,8 +26,8 @@ from stereovo.estimation import kernels
 
 
 def camera_vector(camera: StereoCamera) -> np.ndarray:
-    """``(fx, fy, cx, cy, baseline)``, the camera as the kernels take it."""
-    return np.array([camera.fx, camera.fy, camera.cx, camera.cy, camera.baseline], dtype=float)
+    """``(fx, fy, cx, cy, baseline)``, the camera as the kernels take it (:attr:`StereoCamera.parameters`)."""
+    return camera.parameters
 
 
 def _grouped(array: np.ndarray, width: int) -> np.ndarray:

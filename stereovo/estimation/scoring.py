@@ -128,7 +128,7 @@ class InlierCount:
     saturates: bool = True
 
     def score(self, residual_sq: np.ndarray, threshold_sq: float) -> np.ndarray:
-        return np.count_nonzero(residual_sq < threshold_sq, axis=-1).astype(float)
+        return np.sum(residual_sq < threshold_sq, axis=-1, dtype=float)
 
 
 @dataclass(frozen=True)
