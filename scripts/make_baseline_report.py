@@ -78,8 +78,8 @@ def build_report(run_dir: Path, docs_dir: Path, redraw: bool = False) -> Path:
         f"- Success: {bm.success_definition()}.",
         "- Time: wall time of one estimator call, measured while the other workers run (relative"
         " comparisons are fair: every method runs on the same frames in the same process, one after another).",
-        "- Hypotheses are drawn in vectorised batches: a first batch of 16, then 32 at a time, so 16 is the"
-        " floor of every adaptive sampling method.",
+        "- Hypotheses are drawn in vectorised batches: a first batch of 16, then batches doubling up to 128"
+        " (16, 32, 64, 128, ...), so 16 is the floor of every adaptive sampling method.",
         "- Frames depend on (seed, epsilon, N, outlier kind, repeat) only: cells that differ in noise or"
         " AUC share their geometry (common random numbers).",
         "",

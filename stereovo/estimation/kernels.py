@@ -909,6 +909,16 @@ def minimal_fits(samples, X, Y, mp, mc, cam, area_ratio, polish_iterations):
 
 
 @_inline_jit
+def _summed_quadratic_form(cov, a, b, x0, x1, x2):
+    """``x^T (cov[a] + cov[b]) x`` for symmetric ``cov (N, 3, 3)``."""
+    S, T = cov[a], cov[b]
+    return (
+        x0 * x0 * (S[0, 0] + T[0, 0]) + x1 * x1 * (S[1, 1] + T[1, 1]) + x2 * x2 * (S[2, 2] + T[2, 2])
+        + 2.0 * (x0 * x1 * (S[0, 1] + T[0, 1]) + x0 * x2 * (S[0, 2] + T[0, 2]) + x1 * x2 * (S[1, 2] + T[1, 2]))
+    )
+
+
+@_inline_jit
 def _pair_rigidity_sq(X, Y, cov_prev, cov_curr, a, b):
     """``(|Y_a - Y_b| - |X_a - X_b|)^2 / var``: the squared standardised change of the distance between
     points ``a`` and ``b`` from k-1 to k; ``var`` carries both points' triangulation covariances in
@@ -919,20 +929,11 @@ def _pair_rigidity_sq(X, Y, cov_prev, cov_curr, a, b):
     ly_sq = y0 * y0 + y1 * y1 + y2 * y2
     if not (lx_sq > 0.0 and ly_sq > 0.0):
         return np.inf
-    var_x = 0.0
-    var_y = 0.0
-    for i in range(3):
-        for j in range(3):
-            xi = x0 if i == 0 else (x1 if i == 1 else x2)
-            xj = x0 if j == 0 else (x1 if j == 1 else x2)
-            yi = y0 if i == 0 else (y1 if i == 1 else y2)
-            yj = y0 if j == 0 else (y1 if j == 1 else y2)
-            var_x += xi * (cov_prev[a, i, j] + cov_prev[b, i, j]) * xj
-            var_y += yi * (cov_curr[a, i, j] + cov_curr[b, i, j]) * yj
-    lx, ly = np.sqrt(lx_sq), np.sqrt(ly_sq)
-    change = ly - lx
-    # u^T S u with u the unit direction: the quadratic forms above divided by the squared lengths
-    return change * change / max(var_x / lx_sq + var_y / ly_sq, 1e-300)
+    # u^T S u for the unit direction u: the quadratic forms of the difference vectors over their squared lengths
+    var = _summed_quadratic_form(cov_prev, a, b, x0, x1, x2) / lx_sq
+    var += _summed_quadratic_form(cov_curr, a, b, y0, y1, y2) / ly_sq
+    change = np.sqrt(ly_sq) - np.sqrt(lx_sq)
+    return change * change / max(var, 1e-300)
 
 
 @_jit
