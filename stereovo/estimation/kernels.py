@@ -208,7 +208,7 @@ def _cost_and_normal_equations(R, t, X, Y, mp, mc, cam, w, huber, A, g, want_sys
     rotated into ``A, g`` once.
     """
     fx, fy, cx, cy, b = cam[0], cam[1], cam[2], cam[3], cam[4]
-    # R^T t: the backward point Q = R^T (Y - t) plus it is Y' = R^T Y
+    # s = R^T t, so that the backward point Q = R^T (Y - t) plus s is Y' = R^T Y
     s0 = R[0, 0] * t[0] + R[1, 0] * t[1] + R[2, 0] * t[2]
     s1 = R[0, 1] * t[0] + R[1, 1] * t[1] + R[2, 1] * t[2]
     s2 = R[0, 2] * t[0] + R[1, 2] * t[1] + R[2, 2] * t[2]
