@@ -443,6 +443,30 @@ def test_adaptive_batches_double_from_the_first_up_to_batch_size():
     assert drawn[8, None] == list(range(8, 301, 8)) + [300]  # batch_size caps the first batch too
 
 
+def test_new_best_inliers_come_from_the_batch_scores_exactly():
+    """Scoring caps residuals at the gate; the inlier mask read from the capped batch residuals
+    must equal the one from the hypothesis' own residuals."""
+    from stereovo.estimation.scoring import InlierCount, MahalanobisResidual
+    from stereovo.estimation.solvers import minimal_hypotheses
+    from stereovo.estimation.verification import ScoringContext
+    from stereovo.simulation import SimulationConfig, simulate_frame
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.5), np.random.default_rng(3))
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    samples = np.stack([np.random.default_rng(i).choice(problem.n, 3, replace=False) for i in range(40)])
+    R, t, valid = minimal_hypotheses(problem, samples)
+    R, t = R[valid], t[valid]
+    ctx = ScoringContext(problem, MahalanobisResidual(7.81), InlierCount(), 7.81)
+    scores = ctx.score(R, t)
+    for i in range(len(R)):
+        reused, computed = ctx.inliers_of(R, t, i)
+        assert not computed
+        np.testing.assert_array_equal(reused, ctx.residuals(R[i : i + 1], t[i : i + 1])[0] < 7.81)
+        assert reused.sum() == scores[i]
+    fresh, computed = ctx.inliers_of(R.copy(), t, 0)  # another batch: computed afresh
+    assert computed and fresh.sum() == scores[0]
+
+
 def _pairwise_rigidity_reference(problem, samples):
     """Largest squared standardised change of a sample's three pairwise distances (numpy)."""
     worst = np.zeros(len(samples))

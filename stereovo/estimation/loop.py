@@ -180,8 +180,8 @@ def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.ran
             i = int(np.argmax(scores))
             if scores[i] > best_score:
                 best_R, best_t, best_score = R[i], t[i], float(scores[i])
-                best_inliers = ctx.residuals(best_R[None], best_t[None])[0] < c.threshold_sq
-                checks += n
+                best_inliers, computed = ctx.inliers_of(R, t, i)
+                checks += n if computed else 0
                 found_at = drawn
                 if c.local_optimizer is not None and not local_refit_redundant(c, drawn, best_inliers, n):
                     best_R, best_t, best_inliers, best_score, spent = c.local_optimizer.improve(

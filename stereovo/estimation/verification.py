@@ -8,7 +8,7 @@ hypotheses, plus the number of point-hypothesis residual evaluations spent.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -25,13 +25,26 @@ class ScoringContext:
     residual_model: ResidualModel
     quality: Quality
     threshold_sq: float
+    # the hypotheses last scored on all points and their residuals: the loop reads the new best's
+    # inliers from them instead of computing its residuals again
+    _last_scored: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False, compare=False)
 
     def residuals(self, R: np.ndarray, t: np.ndarray) -> np.ndarray:
         return self.residual_model.squared(self.problem, R, t)
 
+    def inliers_of(self, R: np.ndarray, t: np.ndarray, i: int) -> tuple[np.ndarray, bool]:
+        """Inlier mask ``(N,)`` of hypothesis ``i`` of the batch ``R, t``, and whether its residuals
+        had to be computed (False when the batch was just scored on all points: residuals capped
+        at the gate still compare with it exactly)."""
+        last = self._last_scored
+        if last is not None and last[0] is R:
+            return last[1][i] < self.threshold_sq, False
+        return self.residuals(R[i : i + 1], t[i : i + 1])[0] < self.threshold_sq, True
+
     def _scored_residuals(self, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         cap = self.threshold_sq if self.quality.saturates else None
         sq = self.residual_model.squared(self.problem, R, t, cap=cap)
+        self._last_scored = (R, sq)
         return self.quality.score(sq, self.threshold_sq), sq
 
     def score(self, R: np.ndarray, t: np.ndarray) -> np.ndarray:
