@@ -1,4 +1,4 @@
-"""The one RANSAC loop: sampler, solver, verifier, local optimiser, termination, refinement.
+"""The one RANSAC loop: sampler, sample check, solver, verifier, local optimiser, termination, refinement.
 
 Every named method (RANSAC, MSAC, the probabilistic RANSAC, the classical
 family, the environment's guided sampling) is a :class:`RansacComponents`
