@@ -60,11 +60,9 @@ def _backward_row(jac, r, a0, a1, a2, R, y0, y1, y2):
 
 
 @_inline_jit
-def _point_rows(R, t, X, Y, mp, mc, m, cam, res, jac, want_jac):
-    """Fill ``res (8,)`` (and ``jac (8, 6)``) for point ``m`` of ``X, Y (M, 3)``, ``mp, mc (M, 4)``;
-    False if it is behind a camera. (Indexing here rather than passing row views keeps the
-    hot loop free of per-point array views.)"""
-    fx, fy, cx, cy, b = cam[0], cam[1], cam[2], cam[3], cam[4]
+def _moved_points(R, t, X, Y, m):
+    """Point ``m`` in the other frame: ``P = R X_m + t`` (k-1 point at k) and ``Q = R^T (Y_m - t)``
+    (k point at k-1), as ``(p0, p1, p2, q0, q1, q2)``."""
     p0 = R[0, 0] * X[m, 0] + R[0, 1] * X[m, 1] + R[0, 2] * X[m, 2] + t[0]
     p1 = R[1, 0] * X[m, 0] + R[1, 1] * X[m, 1] + R[1, 2] * X[m, 2] + t[1]
     p2 = R[2, 0] * X[m, 0] + R[2, 1] * X[m, 1] + R[2, 2] * X[m, 2] + t[2]
@@ -72,22 +70,35 @@ def _point_rows(R, t, X, Y, mp, mc, m, cam, res, jac, want_jac):
     q0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2
     q1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
     q2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
+    return p0, p1, p2, q0, q1, q2
+
+
+@_inline_jit
+def _stereo_residuals(p0, p1, p2, fx, fy, cx, cy, b, u_l, v_l, u_r, v_r):
+    """``(1 / p2, r_uL, r_vL, r_uR, r_vR)``: the point ``p`` (``p2 > 0``) projected into a rectified
+    stereo pair minus its measurement ``(u_l, v_l, u_r, v_r)``, in pixels."""
+    ip = 1.0 / p2
+    return (
+        ip, fx * p0 * ip + cx - u_l, fy * p1 * ip + cy - v_l, fx * (p0 - b) * ip + cx - u_r, fy * p1 * ip + cy - v_r,
+    )
+
+
+@_inline_jit
+def _point_rows(R, t, X, Y, mp, mc, m, cam, res, jac, want_jac):
+    """Fill ``res (8,)`` (and ``jac (8, 6)``) for point ``m`` of ``X, Y (M, 3)``, ``mp, mc (M, 4)``;
+    False if it is behind a camera. (Indexing here rather than passing row views keeps the
+    hot loop free of per-point array views.)"""
+    fx, fy, cx, cy, b = cam[0], cam[1], cam[2], cam[3], cam[4]
+    p0, p1, p2, q0, q1, q2 = _moved_points(R, t, X, Y, m)
     if p2 <= MIN_DEPTH or q2 <= MIN_DEPTH:
         for r in range(8):
             res[r] = BEHIND_CAMERA_RESIDUAL
         if want_jac:
             jac[:, :] = 0.0
         return False
-    ip = 1.0 / p2
-    iq = 1.0 / q2
-    res[0] = fx * p0 * ip + cx - mc[m, 0]
-    res[1] = fy * p1 * ip + cy - mc[m, 1]
-    res[2] = fx * (p0 - b) * ip + cx - mc[m, 2]
-    res[3] = fy * p1 * ip + cy - mc[m, 3]
-    res[4] = fx * q0 * iq + cx - mp[m, 0]
-    res[5] = fy * q1 * iq + cy - mp[m, 1]
-    res[6] = fx * (q0 - b) * iq + cx - mp[m, 2]
-    res[7] = fy * q1 * iq + cy - mp[m, 3]
+    ip, r0, r1, r2, r3 = _stereo_residuals(p0, p1, p2, fx, fy, cx, cy, b, mc[m, 0], mc[m, 1], mc[m, 2], mc[m, 3])
+    iq, r4, r5, r6, r7 = _stereo_residuals(q0, q1, q2, fx, fy, cx, cy, b, mp[m, 0], mp[m, 1], mp[m, 2], mp[m, 3])
+    res[0], res[1], res[2], res[3], res[4], res[5], res[6], res[7] = r0, r1, r2, r3, r4, r5, r6, r7
     if not want_jac:
         return True
     # d(projection)/d(point) rows of the forward point P (row 3 equals row 1) ...
@@ -137,11 +148,7 @@ def _stereo_terms(p0, p1, p2, fx, fy, cx, cy, b, u_l, v_l, u_r, v_r):
     ``a_r = d(pixel_r)/dp``: ``M = sum a_r a_r^T`` (upper triangle m00, m02, m11, m12, m22; m01 is 0
     because no row depends on both x and y) and ``v = sum a_r res_r``. ``p2`` must be positive.
     """
-    ip = 1.0 / p2
-    r0 = fx * p0 * ip + cx - u_l
-    r1 = fy * p1 * ip + cy - v_l
-    r2 = fx * (p0 - b) * ip + cx - u_r
-    r3 = fy * p1 * ip + cy - v_r
+    ip, r0, r1, r2, r3 = _stereo_residuals(p0, p1, p2, fx, fy, cx, cy, b, u_l, v_l, u_r, v_r)
     sq = r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3
     ex, ey = fx * ip, fy * ip
     # the rows' depth derivatives; both v rows share a_v = (0, ey, cv)
@@ -221,14 +228,7 @@ def _cost_and_normal_equations(R, t, X, Y, mp, mc, cam, w, huber, A, g, want_sys
     for m in range(X.shape[0]):
         if w[m] == 0.0:
             continue
-        x0, x1, x2 = X[m, 0], X[m, 1], X[m, 2]
-        p0 = R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2 + t[0]
-        p1 = R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2 + t[1]
-        p2 = R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2 + t[2]
-        d0, d1, d2 = Y[m, 0] - t[0], Y[m, 1] - t[1], Y[m, 2] - t[2]
-        q0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2
-        q1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
-        q2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
+        p0, p1, p2, q0, q1, q2 = _moved_points(R, t, X, Y, m)
         if p2 <= MIN_DEPTH or q2 <= MIN_DEPTH:
             # residual rows of BEHIND_CAMERA_RESIDUAL and no Jacobian, as in _point_rows
             cost += _irls_weight(w[m], 8.0 * BEHIND_CAMERA_RESIDUAL**2, huber) * 8.0 * BEHIND_CAMERA_RESIDUAL**2
@@ -497,6 +497,15 @@ def _congruence(a00, a01, a02, a10, a11, a12, a20, a21, a22, s00, s01, s02, s11,
     )
 
 
+@_inline_jit
+def _motion_entries(R, t, h):
+    """Hypothesis ``h``'s ``R`` (row-major) and ``t`` as twelve scalars, read once per hypothesis."""
+    return (
+        R[h, 0, 0], R[h, 0, 1], R[h, 0, 2], R[h, 1, 0], R[h, 1, 1], R[h, 1, 2], R[h, 2, 0], R[h, 2, 1], R[h, 2, 2],
+        t[h, 0], t[h, 1], t[h, 2],
+    )
+
+
 @_jit
 def mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr, cap):
     """``(H, N)`` squared Mahalanobis distances of ``Y - (R X + t)`` under ``R S_X R^T + S_Y``.
@@ -516,10 +525,7 @@ def mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr, cap):
             1e-300,
         )
     for h in range(H):
-        r00, r01, r02 = R[h, 0, 0], R[h, 0, 1], R[h, 0, 2]
-        r10, r11, r12 = R[h, 1, 0], R[h, 1, 1], R[h, 1, 2]
-        r20, r21, r22 = R[h, 2, 0], R[h, 2, 1], R[h, 2, 2]
-        t0, t1, t2 = t[h, 0], t[h, 1], t[h, 2]
+        r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2 = _motion_entries(R, t, h)
         for n in range(N):
             x0, x1, x2 = X[n, 0], X[n, 1], X[n, 2]
             x = Y[n, 0] - (r00 * x0 + r01 * x1 + r02 * x2 + t0)
@@ -559,10 +565,7 @@ def pixel_mahalanobis_sq(R, t, X, cov_prev, mc, cam, sigma_sq):
     inv_root2 = 1.0 / root2
     inv_sigma_sq = 1.0 / sigma_sq
     for h in range(H):
-        r00, r01, r02 = R[h, 0, 0], R[h, 0, 1], R[h, 0, 2]
-        r10, r11, r12 = R[h, 1, 0], R[h, 1, 1], R[h, 1, 2]
-        r20, r21, r22 = R[h, 2, 0], R[h, 2, 1], R[h, 2, 2]
-        t0, t1, t2 = t[h, 0], t[h, 1], t[h, 2]
+        r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2 = _motion_entries(R, t, h)
         for n in range(N):
             x0, x1, x2 = X[n, 0], X[n, 1], X[n, 2]
             p0 = r00 * x0 + r01 * x1 + r02 * x2 + t0

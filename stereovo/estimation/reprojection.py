@@ -25,17 +25,13 @@ from stereovo.camera import StereoCamera
 from stereovo.estimation import kernels
 
 
-def camera_vector(camera: StereoCamera) -> np.ndarray:
-    """``(fx, fy, cx, cy, baseline)``, the camera as the kernels take it (:attr:`StereoCamera.parameters`)."""
-    return camera.parameters
-
-
 def _grouped(array: np.ndarray, width: int) -> np.ndarray:
     """``(G, M, width)`` contiguous float view: ``(M, width)`` becomes one group shared by all hypotheses."""
-    if type(array) is np.ndarray and array.dtype == np.float64 and array.ndim == 2 and array.flags.c_contiguous:
-        if array.shape[1] != width:
-            raise ValueError(f"expected points of shape (M, {width}) or (H, M, {width}), got {array.shape}")
-        return array[None]  # the common case (a problem's own arrays): a view, no checks or copies
+    if (
+        type(array) is np.ndarray and array.dtype == np.float64 and array.ndim == 2
+        and array.shape[1] == width and array.flags.c_contiguous
+    ):
+        return array[None]  # the common case (a problem's own arrays): a view, no conversion or copy
     array = np.asarray(array, dtype=float)
     if array.ndim == 2:
         array = array[None]
@@ -51,7 +47,7 @@ def _motions(R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _kernel_problem(camera, R, t, points_prev, points_curr, meas_prev, meas_curr) -> tuple:
     """``(R, t, X, Y, meas_prev, meas_curr, cam)`` in the layout the kernels take."""
     return (*_motions(R, t), _grouped(points_prev, 3), _grouped(points_curr, 3), _grouped(meas_prev, 4),
-            _grouped(meas_curr, 4), camera_vector(camera))
+            _grouped(meas_curr, 4), camera.parameters)
 
 
 def residuals_and_jacobians(
@@ -129,5 +125,5 @@ def reprojection_sq(
     R, t = _motions(R, t)
     return kernels.forward_reprojection_sq(
         R, t, np.ascontiguousarray(points_prev, dtype=float), np.ascontiguousarray(meas_curr, dtype=float),
-        camera_vector(camera),
+        camera.parameters,
     )

@@ -17,7 +17,7 @@ from scipy.stats import chi2
 
 from stereovo.estimation import kernels
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.reprojection import camera_vector, reprojection_sq
+from stereovo.estimation.reprojection import reprojection_sq
 
 CHI2_3_95 = float(chi2.ppf(0.95, 3))  # 7.81: Mahalanobis gate on 3-D residuals
 CHI2_4_99 = float(chi2.ppf(0.99, 4))  # 13.28: Mahalanobis gate on the 4 pixel residuals at k
@@ -71,7 +71,7 @@ class PixelMahalanobisResidual:
         return kernels.pixel_mahalanobis_sq(
             np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float),
             problem.points_prev, problem.cov_prev, problem.curr,
-            camera_vector(problem.camera),
+            problem.camera.parameters,
             problem.noise_sigma**2,
         )
 

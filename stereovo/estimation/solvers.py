@@ -17,7 +17,6 @@ import numpy as np
 
 from stereovo.estimation import kernels
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.reprojection import camera_vector
 
 SAMPLE_SIZE = 3
 # Pitfalls (ALGORITHMS.md): a triplet whose triangle area is below this fraction of its
@@ -79,5 +78,5 @@ def minimal_hypotheses(
     """
     return kernels.minimal_fits(
         np.ascontiguousarray(samples, dtype=np.int64), problem.points_prev, problem.points_curr,
-        problem.prev, problem.curr, camera_vector(problem.camera), DEGENERATE_AREA_RATIO, int(polish_iterations),
+        problem.prev, problem.curr, problem.camera.parameters, DEGENERATE_AREA_RATIO, int(polish_iterations),
     )
