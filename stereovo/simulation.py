@@ -39,6 +39,7 @@ unchanged: benchmark grids get common random numbers across those axes.
 from __future__ import annotations
 
 import enum
+import functools
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
@@ -385,14 +386,35 @@ def _outlier_threshold(sigma: float) -> float:
     return max(_MIN_OUTLIER_PX, 8.0 * sigma)
 
 
-def _apportion(total: int, weights: tuple[float, ...]) -> np.ndarray:
-    """Split ``total`` into integer counts proportional to ``weights`` (largest remainder)."""
+@functools.lru_cache(maxsize=256)
+def _apportion(total: int, weights: tuple[float, ...]) -> tuple[int, ...]:
+    """Split ``total`` into integer counts proportional to ``weights`` (largest remainder).
+
+    Cached: a sequence asks for the same split every frame, and the dozen small numpy
+    calls cost as much as drawing a frame's scores.
+    """
     w = np.asarray(weights, dtype=float)
     raw = total * w / w.sum()
     counts = np.floor(raw).astype(int)
     order = np.argsort(-(raw - counts), kind="stable")
     counts[order[: total - counts.sum()]] += 1
-    return counts
+    return tuple(int(c) for c in counts)
+
+
+def _stream_generators(entropy: np.ndarray, n_streams: int) -> list[np.random.Generator]:
+    """Generators of ``np.random.SeedSequence(entropy.tolist()).spawn(n_streams)``, ``entropy``
+    four non-negative int64 draws.
+
+    numpy coerces a list of ints into their little-endian 32-bit words in Python, which made
+    seeding half of the simulator's fixed cost per frame; handing it those words as a uint32
+    array gives the same seed sequences directly. The shortcut needs two words per int
+    (every int at least ``2**32``, all but one in 2**31 draws); otherwise the list goes the
+    usual way.
+    """
+    if int(entropy.min()) < 2**32:
+        return [np.random.default_rng(s) for s in np.random.SeedSequence(entropy.tolist()).spawn(n_streams)]
+    words = entropy.astype("<u8").view("<u4")
+    return [np.random.default_rng(np.random.SeedSequence(words, spawn_key=(i,))) for i in range(n_streams)]
 
 
 def _loguniform(rng: np.random.Generator, low: float, high: float, size: int) -> np.ndarray:
@@ -413,7 +435,21 @@ def _frustum(cam: StereoCamera) -> tuple[float, float, float, float]:
 
 
 def _valid(meas: np.ndarray, cam: StereoCamera) -> np.ndarray:
-    return cam.in_image(meas) & cam.has_depth(meas)
+    """Mask ``(N,)`` of measurements ``(N, 4)`` inside both images with a disparity above
+    ``min_disparity`` (``cam.in_image & cam.has_depth`` in one compiled pass)."""
+    return _valid_rows(np.ascontiguousarray(meas, dtype=float), float(cam.width - 1), float(cam.height - 1),
+                       float(cam.min_disparity))
+
+
+@njit(cache=True, nogil=True)
+def _valid_rows(meas, u_max, v_max, min_disparity):
+    n = meas.shape[0]
+    ok = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        uL, vL, uR, vR = meas[i, 0], meas[i, 1], meas[i, 2], meas[i, 3]
+        ok[i] = (0.0 <= uL <= u_max and 0.0 <= uR <= u_max and 0.0 <= vL <= v_max and 0.0 <= vR <= v_max
+                 and uL - uR > min_disparity)
+    return ok
 
 
 @njit(cache=True, nogil=True)
@@ -725,7 +761,8 @@ def _moving_object(
             centre[1] = _CAMERA_HEIGHT - half[1]
             heading = rng.uniform(-np.pi, np.pi)
             orientation = _rotation_about_y(heading)
-            velocity = orientation[:, 2] * rng.uniform(0.5, 2.0) * rng.choice([-1.0, 1.0])
+            # a random sign, drawn as Generator.choice([-1.0, 1.0]) draws it, without its overhead
+            velocity = orientation[:, 2] * rng.uniform(0.5, 2.0) * (-1.0, 1.0)[int(rng.integers(0, 2))]
             spin = _rotation_about_y(rng.uniform(-1, 1) * np.radians(3.0))
         else:
             half = 0.5 * rng.uniform(0.8, 3.0, 3)
@@ -792,6 +829,8 @@ def _add_noise(
             return out
         out[bad] = noisy(meas[bad], rng.standard_normal((bad.size, 3)))
     bad = ~_valid(out, cam)
+    if not _valid(meas[bad], cam).all():
+        raise AssertionError("a noise-free measurement left the image or lost its disparity")
     out[bad] = meas[bad]  # vanishingly rare: keep the valid noise-free row
     return out
 
@@ -801,14 +840,15 @@ def _simulate_pair(
 ) -> Frame:
     """Correspondences between two given camera-to-world poses."""
     cam, N = config.camera, config.n_correspondences
-    seeds = np.random.SeedSequence(rng.integers(0, 2**63, size=4).tolist()).spawn(_STREAMS)
-    landmark_rng, outlier_rng, noise_rng, score_rng, order_rng = (np.random.default_rng(s) for s in seeds)
+    landmark_rng, outlier_rng, noise_rng, score_rng, order_rng = _stream_generators(
+        rng.integers(0, 2**63, size=4), _STREAMS
+    )
 
     low, high = config.epsilon_range
     epsilon = low if low == high else float(rng.uniform(low, high))
     n_out = int(round(epsilon * N))
     n_in = N - n_out
-    n_random, n_stereo, n_moving = (int(c) for c in _apportion(n_out, config.outlier_mix))
+    n_random, n_stereo, n_moving = _apportion(n_out, config.outlier_mix)
 
     rotation, translation = relative_motion(pose_prev, pose_curr)
     world_to_prev, world_to_curr = invert_transform(pose_prev), invert_transform(pose_curr)
@@ -834,7 +874,6 @@ def _simulate_pair(
         [n_in, n_random, n_stereo, n_moving],
     )
     assert clean_prev.shape == clean_curr.shape == (N, 4)
-    assert _valid(clean_prev, cam).all() and _valid(clean_curr, cam).all()
 
     # One (2, N, 3) draw in row order, so the same seed gives the same standard-normal noise at any sigma.
     normal = noise_rng.standard_normal((2, N, 3))

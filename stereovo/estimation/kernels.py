@@ -867,6 +867,45 @@ def distinct_triplets(u, m):
     return out
 
 
+@_inline_jit
+def _first_above(cdf, mass):
+    """Index of the first ``cdf`` entry above ``mass`` (``np.searchsorted(cdf, mass, "right")``),
+    capped at the last index."""
+    lo, hi = 0, cdf.shape[0]
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if cdf[mid] <= mass:
+            lo = mid + 1
+        else:
+            hi = mid
+    return min(lo, cdf.shape[0] - 1)
+
+
+@_jit
+def weighted_triplets(u, w, cdf, before):
+    """Ordered draws without replacement, P(i) proportional to ``w (N,)``, from uniforms ``u (B, 3)``.
+
+    ``cdf`` and ``before`` are the inclusive and exclusive cumulative sums of ``w``. Each draw
+    inverts the cumulative weights with the indices already drawn cut out of them (a position in
+    the remaining mass is shifted past each drawn interval it reaches). Rounding at an interval's
+    edge can return a drawn or zero-weight index; the caller redraws those rows exactly.
+    """
+    B = u.shape[0]
+    total = cdf[cdf.shape[0] - 1]
+    out = np.empty((B, 3), dtype=np.int64)
+    for k in range(B):
+        a = _first_above(cdf, u[k, 0] * total)
+        x = u[k, 1] * (total - w[a])
+        b = _first_above(cdf, x if x < before[a] else x + w[a])
+        lo, hi = min(a, b), max(a, b)
+        x = u[k, 2] * (total - w[a] - w[b])
+        if not x < before[lo]:
+            x = x + w[lo]
+        c = _first_above(cdf, x if x < before[hi] else x + w[hi])
+        out[k, 0], out[k, 1], out[k, 2] = a, b, c
+    return out
+
+
 @_jit
 def minimal_fits(samples, X, Y, mp, mc, cam, area_ratio, polish_iterations):
     """One motion per minimal sample: degeneracy test, Horn fit, Gauss-Newton polish, in one pass.

@@ -36,9 +36,18 @@ class ConsensusRefit:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
         if np.count_nonzero(inliers) < 3:
             return R, t, inliers, score, 0
-        R_new, t_new, _ = self.refiner.refine(ctx.problem, R, t, inliers, ctx.residual_model, ctx.threshold_sq)
-        new_score, new_inliers = ctx.score_and_inliers(R_new[None], t_new[None])
-        checks = ctx.problem.n * (self.refiner.rounds + 1)
-        if new_score[0] > score:
-            return R_new, t_new, new_inliers[0], float(new_score[0]), checks
+        R_new, t_new, _, residual_sq = self.refiner.refine_with_residuals(
+            ctx.problem, R, t, inliers, ctx.residual_model, ctx.threshold_sq
+        )
+        checks = ctx.problem.n * self.refiner.rounds
+        if residual_sq is not None and self.refiner.gate is None:
+            # the refit's last gate used the context's own model: its residuals score the refit
+            new_score = float(ctx.quality.score(residual_sq[None], ctx.threshold_sq)[0])
+            new_inliers = residual_sq < ctx.threshold_sq
+        else:
+            scores, masks = ctx.score_and_inliers(R_new[None], t_new[None])
+            new_score, new_inliers = float(scores[0]), masks[0]
+            checks += ctx.problem.n
+        if new_score > score:
+            return R_new, t_new, new_inliers, new_score, checks
         return R, t, inliers, score, checks

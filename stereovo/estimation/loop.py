@@ -215,9 +215,13 @@ def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.ran
         )
         return RansacReport(np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), -np.inf, f"failed: {reason}", **report)
     if c.refiner is not None and np.count_nonzero(best_inliers) >= 3:
-        best_R, best_t, best_inliers = c.refiner.refine(problem, best_R, best_t, best_inliers, c.residual_model, c.threshold_sq)
-        best_score = float(c.quality.score(ctx.residuals(best_R[None], best_t[None]), c.threshold_sq)[0])
-        checks += n
+        best_R, best_t, best_inliers, residual_sq = c.refiner.refine_with_residuals(
+            problem, best_R, best_t, best_inliers, c.residual_model, c.threshold_sq
+        )
+        if residual_sq is None or c.refiner.gate is not None:  # not in the loop's own model: score anew
+            residual_sq = ctx.residuals(best_R[None], best_t[None])[0]
+            checks += n
+        best_score = float(c.quality.score(residual_sq[None], c.threshold_sq)[0])
     if np.count_nonzero(best_inliers) < max(c.min_inliers, 3):
         return RansacReport(
             np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), best_score,

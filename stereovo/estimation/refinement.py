@@ -47,14 +47,31 @@ class ReprojectionRefiner:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return the refined ``(R, t)`` and its inlier mask ``(N,)`` under ``threshold_sq``
         (or under the refiner's own gate)."""
+        return self.refine_with_residuals(problem, R, t, inliers, residual_model, threshold_sq)[:3]
+
+    def refine_with_residuals(
+        self,
+        problem: StereoProblem,
+        R: np.ndarray,
+        t: np.ndarray,
+        inliers: np.ndarray,
+        residual_model: ResidualModel,
+        threshold_sq: float,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """:meth:`refine`, plus the squared residuals ``(N,)`` of the returned motion under the
+        model that selected its inliers (the refiner's gate if it has one), or None where the
+        motion is the one given and was not gated here. A caller that scores the result with the
+        same model reads them instead of computing them again."""
         n_inliers = int(np.count_nonzero(inliers))
+        residual_sq = None
         if self.gate is not None:
             residual_model, threshold_sq = self.gate
             # Start from the refiner's own gate: the caller's inliers were selected by another rule.
-            regated = residual_model.squared(problem, R[None], t[None])[0] < threshold_sq
+            regated_sq = residual_model.squared(problem, R[None], t[None])[0]
+            regated = regated_sq < threshold_sq
             n_regated = int(np.count_nonzero(regated))
             if n_regated >= n_inliers // 2:
-                inliers, n_inliers = regated, n_regated
+                inliers, n_inliers, residual_sq = regated, n_regated, regated_sq
         for _ in range(self.rounds):
             if n_inliers < 3:
                 break
@@ -71,13 +88,14 @@ class ReprojectionRefiner:
                 iterations=self.iterations,
                 huber=self.huber_px,
             )
-            new_inliers = residual_model.squared(problem, R_new, t_new)[0] < threshold_sq
+            new_sq = residual_model.squared(problem, R_new, t_new)[0]
+            new_inliers = new_sq < threshold_sq
             n_new = int(np.count_nonzero(new_inliers))
             if n_new < n_inliers // 2:
                 break  # refinement ran away from the consensus: keep what we had
-            R, t = R_new[0], t_new[0]
+            R, t, residual_sq = R_new[0], t_new[0], new_sq
             same = n_new == n_inliers and not np.any(new_inliers != inliers)
             inliers, n_inliers = new_inliers, n_new
             if same:
                 break
-        return R, t, inliers
+        return R, t, inliers, residual_sq

@@ -79,23 +79,11 @@ class WeightedSampler:
         self._cdf = np.cumsum(self._w)  # inclusive: mass of [0, i]
         self._before = np.concatenate([[0.0], self._cdf[:-1]])  # exclusive: mass of [0, i)
 
-    def _invert(self, mass: np.ndarray) -> np.ndarray:
-        """Smallest index whose inclusive cumulative weight exceeds ``mass``."""
-        return np.minimum(np.searchsorted(self._cdf, mass, side="right"), self.n - 1)
-
     def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
-        w, before, total = self._w, self._before, self._cdf[-1]
+        w = self._w
         u = rng.random((batch, SAMPLE_SIZE))
-        a = self._invert(u[:, 0] * total)
-        # Second draw without a: a position x in the remaining mass maps to x itself if it lies
-        # before a, and past a's interval otherwise.
-        x = u[:, 1] * (total - w[a])
-        b = self._invert(np.where(x < before[a], x, x + w[a]))
-        lo, hi = np.minimum(a, b), np.maximum(a, b)
-        x = u[:, 2] * (total - w[a] - w[b])
-        x = np.where(x < before[lo], x, x + w[lo])
-        c = self._invert(np.where(x < before[hi], x, x + w[hi]))
-        samples = np.stack([a, b, c], axis=1)
+        samples = kernels.weighted_triplets(u, w, self._cdf, self._before)
+        a, b, c = samples.T
         # Rounding at an interval's edge can land on a drawn or zero-weight index; redo those rows exactly.
         bad = (b == a) | (c == a) | (c == b) | (w[b] == 0) | (w[c] == 0) | (w[a] == 0)
         for row in np.flatnonzero(bad):
