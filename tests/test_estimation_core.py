@@ -633,3 +633,82 @@ def test_weighted_sampler_fix_up_path_draws_distinct_positive_indices():
         picked = sampler._draw_exactly(u)
         assert len(set(picked.tolist())) == 3 and set(picked.tolist()) <= {1, 2, 3}
     assert sampler._draw_exactly(np.array([0.0, 0.0, 0.0])).tolist() == [1, 2, 3]
+
+
+def test_compiled_weighted_draw_inverts_the_cut_cumulative_weights_like_searchsorted():
+    """The compiled draw against the same inversion written with numpy's searchsorted."""
+    from stereovo.estimation.kernels import weighted_triplets
+
+    rng = np.random.default_rng(2)
+    for trial in range(60):
+        n = int(rng.integers(3, 400))
+        priors = rng.random(n) if trial % 3 else np.exp(8.0 * rng.normal(size=n))
+        priors[rng.random(n) < 0.3 * (trial % 2)] = 0.0
+        priors[:3] += 1.0
+        w = priors / priors.sum()
+        cdf = np.cumsum(w)
+        before = np.concatenate([[0.0], cdf[:-1]])
+        total = cdf[-1]
+        u = rng.random((256, 3))
+
+        def invert(mass):
+            return np.minimum(np.searchsorted(cdf, mass, side="right"), n - 1)
+
+        a = invert(u[:, 0] * total)
+        x = u[:, 1] * (total - w[a])
+        b = invert(np.where(x < before[a], x, x + w[a]))
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        x = u[:, 2] * (total - w[a] - w[b])
+        x = np.where(x < before[lo], x, x + w[lo])
+        c = invert(np.where(x < before[hi], x, x + w[hi]))
+        np.testing.assert_array_equal(weighted_triplets(u, w, cdf, before), np.stack([a, b, c], axis=1))
+
+
+@pytest.mark.parametrize("gate", [None, "pixel"])
+def test_refinement_returns_the_residuals_that_selected_its_inliers(gate):
+    from stereovo.estimation.refinement import ReprojectionRefiner
+    from stereovo.estimation.scoring import PixelMahalanobisResidual, ReprojectionResidual
+    from stereovo.simulation import SimulationConfig, simulate_frame
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.4), np.random.default_rng(5))
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    model, threshold = ReprojectionResidual(), 9.0
+    refiner = ReprojectionRefiner(iterations=3, rounds=2)
+    if gate == "pixel":
+        refiner = ReprojectionRefiner(iterations=3, rounds=2, gate=(PixelMahalanobisResidual(), 13.28))
+        model_used, threshold_used = refiner.gate
+    else:
+        model_used, threshold_used = model, threshold
+    R0, t0 = frame.truth.rotation @ se3_exp(np.full(6, 3e-4))[0], frame.truth.translation + 0.002
+    start = model.squared(problem, R0[None], t0[None])[0] < threshold
+    R, t, inliers, residual_sq = refiner.refine_with_residuals(problem, R0, t0, start, model, threshold)
+    assert residual_sq is not None
+    np.testing.assert_array_equal(residual_sq, model_used.squared(problem, R[None], t[None])[0])
+    np.testing.assert_array_equal(inliers, residual_sq < threshold_used)
+    assert rotation_error(R, frame.truth.rotation) < rotation_error(R0, frame.truth.rotation)
+    plain = refiner.refine(problem, R0, t0, start, model, threshold)
+    for a, b in zip(plain, (R, t, inliers)):
+        np.testing.assert_array_equal(a, b)
+    # Too few inliers to refit: the motion comes back as given, with no residuals of it.
+    few = np.zeros(problem.n, dtype=bool)
+    few[:2] = True
+    R2, t2, _, none = ReprojectionRefiner(rounds=2).refine_with_residuals(problem, R0, t0, few, model, threshold)
+    assert none is None and np.array_equal(R2, R0) and np.array_equal(t2, t0)
+
+
+def test_local_refit_scores_its_result_as_a_fresh_scoring_would():
+    from stereovo.estimation.local_optimization import ConsensusRefit
+    from stereovo.estimation.scoring import ReprojectionResidual, TruncatedQuadratic
+    from stereovo.estimation.verification import ScoringContext
+    from stereovo.simulation import SimulationConfig, simulate_frame
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.4), np.random.default_rng(6))
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    ctx = ScoringContext(problem, ReprojectionResidual(), TruncatedQuadratic(), 9.0)
+    R0, t0 = frame.truth.rotation @ se3_exp(np.full(6, 3e-4))[0], frame.truth.translation + 0.002
+    score0, inliers0 = ctx.score_and_inliers(R0[None], t0[None])
+    R, t, inliers, score, checks = ConsensusRefit().improve(ctx, R0, t0, inliers0[0], float(score0[0]), None)
+    fresh_score, fresh_inliers = ctx.score_and_inliers(R[None], t[None])
+    assert score == float(fresh_score[0]) and score > score0[0]
+    np.testing.assert_array_equal(inliers, fresh_inliers[0])
+    assert checks == problem.n * ConsensusRefit().refiner.rounds

@@ -375,3 +375,34 @@ def test_longer_sequence_extends_a_shorter_one_with_the_same_seed() -> None:
     short, long = Sequence(SMALL, seed=13), Sequence(dataclasses.replace(SMALL, n_frames=12), seed=13)
     assert np.array_equal(long.true_poses[:7], short.true_poses)
     assert_frames_identical(long.frame(5), short.frame(5))
+
+
+@pytest.mark.parametrize(
+    "entropy",
+    [[2**62 + 5, 2**40, 2**33 + 7, 2**63 - 1], [3, 2**40, 2**50, 2**60], [2**40, 0, 2**50, 2**32 - 1], [2**32] * 4],
+)
+def test_frame_streams_are_the_spawned_seed_sequences_of_the_entropy(entropy):
+    """The shortcut through 32-bit words must give numpy's own streams, small ints included."""
+    from stereovo.simulation import _stream_generators
+
+    ours = _stream_generators(np.array(entropy, dtype=np.int64), 5)
+    reference = [np.random.default_rng(s) for s in np.random.SeedSequence(list(entropy)).spawn(5)]
+    for a, b in zip(ours, reference):
+        np.testing.assert_array_equal(a.integers(0, 2**62, 8), b.integers(0, 2**62, 8))
+
+
+def test_validity_mask_is_in_image_and_has_depth():
+    from stereovo.simulation import _valid
+
+    cam = StereoCamera()
+    rng = np.random.default_rng(0)
+    meas = np.column_stack([
+        rng.uniform(-5, cam.width + 5, 4000), rng.uniform(-5, cam.height + 5, 4000),
+        rng.uniform(-5, cam.width + 5, 4000), rng.uniform(-5, cam.height + 5, 4000),
+    ])
+    meas[:8] = [[0, 0, -1e-9, 0], [cam.width - 1, cam.height - 1, cam.width - 1 - cam.min_disparity, cam.height - 1],
+                [cam.width - 1, 0, 0, 0], [10, 5, 10 - cam.min_disparity - 1e-9, 5], [np.nan, 1, 0, 1],
+                [5, np.inf, 1, 1], [cam.width - 1 + 1e-9, 0, 3, 0], [7, 0, 3, cam.height - 1]]
+    expected = cam.in_image(meas) & cam.has_depth(meas)
+    np.testing.assert_array_equal(_valid(meas, cam), expected)
+    assert 0 < expected.sum() < len(expected)
