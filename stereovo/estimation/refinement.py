@@ -14,9 +14,27 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stereovo.estimation import kernels
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.reprojection import gauss_newton_steps
-from stereovo.estimation.scoring import ResidualModel
+from stereovo.estimation.scoring import (
+    MahalanobisResidual,
+    PixelMahalanobisResidual,
+    ReprojectionResidual,
+    ResidualModel,
+)
+
+# Gates whose residual kernel the compiled refinement loop calls itself (exactly these classes: a
+# subclass may compute its residuals otherwise, and takes the Python loop).
+_COMPILED_GATES = {
+    ReprojectionResidual: kernels.GATE_REPROJECTION,
+    MahalanobisResidual: kernels.GATE_MAHALANOBIS,
+    PixelMahalanobisResidual: kernels.GATE_PIXEL_MAHALANOBIS,
+}
+
+
+_DAMPING = 1e-6  # LM damping relative to the normal equations' diagonal
+_TOLERANCE = 1e-12  # a step below this (rad, m) ends a round's LM
 
 
 @dataclass(frozen=True)
@@ -62,6 +80,32 @@ class ReprojectionRefiner:
         model that selected its inliers (the refiner's gate if it has one), or None where the
         motion is the one given and was not gated here. A caller that scores the result with the
         same model reads them instead of computing them again."""
+        gate_model = residual_model if self.gate is None else self.gate[0]
+        code = _COMPILED_GATES.get(type(gate_model))
+        if code is not None:
+            # The same rounds in one compiled call: per round the Python loop below spends about as
+            # long on its bookkeeping as the kernels spend on a few hundred inliers.
+            R, t, inliers, residual_sq, computed = kernels.refine_rounds(
+                np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float),
+                problem.points_prev, problem.points_curr, problem.prev, problem.curr, problem.camera.parameters,
+                problem.cov_prev, problem.cov_curr, problem.noise_sigma**2, np.asarray(inliers, dtype=bool),
+                code, float(threshold_sq if self.gate is None else self.gate[1]), self.gate is not None,
+                int(self.rounds), int(self.iterations), 0.0 if self.huber_px is None else float(self.huber_px),
+                _DAMPING, _TOLERANCE,
+            )
+            return R, t, inliers, (residual_sq if computed else None)
+        return self._refine_in_python(problem, R, t, inliers, residual_model, threshold_sq)
+
+    def _refine_in_python(
+        self,
+        problem: StereoProblem,
+        R: np.ndarray,
+        t: np.ndarray,
+        inliers: np.ndarray,
+        residual_model: ResidualModel,
+        threshold_sq: float,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """:meth:`refine_with_residuals` for any residual model, one kernel call at a time."""
         n_inliers = int(np.count_nonzero(inliers))
         residual_sq = None
         if self.gate is not None:
@@ -86,7 +130,9 @@ class ReprojectionRefiner:
                 problem.curr,
                 weights=inliers.astype(float),
                 iterations=self.iterations,
+                damping=_DAMPING,
                 huber=self.huber_px,
+                tolerance=_TOLERANCE,
             )
             new_sq = residual_model.squared(problem, R_new, t_new)[0]
             new_inliers = new_sq < threshold_sq
