@@ -72,10 +72,17 @@ def test_features_from_a_prebuilt_problem_are_identical_and_checked(sequence):
     motion = (frame.truth.rotation, frame.truth.translation)
     args = (frame.prev, frame.curr, frame.scores, frame.camera, frame.noise_sigma, motion)
     problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
-    np.testing.assert_array_equal(compute_features(*args, problem=problem), compute_features(*args))
+    assert problem.prev is frame.prev  # the problem's own arrays: validated once, when it was built
+    expected = compute_features(*args)
+    np.testing.assert_array_equal(compute_features(*args, problem=problem), expected)
+    copies = (frame.prev.copy(), frame.curr.copy(), *args[2:])  # equal arrays, other objects: compared
+    np.testing.assert_array_equal(compute_features(*copies, problem=problem), expected)
     other = StereoProblem.build(frame.prev, frame.curr, frame.camera, 2 * frame.noise_sigma)
     with pytest.raises(ValueError, match="same prev, curr, camera and noise_sigma"):
         compute_features(*args, problem=other)
+    next_frame = sequence.frame(3)
+    with pytest.raises(ValueError, match="same prev, curr, camera and noise_sigma"):
+        compute_features(next_frame.prev, next_frame.curr, *args[2:], problem=problem)
 
 
 def test_shape_dtype_bounds(sequence):

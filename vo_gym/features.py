@@ -155,6 +155,7 @@ def rigid_consistency_degree(
     spread: np.ndarray,
     priority: np.ndarray | None = None,
     gate: float = _CONSISTENCY_GATE,
+    priority_order: np.ndarray | None = None,
 ) -> np.ndarray:
     """Fraction ``(N,)`` of other matches with which each match keeps its 3-D distance.
 
@@ -166,6 +167,7 @@ def rigid_consistency_degree(
             ``MAX_ANCHORS`` matches of highest priority (ties by row), None = evenly spaced rows.
         gate: pair (i, j) is consistent when the distance change is below
             ``gate * sqrt(spread_i^2 + spread_j^2)``.
+        priority_order: ``np.argsort(-priority, kind="stable")`` if the caller has it already.
     """
     n = points_prev.shape[0]
     if n < 2:
@@ -175,7 +177,8 @@ def rigid_consistency_degree(
     elif priority is None:
         anchors = np.linspace(0, n - 1, MAX_ANCHORS).round().astype(np.int64)
     else:
-        anchors = np.sort(np.argsort(-np.asarray(priority), kind="stable")[:MAX_ANCHORS])
+        order = np.argsort(-np.asarray(priority), kind="stable") if priority_order is None else priority_order
+        anchors = np.sort(order[:MAX_ANCHORS])
     s2 = np.square(np.asarray(spread, dtype=float)) * (gate * gate)
     count = _consistent_pairs(
         np.ascontiguousarray(points_prev, dtype=float), np.ascontiguousarray(points_curr, dtype=float),
@@ -240,8 +243,11 @@ def compute_features(
     """
     if not isinstance(camera, StereoCamera):
         raise ValueError(f"camera must be a StereoCamera, got {type(camera).__name__}")
-    prev = _measurements("prev", prev)
-    curr = _measurements("curr", curr)
+    # The problem's own arrays were validated when it was built (the environment's case).
+    own_arrays = problem is not None and prev is problem.prev and curr is problem.curr
+    if not own_arrays:
+        prev = _measurements("prev", prev)
+        curr = _measurements("curr", curr)
     n = prev.shape[0]
     if curr.shape[0] != n:
         raise ValueError(f"prev and curr must have the same number of rows, got {n} and {curr.shape[0]}")
@@ -258,7 +264,7 @@ def compute_features(
     if problem is not None:
         if not (
             problem.camera == camera and problem.noise_sigma == noise_sigma
-            and np.array_equal(problem.prev, prev) and np.array_equal(problem.curr, curr)
+            and (own_arrays or (np.array_equal(problem.prev, prev) and np.array_equal(problem.curr, curr)))
         ):
             raise ValueError("problem must be built from the same prev, curr, camera and noise_sigma")
         points_prev, points_curr = problem.points_prev, problem.points_curr
@@ -269,8 +275,9 @@ def compute_features(
         points_curr, cov_curr = camera.triangulate_with_covariance(curr, noise_sigma)
 
     out[:, 0] = scores
+    by_score = np.argsort(-scores, kind="stable")  # best first; also picks the consistency anchors
     rank = np.empty(n)
-    rank[np.argsort(-scores, kind="stable")] = np.arange(n)
+    rank[by_score] = np.arange(n)
     out[:, 1] = rank / max(n - 1, 1)
     u_scale, v_scale = 2.0 / max(camera.width - 1, 1), 2.0 / max(camera.height - 1, 1)
     for col, meas in ((2, prev), (5, curr)):
@@ -286,7 +293,11 @@ def compute_features(
         with np.errstate(over="ignore", invalid="ignore"):
             out[:, 11] = np.log1p(np.sqrt(sq / 4.0) / noise_sigma)
         out[:, 12] = 1.0
-    spread = np.sqrt(np.trace(cov_prev, axis1=1, axis2=2) + np.trace(cov_curr, axis1=1, axis2=2))
-    out[:, 13] = rigid_consistency_degree(points_prev, points_curr, spread, priority=scores)
+    # the traces, summed in np.trace's order without its dispatch
+    spread = np.sqrt(
+        (cov_prev[:, 0, 0] + cov_prev[:, 1, 1] + cov_prev[:, 2, 2])
+        + (cov_curr[:, 0, 0] + cov_curr[:, 1, 1] + cov_curr[:, 2, 2])
+    )
+    out[:, 13] = rigid_consistency_degree(points_prev, points_curr, spread, priority=scores, priority_order=by_score)
     np.clip(out, -FEATURE_BOUND, FEATURE_BOUND, out=out)
     return out
