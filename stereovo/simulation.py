@@ -408,8 +408,8 @@ def _stream_generators(entropy: np.ndarray, n_streams: int) -> list[np.random.Ge
     numpy coerces a list of ints into their little-endian 32-bit words in Python, which made
     seeding half of the simulator's fixed cost per frame; handing it those words as a uint32
     array gives the same seed sequences directly. The shortcut needs two words per int
-    (every int at least ``2**32``, all but one in 2**31 draws); otherwise the list goes the
-    usual way.
+    (every int at least ``2**32``: all but about one frame in 500 million); otherwise the
+    list goes the usual way.
     """
     if int(entropy.min()) < 2**32:
         return [np.random.default_rng(s) for s in np.random.SeedSequence(entropy.tolist()).spawn(n_streams)]
@@ -830,7 +830,7 @@ def _add_noise(
         out[bad] = noisy(meas[bad], rng.standard_normal((bad.size, 3)))
     bad = ~_valid(out, cam)
     if not _valid(meas[bad], cam).all():
-        raise AssertionError("a noise-free measurement left the image or lost its disparity")
+        raise RuntimeError("simulator bug: a noise-free measurement left the image or lost its disparity")
     out[bad] = meas[bad]  # vanishingly rare: keep the valid noise-free row
     return out
 

@@ -66,7 +66,7 @@ class WeightedSampler:
     The three indices are drawn one after another without replacement,
     renormalising each time, by inverting the cumulative weights with the points
     already drawn cut out: three uniforms and a few binary searches per sample,
-    vectorised over the batch. :meth:`log_probability` gives the log-probability of
+    in one compiled pass over the batch. :meth:`log_probability` gives the log-probability of
     the ordered draw, which the policy-gradient trainer differentiates.
     """
 
