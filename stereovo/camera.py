@@ -16,6 +16,22 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
+def _project_rows(X, fx, fy, cx, cy, minus_fx_baseline):
+    """:meth:`StereoCamera.project` of points ``(N, 3)``, in the same order of operations."""
+    n = X.shape[0]
+    out = np.empty((n, 4))
+    for i in range(n):
+        inv_z = 1.0 / X[i, 2]
+        uL = X[i, 0] * inv_z * fx + cx
+        v = X[i, 1] * inv_z * fy + cy
+        out[i, 0] = uL
+        out[i, 1] = v
+        out[i, 2] = inv_z * minus_fx_baseline + uL
+        out[i, 3] = v
+    return out
+
+
+@njit(cache=True, nogil=True)
 def _triangulate_rows(meas, fx, fy, cx, cy, baseline, min_disparity, sigma, with_covariance):
     """Points ``(M, 3)`` and, if ``with_covariance``, covariances ``(M, 3, 3)`` (else ``(0, 3, 3)``)
     of measurements ``meas (M, 4)``, and the first row without depth (-1 if none; the arrays are
@@ -99,6 +115,10 @@ class StereoCamera:
         Points must lie in front of the camera (z > 0); use :meth:`is_visible` first.
         """
         X = np.asarray(points, dtype=float)
+        if X.ndim == 2 and X.shape[1] == 3:  # the common case, compiled (numpy's calls cost more than the work)
+            return _project_rows(
+                X, float(self.fx), float(self.fy), float(self.cx), float(self.cy), float(-self.fx * self.baseline)
+            )
         inv_z = 1.0 / X[..., 2]
         out = np.empty(X.shape[:-1] + (4,))
         np.multiply(X[..., 0], inv_z, out=out[..., 0])

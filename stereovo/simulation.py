@@ -479,21 +479,22 @@ def _see_point(p0, p1, p2, to_prev, to_curr, cam, z_min, z_max, X_prev, X_curr, 
 
 @njit(cache=True, nogil=True)
 def _seen_by_both(points, to_prev, to_curr, cam, z_min, z_max):
-    """Points ``(n, 3)`` mapped by the rigid transforms ``to_prev``, ``to_curr`` (4x4) into cameras
-    k-1 and k, and the mask of those visible in both (see :func:`_see_point`)."""
+    """The points ``(n, 3)`` visible in both cameras (see :func:`_see_point`), mapped by the rigid
+    transforms ``to_prev``, ``to_curr`` (4x4) into cameras k-1 and k: ``X_prev, X_curr (m, 3)``,
+    in their order."""
     n = points.shape[0]
     X_prev = np.empty((n, 3))
     X_curr = np.empty((n, 3))
-    ok = np.empty(n, dtype=np.bool_)
+    kept = 0
     for i in range(n):
-        ok[i] = _see_point(points[i, 0], points[i, 1], points[i, 2], to_prev, to_curr, cam, z_min, z_max, X_prev, X_curr, i)
-    return X_prev, X_curr, ok
+        kept += _see_point(points[i, 0], points[i, 1], points[i, 2], to_prev, to_curr, cam, z_min, z_max, X_prev, X_curr, kept)
+    return X_prev[:kept], X_curr[:kept]
 
 
 @njit(cache=True, nogil=True)
 def _street_candidates(u, g, walls, frustum, z_min, z_max, to_prev, to_curr, cam):
     """Street landmarks from uniforms ``u (7, n)`` and normals ``g (2, n)``, seen through the
-    cameras: ``X_prev, X_curr (n, 3)`` and the mask of those drawn and visible in both.
+    cameras: ``X_prev, X_curr (m, 3)`` of the candidates drawn and visible in both, in their order.
 
     ``walls`` is ``(left, right, height_left, height_right)`` (m), ``frustum`` the tangent bounds
     ``(left, right, top, bottom)``. A candidate is on the ground, a facade or clutter with the
@@ -510,7 +511,7 @@ def _street_candidates(u, g, walls, frustum, z_min, z_max, to_prev, to_curr, cam
     total = _STREET_PARTS[0] + _STREET_PARTS[1] + _STREET_PARTS[2]
     X_prev = np.empty((n, 3))
     X_curr = np.empty((n, 3))
-    ok = np.empty(n, dtype=np.bool_)
+    kept = 0  # rows written so far: a candidate is written at row `kept` and kept if it counts
     for i in range(n):
         z = z_min * math.exp(u[0, i] * log_range)
         x_lo, x_hi = max(frustum[0] * z, -left_wall), min(frustum[1] * z, right_wall)
@@ -532,9 +533,10 @@ def _street_candidates(u, g, walls, frustum, z_min, z_max, to_prev, to_curr, cam
             drawn = cx_hi >= cx_lo and h >= cy_lo
             x = cx_lo + (cx_hi - cx_lo) * u[5, i]
             y = cy_lo + (h - cy_lo) * u[6, i]
-        seen = _see_point(x, y, z, to_prev, to_curr, cam, z_min, z_max, X_prev, X_curr, i)
-        ok[i] = drawn and seen
-    return X_prev, X_curr, ok
+        seen = _see_point(x, y, z, to_prev, to_curr, cam, z_min, z_max, X_prev, X_curr, kept)
+        if drawn and seen:
+            kept += 1
+    return X_prev[:kept], X_curr[:kept]
 
 
 @njit(cache=True, nogil=True)
@@ -601,9 +603,9 @@ class _StreetLayout:
     def sample_visible(
         self, rng: np.random.Generator, n: int, cam: StereoCamera, z_min: float, z_max: float,
         to_prev: np.ndarray, to_curr: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``n`` candidates seen through the 4x4 ``to_prev``, ``to_curr``: ``X_prev, X_curr (n, 3)``
-        (m) and the mask of those drawn and visible in both cameras (see :func:`_street_candidates`)."""
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Of ``n`` candidates, those drawn and visible in both cameras, seen through the 4x4
+        ``to_prev``, ``to_curr``: ``X_prev, X_curr (m, 3)`` (m; see :func:`_street_candidates`)."""
         u = rng.random((7, n))
         g = rng.standard_normal((2, n))
         return _street_candidates(
@@ -641,14 +643,14 @@ def _visible_landmarks(
             break
         batch = min(_MAX_BATCH_SIZE, int(1.3 * (n - count) / acceptance) + 32)
         if layout is not None:
-            X_prev, X_curr, ok = layout.sample_visible(rng, batch, cam, config.z_min, config.z_max, to_prev, to_curr)
+            X_prev, X_curr = layout.sample_visible(rng, batch, cam, config.z_min, config.z_max, to_prev, to_curr)
         else:
             local = _sample_open(rng, batch, cam, config.z_min, config.z_max)
-            X_prev, X_curr, ok = _seen_by_both(local, to_prev, to_curr, cam_vector, config.z_min, config.z_max)
-        kept_prev.append(X_prev[ok])
-        kept_curr.append(X_curr[ok])
-        count += int(ok.sum())
-        acceptance = max(ok.sum() / batch, 1e-3)
+            X_prev, X_curr = _seen_by_both(local, to_prev, to_curr, cam_vector, config.z_min, config.z_max)
+        kept_prev.append(X_prev)
+        kept_curr.append(X_curr)
+        count += len(X_prev)
+        acceptance = max(len(X_prev) / batch, 1e-3)
     if count < n:
         raise RuntimeError(
             f"found only {count} of {n} landmarks visible in both frames; the camera and depth range "
@@ -807,6 +809,19 @@ def _moving_object(
     )
 
 
+@njit(cache=True, nogil=True)
+def _noisy_rows(meas, z, sigma):
+    """``meas (N, 4) + sigma * z[:, (0, 1, 2, 1)]``: the ``v`` noise shared by both images."""
+    n = meas.shape[0]
+    out = np.empty((n, 4))
+    for i in range(n):
+        out[i, 0] = meas[i, 0] + sigma * z[i, 0]
+        out[i, 1] = meas[i, 1] + sigma * z[i, 1]
+        out[i, 2] = meas[i, 2] + sigma * z[i, 2]
+        out[i, 3] = meas[i, 3] + sigma * z[i, 1]
+    return out
+
+
 def _add_noise(
     meas: np.ndarray, normal: np.ndarray, config: SimulationConfig, rng: np.random.Generator
 ) -> np.ndarray:
@@ -820,7 +835,7 @@ def _add_noise(
     sigma, cam = config.noise_sigma, config.camera
 
     def noisy(rows: np.ndarray, z: np.ndarray) -> np.ndarray:
-        return rows + sigma * z[:, [0, 1, 2, 1]]
+        return _noisy_rows(np.ascontiguousarray(rows, dtype=float), np.ascontiguousarray(z, dtype=float), float(sigma))
 
     out = noisy(meas, normal)
     for _ in range(_MAX_REDRAWS):

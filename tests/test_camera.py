@@ -84,3 +84,13 @@ def test_visibility(camera):
 def test_invalid_camera_names_the_field(field, value):
     with pytest.raises(ValueError, match=field):
         StereoCamera(**{field: value})
+
+
+def test_compiled_projection_of_point_rows_equals_the_array_expression():
+    """(N, 3) inputs take a compiled path; other shapes the numpy one: both must agree bit for bit."""
+    cam = StereoCamera()
+    rng = np.random.default_rng(4)
+    X = np.column_stack([rng.uniform(-20, 20, 1000), rng.uniform(-5, 5, 1000), rng.uniform(0.5, 80, 1000)])
+    np.testing.assert_array_equal(cam.project(X), cam.project(X[None])[0])
+    np.testing.assert_array_equal(cam.project(X[::2]), cam.project(X[None, ::2])[0])  # strided rows too
+    np.testing.assert_array_equal(cam.project(X[:1]), cam.project(X[0])[None])
