@@ -16,10 +16,12 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def _project_rows(X, fx, fy, cx, cy, minus_fx_baseline):
-    """:meth:`StereoCamera.project` of points ``(N, 3)``, in the same order of operations."""
+def _project_rows(X, fx, fy, cx, cy, minus_fx_baseline, out):
+    """:meth:`StereoCamera.project` of points ``(N, 3)`` into ``out (N, 4)``, in the same order of
+    operations. (The caller allocates ``out``: an array numba allocates carries a dtype object
+    equal to, but not the same as, numpy's own float64, and ``np.asarray(a, dtype=float)`` then
+    returns a view instead of ``a``.)"""
     n = X.shape[0]
-    out = np.empty((n, 4))
     for i in range(n):
         inv_z = 1.0 / X[i, 2]
         uL = X[i, 0] * inv_z * fx + cx
@@ -28,7 +30,6 @@ def _project_rows(X, fx, fy, cx, cy, minus_fx_baseline):
         out[i, 1] = v
         out[i, 2] = inv_z * minus_fx_baseline + uL
         out[i, 3] = v
-    return out
 
 
 @njit(cache=True, nogil=True)
@@ -116,9 +117,11 @@ class StereoCamera:
         """
         X = np.asarray(points, dtype=float)
         if X.ndim == 2 and X.shape[1] == 3:  # the common case, compiled (numpy's calls cost more than the work)
-            return _project_rows(
-                X, float(self.fx), float(self.fy), float(self.cx), float(self.cy), float(-self.fx * self.baseline)
+            out = np.empty((X.shape[0], 4))
+            _project_rows(
+                X, float(self.fx), float(self.fy), float(self.cx), float(self.cy), float(-self.fx * self.baseline), out
             )
+            return out
         inv_z = 1.0 / X[..., 2]
         out = np.empty(X.shape[:-1] + (4,))
         np.multiply(X[..., 0], inv_z, out=out[..., 0])

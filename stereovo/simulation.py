@@ -810,16 +810,15 @@ def _moving_object(
 
 
 @njit(cache=True, nogil=True)
-def _noisy_rows(meas, z, sigma):
-    """``meas (N, 4) + sigma * z[:, (0, 1, 2, 1)]``: the ``v`` noise shared by both images."""
+def _noisy_rows(meas, z, sigma, out):
+    """``out (N, 4) = meas + sigma * z[:, (0, 1, 2, 1)]``: the ``v`` noise shared by both images.
+    (``out`` comes from numpy: see :func:`stereovo.camera._project_rows`.)"""
     n = meas.shape[0]
-    out = np.empty((n, 4))
     for i in range(n):
         out[i, 0] = meas[i, 0] + sigma * z[i, 0]
         out[i, 1] = meas[i, 1] + sigma * z[i, 1]
         out[i, 2] = meas[i, 2] + sigma * z[i, 2]
         out[i, 3] = meas[i, 3] + sigma * z[i, 1]
-    return out
 
 
 def _add_noise(
@@ -835,7 +834,9 @@ def _add_noise(
     sigma, cam = config.noise_sigma, config.camera
 
     def noisy(rows: np.ndarray, z: np.ndarray) -> np.ndarray:
-        return _noisy_rows(np.ascontiguousarray(rows, dtype=float), np.ascontiguousarray(z, dtype=float), float(sigma))
+        out = np.empty((rows.shape[0], 4))
+        _noisy_rows(np.ascontiguousarray(rows, dtype=float), np.ascontiguousarray(z, dtype=float), float(sigma), out)
+        return out
 
     out = noisy(meas, normal)
     for _ in range(_MAX_REDRAWS):
