@@ -7,8 +7,10 @@ time. Each kernel here walks the hypotheses and points once, keeps a point's
 residual and Jacobian in registers and accumulates what the caller needs (the
 normal equations, a cost, one squared residual). The Python wrappers in
 :mod:`stereovo.estimation.reprojection`, :mod:`stereovo.estimation.scoring`,
-:mod:`stereovo.estimation.solvers` and :mod:`stereovo.estimation.samplers` keep the shapes and documentation; nothing
-outside them calls this module.
+:mod:`stereovo.estimation.solvers`, :mod:`stereovo.estimation.samplers`,
+:mod:`stereovo.estimation.refinement` (whose refine / re-gate rounds run here in one call,
+:func:`refine_rounds`) and :mod:`stereovo.estimation.sample_check` keep the shapes and
+documentation; nothing outside them calls this module.
 
 Conventions (as in :mod:`stereovo.estimation.reprojection`): a motion maps
 ``x_k = R x_{k-1} + t``; the perturbation is ``T <- exp(delta^) T`` with
