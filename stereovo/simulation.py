@@ -541,10 +541,10 @@ def _street_candidates(u, g, walls, frustum, z_min, z_max, to_prev, to_curr, cam
 
 @njit(cache=True, nogil=True)
 def _object_candidates(u, half, face_cdf, orientation, centre, to_prev, to_curr_moved, to_curr_static, cam, z_min, z_max, tau):
-    """Points on the faces of a box, from uniforms ``u (n, 5)``: ``X_prev, X_curr (n, 3)`` in the
-    cameras and the mask of those that both cameras see, on a face turned towards camera k-1,
-    whose frame-k image lies at least ``tau`` px (over uL, v, uR) from where a static point
-    would be (or that would be behind camera k if static).
+    """Points on the faces of a box, from uniforms ``u (n, 5)``, that both cameras see on a face
+    turned towards camera k-1 and whose frame-k image lies at least ``tau`` px (over uL, v, uR)
+    from where a static point would be (or that would be behind camera k if static): their
+    ``X_prev, X_curr (m, 3)`` in the cameras, in their order.
 
     Columns of ``u``: the position along the three box axes, the face (area-weighted through
     ``face_cdf``), its side. ``half (3,)`` are the box's half sizes, ``orientation (3, 3)`` and
@@ -554,7 +554,7 @@ def _object_candidates(u, half, face_cdf, orientation, centre, to_prev, to_curr_
     fx, fy, cx, cy, b = cam[0], cam[1], cam[2], cam[3], cam[4]
     X_prev = np.empty((n, 3))
     X_curr = np.empty((n, 3))
-    ok = np.empty(n, dtype=np.bool_)
+    kept = 0  # as in _street_candidates: a candidate is written at row `kept`, kept if it counts
     local = np.empty(3)
     p = np.empty(3)
     for i in range(n):
@@ -570,22 +570,22 @@ def _object_candidates(u, half, face_cdf, orientation, centre, to_prev, to_curr_
             p[r] = orientation[r, 0] * local[0] + orientation[r, 1] * local[1] + orientation[r, 2] * local[2] + centre[r]
         for r in range(3):
             facing += sign * orientation[r, axis] * p[r]  # outward normal . ray from camera k-1
-        seen = _see_point(p[0], p[1], p[2], to_prev, to_curr_moved, cam, z_min, z_max, X_prev, X_curr, i)
+        seen = _see_point(p[0], p[1], p[2], to_prev, to_curr_moved, cam, z_min, z_max, X_prev, X_curr, kept)
         if not (seen and facing < 0.0):
-            ok[i] = False
             continue
         s0 = to_curr_static[0, 0] * p[0] + to_curr_static[0, 1] * p[1] + to_curr_static[0, 2] * p[2] + to_curr_static[0, 3]
         s1 = to_curr_static[1, 0] * p[0] + to_curr_static[1, 1] * p[1] + to_curr_static[1, 2] * p[2] + to_curr_static[1, 3]
         s2 = to_curr_static[2, 0] * p[0] + to_curr_static[2, 1] * p[1] + to_curr_static[2, 2] * p[2] + to_curr_static[2, 3]
         if s2 <= 1e-6:
-            ok[i] = True  # a static point there would be behind camera k: the motion shows
+            kept += 1  # a static point there would be behind camera k: the motion shows
             continue
-        zc = X_curr[i, 2]
-        du = fx * (X_curr[i, 0] / zc - s0 / s2)
-        dv = fy * (X_curr[i, 1] / zc - s1 / s2)
+        zc = X_curr[kept, 2]
+        du = fx * (X_curr[kept, 0] / zc - s0 / s2)
+        dv = fy * (X_curr[kept, 1] / zc - s1 / s2)
         dd = fx * b * (1.0 / zc - 1.0 / s2)  # uR = uL - fx b / z
-        ok[i] = math.sqrt(du * du + dv * dv + (du - dd) * (du - dd)) >= tau
-    return X_prev, X_curr, ok
+        if math.sqrt(du * du + dv * dv + (du - dd) * (du - dd)) >= tau:
+            kept += 1
+    return X_prev[:kept], X_curr[:kept]
 
 
 def _camera_vector(cam: StereoCamera) -> np.ndarray:
@@ -785,11 +785,10 @@ def _moving_object(
         to_curr_moved = to_curr_static @ obj
 
         def draw(size: int) -> tuple[np.ndarray, np.ndarray]:
-            X_prev, X_curr, ok = _object_candidates(
+            return _object_candidates(
                 rng.random((size, 5)), half, face_cdf, orientation, centre, to_prev, to_curr_moved,
                 to_curr_static, cam_vector, config.z_min, config.z_max, tau,
             )
-            return X_prev[ok], X_curr[ok]
 
         probe = max(64, 2 * n)
         X_prev, X_curr = draw(probe)

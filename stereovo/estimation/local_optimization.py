@@ -40,8 +40,7 @@ class ConsensusRefit:
             ctx.problem, R, t, inliers, ctx.residual_model, ctx.threshold_sq
         )
         checks = ctx.problem.n * self.refiner.rounds
-        if residual_sq is not None and self.refiner.gate is None:
-            # the refit's last gate used the context's own model: its residuals score the refit
+        if residual_sq is not None:  # the refit's last gate residuals, in the context's model
             new_score = float(ctx.quality.score(residual_sq[None], ctx.threshold_sq)[0])
             new_inliers = residual_sq < ctx.threshold_sq
         else:

@@ -218,7 +218,7 @@ def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.ran
         best_R, best_t, best_inliers, residual_sq = c.refiner.refine_with_residuals(
             problem, best_R, best_t, best_inliers, c.residual_model, c.threshold_sq
         )
-        if residual_sq is None or c.refiner.gate is not None:  # not in the loop's own model: score anew
+        if residual_sq is None:  # not computed in the loop's own model: score anew
             residual_sq = ctx.residuals(best_R[None], best_t[None])[0]
             checks += n
         best_score = float(c.quality.score(residual_sq[None], c.threshold_sq)[0])

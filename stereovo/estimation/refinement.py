@@ -77,24 +77,38 @@ class ReprojectionRefiner:
         threshold_sq: float,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """:meth:`refine`, plus the squared residuals ``(N,)`` of the returned motion under the
-        model that selected its inliers (the refiner's gate if it has one), or None where the
-        motion is the one given and was not gated here. A caller that scores the result with the
-        same model reads them instead of computing them again."""
+        caller's ``residual_model``, or None where they were not computed here (the motion is the
+        one given, or the refiner's own gate selected the inliers). A caller that scores the
+        result with that model reads them instead of computing them again."""
         gate_model = residual_model if self.gate is None else self.gate[0]
-        code = _COMPILED_GATES.get(type(gate_model))
-        if code is not None:
-            # The same rounds in one compiled call: per round the Python loop below spends about as
-            # long on its bookkeeping as the kernels spend on a few hundred inliers.
-            R, t, inliers, residual_sq, computed = kernels.refine_rounds(
-                np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float),
-                problem.points_prev, problem.points_curr, problem.prev, problem.curr, problem.camera.parameters,
-                problem.cov_prev, problem.cov_curr, problem.noise_sigma**2, np.asarray(inliers, dtype=bool),
-                code, float(threshold_sq if self.gate is None else self.gate[1]), self.gate is not None,
-                int(self.rounds), int(self.iterations), 0.0 if self.huber_px is None else float(self.huber_px),
-                _DAMPING, _TOLERANCE,
-            )
-            return R, t, inliers, (residual_sq if computed else None)
-        return self._refine_in_python(problem, R, t, inliers, residual_model, threshold_sq)
+        if type(gate_model) in _COMPILED_GATES:
+            R, t, inliers, residual_sq = self._refine_compiled(problem, R, t, inliers, residual_model, threshold_sq)
+        else:
+            R, t, inliers, residual_sq = self._refine_in_python(problem, R, t, inliers, residual_model, threshold_sq)
+        return R, t, inliers, (residual_sq if self.gate is None else None)
+
+    def _refine_compiled(
+        self,
+        problem: StereoProblem,
+        R: np.ndarray,
+        t: np.ndarray,
+        inliers: np.ndarray,
+        residual_model: ResidualModel,
+        threshold_sq: float,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """The rounds in one compiled call, for a gate with a residual kernel: per round the
+        Python loop spends about as long on its bookkeeping as the kernels spend on a few hundred
+        inliers. Residuals are the gate's, as in :meth:`_refine_in_python`."""
+        gate_model, gate_threshold_sq = (residual_model, threshold_sq) if self.gate is None else self.gate
+        R, t, inliers, residual_sq, computed = kernels.refine_rounds(
+            np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float),
+            problem.points_prev, problem.points_curr, problem.prev, problem.curr, problem.camera.parameters,
+            problem.cov_prev, problem.cov_curr, problem.noise_sigma**2, np.asarray(inliers, dtype=bool),
+            _COMPILED_GATES[type(gate_model)], float(gate_threshold_sq), self.gate is not None,
+            int(self.rounds), int(self.iterations), 0.0 if self.huber_px is None else float(self.huber_px),
+            _DAMPING, _TOLERANCE,
+        )
+        return R, t, inliers, (residual_sq if computed else None)
 
     def _refine_in_python(
         self,
@@ -105,7 +119,8 @@ class ReprojectionRefiner:
         residual_model: ResidualModel,
         threshold_sq: float,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
-        """:meth:`refine_with_residuals` for any residual model, one kernel call at a time."""
+        """The rounds for any residual model, one kernel call at a time; the residuals returned
+        are those of the model that selected the inliers (the gate's, if the refiner has one)."""
         n_inliers = int(np.count_nonzero(inliers))
         residual_sq = None
         if self.gate is not None:
