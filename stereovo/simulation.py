@@ -55,10 +55,10 @@ from .geometry import (
     make_transform,
     pose_update,
     random_rotation,
-    relative_motion,
     se3_exp,
     so3_exp,
 )
+from .seeding import seeded_generators
 
 __all__ = [
     "OutlierKind",
@@ -403,18 +403,8 @@ def _apportion(total: int, weights: tuple[float, ...]) -> tuple[int, ...]:
 
 def _stream_generators(entropy: np.ndarray, n_streams: int) -> list[np.random.Generator]:
     """Generators of ``np.random.SeedSequence(entropy.tolist()).spawn(n_streams)``, ``entropy``
-    four non-negative int64 draws.
-
-    numpy coerces a list of ints into their little-endian 32-bit words in Python, which made
-    seeding half of the simulator's fixed cost per frame; handing it those words as a uint32
-    array gives the same seed sequences directly. The shortcut needs two words per int
-    (every int at least ``2**32``: all but about one frame in 500 million); otherwise the
-    list goes the usual way.
-    """
-    if int(entropy.min()) < 2**32:
-        return [np.random.default_rng(s) for s in np.random.SeedSequence(entropy.tolist()).spawn(n_streams)]
-    words = entropy.astype("<u8").view("<u4")
-    return [np.random.default_rng(np.random.SeedSequence(words, spawn_key=(i,))) for i in range(n_streams)]
+    four non-negative int64 draws (numpy's seeding, computed by :mod:`stereovo.seeding`)."""
+    return seeded_generators(entropy.tolist(), [(i,) for i in range(n_streams)])
 
 
 def _loguniform(rng: np.random.Generator, low: float, high: float, size: int) -> np.ndarray:
@@ -551,7 +541,7 @@ def _object_candidates(u, half, face_cdf, orientation, centre, to_prev, to_curr_
     ``centre (3,)`` its pose in camera k-1; ``to_curr_moved`` sees the box after its own motion.
     """
     n = u.shape[0]
-    fx, fy, cx, cy, b = cam[0], cam[1], cam[2], cam[3], cam[4]
+    fx, fy, b = cam[0], cam[1], cam[4]
     X_prev = np.empty((n, 3))
     X_curr = np.empty((n, 3))
     kept = 0  # as in _street_candidates: a candidate is written at row `kept`, kept if it counts
@@ -623,20 +613,17 @@ def _sample_open(rng: np.random.Generator, n: int, cam: StereoCamera, z_min: flo
 
 
 def _visible_landmarks(
-    n: int,
-    config: SimulationConfig,
-    pose_prev: np.ndarray,
-    world_to_prev: np.ndarray,
-    world_to_curr: np.ndarray,
-    rng: np.random.Generator,
+    n: int, config: SimulationConfig, to_prev: np.ndarray, to_curr: np.ndarray, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``n`` landmarks seen by both stereo pairs: their camera-frame points ``(n, 3)`` at k-1 and k."""
+    """``n`` landmarks seen by both stereo pairs: their camera-frame points ``(n, 3)`` at k-1 and k.
+
+    Landmarks live in world coordinates, drawn in camera k-1's frame; the 4x4 ``to_prev``,
+    ``to_curr`` (world-to-camera @ camera-k-1-to-world) take them to the two cameras.
+    """
     cam, world = config.camera, config.resolved_world
     layout = _StreetLayout(rng) if world == "street" else None
     acceptance = _ACCEPTANCE_GUESS[world]
     cam_vector = _camera_vector(cam)
-    # Landmarks live in world coordinates; the cameras see them through their poses.
-    to_prev, to_curr = world_to_prev @ pose_prev, world_to_curr @ pose_prev
     kept_prev, kept_curr, count = [], [], 0
     for _ in range(_MAX_BATCHES):
         if count >= n:
@@ -727,12 +714,7 @@ def _stereo_mismatches(meas: np.ndarray, config: SimulationConfig, rng: np.rando
 
 
 def _moving_object(
-    n: int,
-    config: SimulationConfig,
-    pose_prev: np.ndarray,
-    world_to_prev: np.ndarray,
-    world_to_curr: np.ndarray,
-    rng: np.random.Generator,
+    n: int, config: SimulationConfig, to_prev: np.ndarray, to_curr_static: np.ndarray, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray]:
     """Camera-frame points ``(n, 3)`` at k-1 and k of one rigid box moving on its own.
 
@@ -777,11 +759,9 @@ def _moving_object(
         areas = np.array([half[1] * half[2], half[0] * half[2], half[0] * half[1]])
         face_cdf = np.cumsum(areas)
         face_cdf /= face_cdf[-1]
-        # Object points live in camera k-1 coordinates: the cameras see them through these transforms.
+        # Object points live in camera k-1 coordinates; at k the object has moved by obj first.
         obj = np.eye(4)
         obj[:3, :3], obj[:3, 3] = obj_R, obj_t
-        to_prev = world_to_prev @ pose_prev
-        to_curr_static = world_to_curr @ pose_prev
         to_curr_moved = to_curr_static @ obj
 
         def draw(size: int) -> tuple[np.ndarray, np.ndarray]:
@@ -865,14 +845,17 @@ def _simulate_pair(
     n_in = N - n_out
     n_random, n_stereo, n_moving = _apportion(n_out, config.outlier_mix)
 
-    rotation, translation = relative_motion(pose_prev, pose_curr)
-    world_to_prev, world_to_curr = invert_transform(pose_prev), invert_transform(pose_curr)
+    # World-to-camera @ camera-k-1-to-world: how cameras k-1 and k see points given in camera k-1's
+    # frame. The second is the relative motion itself (geometry.relative_motion's product).
+    to_prev = invert_transform(pose_prev) @ pose_prev
+    to_curr = invert_transform(pose_curr) @ pose_prev
+    rotation, translation = to_curr[:3, :3].copy(), to_curr[:3, 3].copy()
 
     # Two spare landmarks guarantee that a random mismatch always has another landmark to borrow.
     n_pool = n_in + n_random + n_stereo
-    X_prev, X_curr = _visible_landmarks(n_pool + 2, config, pose_prev, world_to_prev, world_to_curr, landmark_rng)
+    X_prev, X_curr = _visible_landmarks(n_pool + 2, config, to_prev, to_curr, landmark_rng)
     meas_prev, meas_curr = cam.project(X_prev), cam.project(X_curr)
-    O_prev, O_curr = _moving_object(n_moving, config, pose_prev, world_to_prev, world_to_curr, outlier_rng)
+    O_prev, O_curr = _moving_object(n_moving, config, to_prev, to_curr, outlier_rng)
 
     random_rows = np.arange(n_in, n_in + n_random)
     stereo_rows = np.arange(n_in + n_random, n_pool)
@@ -971,7 +954,7 @@ class Sequence:
         self.config = config
         self.seed = seed
         self._root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
-        twists = config.motion.sample_twists(np.random.default_rng(self._child(0)), config.n_frames)
+        twists = config.motion.sample_twists(self._child_rng(0), config.n_frames)
         rotations, translations = se3_exp(-twists)
         poses = np.empty((config.n_frames + 1, 4, 4))
         poses[0] = np.eye(4)
@@ -985,11 +968,11 @@ class Sequence:
         """The root SeedSequence; its entropy reproduces a sequence made with ``seed=None``."""
         return self._root
 
-    def _child(self, k: int) -> np.random.SeedSequence:
+    def _child_rng(self, k: int) -> np.random.Generator:
+        """The generator of ``SeedSequence(root.entropy, spawn_key=(*root.spawn_key, namespace, k))``."""
         root = self._root
-        return np.random.SeedSequence(
-            root.entropy, spawn_key=(*root.spawn_key, _SEQUENCE_NAMESPACE, k), pool_size=root.pool_size
-        )
+        return seeded_generators(root.entropy, [(*root.spawn_key, _SEQUENCE_NAMESPACE, k)], root.pool_size)[0]
+
 
     def __len__(self) -> int:
         return self.config.n_frames
@@ -1007,7 +990,7 @@ class Sequence:
         if not _is_int(k) or not 1 <= k <= self.config.n_frames:
             raise IndexError(f"frame index must be an integer in [1, {self.config.n_frames}], got {k!r}")
         k = int(k)
-        rng = np.random.default_rng(self._child(k))
+        rng = self._child_rng(k)
         return _simulate_pair(self.config, self.true_poses[k - 1], self.true_poses[k], k, rng)
 
     def __repr__(self) -> str:

@@ -11,7 +11,6 @@ from stereovo import StereoCamera, available_methods, estimate_motion
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.samplers import (
     ProsacSampler,
-    UniformSampler,
     WeightedSampler,
     distinct_uniform_triplets,
     prosac_growth,

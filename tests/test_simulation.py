@@ -391,6 +391,44 @@ def test_frame_streams_are_the_spawned_seed_sequences_of_the_entropy(entropy):
         np.testing.assert_array_equal(a.integers(0, 2**62, 8), b.integers(0, 2**62, 8))
 
 
+@pytest.mark.parametrize(
+    "entropy",
+    [0, 7, 2**32, 2**100 + 5, 2**127 + 3, np.int64(12345), [3, 2**40, 0], [2**62 + 5, 2**40, 2**33 + 7, 2**63 - 1]],
+)
+@pytest.mark.parametrize("pool_size", [4, 8])
+def test_seeded_generators_are_numpys_seed_sequence_generators(entropy, pool_size):
+    """The compiled hash must give numpy's own PCG64 states, for every entropy and spawn key shape."""
+    from stereovo.seeding import seeded_generators
+
+    keys = [(), (0,), (5,), (2**40 + 1, 7), (1, 2, 3, 4, 5), (0x9E3779B9, 2**64 + 9, 0)]
+    ours = seeded_generators(entropy, keys, pool_size)
+    reference = [np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=k, pool_size=pool_size)) for k in keys]
+    for a, b in zip(ours, reference):
+        assert a.bit_generator.state == b.bit_generator.state
+        np.testing.assert_array_equal(a.random(4), b.random(4))
+
+
+def test_seeded_generators_leave_other_entropy_to_numpy():
+    from stereovo.seeding import seeded_generators
+
+    words = np.array([1, 2, 3], dtype=np.uint32)  # an array entropy: numpy's SeedSequence path
+    (ours,) = seeded_generators(words, [(4,)])
+    assert ours.bit_generator.state == np.random.default_rng(np.random.SeedSequence(words, spawn_key=(4,))).bit_generator.state
+    with pytest.raises(ValueError):
+        seeded_generators(-1, [(0,)])  # numpy's own error for negative entropy
+
+
+def test_sequence_frames_use_the_documented_child_seed_sequence():
+    """Frame k's generator is SeedSequence(root entropy, spawn_key=(..., namespace, k)), numpy's hashing."""
+    from stereovo.simulation import _SEQUENCE_NAMESPACE, _simulate_pair
+
+    config = SimulationConfig(n_correspondences=60, n_frames=3)
+    seq = Sequence(config, seed=2**90 + 17)
+    child = np.random.SeedSequence(2**90 + 17, spawn_key=(_SEQUENCE_NAMESPACE, 2))
+    expected = _simulate_pair(config, seq.true_poses[1], seq.true_poses[2], 2, np.random.default_rng(child))
+    assert_frames_identical(seq.frame(2), expected)
+
+
 def test_validity_mask_is_in_image_and_has_depth():
     from stereovo.simulation import _valid
 
