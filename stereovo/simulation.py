@@ -646,21 +646,39 @@ def _visible_landmarks(
     return np.concatenate(kept_prev)[:n], np.concatenate(kept_curr)[:n]
 
 
-def _random_stereo_points(rng: np.random.Generator, n: int, config: SimulationConfig) -> np.ndarray:
-    """Noise-free in-image measurements ``(n, 4)`` with a disparity of a depth in [z_min, z_max]."""
-    cam = config.camera
-    fb = cam.fx * cam.baseline
-    d = fb / _loguniform(rng, config.z_min, config.z_max, n)
-    # Tiny custom images cannot hold the disparity of near depths; keep the point valid.
-    d = np.clip(d, cam.min_disparity * 1.5, 0.9 * (cam.width - 1))
-    uL = d + (cam.width - 1 - d) * rng.random(n)
-    v = (cam.height - 1) * rng.random(n)
-    return np.stack([uL, v, uL - d, v], axis=1)
+@njit(cache=True, nogil=True)
+def _place_mismatches(todo, rows, other, shift, depth, u, v, meas_curr, fake, fb, d_lo, d_hi, u_max, v_max, tau):
+    """Write a wrong frame-k measurement into ``fake[todo[i]]`` for each ``i``; return the rows of
+    ``todo`` whose measurement still lies within ``tau`` px (over uL, v, uR) of the true one.
 
-
-def _pixel_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance (px) over ``(uL, v, uR)`` between measurements ``(N, 4)``."""
-    return np.linalg.norm(a[:, :3] - b[:, :3], axis=1)
+    ``other[i] < 0.5`` borrows landmark ``(rows[todo[i]] + shift[i]) % pool``'s measurement;
+    otherwise a random stereo point: disparity ``fb / depth[i]`` clipped to ``[d_lo, d_hi]``
+    (tiny custom images cannot hold the disparity of near depths), ``uL`` uniform (``u[i]``)
+    where that disparity fits, ``v = v_max v[i]``. Same arithmetic, in the same order, as the
+    numpy expressions it replaced (frames bit for bit).
+    """
+    pool = meas_curr.shape[0]
+    near = np.empty(todo.shape[0], dtype=np.int64)
+    n_near = 0
+    for i in range(todo.shape[0]):
+        row = todo[i]
+        if other[i] < 0.5:
+            j = (rows[row] + shift[i]) % pool
+            for c in range(4):
+                fake[row, c] = meas_curr[j, c]
+        else:
+            d = min(max(fb / depth[i], d_lo), d_hi)
+            uL = d + (u_max - d) * u[i]
+            fake[row, 0] = uL
+            fake[row, 1] = v_max * v[i]
+            fake[row, 2] = uL - d
+            fake[row, 3] = v_max * v[i]
+        true = meas_curr[rows[row]]
+        e0, e1, e2 = fake[row, 0] - true[0], fake[row, 1] - true[1], fake[row, 2] - true[2]
+        if np.sqrt(e0 * e0 + e1 * e1 + e2 * e2) < tau:
+            near[n_near] = row
+            n_near += 1
+    return near[:n_near]
 
 
 def _random_mismatches(
@@ -668,21 +686,28 @@ def _random_mismatches(
 ) -> np.ndarray:
     """Wrong frame-k measurements ``(len(rows), 4)`` for landmarks ``rows`` of ``meas_curr``.
 
-    Half take another landmark's frame-k measurement, half a random stereo point;
-    draws that land near the true one are redrawn so every row is a real outlier.
+    Half take another landmark's frame-k measurement, half a random stereo point (a depth
+    log-uniform in [z_min, z_max], in the image); draws that land near the true one are
+    redrawn so every row is a real outlier.
     """
-    n, pool = len(rows), len(meas_curr)
-    truth = meas_curr[rows]
+    n, pool, cam = len(rows), len(meas_curr), config.camera
     fake = np.empty((n, 4))
     todo = np.arange(n)
     tau = _outlier_threshold(config.noise_sigma)
+    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    meas_curr = np.ascontiguousarray(meas_curr, dtype=float)
     for _ in range(_MAX_REDRAWS):
         if todo.size == 0:
             break
-        other = rng.random(todo.size) < 0.5
-        j = (rows[todo] + rng.integers(1, pool, size=todo.size)) % pool
-        fake[todo] = np.where(other[:, None], meas_curr[j], _random_stereo_points(rng, todo.size, config))
-        todo = todo[_pixel_distance(fake[todo], truth[todo]) < tau]
+        m = todo.size
+        other = rng.random(m)
+        shift = rng.integers(1, pool, size=m)
+        depth = _loguniform(rng, config.z_min, config.z_max, m)
+        u, v = rng.random(m), rng.random(m)
+        todo = _place_mismatches(
+            todo, rows, other, shift, depth, u, v, meas_curr, fake, cam.fx * cam.baseline,
+            cam.min_disparity * 1.5, 0.9 * (cam.width - 1), float(cam.width - 1), float(cam.height - 1), tau,
+        )
     return fake
 
 
@@ -695,22 +720,33 @@ def _stereo_mismatches(meas: np.ndarray, config: SimulationConfig, rng: np.rando
     ``min_disparity`` with room for noise.
     """
     cam, n = config.camera, len(meas)
-    tau = _outlier_threshold(config.noise_sigma)
-    d = cam.disparity(meas)
-    uL = meas[:, 0]
     factor = np.exp(rng.uniform(*np.log(_STEREO_FACTOR), n))
-    d_up = np.maximum(d * factor, d + tau)
-    d_down = np.minimum(d / factor, d - tau)
+    want_up = rng.random(n)
+    out = np.array(meas, dtype=float)  # a C-ordered copy
     floor = cam.min_disparity + max(0.5, 3.0 * config.noise_sigma)
-    up_ok, down_ok = uL - d_up >= 0, d_down >= floor
-    want_up = rng.random(n) < 0.5
-    use_up = up_ok & (want_up | ~down_ok)
-    use_down = ~use_up & down_ok
-    # Neither fits (a far point at the left border under heavy noise): take the largest disparity the image allows.
-    d_new = np.where(use_up, d_up, np.where(use_down, d_down, np.maximum(uL, floor)))
-    out = meas.copy()
-    out[:, 2] = uL - d_new
+    _move_right_points(out, factor, want_up, _outlier_threshold(config.noise_sigma), floor)
     return out
+
+
+@njit(cache=True, nogil=True)
+def _move_right_points(meas, factor, want_up, tau, floor):
+    """In place: ``uR = uL - d'``, ``d'`` the disparity times (``want_up < 0.5``) or divided by
+    ``factor``, moved at least ``tau``; the other way when that one leaves the image (``uR < 0``)
+    or the disparity floor; neither fitting (a far point at the left border under heavy noise),
+    the largest disparity the image allows."""
+    for i in range(meas.shape[0]):
+        uL = meas[i, 0]
+        d = uL - meas[i, 2]
+        d_up = max(d * factor[i], d + tau)
+        d_down = min(d / factor[i], d - tau)
+        up_ok, down_ok = uL - d_up >= 0, d_down >= floor
+        if up_ok and (want_up[i] < 0.5 or not down_ok):
+            d_new = d_up
+        elif down_ok:
+            d_new = d_down
+        else:
+            d_new = max(uL, floor)
+        meas[i, 2] = uL - d_new
 
 
 def _moving_object(

@@ -234,6 +234,49 @@ def test_random_mismatches_are_far_from_where_the_landmark_went() -> None:
         assert np.min(np.linalg.norm(frame.curr[rows, :3] - z_true[:, :3], axis=1)) >= MIN_OUTLIER_PX - 1e-6
 
 
+@pytest.mark.parametrize("sigma", [0.5, 4.0])
+def test_compiled_mismatches_equal_their_numpy_formulas(sigma: float) -> None:
+    """The compiled outlier kernels draw what they always drew and compute it in the same order,
+    so frames (and the checkpoints trained on them) do not change: checked against the formulas."""
+    from stereovo.simulation import _STEREO_FACTOR, _outlier_threshold, _random_mismatches, _stereo_mismatches
+
+    config = SimulationConfig(noise_sigma=sigma, camera=StereoCamera(width=200, height=120))
+    cam, tau = config.camera, _outlier_threshold(sigma)
+    rng = np.random.default_rng(3)
+    d = rng.uniform(0.5, 150.0, 400)
+    uL = rng.uniform(0.0, cam.width - 1, 400)
+    meas = np.column_stack([uL, rng.uniform(0, cam.height - 1, 400), uL - d, np.zeros(400)])
+    d = cam.disparity(meas)
+
+    draws = np.random.default_rng(5)
+    factor = np.exp(draws.uniform(*np.log(_STEREO_FACTOR), 400))
+    want_up = draws.random(400) < 0.5
+    d_up, d_down = np.maximum(d * factor, d + tau), np.minimum(d / factor, d - tau)
+    floor = cam.min_disparity + max(0.5, 3.0 * sigma)
+    up_ok, down_ok = uL - d_up >= 0, d_down >= floor
+    use_up = up_ok & (want_up | ~down_ok)
+    d_new = np.where(use_up, d_up, np.where(~use_up & down_ok, d_down, np.maximum(uL, floor)))
+    expected = meas.copy()
+    expected[:, 2] = uL - d_new
+    np.testing.assert_array_equal(_stereo_mismatches(meas, config, np.random.default_rng(5)), expected)
+
+    # a tight cluster: a borrowed measurement lands near the true one and is redrawn
+    rows, pool = np.arange(100, 300), np.array([100.0, 60.0, 80.0, 60.0]) + rng.uniform(-1, 1, (400, 4))
+    draws = np.random.default_rng(6)
+    other = draws.random(200) < 0.5
+    j = (rows + draws.integers(1, len(pool), size=200)) % len(pool)
+    z = config.z_min * np.exp(draws.random(200) * np.log(config.z_max / config.z_min))
+    dd = np.clip(cam.fx * cam.baseline / z, cam.min_disparity * 1.5, 0.9 * (cam.width - 1))
+    u = dd + (cam.width - 1 - dd) * draws.random(200)
+    v = (cam.height - 1) * draws.random(200)
+    first = np.where(other[:, None], pool[j], np.stack([u, v, u - dd, v], axis=1))
+    fake = _random_mismatches(rows, pool, config, np.random.default_rng(6))
+    far = np.linalg.norm(first[:, :3] - pool[rows, :3], axis=1) >= tau
+    assert 0 < far.sum() < 200  # some first draws were too near and were redrawn
+    np.testing.assert_array_equal(fake[far], first[far])
+    assert np.all(np.linalg.norm(fake[:, :3] - pool[rows, :3], axis=1) >= tau)
+
+
 @pytest.mark.parametrize("sigma", [0.5, 3.0])
 @pytest.mark.parametrize("world", ["street", "open"])
 def test_measurements_are_rectified_in_image_with_valid_disparity(sigma: float, world: str) -> None:
