@@ -324,8 +324,12 @@ def test_bad_method_option_priors_and_order_raise():
         estimate_motion(prev, curr, CAMERA, rigidity_gate_probability=1.0)
     with pytest.raises(ValueError, match="priors must have shape"):
         estimate_motion(prev, curr, CAMERA, priors=np.ones(3))
-    with pytest.raises(ValueError, match="non-negative"):
-        estimate_motion(prev, curr, CAMERA, priors=-np.ones(30))
+    with pytest.raises(ValueError, match=r"non-negative, got minimum -2.5"):
+        estimate_motion(prev, curr, CAMERA, priors=np.r_[np.ones(29), -2.5])
+    with pytest.raises(ValueError, match="NaN or inf"):
+        estimate_motion(prev, curr, CAMERA, priors=np.r_[np.ones(29), np.inf])
+    with pytest.raises(ValueError, match="at least 3 positive"):
+        estimate_motion(prev, curr, CAMERA, priors=np.r_[np.ones(2), np.zeros(28)])
     with pytest.raises(ValueError, match="permutation"):
         estimate_motion(prev, curr, CAMERA, order=np.zeros(30, dtype=int))
     with pytest.raises(ValueError, match="not both"):
@@ -660,7 +664,10 @@ def test_compiled_weighted_draw_inverts_the_cut_cumulative_weights_like_searchso
         x = u[:, 2] * (total - w[a] - w[b])
         x = np.where(x < before[lo], x, x + w[lo])
         c = invert(np.where(x < before[hi], x, x + w[hi]))
-        np.testing.assert_array_equal(weighted_triplets(u, w, cdf, before), np.stack([a, b, c], axis=1))
+        samples, suspect = weighted_triplets(u, w, cdf, before)
+        np.testing.assert_array_equal(samples, np.stack([a, b, c], axis=1))
+        expected = (b == a) | (c == a) | (c == b) | (w[a] == 0) | (w[b] == 0) | (w[c] == 0)
+        np.testing.assert_array_equal(suspect, expected)
 
 
 @pytest.mark.parametrize("gate", [None, "pixel"])

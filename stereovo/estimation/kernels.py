@@ -975,11 +975,13 @@ def weighted_triplets(u, w, cdf, before):
     ``cdf`` and ``before`` are the inclusive and exclusive cumulative sums of ``w``. Each draw
     inverts the cumulative weights with the indices already drawn cut out of them (a position in
     the remaining mass is shifted past each drawn interval it reaches). Rounding at an interval's
-    edge can return a drawn or zero-weight index; the caller redraws those rows exactly.
+    edge can return a drawn or zero-weight index: those rows are flagged in ``suspect (B,)``
+    for the caller to redraw exactly. Returns ``(samples (B, 3), suspect (B,))``.
     """
     B = u.shape[0]
     total = cdf[cdf.shape[0] - 1]
     out = np.empty((B, 3), dtype=np.int64)
+    suspect = np.zeros(B, dtype=np.bool_)
     for k in range(B):
         a = _first_above(cdf, u[k, 0] * total)
         x = u[k, 1] * (total - w[a])
@@ -990,7 +992,25 @@ def weighted_triplets(u, w, cdf, before):
             x = x + w[lo]
         c = _first_above(cdf, x if x < before[hi] else x + w[hi])
         out[k, 0], out[k, 1], out[k, 2] = a, b, c
-    return out
+        suspect[k] = b == a or c == a or c == b or w[a] == 0 or w[b] == 0 or w[c] == 0
+    return out, suspect
+
+
+@_jit
+def prior_defects(p):
+    """One pass over priors ``p (N,)``: ``(any non-finite, minimum, number of positive weights)``."""
+    nonfinite = False
+    minimum = np.inf
+    positive = 0
+    for i in range(p.shape[0]):
+        x = p[i]
+        if not np.isfinite(x):
+            nonfinite = True
+        elif x < minimum:
+            minimum = x
+        if x > 0:
+            positive += 1
+    return nonfinite, minimum, positive
 
 
 @_jit

@@ -51,11 +51,12 @@ def validate_priors(priors: np.ndarray, n: int) -> np.ndarray:
     p = np.asarray(priors, dtype=float)
     if p.shape != (n,):
         raise ValueError(f"priors must have shape ({n},), one weight per correspondence, got {p.shape}")
-    if not np.all(np.isfinite(p)):
+    nonfinite, minimum, positive = kernels.prior_defects(np.ascontiguousarray(p))
+    if nonfinite:
         raise ValueError("priors contain NaN or inf")
-    if np.any(p < 0):
-        raise ValueError(f"priors must be non-negative, got minimum {p.min()}")
-    if np.count_nonzero(p > 0) < SAMPLE_SIZE:
+    if minimum < 0:
+        raise ValueError(f"priors must be non-negative, got minimum {minimum}")
+    if positive < SAMPLE_SIZE:
         raise ValueError(f"priors need at least {SAMPLE_SIZE} positive weights to draw a minimal sample")
     return p
 
@@ -82,11 +83,9 @@ class WeightedSampler:
     def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
         w = self._w
         u = rng.random((batch, SAMPLE_SIZE))
-        samples = kernels.weighted_triplets(u, w, self._cdf, self._before)
-        a, b, c = samples.T
+        samples, suspect = kernels.weighted_triplets(u, w, self._cdf, self._before)
         # Rounding at an interval's edge can land on a drawn or zero-weight index; redo those rows exactly.
-        bad = (b == a) | (c == a) | (c == b) | (w[b] == 0) | (w[c] == 0) | (w[a] == 0)
-        for row in np.flatnonzero(bad):
+        for row in np.flatnonzero(suspect):
             samples[row] = self._draw_exactly(u[row])
         return samples
 
