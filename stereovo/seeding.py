@@ -30,61 +30,65 @@ _MIX_MULT_R = np.uint64(0x4973F715)
 _XSHIFT = np.uint64(16)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _hashmix(value, hash_const, multiplier):
+    """numpy's ``hashmix`` (``multiplier`` MULT_A) and ``generate_state`` step (MULT_B):
+    ``(hashed value, next hash constant)``."""
+    value ^= hash_const
+    hash_const = (hash_const * multiplier) & _MASK32
+    value = (value * hash_const) & _MASK32
+    return value ^ (value >> _XSHIFT), hash_const
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _mix(x, y):
+    """numpy's ``mix`` of two 32-bit words."""
+    result = (_MIX_MULT_L * x - _MIX_MULT_R * y) & _MASK32
+    return result ^ (result >> _XSHIFT)
+
+
 @njit(cache=True, nogil=True)
 def _pcg64_seed_words(entropy, spawn_words, spawn_lengths, pool_size):
     """``(S, 4)`` uint64: ``SeedSequence(entropy, spawn_key=key_s, pool_size).generate_state(4, uint64)``.
 
     ``entropy`` ``(E,)`` and ``spawn_words`` ``(S, L)`` are 32-bit words held in uint64 (row s
-    uses its first ``spawn_lengths[s]``). Every product below is of two values under 2**32, so
-    it fits in 64 bits; masking afterwards is arithmetic mod 2**32, as numpy's uint32 C code.
+    uses its first ``spawn_lengths[s]``). Every product is of two values under 2**32, so it fits
+    in 64 bits; masking afterwards is arithmetic mod 2**32, as numpy's uint32 C code.
     """
     n_streams = spawn_words.shape[0]
     out = np.empty((n_streams, 4), dtype=np.uint64)
     pool = np.empty(pool_size, dtype=np.uint64)
-    state = np.empty(8, dtype=np.uint64)
     for s in range(n_streams):
         n_spawn = spawn_lengths[s]
         # get_assembled_entropy: the run entropy, zero-padded to the pool when a spawn key follows
         n_run = entropy.shape[0]
         if n_spawn > 0 and n_run < pool_size:
             n_run = pool_size
-        assembled = np.zeros(n_run + n_spawn, dtype=np.uint64)
+        assembled = np.zeros(max(n_run + n_spawn, pool_size), dtype=np.uint64)
         assembled[: entropy.shape[0]] = entropy
-        assembled[n_run:] = spawn_words[s, :n_spawn]
-        # mix_entropy
+        assembled[n_run:n_run + n_spawn] = spawn_words[s, :n_spawn]
+        n_words = n_run + n_spawn
+        # mix_entropy: the first pool_size words (zeros past the end) seed the pool, every
+        # word mixes into every other pool word, then the words past the pool mix into all
         hash_const = _INIT_A
         for i in range(pool_size):
-            value = assembled[i] if i < assembled.shape[0] else np.uint64(0)
-            value ^= hash_const
-            hash_const = (hash_const * _MULT_A) & _MASK32
-            value = (value * hash_const) & _MASK32
-            pool[i] = value ^ (value >> _XSHIFT)
+            pool[i], hash_const = _hashmix(assembled[i], hash_const, _MULT_A)
         for i_src in range(pool_size):
             for i_dst in range(pool_size):
                 if i_src != i_dst:
-                    value = pool[i_src] ^ hash_const
-                    hash_const = (hash_const * _MULT_A) & _MASK32
-                    value = (value * hash_const) & _MASK32
-                    value ^= value >> _XSHIFT
-                    mixed = (_MIX_MULT_L * pool[i_dst] - _MIX_MULT_R * value) & _MASK32
-                    pool[i_dst] = mixed ^ (mixed >> _XSHIFT)
-        for i_src in range(pool_size, assembled.shape[0]):
+                    value, hash_const = _hashmix(pool[i_src], hash_const, _MULT_A)
+                    pool[i_dst] = _mix(pool[i_dst], value)
+        for i_src in range(pool_size, n_words):
             for i_dst in range(pool_size):
-                value = assembled[i_src] ^ hash_const
-                hash_const = (hash_const * _MULT_A) & _MASK32
-                value = (value * hash_const) & _MASK32
-                value ^= value >> _XSHIFT
-                mixed = (_MIX_MULT_L * pool[i_dst] - _MIX_MULT_R * value) & _MASK32
-                pool[i_dst] = mixed ^ (mixed >> _XSHIFT)
-        # generate_state(8 uint32 words), read as 4 little-endian uint64
+                value, hash_const = _hashmix(assembled[i_src], hash_const, _MULT_A)
+                pool[i_dst] = _mix(pool[i_dst], value)
+        # generate_state: 8 uint32 words (the pool cycled, hashed with the second constants),
+        # read as 4 little-endian uint64
         hash_const = _INIT_B
-        for i in range(8):
-            value = pool[i % pool_size] ^ hash_const
-            hash_const = (hash_const * _MULT_B) & _MASK32
-            value = (value * hash_const) & _MASK32
-            state[i] = value ^ (value >> _XSHIFT)
         for j in range(4):
-            out[s, j] = state[2 * j] | (state[2 * j + 1] << np.uint64(32))
+            low, hash_const = _hashmix(pool[(2 * j) % pool_size], hash_const, _MULT_B)
+            high, hash_const = _hashmix(pool[(2 * j + 1) % pool_size], hash_const, _MULT_B)
+            out[s, j] = low | (high << np.uint64(32))
     return out
 
 
