@@ -58,9 +58,10 @@ def _readme_example() -> str:
 
 
 def test_readme_example():
-    out = io.StringIO()
+    out, namespace = io.StringIO(), {}
     with contextlib.redirect_stdout(out):
-        exec(compile(_readme_example(), "README example", "exec"), {})
+        exec(compile(_readme_example(), "README example", "exec"), namespace)
+    assert namespace["truncated"]  # the loop ran exactly one episode
     text = out.getvalue().strip()
     assert text.startswith("success rate ")
     assert float(text.split()[-1]) >= 0.6  # the heuristic clearly beats uniform sampling (about 0.3 here)
