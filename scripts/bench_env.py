@@ -164,6 +164,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--num-envs", type=int, default=2, help="envs of the vector envs (async: worker processes)")
     parser.add_argument("--pin-workers", action="store_true",
                         help="pin each async worker process to its own core (Linux), as a training launcher may")
+    parser.add_argument("--target", type=float, default=200.0,
+                        help="steps/s per core each mode should reach (the issue's target); printed as met or missed")
     parser.add_argument("--json", help="also write the results to this file")
     args = parser.parse_args(argv)
 
@@ -193,6 +195,11 @@ def main(argv: list[str] | None = None) -> int:
               f"{r['steps_per_s_per_core']:>14.1f}{r['steps_per_cpu_s']:>13.1f}")
     if results["async"].get("pinned"):
         print("* workers pinned to their own cores (--pin-workers)")
+    verdicts = {mode: results[mode]["steps_per_s_per_core"] >= args.target for mode in ("single", "sync", "async")}
+    results["target_steps_per_s_per_core"] = args.target
+    results["target_met"] = verdicts
+    print(f"target >= {args.target:g} steps/s per core: "
+          + ", ".join(f"{mode} {'met' if ok else 'MISSED'}" for mode, ok in verdicts.items()))
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(results, fh, indent=2)
