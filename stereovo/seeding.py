@@ -136,6 +136,8 @@ def seeded_generators(
         spawn_keys: one tuple of non-negative ints per generator.
         pool_size: the SeedSequence pool size in 32-bit words (numpy's default 4).
     """
+    if not spawn_keys:
+        return []
     run = _as_words((entropy,) if isinstance(entropy, (int, np.integer)) else entropy) \
         if isinstance(entropy, (int, np.integer, list, tuple)) else None
     keys = [_as_words(key) for key in spawn_keys]

@@ -1009,7 +1009,6 @@ class Sequence:
         root = self._root
         return seeded_generators(root.entropy, [(*root.spawn_key, _SEQUENCE_NAMESPACE, k)], root.pool_size)[0]
 
-
     def __len__(self) -> int:
         return self.config.n_frames
 

@@ -425,7 +425,7 @@ def test_longer_sequence_extends_a_shorter_one_with_the_same_seed() -> None:
     [[2**62 + 5, 2**40, 2**33 + 7, 2**63 - 1], [3, 2**40, 2**50, 2**60], [2**40, 0, 2**50, 2**32 - 1], [2**32] * 4],
 )
 def test_frame_streams_are_the_spawned_seed_sequences_of_the_entropy(entropy):
-    """The shortcut through 32-bit words must give numpy's own streams, small ints included."""
+    """A frame's five streams are numpy's spawned children of its four entropy draws, small ints included."""
     from stereovo.simulation import _stream_generators
 
     ours = _stream_generators(np.array(entropy, dtype=np.int64), 5)
@@ -457,8 +457,9 @@ def test_seeded_generators_leave_other_entropy_to_numpy():
     words = np.array([1, 2, 3], dtype=np.uint32)  # an array entropy: numpy's SeedSequence path
     (ours,) = seeded_generators(words, [(4,)])
     assert ours.bit_generator.state == np.random.default_rng(np.random.SeedSequence(words, spawn_key=(4,))).bit_generator.state
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="non-negative"):
         seeded_generators(-1, [(0,)])  # numpy's own error for negative entropy
+    assert seeded_generators(5, []) == []
 
 
 def test_sequence_frames_use_the_documented_child_seed_sequence():
