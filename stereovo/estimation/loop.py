@@ -121,6 +121,9 @@ class RansacReport:
     n_local_optimizations: int
     best_found_at: int  # hypotheses drawn when the final best was first found
     n_rejected_samples: int = 0  # samples the sample check removed before fitting
+    # The components' own counts (``counters()`` of the sampler, verifier, termination, local
+    # optimiser, sample check and refiner, merged by name); a direct runner fills it itself.
+    counters: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -129,6 +132,20 @@ class LoopState:
 
     n_hypotheses: int
     best_score: float
+
+
+COUNTED_ROLES = ("sampler", "verifier", "termination", "local_optimizer", "sample_check", "refiner")
+
+
+def component_counters(c: RansacComponents) -> dict[str, int | float]:
+    """Merge ``counters()`` of every role that defines it (components are built per run, so the
+    counts are this run's); a later role's key overrides an earlier one's."""
+    merged: dict[str, int | float] = {}
+    for role in COUNTED_ROLES:
+        counters = getattr(getattr(c, role), "counters", None)
+        if callable(counters):
+            merged.update(counters())
+    return merged
 
 
 def local_refit_redundant(c: RansacComponents, drawn: int, best_inliers: np.ndarray, n: int) -> bool:
@@ -210,6 +227,7 @@ def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.ran
         best_found_at=found_at,
     )
     if scored == 0:
+        report["counters"] = component_counters(c)
         reason = "all samples degenerate" if rejected == 0 else (
             f"no sample passed the sample check ({rejected} of {drawn} rejected, {degenerate} degenerate)"
         )
@@ -222,6 +240,7 @@ def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.ran
             residual_sq = ctx.residuals(best_R[None], best_t[None])[0]
             checks += n
         best_score = float(c.quality.score(residual_sq[None], c.threshold_sq)[0])
+    report["counters"] = component_counters(c)
     if np.count_nonzero(best_inliers) < max(c.min_inliers, 3):
         return RansacReport(
             np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), best_score,
