@@ -1,0 +1,171 @@
+"""vo_gym.rewards against values computed by hand: every mode, the bonus, the failure reward, the hypothesis cost.
+
+Each expected value is written out as arithmetic on literals from the formulas of the module doc;
+nothing here asks the code under test for its own expectation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from stereovo.camera import StereoCamera
+from stereovo.metrics import FrameMetrics
+from vo_gym import StereoVOEnv
+from vo_gym.rewards import inlier_reward, msac_reward, pose_error_ratio, supervised_reward
+
+
+def metrics(**changes) -> FrameMetrics:
+    """A frame's metrics: a successful, exact estimate unless ``changes`` say otherwise."""
+    base = dict(
+        rot_err_deg=0.0, trans_err_m=0.0, t_true_norm_m=1.0, success=True, precision=1.0, recall=1.0,
+        n_inliers=100, n_hypotheses=32, n_scored=32, n_point_checks=32 * 200, time_s=0.0, status="ok",
+    )
+    names = {f.name for f in dataclasses.fields(FrameMetrics)}
+    base = {k: v for k, v in base.items() if k in names}
+    base.update(changes)
+    return FrameMetrics(**base)
+
+
+# ---------------------------------------------------------------------------- pose error ratio
+
+
+@pytest.mark.parametrize(
+    "rot_deg, trans_m, t_norm, expected",
+    [
+        (0.5, 0.01, 1.0, 0.5),  # bound max(0.05, 0.05 * 1) = 0.05 m: max(0.5 / 1, 0.01 / 0.05 = 0.2)
+        (0.3, 0.15, 2.0, 1.5),  # bound max(0.05, 0.05 * 2) = 0.10 m: 0.15 / 0.10
+        (0.2, 0.03, 0.4, 0.6),  # short step: the 5 cm floor, 0.03 / 0.05
+        (2.5, 0.0, 1.0, 2.5),  # rotation only: 2.5 deg / 1 deg
+    ],
+)
+def test_pose_error_ratio_uses_the_success_bounds(rot_deg, trans_m, t_norm, expected):
+    m = metrics(rot_err_deg=rot_deg, trans_err_m=trans_m, t_true_norm_m=t_norm, success=expected < 1)
+    assert pose_error_ratio(m) == pytest.approx(expected, abs=1e-12)
+
+
+# ---------------------------------------------------------------------------- supervised
+
+
+def test_supervised_exact_estimate_is_one_minus_the_hypothesis_cost():
+    exact = metrics(n_hypotheses=10)
+    # 0.5 * 1 + 0.5 * (1 - 0) / (1 + 0) = 1, then 10 hypotheses at 0.01 each.
+    assert supervised_reward(exact, success_bonus=0.5, hypothesis_cost=0.0) == pytest.approx(1.0, abs=1e-12)
+    assert supervised_reward(exact, success_bonus=0.5, hypothesis_cost=0.01) == pytest.approx(1.0 - 0.1, abs=1e-12)
+
+
+def test_supervised_success_below_the_bound():
+    m = metrics(rot_err_deg=0.5, trans_err_m=0.01, t_true_norm_m=1.0, success=True, n_hypotheses=32)
+    # e = 0.5: 0.5 * 1 + 0.5 * (0.5 / 1.5) = 0.6666..., minus 32 * 0.001.
+    assert supervised_reward(m, 0.5, 0.0) == pytest.approx(0.5 + 0.5 * (0.5 / 1.5), abs=1e-12)
+    assert supervised_reward(m, 0.5, 0.001) == pytest.approx(0.5 + 0.5 * (0.5 / 1.5) - 0.032, abs=1e-12)
+    # Another bonus weight: 0.2 * 1 + 0.8 * (1/3) = 0.4666...
+    assert supervised_reward(m, 0.2, 0.0) == pytest.approx(0.2 + 0.8 / 3, abs=1e-12)
+    # No bonus: the accuracy term alone.
+    assert supervised_reward(m, 0.0, 0.0) == pytest.approx(1 / 3, abs=1e-12)
+
+
+def test_supervised_miss_earns_no_bonus_and_a_negative_accuracy():
+    m = metrics(rot_err_deg=0.3, trans_err_m=0.15, t_true_norm_m=2.0, success=False, n_hypotheses=50)
+    # e = 1.5: 0.5 * 0 + 0.5 * (-0.5 / 2.5) = -0.1, minus 50 * 0.002 = 0.1.
+    assert supervised_reward(m, 0.5, 0.0) == pytest.approx(-0.1, abs=1e-12)
+    assert supervised_reward(m, 0.5, 0.002) == pytest.approx(-0.2, abs=1e-12)
+    # The bonus weight scales the accuracy term only: 0.9 * (-0.2) = -0.18.
+    assert supervised_reward(m, 0.1, 0.0) == pytest.approx(-0.18, abs=1e-12)
+
+
+def test_supervised_success_bonus_jumps_at_the_boundary():
+    inside = metrics(rot_err_deg=0.999, success=True, n_hypotheses=0)
+    outside = metrics(rot_err_deg=1.001, success=False, n_hypotheses=0)
+    # Accuracies (1 -/+ ...) are ~0 on both sides; the bonus adds 0.5 * 1 inside only.
+    assert supervised_reward(inside, 0.5, 0.0) == pytest.approx(0.5 + 0.5 * (0.001 / 1.999), abs=1e-12)
+    assert supervised_reward(outside, 0.5, 0.0) == pytest.approx(0.5 * (-0.001 / 2.001), abs=1e-12)
+
+
+def test_supervised_useless_estimate_and_the_clip():
+    hopeless = metrics(rot_err_deg=float("inf"), trans_err_m=float("inf"), success=False, n_hypotheses=0)
+    assert supervised_reward(hopeless, 0.5, 0.0) == pytest.approx(0.5 * -1.0, abs=1e-12)
+    huge = metrics(rot_err_deg=1e9, success=False, n_hypotheses=0)
+    assert supervised_reward(huge, 0.5, 0.0) == pytest.approx(0.5 * (1 - 1e9) / (1 + 1e9), abs=1e-12)
+    # A cost larger than the reward: clipped to -1, never below.
+    assert supervised_reward(metrics(n_hypotheses=1000), 0.5, 0.01) == -1.0
+
+
+def test_supervised_failure_reward_whatever_the_errors():
+    failed = metrics(status="failed: too few inliers", success=False, rot_err_deg=0.0, n_hypotheses=32)
+    assert supervised_reward(failed, 0.5, 0.001, failure_reward=-0.3) == -0.3
+    assert supervised_reward(failed, 0.5, 0.001) == -1.0  # the default failure reward
+    assert supervised_reward(failed, 0.5, 0.0, failure_reward=0.25) == 0.25
+
+
+# ---------------------------------------------------------------------------- inliers
+
+
+def test_inlier_reward_is_the_inlier_fraction_minus_the_cost():
+    assert inlier_reward(True, 120, 200, 32) == pytest.approx(0.6, abs=1e-12)
+    assert inlier_reward(True, 120, 200, 32, hypothesis_cost=0.001) == pytest.approx(0.6 - 0.032, abs=1e-12)
+    assert inlier_reward(True, 200, 200, 5, hypothesis_cost=0.1) == pytest.approx(0.5, abs=1e-12)
+    assert inlier_reward(True, 10, 200, 100, hypothesis_cost=0.05) == -1.0  # 0.05 - 5, clipped
+    assert inlier_reward(True, 0, 0, 0) == 0.0  # no matches: no division by zero
+    assert inlier_reward(False, 120, 200, 32, 0.001, failure_reward=-0.4) == -0.4
+    assert inlier_reward(False, 120, 200, 32) == -1.0
+
+
+# ---------------------------------------------------------------------------- msac
+
+
+def stereo_pair(camera: StereoCamera):
+    """Eight exact matches of points 5-30 m ahead under a known motion ``x_k = R x_{k-1} + t``."""
+    X = np.array(
+        [[-4.0, -1.0, 12.0], [3.0, 0.5, 8.0], [0.0, 1.2, 20.0], [-2.0, -0.3, 6.0],
+         [5.0, 1.0, 25.0], [1.0, -1.5, 15.0], [-6.0, 0.8, 30.0], [2.5, 0.2, 10.0]]
+    )
+    angle = np.radians(2.0)
+    R = np.array([[np.cos(angle), 0, np.sin(angle)], [0, 1, 0], [-np.sin(angle), 0, np.cos(angle)]])
+    t = np.array([0.1, 0.0, -1.0])
+    return camera.project(X), camera.project(X @ R.T + t), R, t
+
+
+def test_msac_reward_is_one_for_an_exact_model_minus_the_cost():
+    camera = StereoCamera(fx=500.0, fy=480.0, cx=320.0, cy=240.0, baseline=0.3, width=640, height=480)
+    prev, curr, R, t = stereo_pair(camera)
+    assert msac_reward(True, R, t, prev, curr, camera, 4.0, 10) == pytest.approx(1.0, abs=1e-9)
+    assert msac_reward(True, R, t, prev, curr, camera, 4.0, 10, hypothesis_cost=0.002) == pytest.approx(
+        1.0 - 0.02, abs=1e-9
+    )
+
+
+def test_msac_reward_truncates_each_squared_error_at_the_gate():
+    camera = StereoCamera(fx=500.0, fy=480.0, cx=320.0, cy=240.0, baseline=0.3, width=640, height=480)
+    prev, curr, R, t = stereo_pair(camera)
+    curr = curr.copy()
+    curr[[1, 4], 0] += 1.0  # uL off by 1 px: e^2 = 1 px^2 < T^2 = 4, each scores 1 - 1/4
+    curr[[2, 6], 1] += 3.0  # vL off by 3 px: e^2 = 9 px^2 > T^2, each scores 0
+    expected = (4 * 1.0 + 2 * (1 - 1 / 4) + 2 * 0.0) / 8  # = 0.6875
+    assert msac_reward(True, R, t, prev, curr, camera, 4.0, 0) == pytest.approx(expected, abs=1e-9)
+    assert msac_reward(True, R, t, prev, curr, camera, 4.0, 20, hypothesis_cost=0.01) == pytest.approx(
+        expected - 0.2, abs=1e-9
+    )
+    # A wider gate T^2 = 16: the 3 px errors now count, 1 - 9/16 each; the 1 px ones 1 - 1/16.
+    wide = (4 * 1.0 + 2 * (1 - 1 / 16) + 2 * (1 - 9 / 16)) / 8
+    assert msac_reward(True, R, t, prev, curr, camera, 16.0, 0) == pytest.approx(wide, abs=1e-9)
+    assert msac_reward(False, R, t, prev, curr, camera, 4.0, 20, failure_reward=-0.6) == -0.6
+
+
+# ---------------------------------------------------------------------------- the environment passes the cost on
+
+
+@pytest.mark.parametrize("mode", ["supervised", "inliers", "msac"])
+def test_env_reward_pays_the_hypothesis_cost_per_hypothesis(mode):
+    rewards = {}
+    for cost in (0.0, 0.01):
+        env = StereoVOEnv(n_frames=2, n_correspondences=120, budget=8, reward_mode=mode, hypothesis_cost=cost,
+                          outlier_ratio=0.3, success_bonus=0.5)
+        env.reset(seed=4)
+        rewards[cost] = [env.step(np.zeros(120))[1] for _ in range(2)]
+    # Same seed, same actions, same estimates: 8 hypotheses at 0.01 each (none of the rewards is clipped).
+    for free, paid in zip(rewards[0.0], rewards[0.01]):
+        assert -0.9 < paid < 1.0
+        assert free - paid == pytest.approx(8 * 0.01, abs=1e-9)
