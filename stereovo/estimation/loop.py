@@ -4,6 +4,9 @@ Every named method (RANSAC, MSAC, the probabilistic RANSAC, the classical
 family, the environment's guided sampling) is a :class:`RansacComponents`
 recipe run by :func:`run_ransac`. Hypotheses are drawn, fitted and scored in
 vectorised batches; the bookkeeping between batches is the only Python loop.
+:class:`RansacSearch` is that loop one batch at a time, so that an agent can
+steer the sampler between batches (the adaptive environment) on the very same
+search.
 """
 
 from __future__ import annotations
@@ -128,10 +131,16 @@ class RansacReport:
 
 @dataclass
 class LoopState:
-    """Read-only view of the loop for listeners."""
+    """Read-only view of the loop for listeners and feedback hooks.
+
+    ``samples``: ``(H, 3)`` the minimal samples of the hypotheses just verified (set for
+    ``on_hypotheses`` only); ``best_inliers``: ``(N,)`` bool, the best model's consensus so far.
+    """
 
     n_hypotheses: int
     best_score: float
+    samples: np.ndarray | None = None
+    best_inliers: np.ndarray | None = None
 
 
 COUNTED_ROLES = ("sampler", "verifier", "termination", "local_optimizer", "sample_check", "refiner")
@@ -157,94 +166,148 @@ def local_refit_redundant(c: RansacComponents, drawn: int, best_inliers: np.ndar
     return drawn >= min(required, c.termination.max_iterations)
 
 
-def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.random.Generator) -> RansacReport:
-    """Run the RANSAC loop described by ``components`` on ``problem``."""
-    c = components
-    n = problem.n
-    ctx = ScoringContext(problem, c.residual_model, c.quality, c.threshold_sq)
-    best_R, best_t = np.eye(3), np.zeros(3)
-    best_inliers = np.zeros(n, dtype=bool)
-    best_score = -np.inf
-    drawn = scored = checks = degenerate = rejected = local_runs = found_at = 0
-    required = c.termination.max_iterations
+class RansacSearch:
+    """One run of the loop, one batch at a time: :func:`run_ransac` steps it until the termination
+    is met, and the adaptive environment steps it batch by batch with the agent's priors.
 
-    uses_samples = bool(getattr(c.verifier, "uses_samples", False))
-    batch_listeners = [listener for listener in c.listeners if hasattr(listener, "on_batch")]
-    # An adaptive search starts small (the bound often falls below a full batch at once) and doubles
-    # its batches up to batch_size: each batch costs ~50 us of bookkeeping here, as much as several
-    # hypotheses, so a long search (high contamination) should take few, large ones.
-    size = min(c.first_batch_size, c.batch_size) if c.first_batch_size else c.batch_size
-    while drawn < required:
-        batch = int(min(size, required - drawn))
-        samples = c.sampler.draw(batch, rng)
-        drawn += batch
+    ``step(batch)`` draws, checks, fits and verifies ``batch`` hypotheses (default: the loop's own
+    batch schedule), updates the best model and calls the hooks; ``done`` says whether the
+    termination is met; ``finish()`` refines the best model and returns the :class:`RansacReport`.
+    A sampler that defines ``on_hypotheses(R (H, 3, 3), t (H, 3), inlier_masks (H, N) bool,
+    residual_sq (H, N), loop_state)`` gets every verified batch with its full squared residuals
+    (computed for it alone, counted in ``n_point_checks``) and ``loop_state.samples``.
+    """
+
+    def __init__(self, problem: StereoProblem, components: RansacComponents, rng: np.random.Generator) -> None:
+        c = self.components = components
+        self.problem, self.rng, self.n = problem, rng, problem.n
+        self.ctx = ScoringContext(problem, c.residual_model, c.quality, c.threshold_sq)
+        self.best_R, self.best_t = np.eye(3), np.zeros(3)
+        self.best_inliers = np.zeros(self.n, dtype=bool)
+        self.best_score = -np.inf
+        self.drawn = self.scored = self.checks = self.degenerate = self.rejected = 0
+        self.local_runs = self.found_at = 0
+        self.required = c.termination.max_iterations
+        self._uses_samples = bool(getattr(c.verifier, "uses_samples", False))
+        self._batch_listeners = [listener for listener in c.listeners if hasattr(listener, "on_batch")]
+        self._feedback = getattr(c.sampler, "on_hypotheses", None)
+        # An adaptive search starts small (the bound often falls below a full batch at once) and doubles
+        # its batches up to batch_size: each batch costs ~50 us of bookkeeping here, as much as several
+        # hypotheses, so a long search (high contamination) should take few, large ones.
+        self._size = min(c.first_batch_size, c.batch_size) if c.first_batch_size else c.batch_size
+
+    @property
+    def done(self) -> bool:
+        """True once the termination's bound (or its cap) has been drawn."""
+        return self.drawn >= self.required
+
+    @property
+    def state(self) -> LoopState:
+        return LoopState(n_hypotheses=self.drawn, best_score=self.best_score, best_inliers=self.best_inliers)
+
+    def step(self, batch: int | None = None) -> None:
+        """Draw and judge one batch: ``batch`` hypotheses, or the loop's schedule capped by the bound."""
+        c, ctx, n = self.components, self.ctx, self.n
+        if batch is None:
+            batch = int(min(self._size, self.required - self.drawn))
+            self._size = min(2 * self._size, c.batch_size)
+        samples = c.sampler.draw(batch, self.rng)
+        self.drawn += batch
         if c.sample_check is not None:
-            keep = c.sample_check.accept(problem, samples)
-            rejected += batch - int(np.count_nonzero(keep))
+            keep = c.sample_check.accept(self.problem, samples)
+            self.rejected += batch - int(np.count_nonzero(keep))
             samples = samples[keep]
-        R, t, valid = minimal_hypotheses(problem, samples, c.polish_iterations)
+        R, t, valid = minimal_hypotheses(self.problem, samples, c.polish_iterations)
         n_valid = int(np.count_nonzero(valid))
-        degenerate += len(valid) - n_valid
+        self.degenerate += len(valid) - n_valid
         if n_valid:
             if n_valid < len(valid):
                 R, t, samples = R[valid], t[valid], samples[valid]
-            if uses_samples:
-                scores, spent = c.verifier.verify(ctx, R, t, rng, samples=samples)
+            if self._uses_samples:
+                scores, spent = c.verifier.verify(ctx, R, t, self.rng, samples=samples)
             else:
-                scores, spent = c.verifier.verify(ctx, R, t, rng)
-            scored += R.shape[0]
-            checks += spent
+                scores, spent = c.verifier.verify(ctx, R, t, self.rng)
+            self.scored += R.shape[0]
+            self.checks += spent
             i = int(np.argmax(scores))
-            if scores[i] > best_score:
-                best_R, best_t, best_score = R[i], t[i], float(scores[i])
-                best_inliers, computed = ctx.inliers_of(R, t, i)
-                checks += n if computed else 0
-                found_at = drawn
-                if c.local_optimizer is not None and not local_refit_redundant(c, drawn, best_inliers, n):
-                    best_R, best_t, best_inliers, best_score, spent = c.local_optimizer.improve(
-                        ctx, best_R, best_t, best_inliers, best_score, rng
-                    )
-                    local_runs += 1
-                    checks += spent
-                state = LoopState(n_hypotheses=drawn, best_score=best_score)
-                for listener in c.listeners:
-                    listener.on_new_best(best_inliers, state)
-        if batch_listeners:
-            state = LoopState(n_hypotheses=drawn, best_score=best_score)
-            for listener in batch_listeners:
+            if scores[i] > self.best_score:
+                self._new_best(R, t, i, float(scores[i]))
+            if self._feedback is not None:
+                residual_sq = ctx.residuals(R, t)
+                self.checks += R.shape[0] * n
+                state = LoopState(self.drawn, self.best_score, samples=samples, best_inliers=self.best_inliers)
+                self._feedback(R, t, residual_sq < c.threshold_sq, residual_sq, state)
+        if self._batch_listeners:
+            state = self.state
+            for listener in self._batch_listeners:
                 listener.on_batch(state)
-        if best_score > -np.inf:
-            required = min(c.termination.required(int(np.count_nonzero(best_inliers)), n), c.termination.max_iterations)
-        size = min(2 * size, c.batch_size)
+        if self.best_score > -np.inf:
+            bound = c.termination.required(int(np.count_nonzero(self.best_inliers)), n)
+            self.required = min(bound, c.termination.max_iterations)
 
-    report = dict(
-        n_hypotheses=drawn,
-        n_scored=scored,
-        n_point_checks=checks,
-        n_degenerate=degenerate,
-        n_rejected_samples=rejected,
-        n_local_optimizations=local_runs,
-        best_found_at=found_at,
-    )
-    if scored == 0:
+    def _new_best(self, R: np.ndarray, t: np.ndarray, i: int, score: float) -> None:
+        c = self.components
+        self.best_R, self.best_t, self.best_score = R[i], t[i], score
+        self.best_inliers, computed = self.ctx.inliers_of(R, t, i)
+        self.checks += self.n if computed else 0
+        self.found_at = self.drawn
+        if c.local_optimizer is not None and not local_refit_redundant(c, self.drawn, self.best_inliers, self.n):
+            self.best_R, self.best_t, self.best_inliers, self.best_score, spent = c.local_optimizer.improve(
+                self.ctx, self.best_R, self.best_t, self.best_inliers, self.best_score, self.rng
+            )
+            self.local_runs += 1
+            self.checks += spent
+        state = self.state
+        for listener in c.listeners:
+            listener.on_new_best(self.best_inliers, state)
+
+    def choose(self, R: np.ndarray, t: np.ndarray, inliers: np.ndarray, score: float) -> None:
+        """Make ``(R (3, 3), t (3,), inliers (N,) bool, score)`` the model that ``finish`` refines: a
+        caller whose selection differs from the quality's maximum (the adaptive environment's agent
+        judges consensus by its own beliefs) picks among the hypotheses it was shown."""
+        self.best_R, self.best_t, self.best_inliers, self.best_score = R, t, inliers, float(score)
+
+    def finish(self) -> RansacReport:
+        """The final refinement of the best model and the run's report."""
+        c, n = self.components, self.n
+        best_R, best_t, best_inliers, best_score = self.best_R, self.best_t, self.best_inliers, self.best_score
+        report = dict(
+            n_hypotheses=self.drawn,
+            n_scored=self.scored,
+            n_point_checks=self.checks,
+            n_degenerate=self.degenerate,
+            n_rejected_samples=self.rejected,
+            n_local_optimizations=self.local_runs,
+            best_found_at=self.found_at,
+        )
+        if self.scored == 0:
+            report["counters"] = component_counters(c)
+            reason = "all samples degenerate" if self.rejected == 0 else (
+                f"no sample passed the sample check ({self.rejected} of {self.drawn} rejected, "
+                f"{self.degenerate} degenerate)"
+            )
+            return RansacReport(np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), -np.inf, f"failed: {reason}", **report)
+        if c.refiner is not None and np.count_nonzero(best_inliers) >= 3:
+            best_R, best_t, best_inliers, residual_sq = c.refiner.refine_with_residuals(
+                self.problem, best_R, best_t, best_inliers, c.residual_model, c.threshold_sq
+            )
+            if residual_sq is None:  # not computed in the loop's own model: score anew
+                residual_sq = self.ctx.residuals(best_R[None], best_t[None])[0]
+            best_score = float(c.quality.score(residual_sq[None], c.threshold_sq)[0])
         report["counters"] = component_counters(c)
-        reason = "all samples degenerate" if rejected == 0 else (
-            f"no sample passed the sample check ({rejected} of {drawn} rejected, {degenerate} degenerate)"
-        )
-        return RansacReport(np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), -np.inf, f"failed: {reason}", **report)
-    if c.refiner is not None and np.count_nonzero(best_inliers) >= 3:
-        best_R, best_t, best_inliers, residual_sq = c.refiner.refine_with_residuals(
-            problem, best_R, best_t, best_inliers, c.residual_model, c.threshold_sq
-        )
-        if residual_sq is None:  # not computed in the loop's own model: score anew
-            residual_sq = ctx.residuals(best_R[None], best_t[None])[0]
-            checks += n
-        best_score = float(c.quality.score(residual_sq[None], c.threshold_sq)[0])
-    report["counters"] = component_counters(c)
-    if np.count_nonzero(best_inliers) < max(c.min_inliers, 3):
-        return RansacReport(
-            np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), best_score,
-            f"failed: no consensus (best model has {int(np.count_nonzero(best_inliers))} inliers, need {c.min_inliers})",
-            **report,
-        )
-    return RansacReport(best_R, best_t, best_inliers, best_score, "ok", **report)
+        if np.count_nonzero(best_inliers) < max(c.min_inliers, 3):
+            return RansacReport(
+                np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), best_score,
+                f"failed: no consensus (best model has {int(np.count_nonzero(best_inliers))} inliers, "
+                f"need {c.min_inliers})",
+                **report,
+            )
+        return RansacReport(best_R, best_t, best_inliers, best_score, "ok", **report)
+
+
+def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.random.Generator) -> RansacReport:
+    """Run the RANSAC loop described by ``components`` on ``problem`` until its termination."""
+    search = RansacSearch(problem, components, rng)
+    while not search.done:
+        search.step()
+    return search.finish()
