@@ -19,8 +19,8 @@ from stereovo.estimation.sprt import (
     good_model_exponent,
     sprt_design,
 )
-from stereovo.estimation.tdd import TddTermination, TddVerification, random_points_excluding
-from stereovo.estimation.termination import all_inlier_probability, required_iterations
+from stereovo.estimation.tdd import TddVerification, random_points_excluding
+from stereovo.estimation.termination import all_inlier_probability
 from stereovo.estimation.verification import ScoringContext
 from stereovo.geometry import random_rotation, rotation_error
 from stereovo.simulation import SimulationConfig, simulate_frame
@@ -91,17 +91,6 @@ def test_tdd_pass_rates_and_exact_cost():
     assert checks == (~passed).sum() * 1 + passed.sum() * problem.n
     # Survivors carry their full score.
     np.testing.assert_array_equal(scores[passed], ctx.score(R[passed], t[passed]))
-
-
-def test_tdd_bound_is_ransac_bound_stretched_by_alpha():
-    stop = TddTermination(confidence=0.99, d=1)
-    for I, N in ((150, 300), (60, 300), (500, 1000)):
-        q = all_inlier_probability(I, N)
-        alpha = (I - 3) / (N - 3)
-        assert stop.required(I, N) == int(np.ceil(np.log(0.01) / np.log1p(-q * alpha)))
-        assert stop.required(I, N) > required_iterations(I, N)
-    assert stop.required(2, 300) == stop.max_iterations
-    assert stop.required(300, 300) == 1
 
 
 # ----------------------------------------------------------------------------- SPRT

@@ -1,0 +1,93 @@
+"""MLESAC's densities in absolute units, on a non-default camera, against the formulas of stereovo.estimation.mlesac.
+
+Outliers are uniform in the stereo measurement box ``width x height x (largest disparity)`` px^3, carried
+to metres at the point by ``|det J| = Z^4 / (fx^2 fy b)``; inliers are Gaussian with covariance
+``S_X + S_Y``. The expected values are worked out by hand below.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from stereovo.camera import StereoCamera
+from stereovo.estimation.mlesac import MlesacQuality, inlier_log_normaliser, outlier_log_density
+from stereovo.estimation.problem import StereoProblem
+
+# fx != fy, a short baseline and a VGA image: every camera constant enters the density differently.
+CAMERA = StereoCamera(fx=500.0, fy=400.0, cx=320.0, cy=240.0, baseline=0.25, width=640, height=480)
+
+
+def problem_at_depths(depths_curr=(5.0, 10.0, 25.0)) -> StereoProblem:
+    """Points on and off the optical axis at known depths at k (disparity fx b / Z = 125 / Z px)."""
+    depths = np.asarray(depths_curr)
+    curr_points = np.stack([np.linspace(-1.0, 1.0, depths.size), np.linspace(0.5, -0.5, depths.size), depths], 1)
+    prev_points = curr_points + [0.0, 0.0, 1.0]
+    return StereoProblem.build(CAMERA.project(prev_points), CAMERA.project(curr_points), CAMERA, 0.5)
+
+
+def test_outlier_density_in_measurement_space_mapped_to_metres():
+    problem = problem_at_depths()
+    # Disparities 125/5 = 25, 125/10 = 12.5, 125/25 = 5 px: the box is 640 x 480 x 25 = 7.68e6 px^3.
+    # |det J| = Z^4 / (500^2 * 400 * 0.25) = Z^4 / 2.5e7 m^3/px^3: 2.5e-5 (Z = 5), 4e-4 (10), 0.015625 (25).
+    # p_out = 1 / (7.68e6 |det J|): 1/192, 1/3072, 1/120000 per m^3.
+    expected = np.log([1 / 192, 1 / 3072, 1 / 120_000])
+    np.testing.assert_allclose(outlier_log_density(problem), expected, rtol=0, atol=1e-9)
+    # A far point is spread over more metric volume: its density is lower (the sign of the Jacobian term).
+    assert outlier_log_density(problem)[0] > outlier_log_density(problem)[2]
+
+
+def test_outlier_density_box_uses_the_largest_disparity_of_the_frame():
+    # Depths 10 and 25 m only: the largest disparity is 12.5 px, the box 640 x 480 x 12.5 = 3.84e6 px^3.
+    problem = problem_at_depths((10.0, 25.0))
+    expected = np.log([1 / (3.84e6 * 4e-4), 1 / (3.84e6 * 0.015625)])  # 1/1536 and 1/60000
+    np.testing.assert_allclose(outlier_log_density(problem), expected, rtol=0, atol=1e-9)
+    # Very far points (largest disparity 1.25 px < 1): the disparity side of the box is floored at 1 px.
+    far = problem_at_depths((100.0, 125.0))  # disparities 1.25 and 1.0 px
+    box = 640 * 480 * 1.25
+    np.testing.assert_allclose(
+        outlier_log_density(far), np.log([1 / (box * 100.0**4 / 2.5e7), 1 / (box * 125.0**4 / 2.5e7)]), atol=1e-9
+    )
+
+
+def det3(m: np.ndarray) -> float:
+    """A 3x3 determinant by cofactor expansion along the first row."""
+    return (
+        m[0, 0] * (m[1, 1] * m[2, 2] - m[1, 2] * m[2, 1])
+        - m[0, 1] * (m[1, 0] * m[2, 2] - m[1, 2] * m[2, 0])
+        + m[0, 2] * (m[1, 0] * m[2, 1] - m[1, 1] * m[2, 0])
+    )
+
+
+def test_inlier_normaliser_is_the_gaussian_constant_of_the_summed_covariance():
+    problem = problem_at_depths()
+    got = inlier_log_normaliser(problem)
+    for i in range(problem.n):
+        S = problem.cov_prev[i] + problem.cov_curr[i]
+        # log((2 pi)^(-3/2) |S|^(-1/2))
+        assert got[i] == pytest.approx(-1.5 * math.log(2 * math.pi) - 0.5 * math.log(det3(S)), abs=1e-9)
+    # A nearer point is measured more precisely: a larger Gaussian peak.
+    assert got[0] > got[1] > got[2]
+
+
+def test_inlier_normaliser_on_explicit_covariances():
+    # S_X + S_Y = diag(0.04, 0.1, 1.0) m^2 (det 0.004) and [[2, 1, 0], [1, 2, 0], [0, 0, 1]] (det 3).
+    problem = problem_at_depths((5.0, 10.0))
+    cov_prev = np.array([np.diag([0.01, 0.04, 0.25]), [[1.0, 0.5, 0.0], [0.5, 1.0, 0.0], [0.0, 0.0, 0.5]]])
+    cov_curr = np.array([np.diag([0.03, 0.06, 0.75]), [[1.0, 0.5, 0.0], [0.5, 1.0, 0.0], [0.0, 0.0, 0.5]]])
+    explicit = StereoProblem(**{**{k: getattr(problem, k) for k in problem.__dataclass_fields__},
+                                "cov_prev": cov_prev, "cov_curr": cov_curr})
+    expected = [-1.5 * math.log(2 * math.pi) - 0.5 * math.log(0.004), -1.5 * math.log(2 * math.pi) - 0.5 * math.log(3)]
+    np.testing.assert_allclose(inlier_log_normaliser(explicit), expected, rtol=0, atol=1e-12)
+    assert expected[0] == pytest.approx(-2.7568156 + 2.7607305, abs=1e-6)  # = 0.0039149
+
+
+def test_mlesac_quality_uses_both_densities():
+    problem = problem_at_depths()
+    quality = MlesacQuality.for_problem(problem)
+    np.testing.assert_allclose(quality.log_p_out, np.log([1 / 192, 1 / 3072, 1 / 120_000]), atol=1e-9)
+    # The inlier density at squared Mahalanobis distance d^2 is the normaliser times exp(-d^2 / 2).
+    d2 = np.array([[0.0, 2.0, 8.0]])
+    np.testing.assert_allclose(quality.log_p_in(d2), (inlier_log_normaliser(problem) - np.array([0.0, 1.0, 4.0]))[None])

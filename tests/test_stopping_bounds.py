@@ -1,0 +1,173 @@
+"""Stopping rules against numbers worked out by hand: RANSAC, T(d,d), SPRT, PROSAC's g(t) and n*.
+
+Every expected value is a literal, or arithmetic on literals written here from the papers' formulas
+(Schoenberger, Larsson & Pollefeys 2025 for drawing without replacement; Matas & Chum 2002/2004
+for T(d,d); Chum & Matas 2008 for the SPRT's bound; Chum & Matas 2005 for PROSAC), never a value
+asked of the code under test.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from stereovo import estimate_motion
+from stereovo.estimation.prosac import ProsacTermination
+from stereovo.estimation.samplers import ProsacSampler, prosac_growth
+from stereovo.estimation.sprt import SprtTermination, SprtTest, SprtVerification
+from stereovo.estimation.tdd import TddTermination
+from stereovo.estimation.termination import AdaptiveTermination, all_inlier_probability, required_iterations
+from stereovo.simulation import SimulationConfig, simulate_frame
+
+# ---------------------------------------------------------------------------- RANSAC
+
+
+def test_ransac_bound_draws_without_replacement():
+    # N = 20, I = 6: q = 6 * 5 * 4 / (20 * 19 * 18) = 120 / 6840 = 0.017544.
+    assert float(all_inlier_probability(6, 20)) == pytest.approx(120 / 6840, rel=1e-12)
+    assert float(all_inlier_probability(6, 20)) == pytest.approx(0.017544, abs=1e-6)
+    # k = ceil(log(0.01) / log(1 - 0.017544)) = ceil(260.2) = 261 (w^3 = 0.027 would give 169).
+    assert required_iterations(6, 20, confidence=0.99) == 261
+    assert AdaptiveTermination(confidence=0.99).required(6, 20) == 261
+    # p = 0.95: ceil(log(0.05) / log(1 - 0.017544)) = ceil(169.3) = 170.
+    assert required_iterations(6, 20, confidence=0.95) == 170
+    # N = 300, I = 150: q = 150 * 149 * 148 / (300 * 299 * 298) = 0.123746, k = ceil(34.9) = 35.
+    assert required_iterations(150, 300, confidence=0.99) == 35
+    # Elementwise over an array of counts.
+    np.testing.assert_array_equal(required_iterations(np.array([6, 20, 2]), 20, 0.99, 10_000), [261, 1, 10_000])
+
+
+def test_ransac_bound_edges_and_clips():
+    assert required_iterations(2, 20, confidence=0.99, max_iterations=777) == 777  # q = 0: never certain
+    assert required_iterations(20, 20, confidence=0.99) == 1  # q = 1: one draw
+    # q = 3 * 2 * 1 / (1000 * 999 * 998) ~ 6e-9 needs ~7.7e8 draws: clipped to max_iterations.
+    assert required_iterations(3, 1000, confidence=0.99, max_iterations=5000) == 5000
+    assert AdaptiveTermination(confidence=0.99, min_iterations=300).required(6, 20) == 300
+
+
+def test_uniform_ransac_loop_stops_at_the_first_batch_past_the_bound():
+    # The loop asks the bound of its best support after each batch: it stops at the first batch boundary
+    # at or past k(I) = ceil(log(0.01) / log(1 - I (I-1) (I-2) / (N (N-1) (N-2)))), I the final support.
+    batch = 8
+    for seed in range(3):
+        frame = simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.6), seed)
+        est = estimate_motion(frame.prev, frame.curr, frame.camera, method="ransac", rng=seed, refine=False,
+                              batch_size=batch, confidence=0.99, noise_sigma=frame.noise_sigma)
+        assert est.ok
+        I, N = est.n_inliers, 300
+        assert abs(I - 120) <= 0.15 * 120  # about the 120 true inliers
+        bound = math.ceil(math.log(0.01) / math.log(1 - I * (I - 1) * (I - 2) / (N * (N - 1) * (N - 2))))
+        assert bound <= est.n_hypotheses < bound + batch, (seed, est.n_hypotheses, bound)
+
+
+# ---------------------------------------------------------------------------- T(d,d)
+
+
+def test_tdd_bound_is_stretched_by_the_pass_probability():
+    # N = 20, I = 6, d = 1: a good hypothesis' pre-test point is one of the 17 others, 3 of them inliers:
+    # alpha = 3 / 17; k = ceil(log(0.01) / log(1 - 0.017544 * 3 / 17)) = ceil(1485.2) = 1486.
+    q = 6 * 5 * 4 / (20 * 19 * 18)
+    assert math.ceil(math.log(0.01) / math.log(1 - q * 3 / 17)) == 1486  # the arithmetic itself
+    assert TddTermination(confidence=0.99, d=1).required(6, 20) == 1486
+    # d = 2: alpha = (3 / 17) * (2 / 16); k = ceil(11897.3) = 11898.
+    assert TddTermination(confidence=0.99, d=2, max_iterations=100_000).required(6, 20) == 11898
+    # Plain RANSAC's 261 is the d = 0 limit: the pre-test only ever stretches the bound.
+    assert TddTermination(confidence=0.99, d=1).required(300, 300) == 1
+    assert TddTermination(confidence=0.99, d=1, max_iterations=900).required(3, 300) == 900
+
+
+# ---------------------------------------------------------------------------- SPRT
+
+
+def sprt_bound(history: list[SprtTest], n_inliers: int, n: int, confidence: float = 0.99) -> int:
+    verifier = SprtVerification(n=n)
+    verifier.history[:] = history
+    return SprtTermination(verifier, confidence=confidence).required(n_inliers, n)
+
+
+def test_sprt_bound_uses_the_current_tests_alpha():
+    # N = 100, I = 50: P_g = 50 * 49 * 48 / (100 * 99 * 98) = 4 / 33. One test designed for the model's
+    # own epsilon = 0.5 (so h = 1) with a small A = 4 rejects a good model with alpha = 1 / 4:
+    # k = ceil(log(0.01) / log(1 - (4/33)(3/4))) = ceil(log(0.01) / log(10/11)) = ceil(48.3) = 49.
+    # Ignoring alpha would give ceil(log(0.01) / log(29/33)) = 36.
+    assert math.ceil(math.log(0.01) / math.log(10 / 11)) == 49
+    assert sprt_bound([SprtTest(epsilon=0.5, delta=0.05, A=4.0)], 50, 100) == 49
+    # The test switched off (A = inf): alpha = 0, plain RANSAC's 36.
+    assert sprt_bound([SprtTest(epsilon=0.5, delta=0.05, A=math.inf)], 50, 100) == 36
+
+
+def test_sprt_bound_sums_over_the_history_of_tests():
+    # Test 1 (A = 4, alpha = 1/4) ran 10 draws: log eta = 10 log(1 - (4/33)(3/4)) = 10 log(10/11) = -0.95310.
+    # Test 2 (A = 2, alpha = 1/2) is current: k_2 = (log 0.01 + 0.95310) / log(1 - (4/33)/2) = 58.41,
+    # so 10 + ceil(58.41) = 69 draws in all.
+    log_eta = 10 * math.log(10 / 11)
+    assert 10 + math.ceil((math.log(0.01) - log_eta) / math.log(31 / 33)) == 69
+    history = [SprtTest(epsilon=0.5, delta=0.05, A=4.0, draws=10), SprtTest(epsilon=0.5, delta=0.05, A=2.0)]
+    assert sprt_bound(history, 50, 100) == 69
+
+
+def test_sprt_bound_uses_wald_exponent_for_a_mismatched_design():
+    # A test designed for epsilon_i = 0.5, delta_i = 0.1 and a good model of epsilon = 0.7 (N = 100, I = 70):
+    # h solves 0.7 (0.1/0.5)^h + 0.3 (0.9/0.5)^h = 1; h = 2 does (0.7 * 0.04 + 0.3 * 3.24 = 1).
+    assert 0.7 * 0.2**2 + 0.3 * 1.8**2 == pytest.approx(1.0, abs=1e-12)
+    # alpha = A^-2 = 1/9 for A = 3; P_g = 70 * 69 * 68 / (100 * 99 * 98) = 0.338528;
+    # k = ceil(log(0.01) / log(1 - 0.338528 * 8/9)) = ceil(12.1) = 13 (h = 1 would give 19, alpha = 0 gives 12).
+    p_good = 70 * 69 * 68 / (100 * 99 * 98)
+    assert math.ceil(math.log(0.01) / math.log(1 - p_good * 8 / 9)) == 13
+    assert sprt_bound([SprtTest(epsilon=0.5, delta=0.1, A=3.0)], 70, 100) == 13
+
+
+# ---------------------------------------------------------------------------- PROSAC
+
+
+def test_prosac_growth_matches_the_hand_listed_schedule():
+    # N = 500, T_N = 200000: T_3 = 200000 * 3 * 2 * 1 / (500 * 499 * 498), T_{k+1} = T_k (k+1) / (k+1-3),
+    # T'_3 = 1, T'_{k+1} = T'_k + ceil(T_{k+1} - T_k), worked out once on paper and listed here.
+    growth = prosac_growth(500, 3, 200_000)
+    listed = {3: 1, 4: 2, 5: 3, 6: 4, 7: 5, 8: 6, 9: 7, 10: 8, 20: 23, 50: 216, 100: 1613, 200: 12783}
+    assert {n: int(growth[n]) for n in listed} == listed
+
+
+def test_prosac_first_draws_follow_g_of_t():
+    # g(t) = min{n : T'_n >= t}: the first eight draws use n = 3, 4, ..., 10, then the schedule's steps.
+    sampler = ProsacSampler(np.arange(500), t_n=200_000)
+    t = np.array([1, 2, 3, 4, 5, 6, 7, 8, 9, 23, 24, 216, 217, 1613, 1614, 12783, 12784])
+    n = [3, 4, 5, 6, 7, 8, 9, 10, 11, 20, 21, 50, 51, 100, 101, 200, 201]
+    np.testing.assert_array_equal(sampler.subset_sizes(t), n)
+    # The samples themselves: draw t holds u_n (rank n - 1) and two of the n - 1 better ones.
+    order = np.random.default_rng(3).permutation(500)
+    sampler = ProsacSampler(order, t_n=200_000)
+    samples = sampler.draw(8, np.random.default_rng(0))
+    rank = np.empty(500, dtype=int)
+    rank[order] = np.arange(500)
+    assert sorted(rank[samples[0]]) == [0, 1, 2]  # t = 1: the top three
+    for t_index, n_t in enumerate([4, 5, 6, 7, 8, 9, 10], start=1):
+        ranks = sorted(rank[samples[t_index]])
+        assert ranks[-1] == n_t - 1 and len(set(ranks)) == 3, (t_index + 1, ranks)
+
+
+def test_prosac_n_star_on_exact_ties_is_the_largest_prefix():
+    # The 40 top-ranked matches are inliers, the other 60 outliers. Every prefix n = 20..40 is all-inlier:
+    # q_n = 1, k_n = 1, an exact tie; n = 41 has q < 1. n* is the largest tied prefix, 40, the most data.
+    sampler = ProsacSampler(np.arange(100))
+    stop = ProsacTermination(sampler, confidence=0.99)
+    inliers = np.zeros(100, dtype=bool)
+    inliers[:40] = True
+    stop.on_new_best(inliers, None)
+    assert stop.n_star == 40
+    assert sampler.n_max == 40
+    assert stop.required(40, 100) == 1
+
+
+def test_prosac_n_star_minimises_the_draws():
+    # Top 30 all inliers, then every other match from rank 31 on (I_100 = 30 + 35 = 65).
+    # n = 30: k = 1. n = 100: q = 65 * 64 * 63 / (100 * 99 * 98) < 1, k > 1. So n* = 30.
+    sampler = ProsacSampler(np.arange(100))
+    stop = ProsacTermination(sampler, confidence=0.99)
+    inliers = np.zeros(100, dtype=bool)
+    inliers[:30] = True
+    inliers[31::2] = True
+    stop.on_new_best(inliers, None)
+    assert stop.n_star == 30 and stop.required(65, 100) == 1
