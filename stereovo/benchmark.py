@@ -69,8 +69,10 @@ __all__ = [
     "simulate_trial",
     "run_trial",
     "run_benchmark",
+    "warm_up_estimators",
     "ordered_map",
     "read_trials_csv",
+    "parse_trial_value",
     "BenchmarkSummary",
     "aggregate",
     "summarize",
@@ -546,6 +548,21 @@ def ordered_map(
     return results
 
 
+def warm_up_estimators(estimators: Sequence[tuple[str, Estimator]]) -> None:
+    """Run every estimator once on a small frame, so numba compiles (or loads its cache) outside any timing.
+
+    A backend runs this once per worker process before its first trial. Errors are ignored:
+    the real trial records them.
+    """
+    cell = GridCell(0.3, 0.5, 0.9, 60)
+    frame = simulate_frame(cell.config(), np.random.default_rng(0))
+    for _, estimator in estimators:
+        try:
+            estimator(frame, np.random.default_rng(0))
+        except Exception:  # noqa: BLE001 - recorded by the trial itself
+            pass
+
+
 def run_benchmark(
     trials: Sequence[Trial],
     estimators: Sequence[tuple[str, Estimator]],
@@ -553,35 +570,61 @@ def run_benchmark(
     workers: int = 1,
     progress: bool = True,
     desc: str = "benchmark",
+    backend: Any = None,
+    journal: Any = None,
+    done: Mapping[int, list[dict[str, Any]]] | None = None,
+    warmup: bool = True,
+    chunk: int = 1,
 ) -> list[dict[str, Any]]:
     """Run every estimator on every trial's frame; rows in trial order, then estimator order.
 
     Args:
-        trials: e.g. ``grid.trials()``.
-        estimators: ``(name, callable)`` pairs; names must be unique. With
-            ``workers > 1`` the callables must be picklable (module-level
-            classes/functions, ``functools.partial``).
+        trials: e.g. ``grid.trials()``; ``Trial.index`` is the trial's key and must be unique.
+        estimators: ``(name, callable)`` pairs; names must be unique. Off this process
+            the callables must be picklable (module-level classes/functions, ``functools.partial``).
         seed: base seed (an integer >= 0).
-        workers: processes; 1 runs in this process. The rows do not depend on it.
-        progress: show a tqdm bar (stderr), one step per frame.
+        workers: processes of the default local backend; 1 runs in this process. The rows do not
+            depend on it.
+        progress: show a tqdm bar (stderr) with the remaining-time estimate, one step per frame.
+        backend: a :class:`stereovo.trials.Backend` (None: a local one with ``workers``, closed at
+            the end). The rows do not depend on it.
+        journal: an opened :class:`stereovo.trials.TrialJournal`: each finished trial is appended
+            to it at once (None: nothing is saved until the caller writes the rows).
+        done: rows of trials already in the journal, by trial index; they are not re-run.
+        warmup: run every estimator once per worker process before timing anything.
+        chunk: trials per backend call.
+
+    Raises:
+        stereovo.trials.RunInterrupted: Ctrl-C; every finished trial is in ``journal``.
     """
+    from stereovo.trials import Task, make_backend, run_tasks
+
     seed = _check_seed(seed)
     names = [name for name, _ in estimators]
     if len(set(names)) != len(names):
         raise ValueError(f"estimator names must be unique, got {names}")
     if not names:
         raise ValueError("no estimators to run")
-    if int(workers) != workers or workers < 1:
+    if isinstance(workers, bool) or int(workers) != workers or workers < 1:
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
-    from tqdm.auto import tqdm
-
     trials = list(trials)
-    bar = tqdm(total=len(trials), desc=desc, unit="frame", disable=not progress, dynamic_ncols=True)
+    owned = backend is None
+    backend = make_backend("local", int(workers)) if owned else backend
     try:
-        results = ordered_map(partial(run_trial, estimators=estimators, seed=seed), trials, workers, bar)
+        result = run_tasks(
+            partial(run_trial, estimators=estimators, seed=seed), [Task(t.index, t) for t in trials], backend,
+            journal=journal, done=dict(done or {}), warmup=partial(warm_up_estimators, estimators) if warmup else None,
+            chunk=chunk, progress=progress, desc=desc, unit="frame",
+        )
     finally:
-        bar.close()
-    return [row for rows in results for row in rows]  # type: ignore[union-attr]
+        if owned:
+            backend.close()
+    return [row for t in trials for row in result.results[t.index]]
+
+
+def parse_trial_value(column: str, text: str) -> Any:
+    """A ``trials.csv`` cell's value with its type restored (see :data:`TRIAL_COLUMNS`)."""
+    return _parse_value(column, text)
 
 
 def _parse_value(column: str, text: str) -> Any:
@@ -1286,16 +1329,23 @@ def write_outputs(
 ) -> tuple[BenchmarkSummary, list[ClaimCheck]]:
     """Write ``trials.csv``, ``cells.csv``, ``summary.csv``, ``summary.md``, ``claims.md`` and the plots."""
     from stereovo.io import write_frame_csv
+    from stereovo.trials.store import atomic_path, atomic_write_text
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    write_frame_csv(out / "trials.csv", rows)
+
+    def csv_file(name: str, table: Sequence[Mapping[str, Any]]) -> None:
+        # Through a temporary file and a rename: a reader never sees half a table.
+        with atomic_path(out / name) as tmp:
+            write_frame_csv(tmp, table)
+
+    csv_file("trials.csv", rows)
     summary = summarize(rows)
-    write_frame_csv(out / "summary.csv", [{"method": m, **summary.overall[m]} for m in summary.methods])
-    write_frame_csv(out / "cells.csv", cell_summary_rows(rows))
+    csv_file("summary.csv", [{"method": m, **summary.overall[m]} for m in summary.methods])
+    csv_file("cells.csv", cell_summary_rows(rows))
     claims = check_claims(summary)
-    (out / "summary.md").write_text(summary_markdown(summary, settings))
-    (out / "claims.md").write_text(claims_markdown(claims))
+    atomic_write_text(out / "summary.md", summary_markdown(summary, settings))
+    atomic_write_text(out / "claims.md", claims_markdown(claims))
     if plots:
         write_plots(rows, summary, out)
     return summary, claims

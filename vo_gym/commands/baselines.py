@@ -10,7 +10,15 @@ Writes to ``--out`` (default ``runs/baselines``):
 - ``cells.csv``: the same statistics per (method, grid cell);
 - ``claims.md``: the seed's qualitative claims checked one by one with these numbers;
 - ``success_vs_epsilon.png``, ``hypotheses_vs_epsilon.png``, ``time_vs_n.png``, ``error_cdf.png``;
-- ``run.json``: the settings, for ``scripts/make_baseline_report.py``.
+- ``run.json``: the settings, for ``scripts/make_baseline_report.py``;
+- ``journal.csv`` and ``manifest.json``: every finished trial, appended as it finishes, and
+  what the run computes (:mod:`stereovo.trials.store`). An interrupted run keeps its finished
+  trials; ``--resume`` runs only the missing ones and ends with the files an uninterrupted run
+  writes. ``--report-only DIR`` rebuilds the tables and plots from the stored trials.
+
+Trials run on a backend (``--backend local``, the default: this process or a process pool of
+``--workers``; ``--backend ray``: Ray tasks on a local instance of ``--workers`` CPUs, or on a
+cluster with ``--address``). The rows never depend on the backend or the worker count.
 
 The default grid (epsilon {0.2, 0.5, 0.8} x sigma 0.5 px x AUC {0.75, 0.9} x N {200, 500},
 the simulator's outlier mix, 10 frames per cell = 120 frames, at most 2000 hypotheses)
@@ -30,40 +38,56 @@ from pathlib import Path
 from typing import Any, Callable
 
 
-def _csv_list(kind: Callable[[str], Any], name: str) -> Callable[[str], list[Any]]:
-    def parse(text: str) -> list[Any]:
-        items = [t.strip() for t in text.split(",") if t.strip()]
-        if not items:
-            raise argparse.ArgumentTypeError(f"{name} needs at least one value")
-        try:
-            return [kind(t) for t in items]
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} {text!r}: expected comma-separated {kind.__name__} values") from None
+from vo_gym.commands.common import (
+    EXIT_INTERRUPTED,
+    EXIT_USAGE,
+    UsageError,
+    check_output_dir,
+    csv_list,
+    positive_int,
+    seed as parse_seed,
+)
 
-    return parse
-
-
-def _positive_int(name: str) -> Callable[[str], int]:
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} {text!r} is not an integer") from None
-        if value < 1:
-            raise argparse.ArgumentTypeError(f"{name} must be >= 1, got {value}")
-        return value
-
-    return parse
+# Kept for modules that imported the old private names.
+_csv_list, _positive_int, _seed = csv_list, positive_int, parse_seed
 
 
-def _seed(text: str) -> int:
+def add_backend_options(parser: argparse.ArgumentParser, what: str = "trials") -> None:
+    """``--backend``, ``--workers``, ``--address``, ``--resume``, ``--overwrite``: shared by every grid command."""
+    group = parser.add_argument_group("where the trials run and how a run survives")
+    group.add_argument("--backend", choices=("local", "ray"), default="local",
+                       help=f"local: {what} in this process or a process pool (default); ray: Ray tasks")
+    group.add_argument("--workers", type=positive_int("--workers"), default=None, metavar="N",
+                       help="worker processes (local) or CPUs of the local Ray instance (default: the CPUs"
+                            " available)")
+    group.add_argument("--address", default=None, metavar="auto|HOST:PORT",
+                       help="with --backend ray: join this Ray cluster instead of starting a local instance")
+    group.add_argument("--resume", action="store_true",
+                       help="complete the run in --out: run only the trials missing from its journal")
+    group.add_argument("--overwrite", action="store_true", help="replace the run in a non-empty --out")
+
+
+def backend_from_args(args: argparse.Namespace, workers: int):
+    """The backend the options ask for; raises :class:`UsageError` naming the option."""
+    from stereovo.trials import make_backend
+
+    if args.address is not None and args.backend != "ray":
+        raise UsageError(f"--address {args.address!r} needs --backend ray")
     try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--seed {text!r} is not an integer") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"--seed must be >= 0, got {value}")
-    return value
+        return make_backend(args.backend, workers, args.address)
+    except ValueError as err:
+        raise UsageError(str(err)) from None
+
+
+def open_run_folder(args: argparse.Namespace) -> Path:
+    """``--out`` refused when not empty (unless --resume / --overwrite), then proved writable."""
+    from stereovo.trials import RunFolderError, prepare_run_folder
+
+    try:
+        prepare_run_folder(args.out, resume=args.resume, overwrite=args.overwrite)
+    except RunFolderError as err:
+        raise UsageError(str(err)) from None
+    return check_output_dir(args.out)
 
 
 def add_parser(parser: argparse.ArgumentParser) -> None:
@@ -93,17 +117,20 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-iterations", type=_positive_int("--max-iterations"), default=None, metavar="K",
                         help="hypothesis cap for every method (default: 2000; --full: the core's default)")
     parser.add_argument("--preset", default="car", choices=["car", "free"], help="motion preset (default: car)")
-    parser.add_argument("--workers", type=_positive_int("--workers"), default=None, metavar="N",
-                        help="worker processes (default: the CPUs available)")
     parser.add_argument("--seed", type=_seed, default=0, help="base seed of frames and estimators (default: 0)")
     parser.add_argument("--out", type=Path, default=Path("runs/baselines"), help="output folder (default: runs/baselines)")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument("--report-only", type=Path, default=None, metavar="DIR",
+                        help="rebuild the tables and plots of the run in DIR from its stored trials; runs nothing")
+    parser.add_argument("--chunk", type=positive_int("--chunk"), default=1, metavar="K",
+                        help="frames per backend task (default 1; larger cuts per-task overhead)")
+    add_backend_options(parser, "frames")
 
 
 def _error(message: str) -> int:
     print(f"vo-gym baselines: error: {message}", file=sys.stderr)
-    return 2
+    return EXIT_USAGE
 
 
 def _json_safe(value: Any) -> Any:
@@ -117,12 +144,66 @@ def _json_safe(value: Any) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
+    try:
+        return _run(args)
+    except UsageError as err:
+        return _error(str(err))
+
+
+def _stored_rows(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """Rows and settings of a run folder: ``trials.csv`` of a finished run, else its journal."""
+    from stereovo import benchmark as bm
+    from stereovo.trials.store import JOURNAL, MANIFEST, read_journal
+
+    settings: dict[str, Any] = {}
+    if (folder / "run.json").is_file():
+        settings = json.loads((folder / "run.json").read_text())
+    journal = folder / JOURNAL
+    if journal.is_file():
+        done = read_journal(journal, bm.parse_trial_value)
+        rows = [row for key in sorted(done) for row in done[key]]
+        if not settings and (folder / MANIFEST).is_file():
+            manifest = json.loads((folder / MANIFEST).read_text())
+            grid = bm.BenchmarkGrid(**{k: tuple(v) if isinstance(v, list) else v
+                                       for k, v in manifest["grid_axes"].items()})
+            settings = {"grid": grid.describe(), "grid_axes": manifest["grid_axes"],
+                        "max_iterations": grid.max_iterations, "methods": manifest["methods"],
+                        "seed": manifest["seed"]}
+            settings["n_trials_done"] = len(done)
+        return rows, settings
+    if (folder / "trials.csv").is_file():
+        return bm.read_trials_csv(folder / "trials.csv"), settings
+    raise UsageError(f"--report-only {str(folder)!r}: no trials.csv or {JOURNAL} there")
+
+
+def _report_only(args: argparse.Namespace) -> int:
+    from stereovo import benchmark as bm
+
+    folder: Path = args.report_only
+    if not folder.is_dir():
+        raise UsageError(f"--report-only {str(folder)!r} is not a directory")
+    check_output_dir(folder, "--report-only")
+    rows, settings = _stored_rows(folder)
+    if not rows:
+        raise UsageError(f"--report-only {str(folder)!r}: no finished trials stored yet")
+    summary, claims = bm.write_outputs(rows, folder, settings, plots=not args.no_plots)
+    n_frames = len({r["trial"] for r in rows})
+    print(f"vo-gym baselines: rebuilt the report of {folder} from {n_frames} stored frames ({len(rows)} rows)\n")
+    print(bm.overall_table(summary))
+    print(f"\n  wrote {folder}/: trials.csv, summary.csv, cells.csv, summary.md, claims.md"
+          + ("" if args.no_plots else ", " + ", ".join(bm.PLOT_FILES)))
+    return 0
+
+
+def _run(args: argparse.Namespace) -> int:
     from stereovo import benchmark as bm
 
     if args.list_methods:
         for name in bm.benchmark_methods():
             print(f"{name:<22} {bm.describe_method(name)}")
         return 0
+    if args.report_only is not None:
+        return _report_only(args)
 
     base = bm.FULL_GRID if args.full else bm.DEFAULT_GRID
     try:
@@ -138,16 +219,53 @@ def run(args: argparse.Namespace) -> int:
         estimators = bm.classical_estimators(args.methods, **options)
     except ValueError as err:
         return _error(f"--methods: {err}")
+    if args.address is not None and args.backend != "ray":
+        raise UsageError(f"--address {args.address!r} needs --backend ray")
+    out = open_run_folder(args)  # before any computing
     workers = args.workers or bm.default_workers()
     trials = grid.trials()
     names = [name for name, _ in estimators]
 
-    print(f"vo-gym baselines: {grid.describe()}")
-    print(f"  {len(names)} methods: {', '.join(names)}; seed {args.seed}; {workers} worker(s)")
-    start = time.perf_counter()
-    rows = bm.run_benchmark(trials, estimators, seed=args.seed, workers=workers,
-                            progress=not args.no_progress, desc="baselines")
-    wall = time.perf_counter() - start
+    from stereovo.trials import RunInterrupted, TrialJournal
+    from stereovo.trials.store import RunFolderError, atomic_write_text
+
+    manifest = {"command": "baselines", "grid_axes": grid.as_dict(), "methods": names, "seed": args.seed,
+                "options": _json_safe(options)}
+    journal = TrialJournal(out, bm.TRIAL_COLUMNS, bm.parse_trial_value)
+    try:
+        done = journal.open(manifest, resume=args.resume)
+    except RunFolderError as err:
+        raise UsageError(str(err)) from None
+    try:
+        print(f"vo-gym baselines: {grid.describe()}")
+        backend = backend_from_args(args, workers)
+        print(f"  {len(names)} methods: {', '.join(names)}; seed {args.seed}; {backend.describe()}", flush=True)
+        if done:
+            print(f"  resuming: {len(done)} of {len(trials)} frames already in {out}/journal.csv", flush=True)
+        if len(done) < len(trials):
+            print("  warming up: every method once per worker before timing (compiles the kernels on a first"
+                  " run)", flush=True)
+        start = time.perf_counter()
+        try:
+            bm.run_benchmark(trials, estimators, seed=args.seed, workers=workers, progress=not args.no_progress,
+                             desc="baselines", backend=backend, journal=journal, done=done, chunk=args.chunk)
+        finally:
+            backend.close()
+        wall = time.perf_counter() - start
+    except RunInterrupted as stop:
+        journal.close()
+        print(stop.message(), file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except KeyboardInterrupt:
+        journal.close()
+        from stereovo.trials.runner import interrupted_message
+
+        print(interrupted_message(len(journal.read()), len(trials), out), file=sys.stderr)
+        return EXIT_INTERRUPTED
+    journal.close()
+    # The final files come from the journal, so a resumed run writes exactly what an uninterrupted one does.
+    stored = journal.read()
+    rows = [row for t in trials for row in stored[t.index]]
 
     settings = {
         "grid": grid.describe(),
@@ -157,17 +275,19 @@ def run(args: argparse.Namespace) -> int:
         "method_descriptions": {n: bm.describe_method(n) for n in names},
         "seed": args.seed,
         "workers": workers,
+        "backend": args.backend,
         "full": bool(args.full),
         "n_trials": len(trials),
         "n_rows": len(rows),
+        "n_resumed": len(done),
         "wall_s": round(wall, 1),
         "machine": f"{platform.machine()}, {bm.default_workers()} CPUs available, Python {platform.python_version()}",
     }
-    out: Path = args.out
     summary, claims = bm.write_outputs(rows, out, settings, plots=not args.no_plots)
-    (out / "run.json").write_text(json.dumps(_json_safe(settings), indent=2) + "\n")
+    atomic_write_text(out / "run.json", json.dumps(_json_safe(settings), indent=2) + "\n")
 
-    print(f"\n{len(trials)} frames x {len(names)} methods in {wall:.1f} s\n")
+    print(f"\n{len(trials)} frames x {len(names)} methods in {wall:.1f} s"
+          + (f" ({len(done)} frames resumed)" if done else "") + "\n")
     print(bm.overall_table(summary))
     print()
     width = max(len(c.key) for c in claims)
