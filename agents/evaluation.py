@@ -1,7 +1,7 @@
 """Evaluation of sampling agents side by side with classical methods, on the same held-out frames.
 
-What ``vo-gym evaluate`` runs, reusable from Python (the PPO trainer's
-evaluation callback uses :func:`success_rate` from here too).
+What ``vo-gym evaluate`` runs, reusable from Python (:func:`success_rate` is
+:func:`agents.rollout.success_rate`, what the PPO trainer's callback measures).
 
 Protocol:
 
@@ -45,6 +45,7 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 import numpy as np
 
 from agents.policies import HEURISTICS, OraclePolicy, Policy, make_heuristic
+from agents.rollout import make_env, success_rate
 
 __all__ = [
     "ORACLE",
@@ -297,17 +298,6 @@ def normalize_methods(names: Iterable[str]) -> list[str]:
     return out
 
 
-def make_env(env_id: str, **kwargs: Any):
-    import gymnasium as gym
-
-    import vo_gym  # noqa: F401  (registers the ids)
-
-    try:
-        return gym.make(env_id, **kwargs)
-    except gym.error.Error as err:
-        raise ValueError(f"environment {env_id!r}: {err}") from None
-
-
 # --------------------------------------------------------------------------- running
 
 
@@ -416,14 +406,6 @@ def run_classical_episode(
                    "frame_outlier_ratio": float(frame.truth.outlier_ratio), "reward": math.nan, "time_s": elapsed}
             rows.append({c: row[c] for c in ROW_COLUMNS})
     return rows
-
-
-def success_rate(
-    policy: Policy, env_id: str, env_kwargs: Mapping[str, Any], seeds: Sequence[int]
-) -> tuple[float, float]:
-    """``(frame success rate, mean reward)`` of ``policy`` over episodes from ``seeds`` (in this process)."""
-    rows = [r for i, s in enumerate(seeds) for r in run_agent_episode(policy, env_id, env_kwargs, s, i)]
-    return float(np.mean([r["success"] for r in rows])), float(np.mean([r["reward"] for r in rows]))
 
 
 @dataclass(frozen=True)

@@ -31,11 +31,17 @@ import torch
 
 from agents.checkpoint import load_checkpoint, save_checkpoint
 from agents.network import CorrespondenceNet
-from stereovo.estimation import EstimatorOptions, MotionEstimate, StereoProblem, method_spec
-from stereovo.estimation.loop import run_ransac
-from stereovo.estimation.samplers import ReplaySampler, WeightedSampler
+from stereovo.estimation import (
+    EstimatorOptions,
+    MotionEstimate,
+    ReplaySampler,
+    StereoProblem,
+    WeightedSampler,
+    method_spec,
+    run_ransac,
+)
 from stereovo.geometry import rotation_error
-from stereovo.metrics import SUCCESS_ROT_DEG, SUCCESS_TRANS_M, SUCCESS_TRANS_REL
+from stereovo.metrics import pose_error_ratio
 from stereovo.simulation import Frame, Sequence, SimulationConfig
 from vo_gym.env import DEFAULT_ESTIMATOR_OPTIONS
 from vo_gym.features import N_FEATURES, compute_features
@@ -133,7 +139,7 @@ def pose_loss(estimate: MotionEstimate, frame: Frame) -> float:
     r_deg = float(np.degrees(rotation_error(estimate.rotation, frame.truth.rotation)))
     t_true = float(np.linalg.norm(frame.truth.translation))
     t_err = float(np.linalg.norm(estimate.translation - frame.truth.translation))
-    return min(max(r_deg / SUCCESS_ROT_DEG, t_err / max(SUCCESS_TRANS_M, SUCCESS_TRANS_REL * t_true)), LOSS_CAP)
+    return min(pose_error_ratio(r_deg, t_err, t_true), LOSS_CAP)
 
 
 def inlier_loss(estimate: MotionEstimate, frame: Frame, previous_motion=None) -> float:

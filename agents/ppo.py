@@ -41,6 +41,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from agents.checkpoint import LearnedPolicy, save_checkpoint
 from agents.network import CorrespondenceNet
+from agents.rollout import success_rate
 from vo_gym.features import FEATURE_LAYOUT_VERSION, FEATURE_NAMES, check_feature_layout
 
 __all__ = [
@@ -53,7 +54,6 @@ __all__ = [
     "read_ppo_config",
     "SuccessEvalCallback",
     "train_ppo",
-    "train_ppo_command",
 ]
 
 VEC_ENVS = ("dummy", "subproc")
@@ -336,7 +336,6 @@ class SuccessEvalCallback(BaseCallback):
         self.best = max((h["success"] for h in self.history), default=-1.0)
         self.next_eval = self.num_timesteps + (self.every if last is not None else 0)
         if "success" not in self.baseline:
-            from agents.evaluation import success_rate
             from agents.policies import make_heuristic
 
             s, r = success_rate(make_heuristic("uniform"), self.config.env_id, self.config.eval_env_kwargs(),
@@ -364,8 +363,6 @@ class SuccessEvalCallback(BaseCallback):
         self.logger.dump(self.num_timesteps)
 
     def evaluate(self) -> dict[str, Any]:
-        from agents.evaluation import success_rate
-
         net = self.model.policy.action_net
         was_training = net.training
         try:
@@ -465,62 +462,3 @@ def train_ppo(config: PPOConfig, out: str | Path, resume: str | Path | None = No
     }
     (out / "training.json").write_text(json.dumps(summary, indent=2) + "\n")
     return PPOResult(model, config, history, baseline.get("success"), wall, zip_path, checkpoint)
-
-
-_SHARED_EVAL_EVERY_DEFAULT = 250  # the train command's --eval-every default, in NG-RANSAC frames
-
-
-def config_from_args(args) -> PPOConfig:
-    """A :class:`PPOConfig` from ``vo-gym train --algo ppo`` arguments (shared and ``ppo`` group).
-
-    ``--eval-every`` counts environment steps here; left at the command's default (250, sized for
-    NG-RANSAC frames) it becomes :class:`PPOConfig`'s 2000, so evaluation stays a small share of the time.
-    """
-    values: dict[str, Any] = {}
-    shared = {"env_id": "env_id", "n_envs": "n_envs", "seed": "seed", "timesteps": "timesteps", "budget": "budget",
-              "eval_frames": "eval_frames"}
-    ppo_only = {
-        "vec_env": "vec_env", "frames_per_episode": "n_frames", "n_correspondences": "n_correspondences",
-        "reward_mode": "reward_mode", "n_steps": "n_steps", "batch_size": "batch_size", "n_epochs": "n_epochs",
-        "ppo_lr": "learning_rate", "gamma": "gamma", "gae_lambda": "gae_lambda", "clip_range": "clip_range",
-        "ent_coef": "ent_coef", "target_kl": "target_kl", "eval_n": "eval_n_correspondences",
-        "width": "width", "blocks": "blocks", "max_minutes": "max_wall_s",
-        "log_std_init": "log_std_init", "share_trunk": "share_trunk", "checkpoint_every": "checkpoint_every",
-    }
-    for arg, key in {**shared, **ppo_only}.items():
-        value = getattr(args, arg, None)
-        if value is not None:
-            values[key] = 60.0 * value if arg == "max_minutes" else value
-    if getattr(args, "epsilon", None) is not None:
-        from vo_gym.commands.train import _epsilon_range
-
-        values["epsilon_range"] = _epsilon_range(args.epsilon)
-    eval_every = getattr(args, "eval_every", None)
-    if eval_every is not None and eval_every != _SHARED_EVAL_EVERY_DEFAULT:
-        values["eval_every"] = eval_every
-    return PPOConfig(**values)
-
-
-def train_ppo_command(args, out: Path) -> int:
-    """``vo-gym train --algo ppo``: see :func:`train_ppo`; ``--resume`` takes the SB3 ``.zip``."""
-    try:
-        config = config_from_args(args)
-        resume = getattr(args, "resume", None)
-        if resume is not None and Path(resume).suffix == ".pt":
-            raise ValueError(
-                f"--resume {resume}: PPO resumes from the SB3 model zip (e.g. {Path(resume).with_suffix('.zip')}); "
-                "the .pt file is the exported actor only"
-            )
-        result = train_ppo(config, out, resume=resume, progress=not getattr(args, "no_progress", False))
-    except (ValueError, FileNotFoundError) as err:
-        raise SystemExit(f"vo-gym train: error: {err}")
-    print(f"model: {result.zip_path}")
-    print(f"checkpoint: {result.checkpoint_path}")
-    if result.history:
-        last = result.history[-1]
-        best = max(result.history, key=lambda h: h["success"])
-        uniform = "n/a" if result.uniform_success is None else f"{result.uniform_success:.3f}"
-        print(f"step {last['timesteps']}: success at eps {result.config.eval_epsilon:g} with {result.config.budget} "
-              f"hypotheses {last['success']:.3f} (best {best['success']:.3f} at step {best['timesteps']}; "
-              f"uniform {uniform}) in {result.wall_s:.0f} s")
-    return 0

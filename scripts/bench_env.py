@@ -134,17 +134,17 @@ def bench_breakdown(args) -> dict:
     """Median milliseconds of the parts of a step, on the frames of one episode."""
     env = gym.make(args.id, **_env_kwargs(args)).unwrapped
     env.reset(seed=1)
-    frames = [env._sequence.frame(k) for k in range(1, min(args.n_frames, 50) + 1)]
+    frames = [env.sequence.frame(k) for k in range(1, min(args.n_frames, 50) + 1)]
     sim, feat, est = [], [], []
     rng = np.random.default_rng(0)
     for frame in frames + frames:  # the first pass warms up; only the second is kept
         t0 = time.perf_counter()
-        env._sequence.frame(frame.index)
+        env.sequence.frame(frame.index)
         t1 = time.perf_counter()
         compute_features(frame.prev, frame.curr, frame.scores, frame.camera, env.estimator_noise_sigma, None)
         t2 = time.perf_counter()
         estimate_motion(frame.prev, frame.curr, frame.camera, method=env.method, priors=np.ones(frame.n),
-                        rng=rng, **env._estimator_kwargs)
+                        rng=rng, **env.estimator_kwargs)
         t3 = time.perf_counter()
         sim.append(t1 - t0), feat.append(t2 - t1), est.append(t3 - t2)
     keep = slice(len(frames), None)

@@ -49,6 +49,18 @@ def is_success(rot_err_rad: Any, trans_err: Any, t_true_norm: Any) -> np.ndarray
     return (rot < np.deg2rad(SUCCESS_ROT_DEG)) & (trans < bound)
 
 
+def pose_error_ratio(rot_err_deg: float, trans_err_m: float, t_true_norm_m: float) -> float:
+    """A pose error in units of the success bounds: below 1 (with status ok) is a success.
+
+    ``max(rot_err_deg / SUCCESS_ROT_DEG, trans_err_m / max(SUCCESS_TRANS_M, SUCCESS_TRANS_REL * t_true_norm_m))``
+    for a rotation error in degrees, a translation error in metres and the norm of the true
+    translation in metres. The environment's supervised reward and the NG-RANSAC trainer's
+    supervised loss are both built on it.
+    """
+    trans_bound = max(SUCCESS_TRANS_M, SUCCESS_TRANS_REL * t_true_norm_m)
+    return float(max(rot_err_deg / SUCCESS_ROT_DEG, trans_err_m / trans_bound))
+
+
 def inlier_precision_recall(predicted: np.ndarray, actual: np.ndarray) -> tuple[float, float]:
     """Precision and recall of a predicted inlier mask against the true one.
 

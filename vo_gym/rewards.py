@@ -39,7 +39,8 @@ import numpy as np
 from stereovo.camera import StereoCamera
 from stereovo.estimation.reprojection import reprojection_sq
 from stereovo.estimation.scoring import TruncatedQuadratic
-from stereovo.metrics import SUCCESS_ROT_DEG, SUCCESS_TRANS_M, SUCCESS_TRANS_REL, FrameMetrics
+from stereovo.metrics import FrameMetrics
+from stereovo.metrics import pose_error_ratio as error_ratio
 
 __all__ = [
     "REWARD_MODES",
@@ -61,9 +62,8 @@ def _clip(value: float) -> float:
 
 
 def pose_error_ratio(metrics: FrameMetrics) -> float:
-    """``max(rot_err / rot_bound, trans_err / trans_bound)``: below 1 means within the success bounds."""
-    trans_bound = max(SUCCESS_TRANS_M, SUCCESS_TRANS_REL * metrics.t_true_norm_m)
-    return float(max(metrics.rot_err_deg / SUCCESS_ROT_DEG, metrics.trans_err_m / trans_bound))
+    """:func:`stereovo.metrics.pose_error_ratio` of a frame's errors: below 1 means within the success bounds."""
+    return error_ratio(metrics.rot_err_deg, metrics.trans_err_m, metrics.t_true_norm_m)
 
 
 def supervised_reward(

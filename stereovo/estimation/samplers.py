@@ -12,8 +12,7 @@ from typing import Protocol
 import numpy as np
 
 from stereovo.estimation import kernels
-
-SAMPLE_SIZE = 3
+from stereovo.estimation.solvers import SAMPLE_SIZE
 
 
 class Sampler(Protocol):

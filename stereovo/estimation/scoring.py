@@ -87,26 +87,6 @@ class ReprojectionResidual:
         return reprojection_sq(problem.camera, R, t, problem.points_prev, problem.curr)
 
 
-@dataclass(frozen=True)
-class EuclideanResidual:
-    """Metres^2 between ``Y_i`` and ``R X_i + t``: blind to the depth dependence of the noise."""
-
-    threshold_sq: float = 0.25
-    name: str = "euclidean"
-
-    def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray, cap: float | None = None) -> np.ndarray:
-        moved = problem.points_prev @ np.swapaxes(R, -1, -2) + t[:, None, :]
-        return np.sum((problem.points_curr[None] - moved) ** 2, axis=-1)
-
-
-RESIDUAL_MODELS = {
-    "mahalanobis": MahalanobisResidual,
-    "pixel-mahalanobis": PixelMahalanobisResidual,
-    "reprojection": ReprojectionResidual,
-    "euclidean": EuclideanResidual,
-}
-
-
 class Quality(Protocol):
     """Score ``(H,)`` (higher is better) from squared residuals ``(H, N)`` and the gate.
 
@@ -145,5 +125,3 @@ class TruncatedQuadratic:
     def score(self, residual_sq: np.ndarray, threshold_sq: float) -> np.ndarray:
         return -np.sum(np.minimum(residual_sq, threshold_sq), axis=-1) / threshold_sq
 
-
-QUALITIES = {"count": InlierCount, "msac": TruncatedQuadratic}

@@ -18,7 +18,7 @@ import numpy as np
 from stereovo.estimation import kernels
 from stereovo.estimation.problem import StereoProblem
 
-SAMPLE_SIZE = 3
+SAMPLE_SIZE = 3  # a rigid motion from three 3-D points: the one definition the core shares
 # Pitfalls (ALGORITHMS.md): a triplet whose triangle area is below this fraction of its
 # squared longest side is near-collinear and leaves the rotation about its line free.
 DEGENERATE_AREA_RATIO = 1e-3

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-SAMPLE_SIZE = 3
+from stereovo.estimation.solvers import SAMPLE_SIZE
 
 
 def all_inlier_probability(n_inliers: int | np.ndarray, n: int, sample_size: int = SAMPLE_SIZE) -> np.ndarray:

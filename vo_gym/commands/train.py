@@ -142,11 +142,63 @@ def _train_ngransac(args: argparse.Namespace, out: Path) -> int:
     return 0
 
 
+# ``vo-gym train`` option -> agents.ppo.PPOConfig field; None (not given) keeps PPOConfig's default.
+_PPO_OPTIONS = {
+    "env_id": "env_id", "n_envs": "n_envs", "seed": "seed", "timesteps": "timesteps", "budget": "budget",
+    "eval_frames": "eval_frames", "eval_every": "eval_every", "vec_env": "vec_env",
+    "frames_per_episode": "n_frames", "n_correspondences": "n_correspondences", "reward_mode": "reward_mode",
+    "n_steps": "n_steps", "batch_size": "batch_size", "n_epochs": "n_epochs", "ppo_lr": "learning_rate",
+    "gamma": "gamma", "gae_lambda": "gae_lambda", "clip_range": "clip_range", "ent_coef": "ent_coef",
+    "target_kl": "target_kl", "eval_n": "eval_n_correspondences", "width": "width", "blocks": "blocks",
+    "log_std_init": "log_std_init", "share_trunk": "share_trunk", "checkpoint_every": "checkpoint_every",
+}
+
+
+def ppo_config_from_args(args: argparse.Namespace):
+    """The :class:`agents.ppo.PPOConfig` of ``vo-gym train --algo ppo`` arguments.
+
+    ``--eval-every`` counts environment steps here; an option left out keeps PPOConfig's default
+    (``--eval-every``: 2000), and a given value is taken as given (``--eval-every 250`` is 250).
+    """
+    from agents.ppo import PPOConfig
+
+    values = {key: getattr(args, arg) for arg, key in _PPO_OPTIONS.items() if getattr(args, arg, None) is not None}
+    if getattr(args, "max_minutes", None) is not None:
+        values["max_wall_s"] = 60.0 * args.max_minutes
+    if getattr(args, "epsilon", None) is not None:
+        values["epsilon_range"] = _epsilon_range(args.epsilon)
+    return PPOConfig(**values)
+
+
+def _train_ppo(args: argparse.Namespace, out: Path) -> int:
+    from agents.ppo import train_ppo
+
+    try:
+        config = ppo_config_from_args(args)
+        resume = getattr(args, "resume", None)
+        if resume is not None and Path(resume).suffix == ".pt":
+            raise ValueError(
+                f"--resume {resume}: PPO resumes from the SB3 model zip (e.g. {Path(resume).with_suffix('.zip')}); "
+                "the .pt file is the exported actor only"
+            )
+        result = train_ppo(config, out, resume=resume, progress=not getattr(args, "no_progress", False))
+    except (ValueError, FileNotFoundError) as err:
+        raise SystemExit(f"vo-gym train: error: {err}")
+    print(f"model: {result.zip_path}")
+    print(f"checkpoint: {result.checkpoint_path}")
+    if result.history:
+        last = result.history[-1]
+        best = max(result.history, key=lambda h: h["success"])
+        uniform = "n/a" if result.uniform_success is None else f"{result.uniform_success:.3f}"
+        print(f"step {last['timesteps']}: success at eps {result.config.eval_epsilon:g} with {result.config.budget} "
+              f"hypotheses {last['success']:.3f} (best {best['success']:.3f} at step {best['timesteps']}; "
+              f"uniform {uniform}) in {result.wall_s:.0f} s")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if args.algo == "ngransac":
         return _train_ngransac(args, out)
-    from agents.ppo import train_ppo_command
-
-    return train_ppo_command(args, out)
+    return _train_ppo(args, out)
