@@ -163,16 +163,6 @@ def test_entropy_bonus_keeps_the_sampling_distribution_spread_and_settings_are_v
         NGRansacConfig(max_grad_norm=0.0)
 
 
-def test_shipped_checkpoint_loads_and_is_small():
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "agents" / "checkpoints" / "ngransac-supervised.pt"
-    assert path.stat().st_size < 300_000
-    policy = LearnedPolicy.from_checkpoint(path)
-    x = np.random.default_rng(0).normal(size=(30, N_FEATURES)).astype(np.float32)
-    assert policy.act({"features": x, "mask": np.ones(30, dtype=np.int8)}).shape == (30,)
-
-
 def test_smoothness_loss_prefers_the_motion_that_continues_the_previous_one():
     from agents.ngransac import inlier_loss, smooth_inlier_loss
     from stereovo.estimation import MotionEstimate
