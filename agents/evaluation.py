@@ -62,6 +62,9 @@ __all__ = [
     "success_rate",
     "EvaluationResult",
     "run_evaluation",
+    "evaluation_units",
+    "warm_up_worker",
+    "parse_row_value",
     "summarize_evaluation",
     "evaluation_markdown",
     "write_evaluation",
@@ -448,17 +451,8 @@ class EvaluationResult:
     wall_s: float
 
 
-def run_evaluation(
-    config: EvalConfig, agents: Sequence[AgentSpec], workers: int = 1, progress: bool = True,
-) -> EvaluationResult:
-    """Run every agent and classical method on every setting's episodes; rows in a fixed order."""
-    from tqdm.auto import tqdm
-
-    from stereovo.benchmark import ordered_map
-
-    if int(workers) != workers or workers < 1:
-        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
-    make_env(config.env_id, **config.env_kwargs_for(config.sweep_epsilon, config.budget)).close()  # validates
+def evaluation_units(config: EvalConfig, agents: Sequence[AgentSpec]) -> list[_Unit]:
+    """Every unit of work of an evaluation, in the rows' canonical order (its index is its trial key)."""
     units: list[_Unit] = []
     n_fixed = sum(1 for _ in config.methods)  # upper bound for the bar's weights
     for epsilon, budget in config.settings():
@@ -468,16 +462,81 @@ def run_evaluation(
             if config.methods:
                 n_est = n_fixed * (2 if budget == config.budget else 1)
                 units.append(_Unit(epsilon, budget, episode, seed, None, config.frames_per_episode * n_est))
+    return units
+
+
+def warm_up_worker(config: EvalConfig, agents: Sequence[AgentSpec]) -> None:
+    """One thread per worker, then every classical estimator and agent once on a small frame.
+
+    Run once per worker process before its first unit, so numba compiling (or loading its cache)
+    and torch's first call never land in a timed row. Errors are ignored: the real units record them.
+    """
+    from stereovo.benchmark import warm_up_estimators
+
+    _worker_init()
+    warm_up_estimators([(label, est) for label, _, est in classical_estimators_for(config, config.budget, True)])
+    kwargs = {**config.env_kwargs_for(config.sweep_epsilon, config.budget), "n_frames": 1}
+    for agent in agents:
+        try:
+            run_agent_episode(agent, config.env_id, kwargs, seed=0)
+        except Exception:  # noqa: BLE001 - the evaluation itself reports a failing agent
+            pass
+
+
+_ROW_INTS = {"budget", "n", "episode", "seed", "frame", "n_inliers", "n_true_inliers", "n_hypotheses", "n_scored",
+             "n_point_checks"}
+_ROW_STRS = {"method", "kind", "status"}
+
+
+def parse_row_value(column: str, text: str) -> Any:
+    """A ``frames.csv`` cell's value with its type restored (see :data:`ROW_COLUMNS`)."""
+    if column in _ROW_STRS:
+        return text
+    if column == "success":
+        if text not in ("True", "False"):
+            raise ValueError(f"column success: expected True/False, got {text!r}")
+        return text == "True"
+    if column in _ROW_INTS:
+        return int(text)
+    return float(text)
+
+
+def run_evaluation(
+    config: EvalConfig, agents: Sequence[AgentSpec], workers: int = 1, progress: bool = True,
+    backend: Any = None, journal: Any = None, done: Mapping[int, list[dict[str, Any]]] | None = None,
+) -> EvaluationResult:
+    """Run every agent and classical method on every setting's episodes; rows in a fixed order.
+
+    Args:
+        workers: processes of the default local backend (1: this process).
+        backend: a :class:`stereovo.trials.Backend` (None: a local one with ``workers``, closed here).
+        journal: an opened :class:`stereovo.trials.TrialJournal`; each finished unit (an agent's
+            episode, or the classical methods on one episode) is appended to it at once.
+        done: rows of units already in the journal, by unit index (see :func:`evaluation_units`).
+
+    Raises:
+        stereovo.trials.RunInterrupted: Ctrl-C; every finished unit is in ``journal``.
+    """
+    from stereovo.trials import Task, make_backend, run_tasks
+
+    if isinstance(workers, bool) or int(workers) != workers or workers < 1:
+        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    make_env(config.env_id, **config.env_kwargs_for(config.sweep_epsilon, config.budget)).close()  # validates
+    units = evaluation_units(config, agents)
+    owned = backend is None
+    backend = make_backend("local", int(workers)) if owned else backend
     start = time.perf_counter()
-    bar = tqdm(total=sum(u.weight for u in units), desc="evaluate", unit="frame", disable=not progress,
-               dynamic_ncols=True)
     try:
-        results = ordered_map(partial(_run_unit, config=config), units, workers, bar,
-                              weights=[u.weight for u in units], initializer=_worker_init)
+        result = run_tasks(
+            partial(_run_unit, config=config), [Task(i, u, u.weight) for i, u in enumerate(units)], backend,
+            journal=journal, done=dict(done or {}), warmup=partial(warm_up_worker, config, tuple(agents)),
+            progress=progress, desc="evaluate", unit="frame",
+        )
     finally:
-        bar.close()
+        if owned:
+            backend.close()
     wall = time.perf_counter() - start
-    rows = [row for part in results for row in part]  # type: ignore[union-attr]
+    rows = [row for i in range(len(units)) for row in result.results[i]]
     order = [a.label for a in agents]
     return EvaluationResult(config, list(agents), rows, summarize_evaluation(rows, config, order), wall)
 
@@ -719,10 +778,13 @@ def write_evaluation(result: EvaluationResult, out: str | os.PathLike, plots: bo
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    write_frame_csv(out / "frames.csv", result.rows)
+    from stereovo.trials.store import atomic_path, atomic_write_text
+
+    with atomic_path(out / "frames.csv") as tmp:  # a reader never sees half a file
+        write_frame_csv(tmp, result.rows)
     payload = {**result.summary, "agents": [asdict(a) for a in result.agents], "wall_s": round(result.wall_s, 1)}
-    (out / "summary.json").write_text(json.dumps(payload, indent=2) + "\n")
-    (out / "summary.md").write_text(evaluation_markdown(result.summary, result.wall_s))
+    atomic_write_text(out / "summary.json", json.dumps(payload, indent=2) + "\n")
+    atomic_write_text(out / "summary.md", evaluation_markdown(result.summary, result.wall_s))
     paths = [out / "frames.csv", out / "summary.json", out / "summary.md"]
     if plots:
         paths += write_plots(result.summary, out)

@@ -12,6 +12,12 @@ Writes to ``--out`` (default ``runs/evaluate``): ``frames.csv`` (one row per
 frame and method), ``summary.json``, ``summary.md`` (the tables printed here)
 and ``success_vs_epsilon.png``, ``success_vs_budget.png``. ``--json`` prints
 the summary as JSON on stdout instead of the tables.
+
+Every finished unit (an agent's episode, or the classical methods on one episode's frames) is
+appended to ``journal.csv`` at once; an interrupt keeps them and ``--resume`` runs only the
+missing units, ending with the files an uninterrupted run writes. ``--backend ray`` runs the
+units as Ray tasks (``--address`` for a cluster); the rows never depend on the backend or the
+worker count.
 """
 
 from __future__ import annotations
@@ -21,7 +27,11 @@ import json
 import sys
 from pathlib import Path
 
-from vo_gym.commands.baselines import _csv_list, _positive_int, _seed
+from vo_gym.commands.baselines import add_backend_options, backend_from_args, open_run_folder
+from vo_gym.commands.common import EXIT_INTERRUPTED, EXIT_USAGE, UsageError
+from vo_gym.commands.common import csv_list as _csv_list
+from vo_gym.commands.common import positive_int as _positive_int
+from vo_gym.commands.common import seed as _seed
 
 DEFAULT_AGENTS = ("uniform", "match-score", "consistency", "constant-velocity", "oracle")
 
@@ -61,29 +71,45 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                         help="hypothesis cap of the adaptive classical runs (default: 2000)")
     parser.add_argument("--env-kwargs", default=None, metavar="JSON",
                         help="further environment keyword arguments as a JSON object, e.g. '{\"noise_sigma\": 1.0}'")
-    parser.add_argument("--workers", type=_positive_int("--workers"), default=None,
-                        help="worker processes (default: the CPUs available)")
     parser.add_argument("--out", type=Path, default=Path("runs/evaluate"),
                         help="output folder (default: runs/evaluate)")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON instead of the tables")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    add_backend_options(parser, "episodes")
 
 
 def _error(message: str) -> int:
     print(f"vo-gym evaluate: error: {message}", file=sys.stderr)
-    return 2
+    return EXIT_USAGE
 
 
 def run(args: argparse.Namespace) -> int:
+    try:
+        return _run(args)
+    except UsageError as err:
+        return _error(str(err))
+
+
+def _run(args: argparse.Namespace) -> int:
+    from dataclasses import asdict
+
     from agents.evaluation import (
         DEFAULT_METHODS,
+        ROW_COLUMNS,
         EvalConfig,
+        EvaluationResult,
         evaluation_markdown,
+        evaluation_units,
+        parse_row_value,
         resolve_agents,
         run_evaluation,
+        summarize_evaluation,
         write_evaluation,
     )
+    from stereovo.trials import RunInterrupted, TrialJournal
+    from stereovo.trials.runner import interrupted_message
+    from stereovo.trials.store import RunFolderError
     from stereovo.benchmark import default_workers
 
     env_kwargs = {}
@@ -108,6 +134,9 @@ def run(args: argparse.Namespace) -> int:
         )
     except ValueError as err:
         return _error(str(err))
+    if args.address is not None and args.backend != "ray":
+        raise UsageError(f"--address {args.address!r} needs --backend ray")
+    out = open_run_folder(args)  # before any computing
     workers = args.workers or default_workers()
     if any(a.kind == "checkpoint" for a in agents):
         import torch
@@ -115,20 +144,49 @@ def run(args: argparse.Namespace) -> int:
         # Worker processes run torch on one thread; so does this one, so --workers changes no number
         # (and OpenMP threads contend badly on small shared machines).
         torch.set_num_threads(1)
-    if not args.json:
-        print(f"vo-gym evaluate: {len(agents)} agent(s) ({', '.join(a.label for a in agents)}) and"
-              f" {len(config.methods)} classical method(s) on {config.env_id}; {len(config.settings())} settings x"
-              f" {config.episodes} episodes x {config.frames_per_episode} frames; seed {config.seed};"
-              f" {workers} worker(s)", flush=True)
+    units = evaluation_units(config, agents)
+    manifest = {"command": "evaluate", "config": config.as_dict(), "agents": [asdict(a) for a in agents]}
+    journal = TrialJournal(out, ROW_COLUMNS, parse_row_value)
     try:
-        result = run_evaluation(config, agents, workers=workers, progress=not args.no_progress)
+        done = journal.open(manifest, resume=args.resume)
+    except RunFolderError as err:
+        raise UsageError(str(err)) from None
+    try:
+        backend = backend_from_args(args, workers)
+        if not args.json:
+            print(f"vo-gym evaluate: {len(agents)} agent(s) ({', '.join(a.label for a in agents)}) and"
+                  f" {len(config.methods)} classical method(s) on {config.env_id}; {len(config.settings())} settings x"
+                  f" {config.episodes} episodes x {config.frames_per_episode} frames; seed {config.seed};"
+                  f" {backend.describe()}", flush=True)
+            if done:
+                print(f"  resuming: {len(done)} of {len(units)} units already in {out}/journal.csv", flush=True)
+        try:
+            result = run_evaluation(config, agents, workers=workers, progress=not args.no_progress, backend=backend,
+                                    journal=journal, done=done)
+        finally:
+            backend.close()
+    except RunInterrupted as stop:
+        journal.close()
+        print(stop.message(), file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except KeyboardInterrupt:
+        journal.close()
+        print(interrupted_message(len(journal.read()), len(units), out), file=sys.stderr)
+        return EXIT_INTERRUPTED
     except (ValueError, TypeError) as err:
+        journal.close()
         return _error(str(err))
-    paths = write_evaluation(result, args.out, plots=not args.no_plots)
+    journal.close()
+    # The final files come from the journal, so a resumed run writes exactly what an uninterrupted one does.
+    stored = journal.read()
+    rows = [row for i in range(len(units)) for row in stored[i]]
+    result = EvaluationResult(config, list(agents), rows,
+                              summarize_evaluation(rows, config, [a.label for a in agents]), result.wall_s)
+    paths = write_evaluation(result, out, plots=not args.no_plots)
     if args.json:
-        print(json.dumps(json.loads((args.out / "summary.json").read_text()), indent=2))
+        print(json.dumps(json.loads((out / "summary.json").read_text()), indent=2))
         return 0
     print()
     print(evaluation_markdown(result.summary, result.wall_s))
-    print(f"wrote {args.out}/: {', '.join(p.name for p in paths)}")
+    print(f"wrote {out}/: {', '.join(p.name for p in paths)}")
     return 0
