@@ -1,4 +1,5 @@
-"""PROSAC's termination: non-randomness and maximality (Chum & Matas 2005): ALGORITHMS.md section 3.
+"""PROSAC's termination: non-randomness and maximality (Chum & Matas 2005, "Matching with PROSAC -
+progressive sample consensus", CVPR).
 
 The sampler (:class:`~stereovo.estimation.samplers.ProsacSampler`) grows the
 set of top-ranked correspondences it draws from; this object decides when to
@@ -7,17 +8,20 @@ each prefix size n, the model's support ``I_n`` among the n top-ranked
 correspondences and picks the termination length ``n*`` minimising the
 draws ``k_n`` still needed among the prefixes that pass
 
-- non-randomness: ``I_n >= I_n^min``, the support a wrong model reaches with
-  probability below psi (normal approximation of the binomial:
-  ``I_n^min = m + (n - m) beta + z_{1-psi} sqrt((n - m) beta (1 - beta))``);
+- non-randomness: ``I_n >= I_n^min``, the smallest support that a wrong model reaches with
+  probability below psi. The paper's definition: ``I_n^min = min{ j : sum_{i=j}^{n} P_n(i) < psi }``
+  with ``P_n(i) = C(n - m, i - m) beta^(i - m) (1 - beta)^(n - i)`` (the m sample points agree with
+  the model by construction, each of the other n - m by chance with probability beta); the exact
+  binomial tail is tabulated once per run;
 - maximality: ``k_n = log(eta0) / log(1 - q_n)`` with ``q_n`` the chance that a
   sample from ``U_n`` is all-inlier, ``prod_{j<m} (I_n - j) / (n - j)``;
 
-then lowers the sampler's ``n_max`` to ``n*`` and stops once ``t >= k_n*``.
-Guards used in practice: only prefixes with ``n >= min_n`` (20), and
-``I_n >= min_inlier_fraction * N`` (0.2) except for ``n = N`` itself, whose
-bound is plain RANSAC's on all correspondences (PROSAC never does worse than
-that; without the exemption a frame with fewer than 20 % inliers could never stop).
+ties go to the largest such prefix (the most data for the same bound). It then lowers the
+sampler's ``n_max`` to ``n*`` and stops once ``t >= k_n*``. There is no guard on the inlier
+fraction: the non-randomness test is what rejects a chance consensus, and a fraction guard
+switches PROSAC's stop off whenever the inlier ratio is low (with a perfect ordering it then
+needs RANSAC's thousands of draws instead of a handful). The one practical guard is ``min_n``:
+prefixes shorter than it are not considered (their binomial test has too few points to mean much).
 """
 
 from __future__ import annotations
@@ -25,19 +29,30 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import norm
+from scipy.stats import binom, norm
 
 from stereovo.estimation.loop import LoopState
 from stereovo.estimation.samplers import ProsacSampler
 from stereovo.estimation.solvers import SAMPLE_SIZE
 
 
-def non_random_minimum(n: np.ndarray, beta: float, psi: float, m: int = SAMPLE_SIZE) -> np.ndarray:
-    """``I_n^min`` ``(len(n),)``: support below which a model on ``U_n`` may be random (normal approx.)."""
+def non_random_minimum(n: np.ndarray, beta: float, psi: float, m: int = SAMPLE_SIZE, exact: bool = True) -> np.ndarray:
+    """``I_n^min`` ``(len(n),)``: the support below which a model on ``U_n`` may be random.
+
+    ``exact``: the paper's binomial definition, the smallest ``j`` with
+    ``P(m + Binomial(n - m, beta) >= j) < psi``; otherwise its normal approximation
+    ``m + (n - m) beta + z_{1-psi} sqrt((n - m) beta (1 - beta))``.
+    """
     n = np.maximum(np.asarray(n, dtype=float), m)
-    mu = (n - m) * beta
-    sigma = np.sqrt((n - m) * beta * (1 - beta))
-    return m + mu + sigma * norm.ppf(1 - psi)
+    if not exact:
+        mu = (n - m) * beta
+        sigma = np.sqrt((n - m) * beta * (1 - beta))
+        return m + mu + sigma * norm.ppf(1 - psi)
+    trials = n - m
+    # smallest x with P(X <= x) > 1 - psi; then P(X >= x + 1) < psi, so j = m + x + 1
+    x = binom.ppf(1 - psi, trials, beta)
+    x = np.where(binom.cdf(x, trials, beta) > 1 - psi, x, x + 1)
+    return m + x + 1
 
 
 def prefix_draws(support: np.ndarray, n: np.ndarray, eta0: float, m: int = SAMPLE_SIZE) -> np.ndarray:
@@ -63,7 +78,6 @@ class ProsacTermination:
         beta: chance that a point is consistent with a wrong model.
         psi: tolerated probability that the chosen support is random.
         min_n: smallest prefix considered for termination.
-        min_inlier_fraction: ``I_n* / N`` below this is not trusted (except n* = N).
     """
 
     sampler: ProsacSampler
@@ -72,29 +86,30 @@ class ProsacTermination:
     beta: float = 0.05
     psi: float = 0.05
     min_n: int = 20
-    min_inlier_fraction: float = 0.2
 
     def __post_init__(self) -> None:
         for name, ok in (
             ("prosac_beta", 0 < self.beta < 1),
             ("prosac_psi", 0 < self.psi < 1),
             ("prosac_min_n", int(self.min_n) == self.min_n and self.min_n >= SAMPLE_SIZE + 1),
-            ("prosac_min_inlier_fraction", 0 <= self.min_inlier_fraction <= 1),
         ):
             if not ok:
                 raise ValueError(f"option {name} has an invalid value {getattr(self, name.removeprefix('prosac_'))!r}")
         self.k_stop = float(self.max_iterations)  # draws after which PROSAC may stop
         self.n_star: int | None = None
+        N = self.sampler.order.shape[0]
+        self._n = np.arange(1, N + 1)
+        self._minimum = non_random_minimum(self._n, self.beta, self.psi)  # depends on n only: once per run
+        self.updates = 0
 
     def on_new_best(self, inliers: np.ndarray, state: LoopState) -> None:
         order = self.sampler.order
         N = order.shape[0]
         support = np.cumsum(inliers[order])  # support[n-1] = I_n
-        n = np.arange(1, N + 1)
-        ok = (n >= min(self.min_n, N)) & (support >= non_random_minimum(n, self.beta, self.psi))
-        ok &= (support >= self.min_inlier_fraction * N) | (n == N)
+        n = self._n
+        ok = (n >= min(self.min_n, N)) & (support >= self._minimum)
         if not np.any(ok):
-            return  # no trustworthy prefix yet: keep drawing (n_max and the bound unchanged)
+            return  # no non-random prefix yet: keep drawing (n_max and the bound unchanged)
         k = np.where(ok, prefix_draws(support, n, 1.0 - self.confidence), np.inf)
         best = np.flatnonzero(k == np.min(k))[-1]  # ties: the largest prefix, the most data
         if not np.isfinite(k[best]):
@@ -102,6 +117,15 @@ class ProsacTermination:
         self.n_star = int(n[best])
         self.k_stop = float(k[best])
         self.sampler.n_max = self.n_star
+        self.updates += 1
 
     def required(self, n_inliers: int, n: int) -> int:
         return int(np.clip(np.ceil(self.k_stop), 1, self.max_iterations))
+
+    def counters(self) -> dict[str, int | float]:
+        """``prosac_n_star``: the termination length (N if never set); ``prosac_k_stop``: its bound."""
+        return {
+            "prosac_n_star": int(self.n_star if self.n_star is not None else self.sampler.order.shape[0]),
+            "prosac_k_stop": float(self.k_stop),
+            "prosac_updates": int(self.updates),
+        }

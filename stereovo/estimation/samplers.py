@@ -7,12 +7,13 @@ Priors and orderings are how the Gymnasium agents reach the estimator.
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import ClassVar, Protocol
 
 import numpy as np
 
-from stereovo.estimation import kernels
+from stereovo.estimation import kernels, kernels_verification
 from stereovo.estimation.solvers import SAMPLE_SIZE
+from stereovo.estimation.termination import all_inlier_probability as uniform_all_inlier_probability
 
 
 class Sampler(Protocol):
@@ -21,6 +22,21 @@ class Sampler(Protocol):
     def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
         """``(batch, 3)`` int64 indices, three distinct per row."""
         ...
+
+    def all_inlier_probability(self, inliers: np.ndarray) -> float:
+        """Chance that ONE draw of this sampler is all-inlier, given the inlier mask ``(n,)`` bool.
+
+        The adaptive stopping bound uses it (Schoenberger, Larsson & Pollefeys 2025 for uniform draws): a guided sampler that favours
+        the inliers stops sooner, one that favours the outliers later, than the uniform bound says.
+        """
+        ...
+
+
+def _inlier_mask(inliers: np.ndarray, n: int) -> np.ndarray:
+    mask = np.asarray(inliers)
+    if mask.shape != (n,) or mask.dtype != bool:
+        raise ValueError(f"inliers must be a bool mask of shape ({n},), got {mask.dtype} {mask.shape}")
+    return mask
 
 
 def distinct_uniform_triplets(pool_sizes: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -36,6 +52,9 @@ def distinct_uniform_triplets(pool_sizes: np.ndarray, rng: np.random.Generator) 
 class UniformSampler:
     """Every triplet of distinct correspondences equally likely."""
 
+    # q depends on the inlier count alone (the termination then keeps its cached count formula)
+    uniform: ClassVar[bool] = True
+
     def __init__(self, n: int) -> None:
         if n < SAMPLE_SIZE:
             raise ValueError(f"need at least {SAMPLE_SIZE} correspondences to sample, got {n}")
@@ -44,10 +63,24 @@ class UniformSampler:
     def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
         return distinct_uniform_triplets(np.full(batch, self.n), rng)
 
+    def all_inlier_probability(self, inliers: np.ndarray) -> float:
+        """``prod_{i<3} (I - i) / (N - i)``: three distinct indices, uniformly."""
+        count = int(np.count_nonzero(_inlier_mask(inliers, self.n)))
+        return float(uniform_all_inlier_probability(count, self.n))
+
 
 def validate_priors(priors: np.ndarray, n: int) -> np.ndarray:
-    """Check per-correspondence prior weights: shape ``(n,)``, finite, >= 0, >= 3 positive."""
-    p = np.asarray(priors, dtype=float)
+    """Check per-correspondence prior weights: shape ``(n,)``, real, finite, >= 0, >= 3 positive.
+
+    Any scale is accepted (``np.full(n, 1e307)``, ``exp`` of logits near 709): the weights'
+    sum may overflow, so :func:`normalised_weights` divides by the largest weight first.
+    """
+    if np.iscomplexobj(priors):
+        raise ValueError(f"priors must be real weights, got complex dtype {np.asarray(priors).dtype}")
+    try:
+        p = np.asarray(priors, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"priors must be an array of real weights, got {type(priors).__name__}") from None
     if p.shape != (n,):
         raise ValueError(f"priors must have shape ({n},), one weight per correspondence, got {p.shape}")
     nonfinite, minimum, positive = kernels.prior_defects(np.ascontiguousarray(p))
@@ -58,6 +91,25 @@ def validate_priors(priors: np.ndarray, n: int) -> np.ndarray:
     if positive < SAMPLE_SIZE:
         raise ValueError(f"priors need at least {SAMPLE_SIZE} positive weights to draw a minimal sample")
     return p
+
+
+def normalised_weights(priors: np.ndarray) -> np.ndarray:
+    """``priors / sum(priors)`` ``(N,)``, computed without overflow or underflow.
+
+    The direct quotient is kept whenever the sum is a finite normal number (so draws stay bit
+    for bit what they were); otherwise the weights are first divided by the largest one, the
+    log-space normalisation ``exp(log p_i - max_j log p_j)``. A positive weight more than ~1e308
+    times smaller than the largest would then round to zero; it keeps the smallest normal
+    weight instead, so it stays drawable (the sampler needs three positive weights).
+    """
+    p = np.asarray(priors, dtype=float)
+    with np.errstate(over="ignore"):  # an overflowing sum is the case handled below
+        total = float(np.sum(p))
+    if np.isfinite(total) and total >= np.finfo(float).tiny:
+        return p / total
+    scaled = p / np.max(p)
+    scaled[(p > 0) & (scaled < np.finfo(float).tiny)] = np.finfo(float).tiny
+    return scaled / np.sum(scaled)
 
 
 class WeightedSampler:
@@ -75,7 +127,11 @@ class WeightedSampler:
             raise ValueError(f"priors must be a 1-D array, one weight per correspondence, got shape {np.shape(priors)}")
         self.priors = validate_priors(priors, len(priors))
         self.n = self.priors.shape[0]
-        self._w = self.priors / self.priors.sum()
+        self._w = normalised_weights(self.priors)
+        positive = self._w[self._w > 0]
+        # Equal positive weights: uniform sampling over them, whose q is the count formula exactly.
+        self._equal_weights = bool(np.all(positive == positive[0]))
+        self._n_positive = int(positive.size)
         self._cdf = np.cumsum(self._w)  # inclusive: mass of [0, i]
         self._before = np.concatenate([[0.0], self._cdf[:-1]])  # exclusive: mass of [0, i)
 
@@ -100,6 +156,20 @@ class WeightedSampler:
             picked[k] = i
             w[i] = 0.0
         return picked
+
+    def all_inlier_probability(self, inliers: np.ndarray) -> float:
+        """Chance that one sequential weighted draw of three is all-inlier, given ``inliers (n,)`` bool.
+
+        ``q = sum over ordered distinct (a, b, c) in I of w_a/W * w_b/(W - w_a) * w_c/(W - w_a - w_b)``,
+        summed exactly by a compiled O(|I|^2) routine (the third factor's sum over c is
+        ``(W_I - w_a - w_b) / (W - w_a - w_b)``). Equal positive weights give the uniform formula over
+        the positive-weight correspondences, bit for bit the uniform sampler's when all are positive.
+        """
+        mask = _inlier_mask(inliers, self.n)
+        if self._equal_weights:
+            count = int(np.count_nonzero(mask & (self._w > 0)))
+            return float(uniform_all_inlier_probability(count, self._n_positive))
+        return float(kernels_verification.weighted_all_inlier_probability(np.ascontiguousarray(self._w[mask]), 1.0))
 
     def log_probability(self, samples: np.ndarray) -> np.ndarray:
         """Log-probability ``(B,)`` of drawing each ordered triplet sequentially without replacement."""
@@ -155,6 +225,21 @@ class ProsacSampler:
         self.growth = prosac_growth(self.n, SAMPLE_SIZE, t_n)
         self.n_max = self.n
         self.t = 0
+
+    def all_inlier_probability(self, inliers: np.ndarray) -> float:
+        """Chance that the next draw is all-inlier given ``inliers (n,)`` bool (PROSAC stops by its own rule).
+
+        An anchored draw (``t <= T'_n``) is ``u_n`` plus two of ``U_{n-1}``; a later one three of ``U_n``.
+        """
+        ranked = _inlier_mask(inliers, self.n)[self.order]
+        t = np.array([self.t + 1])
+        n = int(self.subset_sizes(t)[0])
+        if t[0] <= self.growth[n] and n > SAMPLE_SIZE:
+            if not ranked[n - 1]:
+                return 0.0
+            count = int(np.count_nonzero(ranked[: n - 1]))
+            return float(uniform_all_inlier_probability(count, n - 1, SAMPLE_SIZE - 1))
+        return float(uniform_all_inlier_probability(int(np.count_nonzero(ranked[:n])), n))
 
     def subset_sizes(self, t: np.ndarray) -> np.ndarray:
         """``n`` used at draws ``t`` (1-based): ``min(g(t), n_max)``."""

@@ -26,9 +26,11 @@ from typing import ClassVar
 import numpy as np
 from scipy.optimize import brentq
 
+from stereovo.estimation import kernels_verification
 from stereovo.estimation.loop import LoopState
 from stereovo.estimation.partial import residuals_on
-from stereovo.estimation.termination import all_inlier_probability
+from stereovo.estimation.scoring import ReprojectionResidual
+from stereovo.estimation.termination import SampleProbability
 from stereovo.estimation.verification import ScoringContext
 
 DELTA_BOUNDS = (1e-3, 0.3)  # ALGORITHMS.md Pitfalls: clamp delta, never let it reach 0 (log 0) or epsilon
@@ -73,21 +75,40 @@ def good_model_exponent(epsilon: float, epsilon_i: float, delta_i: float) -> flo
     A test designed for ``epsilon_i`` rejects a good model of true inlier ratio
     ``epsilon`` with probability ``A^-h`` (Wald). ``h = 1`` when ``epsilon = epsilon_i``;
     ``h = 0`` (always rejected) when the good model's log-ratio drifts upwards.
+
+    Solved in log space, ``logaddexp(log eps + h log a, log(1 - eps) + h log b) = 0``: the powers
+    ``b^h`` overflow for clean frames (epsilon near 1, b huge), the log never does.
     """
-    a, b = delta_i / epsilon_i, (1 - delta_i) / (1 - epsilon_i)
+    if not (0 < epsilon_i < 1 and 0 < delta_i < 1):
+        return 0.0
     if abs(epsilon - epsilon_i) < 1e-12:
         return 1.0
-    slope = epsilon * np.log(a) + (1 - epsilon) * np.log(b)
-    if slope >= 0 or b <= 1:
+    if epsilon >= 1.0:  # every point consistent: lambda only falls, the test never rejects
+        return np.inf
+    if epsilon <= 0.0:
         return 0.0
+    log_a, log_b = np.log(delta_i / epsilon_i), np.log1p(-delta_i) - np.log1p(-epsilon_i)
+    slope = epsilon * log_a + (1 - epsilon) * log_b
+    if slope >= 0 or log_b <= 0:
+        return 0.0
+    log_eps, log_rest = np.log(epsilon), np.log1p(-epsilon)
 
     def f(h: float) -> float:
-        return epsilon * a**h + (1 - epsilon) * b**h - 1.0
+        return float(np.logaddexp(log_eps + h * log_a, log_rest + h * log_b))
 
     hi = 1.0
-    while f(hi) <= 0 and hi < 1e4:
+    while f(hi) <= 0 and hi < 1e6:
         hi *= 2.0
-    return float(brentq(f, 1e-9, hi, xtol=1e-12)) if f(hi) > 0 else float(hi)
+    return float(brentq(f, 1e-12, hi, xtol=1e-12)) if f(hi) > 0 else float(hi)
+
+
+def rejection_probability(A: float, h: float) -> float:
+    """``A^-h``, the chance a test of threshold ``A`` rejects a good model, as ``exp(-h log A)`` (no overflow)."""
+    if not np.isfinite(A):
+        return 0.0
+    if h == np.inf:
+        return 0.0
+    return float(np.exp(-h * np.log(A)))
 
 
 @dataclass
@@ -148,6 +169,8 @@ class SprtVerification:
         self._ratio_sum = 0.0  # sum over rejected hypotheses of consistent / checked
         self._n_rejected = 0
         self.n_accepted = 0
+        self.n_tests = 0  # hypotheses put through an active test
+        self.n_full = 0  # hypotheses verified fully while the test was off (C <= 0 or A < 2)
         self._design()
 
     # ------------------------------------------------------------------ design
@@ -166,6 +189,22 @@ class SprtVerification:
         if epsilon != self.epsilon and 0 < epsilon < 1:
             self.epsilon = epsilon
             self._design()
+
+    def counters(self) -> dict[str, int | float]:
+        """``sprt_tested`` (through an active test), ``sprt_rejected``, ``sprt_accepted``, ``sprt_full``
+        (verified fully while the test was off), ``sprt_designs`` (tests designed), and the final
+        test's ``sprt_epsilon``, ``sprt_delta`` and ``sprt_A`` (inf: off)."""
+        test = self.current
+        return {
+            "sprt_tested": self.n_tests,
+            "sprt_rejected": self._n_rejected,
+            "sprt_accepted": self.n_accepted,
+            "sprt_full": self.n_full,
+            "sprt_designs": len(self.history),
+            "sprt_epsilon": float(test.epsilon),
+            "sprt_delta": float(test.delta),
+            "sprt_A": float(test.A),
+        }
 
     def _update_delta(self) -> None:
         if self._n_rejected == 0:
@@ -191,13 +230,17 @@ class SprtVerification:
         if not test.active:
             scores = ctx.score(R, t)
             self.n_accepted += H
+            self.n_full += H
             return scores, H * n
 
         log_consistent = np.log(test.delta / test.epsilon)  # < 0
-        log_inconsistent = np.log((1 - test.delta) / (1 - test.epsilon))  # > 0
+        log_inconsistent = np.log1p(-test.delta) - np.log1p(-test.epsilon)  # > 0
         log_A = np.log(test.A)
+        self.n_tests += H
 
         perm = rng.permutation(n)
+        if isinstance(ctx.residual_model, ReprojectionResidual):
+            return self._verify_compiled(ctx, R, t, samples, perm, log_consistent, log_inconsistent, log_A)
         own = np.zeros((H, n), dtype=bool)
         own[np.arange(H)[:, None], samples] = True
         own = own[:, perm]  # in checking order
@@ -229,10 +272,30 @@ class SprtVerification:
             alive[live[rejected]] = False
             start, size = stop, 2 * size
 
+        return self._conclude(ctx, R, alive, checked, consistent, sq_all)
+
+    def _verify_compiled(self, ctx, R, t, samples, perm, log_consistent, log_inconsistent, log_A):
+        """The SPRT point by point in one compiled pass (reprojection residuals): a rejected
+        hypothesis costs exactly the points it was checked on."""
+        p = ctx.problem
+        alive, checked, consistent, sq_all = kernels_verification.sprt_verify(
+            np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float), p.points_prev, p.curr,
+            p.camera.parameters, float(ctx.threshold_sq), np.ascontiguousarray(samples, dtype=np.int64),
+            perm.astype(np.int64), float(log_consistent), float(log_inconsistent), float(log_A),
+        )
+        return self._conclude(ctx, R, alive, checked, consistent, sq_all)
+
+    def _conclude(self, ctx, R, alive, checked, consistent, sq_all):
+        """Scores of the accepted hypotheses, the delta estimate from the rejected ones, the checks."""
+        H, n = R.shape[0], ctx.problem.n
         scores = np.full(H, -np.inf)
-        if np.any(alive):
-            scores[alive] = ctx.quality.score(sq_all[alive], ctx.threshold_sq)
-        n_alive = int(np.count_nonzero(alive))
+        rows = np.flatnonzero(alive)
+        if rows.size:
+            scores[rows] = ctx.quality.score(sq_all[rows], ctx.threshold_sq)
+            row_of = np.full(H, -1, dtype=np.int64)
+            row_of[rows] = np.arange(rows.size)
+            ctx.remember(R, sq_all[rows], row_of)
+        n_alive = int(rows.size)
         self.n_accepted += n_alive
         dead = ~alive
         if np.any(dead):
@@ -246,8 +309,8 @@ class SprtVerification:
 class SprtTermination:
     """Stop when ``eta = prod_i (1 - P_g (1 - alpha_i))^{k_i} < eta0``: ALGORITHMS.md section 5, step 5.
 
-    ``P_g`` is the all-inlier probability (without replacement) for the best support,
-    ``alpha_i = A_i^-h_i`` the chance that test i rejected a good model, ``k_i`` the draws
+    ``P_g`` is the all-inlier probability of one draw of ``sampler`` for the best model's inliers
+    (the without-replacement count formula for uniform sampling), ``alpha_i = A_i^-h_i`` the chance that test i rejected a good model, ``k_i`` the draws
     made under test i. Also a loop listener: ``on_batch`` charges each batch's draws to the
     test that was in force when the batch began (tests change only between batches).
     """
@@ -255,15 +318,18 @@ class SprtTermination:
     verifier: SprtVerification
     confidence: float = 0.99
     max_iterations: int = 10_000
+    sampler: object = None
 
     def __post_init__(self) -> None:
+        self.probability = SampleProbability(self.sampler)
         self._last_drawn = 0
         self._test_index = 0
         self._alpha_inliers = -1  # alpha_i depends on the tests and on I_best only: cache them
         self._alphas: list[float] = []
 
     def on_new_best(self, inliers: np.ndarray, state: LoopState) -> None:
-        """Nothing to do: the verifier redesigns the test; ``required`` reads its history."""
+        """The sampler's all-inlier chance for the new best (the verifier redesigns the test)."""
+        self.probability.on_new_best(inliers, state)
 
     def on_batch(self, state: LoopState) -> None:
         self.verifier.history[self._test_index].draws += state.n_hypotheses - self._last_drawn
@@ -277,11 +343,11 @@ class SprtTermination:
         epsilon = n_inliers / n
         for test in history[len(self._alphas) :]:
             h = good_model_exponent(epsilon, test.epsilon, test.delta) if test.active else 0.0
-            self._alphas.append(test.A**-h if test.active else 0.0)
+            self._alphas.append(rejection_probability(test.A, h) if test.active else 0.0)
         return self._alphas
 
     def required(self, n_inliers: int, n: int) -> int:
-        p_good = float(all_inlier_probability(n_inliers, n))
+        p_good = self.probability.of(n_inliers, n)
         if p_good <= 0:
             return self.max_iterations
         history = self.verifier.history

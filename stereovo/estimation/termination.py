@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -55,13 +55,59 @@ def _required_for_count(n_inliers: int, n: int, confidence: float, max_iteration
     return min(max(math.ceil(math.log1p(-confidence) / math.log1p(-q)), 1), max_iterations)
 
 
+def iterations_for(q: float, confidence: float, max_iterations: int) -> int:
+    """``k = ceil(log(1 - p) / log(1 - q))`` in ``[1, max_iterations]`` for one draw's all-inlier chance ``q``."""
+    if not q > 0.0:
+        return max_iterations
+    if q >= 1.0:
+        return 1
+    return min(max(math.ceil(math.log1p(-confidence) / math.log1p(-q)), 1), max_iterations)
+
+
+class SampleProbability:
+    """``q`` of one draw of a given sampler for the best model's inliers (a loop listener).
+
+    Uniform sampling (no sampler, or one whose class sets ``uniform = True``) has the count
+    formula :func:`all_inlier_probability`; any other sampler is asked, on every new best, for
+    ``sampler.all_inlier_probability(inliers)``: guided weights, a learned policy's priors.
+    Before the first best a guided sampler's ``q`` is 0 (keep drawing).
+    """
+
+    def __init__(self, sampler=None) -> None:
+        self.sampler = sampler
+        self.guided = (
+            sampler is not None and not getattr(sampler, "uniform", False)
+            and callable(getattr(sampler, "all_inlier_probability", None))
+        )
+        self.q = 0.0  # the guided q of the latest best (unused for uniform sampling)
+        self.updates = 0
+
+    def on_new_best(self, inliers: np.ndarray, state) -> None:
+        if self.guided:
+            self.q = float(self.sampler.all_inlier_probability(inliers))
+            self.updates += 1
+
+    def of(self, n_inliers: int, n: int) -> float:
+        """``q`` for the best model (``n_inliers`` of ``n``): the sampler's if guided, else the count formula."""
+        return self.q if self.guided else float(all_inlier_probability(n_inliers, n))
+
+
 @dataclass
 class AdaptiveTermination:
-    """Stop once ``confidence`` guarantees an all-inlier sample given the best support so far."""
+    """Stop once ``confidence`` guarantees an all-inlier sample given the best support so far.
+
+    ``k = ceil(log(1 - p) / log(1 - q))`` with ``q`` the chance that one draw *of the sampler in
+    use* is all-inlier given the best model's inliers: the without-replacement count formula for
+    uniform sampling (bit for bit the bound without a sampler), the sampler's own
+    ``all_inlier_probability(inliers)`` otherwise. With a guided sampler the termination must be
+    a loop listener (``on_new_best``) to see the inlier mask; :func:`stereovo.estimation.methods`
+    recipes register it.
+    """
 
     confidence: float = 0.99
     max_iterations: int = 10_000
     min_iterations: int = 1
+    sampler: object = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if not 0 < self.confidence < 1:
@@ -70,9 +116,22 @@ class AdaptiveTermination:
             raise ValueError(
                 f"need 1 <= min_iterations <= max_iterations, got {self.min_iterations} and {self.max_iterations}"
             )
+        self.probability = SampleProbability(self.sampler)
+
+    def on_new_best(self, inliers: np.ndarray, state) -> None:
+        self.probability.on_new_best(inliers, state)
 
     def required(self, n_inliers: int, n: int) -> int:
-        return max(required_iterations(n_inliers, n, self.confidence, self.max_iterations), self.min_iterations)
+        if not self.probability.guided:
+            return max(required_iterations(n_inliers, n, self.confidence, self.max_iterations), self.min_iterations)
+        k = iterations_for(self.probability.q, self.confidence, self.max_iterations)
+        return max(k, self.min_iterations)
+
+    def counters(self) -> dict[str, int | float]:
+        """``stop_guided``: 1 if the bound used the sampler's q; ``stop_q``: the guided q of the final best."""
+        if not self.probability.guided:
+            return {"stop_guided": 0}
+        return {"stop_guided": 1, "stop_q": self.probability.q}
 
 
 @dataclass

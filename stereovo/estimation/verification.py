@@ -27,7 +27,8 @@ class ScoringContext:
     threshold_sq: float
     # the hypotheses last scored on all points and their residuals: the loop reads the new best's
     # inliers from them instead of computing its residuals again
-    _last_scored: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False, compare=False)
+    # (R of the batch, residuals (M, N), row of each hypothesis in them or None for row i = hypothesis i)
+    _last_scored: tuple | None = field(default=None, repr=False, compare=False)
 
     def residuals(self, R: np.ndarray, t: np.ndarray) -> np.ndarray:
         return self.residual_model.squared(self.problem, R, t)
@@ -38,14 +39,28 @@ class ScoringContext:
         at the gate still compare with it exactly)."""
         last = self._last_scored
         if last is not None and last[0] is R:
-            return last[1][i] < self.threshold_sq, False
+            rows = last[2] if len(last) > 2 else None
+            row = i if rows is None else int(rows[i])
+            if row >= 0:
+                return last[1][row] < self.threshold_sq, False
         return self.residuals(R[i : i + 1], t[i : i + 1])[0] < self.threshold_sq, True
+
+    def remember(self, R: np.ndarray, residual_sq: np.ndarray, rows: np.ndarray) -> None:
+        """Keep the full residuals ``(M, N)`` an early-rejection verifier computed for some hypotheses
+        of the batch ``R``: hypothesis i's are row ``rows[i]`` (-1: none), for :meth:`inliers_of`.
+        Residuals capped at the gate are fine: they compare with it exactly."""
+        self._last_scored = (R, residual_sq, rows)
 
     def _scored_residuals(self, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         cap = self.threshold_sq if self.quality.saturates else None
         sq = self.residual_model.squared(self.problem, R, t, cap=cap)
         self._last_scored = (R, sq)
         return self.quality.score(sq, self.threshold_sq), sq
+
+    def score_with_residuals(self, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Scores ``(H,)`` and the squared residuals ``(H, N)`` they came from (capped at the gate
+        when the quality saturates)."""
+        return self._scored_residuals(R, t)
 
     def score(self, R: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Scores ``(H,)`` of hypotheses on all points."""

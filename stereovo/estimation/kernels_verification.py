@@ -1,0 +1,187 @@
+"""Compiled (numba) kernels of early-rejection verification and of the guided stopping bound.
+
+An early-rejection test (the T(d,d) pre-test, Matas & Chum 2002; the SPRT, Matas & Chum 2005)
+saves time only if a hypothesis costs what its point checks say. Run point by point in numpy,
+each check is a Python-level round; here each hypothesis walks its points in one compiled loop,
+computes a point's residual in registers and stops at the decision, so a hypothesis rejected
+after j points costs j residuals. The residual is the forward stereo reprojection error of
+:func:`stereovo.estimation.kernels.forward_reprojection_sq` (px^2, ``inf`` behind the camera),
+with the same arithmetic, so a compiled check agrees with full scoring bit for bit.
+
+The wrappers in :mod:`stereovo.estimation.tdd`, :mod:`stereovo.estimation.sprt` and
+:mod:`stereovo.estimation.samplers` fix the shapes and meaning; nothing else calls this module.
+Array arguments are float64 / int64 and C-contiguous (the wrappers ensure it); ``cam`` is
+``(fx, fy, cx, cy, baseline)``. No kernel draws random numbers: the callers pass uniforms or a
+permutation drawn from their generator.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from stereovo.estimation.kernels import MIN_DEPTH
+
+_jit = njit(cache=True, nogil=True, error_model="numpy")
+_inline_jit = njit(cache=True, nogil=True, error_model="numpy", inline="always")
+
+
+@_inline_jit
+def _point_sq(R, t, h, X, mc, n, fx, fy, cx, cy, b):
+    """Hypothesis ``h``'s squared forward reprojection error (px^2) of point ``n``; ``inf`` behind."""
+    x0, x1, x2 = X[n, 0], X[n, 1], X[n, 2]
+    p2 = R[h, 2, 0] * x0 + R[h, 2, 1] * x1 + R[h, 2, 2] * x2 + t[h, 2]
+    ip = 1.0 / p2
+    p0 = R[h, 0, 0] * x0 + R[h, 0, 1] * x1 + R[h, 0, 2] * x2 + t[h, 0]
+    p1 = R[h, 1, 0] * x0 + R[h, 1, 1] * x1 + R[h, 1, 2] * x2 + t[h, 1]
+    uL = fx * p0 * ip + cx
+    v = fy * p1 * ip + cy
+    uR = uL - fx * b * ip
+    e0, e1, e2, e3 = uL - mc[n, 0], v - mc[n, 1], uR - mc[n, 2], v - mc[n, 3]
+    sq = e0 * e0 + e2 * e2 + e1 * e1 + e3 * e3
+    return sq if p2 > MIN_DEPTH else np.inf
+
+
+@_jit
+def tdd_pretest(R, t, X, mc, cam, threshold_sq, samples, u, stop_at_failure):
+    """The T(d,d) pre-test of ``H`` hypotheses on d random points each, none of them its own sample.
+
+    Args:
+        R, t: ``(H, 3, 3)``, ``(H, 3)`` motions; X ``(N, 3)`` points at k-1; mc ``(N, 4)`` pixels at k.
+        threshold_sq: the inlier gate (px^2).
+        samples: ``(H, 3)`` each hypothesis' minimal sample (distinct indices).
+        u: ``(H, d)`` uniforms in [0, 1); point j of hypothesis h is the ``floor(u[h, j] (N - 3 - j))``-th
+            of the points not yet excluded (its sample and its earlier pre-test points), so the d
+            points are distinct and uniform over the ``N - 3`` others.
+        stop_at_failure: True for the pre-test (a hypothesis stops at its first inconsistent
+            point); False checks all d points (a support estimate on a random subset).
+
+    Returns:
+        ``(passed (H,) bool, checks (H,) int64, consistent (H,) int64)``: whether all checked points
+        were consistent, the points checked and the consistent ones among them.
+    """
+    H, d = u.shape[0], u.shape[1]
+    N = X.shape[0]
+    fx, fy, cx, cy, b = cam[0], cam[1], cam[2], cam[3], cam[4]
+    passed = np.zeros(H, dtype=np.bool_)
+    checks = np.zeros(H, dtype=np.int64)
+    consistent = np.zeros(H, dtype=np.int64)
+    excluded = np.empty(3 + d, dtype=np.int64)
+    for h in range(H):
+        # the excluded indices, kept sorted: a rank among the rest is shifted past each one it reaches
+        a, bb, c = samples[h, 0], samples[h, 1], samples[h, 2]
+        lo, hi = min(a, bb), max(a, bb)
+        excluded[0], excluded[1], excluded[2] = min(lo, c), max(lo, min(hi, c)), max(hi, c)
+        size = 3
+        ok = True
+        for j in range(d):
+            pool = N - size
+            r = int(u[h, j] * pool)
+            if r >= pool:
+                r = pool - 1
+            idx = r
+            for e in range(size):
+                if idx >= excluded[e]:
+                    idx += 1
+            checks[h] += 1
+            if _point_sq(R, t, h, X, mc, idx, fx, fy, cx, cy, b) < threshold_sq:
+                consistent[h] += 1
+            else:
+                ok = False
+                if stop_at_failure:
+                    break
+            # insert idx into the sorted exclusions
+            e = size
+            while e > 0 and excluded[e - 1] > idx:
+                excluded[e] = excluded[e - 1]
+                e -= 1
+            excluded[e] = idx
+            size += 1
+        passed[h] = ok
+    return passed, checks, consistent
+
+
+@_jit
+def sprt_verify(R, t, X, mc, cam, threshold_sq, samples, perm, log_consistent, log_inconsistent, log_A):
+    """Wald's SPRT on each of ``H`` hypotheses, points in the order ``perm (N,)``, own sample skipped.
+
+    The log likelihood ratio ``log lambda`` (bad model over good model) starts at 0 and moves by
+    ``log_consistent = log(delta / epsilon) < 0`` for a point inside the gate and by
+    ``log_inconsistent = log((1 - delta) / (1 - epsilon)) > 0`` for one outside; the hypothesis is
+    rejected as soon as ``log lambda > log_A``. Working with logarithms, no product can overflow.
+
+    Returns:
+        ``(accepted (H,) bool, checked (H,) int64, consistent (H,) int64, residual_sq (H, N))``:
+        the points checked up to and including the one that crossed (own sample points are not
+        counted), the consistent ones among them, and for an accepted hypothesis its squared
+        residual on every point (rows of rejected hypotheses are left unset).
+    """
+    H, N = R.shape[0], X.shape[0]
+    fx, fy, cx, cy, b = cam[0], cam[1], cam[2], cam[3], cam[4]
+    accepted = np.zeros(H, dtype=np.bool_)
+    checked = np.zeros(H, dtype=np.int64)
+    consistent = np.zeros(H, dtype=np.int64)
+    out = np.empty((H, N))
+    for h in range(H):
+        s0, s1, s2 = samples[h, 0], samples[h, 1], samples[h, 2]
+        log_lambda = 0.0
+        n_checked = 0
+        n_consistent = 0
+        alive = True
+        for j in range(N):
+            n = perm[j]
+            sq = _point_sq(R, t, h, X, mc, n, fx, fy, cx, cy, b)
+            out[h, n] = sq
+            if n == s0 or n == s1 or n == s2:
+                continue
+            n_checked += 1
+            if sq < threshold_sq:
+                n_consistent += 1
+                log_lambda += log_consistent
+            else:
+                log_lambda += log_inconsistent
+                if log_lambda > log_A:
+                    alive = False
+                    break
+        accepted[h] = alive
+        checked[h] = n_checked
+        consistent[h] = n_consistent
+    return accepted, checked, consistent, out
+
+
+@_jit
+def weighted_all_inlier_probability(w, total):
+    """Chance that three sequential draws without replacement, P(i) proportional to the weights, all
+    fall in a set I whose weights are ``w (m,)``; ``total`` is the sum of all N weights (W).
+
+    ``q = sum_{a != b in I} w_a/W * w_b/(W - w_a) * (W_I - w_a - w_b)/(W - w_a - w_b)``: the sum over
+    the third index c is done in closed form, so the cost is O(m^2), every term non-negative.
+    """
+    m = w.shape[0]
+    s = 0.0
+    for i in range(m):
+        s += w[i]
+    q = 0.0
+    for i in range(m):
+        wa = w[i]
+        if wa <= 0.0:
+            continue
+        rest_a = total - wa
+        if rest_a <= 0.0:
+            continue
+        inner = 0.0
+        for j in range(m):
+            wb = w[j]
+            if j == i or wb <= 0.0:
+                continue
+            rest_ab = rest_a - wb
+            if rest_ab <= 0.0:
+                continue
+            third = (s - wa - wb) / rest_ab
+            if third > 1.0:
+                third = 1.0
+            elif third < 0.0:
+                third = 0.0
+            inner += wb * third
+        q += wa / total * inner / rest_a
+    return min(max(q, 0.0), 1.0)
