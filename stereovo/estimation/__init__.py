@@ -14,12 +14,14 @@ from stereovo.estimation.methods import (
     estimate_problem,
     method_spec,
     register_method,
+    validate_options,
 )
 from stereovo.estimation.loop import RansacComponents, RansacReport, run_ransac
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.samplers import ReplaySampler, UniformSampler, WeightedSampler
 from stereovo.estimation.solvers import SAMPLE_SIZE
 from stereovo.estimation import classical  # noqa: F401  (registers the classical family)
+from stereovo.estimation import ars, bansac  # noqa: F401  (register bansac and ars)
 
 __all__ = [
     "SAMPLE_SIZE",
@@ -37,4 +39,5 @@ __all__ = [
     "estimate_problem",
     "method_spec",
     "register_method",
+    "validate_options",
 ]
