@@ -18,6 +18,7 @@ COMMANDS = {
     "bench": "Time the estimator core (and optional peers) on identical frames.",
     "train": "Train a learned sampling policy.",
     "evaluate": "Compare agents and classical methods on held-out seeds.",
+    "sweep": "Sweep the NG-RANSAC or PPO trainer's hyperparameters on Ray Tune (a YAML search space).",
 }
 
 

@@ -1,0 +1,532 @@
+"""Training sweeps on Ray Tune: the NG-RANSAC and PPO trainers as Tune function trainables.
+
+A sweep file (YAML, read with ``yaml.safe_load`` only: no file can run code) holds:
+
+- ``algo``: ``ngransac`` (:class:`agents.ngransac.NGRansacTrainer`) or ``ppo`` (:mod:`agents.ppo`);
+- ``fixed``: trainer config fields shared by every trial (``frames`` / ``timesteps`` is the
+  training length);
+- ``space``: one search axis per config field: ``{grid: [...]}`` (every value, crossed with the
+  other grid axes), ``{choice: [...]}``, ``{uniform: [lo, hi]}``, ``{loguniform: [lo, hi]}``,
+  ``{randint: [lo, hi]}`` (random, drawn per sample); ``seed`` is an axis like any other;
+- ``samples``: how many times the grid is repeated (random axes get a new draw each time);
+- ``report_every``: trainer steps (NG-RANSAC frames, PPO environment steps) between reports;
+- ``metric``: the held-out success rate at a budget: the environment ``env_id`` with ``budget``
+  hypotheses per frame, contamination ``epsilon``, ``n`` correspondences, ``episodes`` episodes of
+  ``frames_per_episode`` frames from seeds ``seed + i`` (kept away from training seeds), the
+  trained policy acting through :func:`agents.rollout.success_rate`, as ``vo-gym evaluate`` does;
+- ``scheduler``: ``{type: asha, grace_period: G, reduction_factor: R}`` (default: ASHA early
+  stopping on the metric, rungs counted in reports) or ``{type: fifo}`` (every trial to the end).
+
+Every report carries a checkpoint (the trainer's own format), so a trial resumes where it was and
+the best trial's weights are kept. Results, the metric over training and the best config are
+written by :func:`write_sweep_outputs`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import tempfile
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+__all__ = [
+    "ALGOS",
+    "AXIS_KINDS",
+    "MetricSpec",
+    "SweepSpec",
+    "load_sweep",
+    "parse_sweep",
+    "held_out_success",
+    "sweep_trainable",
+    "run_sweep",
+    "SweepOutcome",
+    "write_sweep_outputs",
+]
+
+ALGOS = ("ngransac", "ppo")
+AXIS_KINDS = ("grid", "choice", "uniform", "loguniform", "randint")
+METRIC = "success"
+TOP_KEYS = {"name", "algo", "fixed", "space", "samples", "report_every", "metric", "scheduler", "search_seed"}
+_TUPLE_FIELDS = ("epsilon_range", "outlier_mix")
+
+
+@dataclass(frozen=True)
+class MetricSpec:
+    """Held-out success rate at a budget (see the module doc)."""
+
+    env_id: str = "vo_gym/StereoVO-v0"
+    epsilon: float = 0.8
+    budget: int = 16
+    n: int = 500
+    episodes: int = 5
+    frames_per_episode: int = 10
+    seed: int = 10_000
+
+    def __post_init__(self) -> None:
+        for name in ("budget", "n", "episodes", "frames_per_episode"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"sweep metric.{name} must be an integer >= 1, got {value!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ValueError(f"sweep metric.seed must be an integer >= 0, got {self.seed!r}")
+        if not isinstance(self.epsilon, (int, float)) or not 0.0 <= float(self.epsilon) < 1.0:
+            raise ValueError(f"sweep metric.epsilon must be in [0, 1), got {self.epsilon!r}")
+
+    def env_kwargs(self) -> dict[str, Any]:
+        return {"n_frames": self.frames_per_episode, "n_correspondences": self.n,
+                "outlier_ratio": float(self.epsilon), "budget": self.budget}
+
+    def seeds(self) -> list[int]:
+        return [self.seed + i for i in range(self.episodes)]
+
+    def describe(self) -> str:
+        return (f"held-out success at eps {self.epsilon:g} with {self.budget} hypotheses, N {self.n},"
+                f" {self.episodes} x {self.frames_per_episode} frames from seed {self.seed}")
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A parsed sweep file (see the module doc); build it with :func:`parse_sweep`."""
+
+    name: str
+    algo: str
+    fixed: Mapping[str, Any]
+    space: Mapping[str, Mapping[str, list]]
+    samples: int
+    report_every: int
+    metric: MetricSpec
+    scheduler: Mapping[str, Any] = field(default_factory=lambda: {"type": "asha"})
+    search_seed: int = 0  # seeds the draws of the random axes: the same file gives the same trials
+
+    @property
+    def total_steps(self) -> int:
+        """Training length of one trial: NG-RANSAC frames or PPO environment steps."""
+        return int(self.trainer_config({}).frames if self.algo == "ngransac" else self.trainer_config({}).timesteps)
+
+    @property
+    def n_reports(self) -> int:
+        return max(1, math.ceil(self.total_steps / self.report_every))
+
+    def trainer_config(self, params: Mapping[str, Any]):
+        """The trainer's config for one trial's parameters (validated by the trainer's config class)."""
+        values = {**self.fixed, **params}
+        for key in _TUPLE_FIELDS:
+            if isinstance(values.get(key), list):
+                values[key] = tuple(values[key])
+        if self.algo == "ngransac":
+            from agents.ngransac import NGRansacConfig
+
+            # Tune keeps the best checkpoint; reloading the best weights inside the trainer would undo training
+            # between reports.
+            values.setdefault("keep_best", False)
+            values.setdefault("eval_every", self.report_every)
+            values.setdefault("eval_frames", 10)
+            return _build(NGRansacConfig, values)
+        from agents.ppo import PPOConfig
+
+        values.setdefault("eval_every", 10 ** 9)  # the sweep's metric is the evaluation; SB3's own is not needed
+        values.setdefault("checkpoint_every", 10 ** 9)
+        return _build(PPOConfig, values)
+
+    def as_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["fixed"], d["space"], d["scheduler"] = dict(self.fixed), {k: dict(v) for k, v in self.space.items()}, \
+            dict(self.scheduler)
+        return d
+
+
+def _build(cls, values: Mapping[str, Any]):
+    import dataclasses
+
+    known = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise ValueError(f"sweep: unknown {cls.__name__} field(s) {unknown}; known: {', '.join(sorted(known))}")
+    return cls(**values)
+
+
+def _positive(where: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f"sweep {where} must be an integer >= 1, got {value!r}")
+    return value
+
+
+def _nonnegative(where: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise ValueError(f"sweep {where} must be an integer >= 0, got {value!r}")
+    return value
+
+
+def parse_sweep(data: Any, source: str = "sweep") -> SweepSpec:
+    """A :class:`SweepSpec` from a mapping (a loaded YAML document); errors name the key and the value.
+
+    Raises:
+        ValueError: a missing or unknown key, an unknown algo or axis kind, a bad value, or a trainer
+            config the trainer refuses (checked here for the first point of the space).
+    """
+    if not isinstance(data, dict):
+        raise ValueError(f"{source}: expected a mapping at the top, got {type(data).__name__}")
+    unknown = sorted(set(data) - TOP_KEYS)
+    if unknown:
+        raise ValueError(f"{source}: unknown key(s) {unknown}; known: {', '.join(sorted(TOP_KEYS))}")
+    algo = data.get("algo")
+    if algo not in ALGOS:
+        raise ValueError(f"{source}: algo must be one of {ALGOS}, got {algo!r}")
+    fixed = data.get("fixed") or {}
+    if not isinstance(fixed, dict):
+        raise ValueError(f"{source}: fixed must be a mapping, got {fixed!r}")
+    space_in = data.get("space") or {}
+    if not isinstance(space_in, dict) or not space_in:
+        raise ValueError(f"{source}: space must be a non-empty mapping of field -> axis")
+    space: dict[str, dict[str, list]] = {}
+    for key, axis in space_in.items():
+        if not isinstance(axis, dict) or len(axis) != 1:
+            raise ValueError(f"{source}: space.{key} must be one of {{kind: values}} with kind in {AXIS_KINDS},"
+                             f" got {axis!r}")
+        [(kind, values)] = axis.items()
+        if kind not in AXIS_KINDS:
+            raise ValueError(f"{source}: space.{key}: unknown axis kind {kind!r}; known: {', '.join(AXIS_KINDS)}")
+        if not isinstance(values, list) or not values:
+            raise ValueError(f"{source}: space.{key}.{kind} must be a non-empty list, got {values!r}")
+        if kind in ("uniform", "loguniform", "randint"):
+            if len(values) != 2 or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values) \
+                    or not values[0] < values[1]:
+                raise ValueError(f"{source}: space.{key}.{kind} must be [low, high] numbers with low < high,"
+                                 f" got {values!r}")
+            if kind == "loguniform" and values[0] <= 0:
+                raise ValueError(f"{source}: space.{key}.loguniform needs low > 0, got {values!r}")
+        space[key] = {kind: list(values)}
+    clash = sorted(set(space) & set(fixed))
+    if clash:
+        raise ValueError(f"{source}: {clash} both fixed and searched")
+    metric_in = data.get("metric") or {}
+    if not isinstance(metric_in, dict):
+        raise ValueError(f"{source}: metric must be a mapping, got {metric_in!r}")
+    unknown = sorted(set(metric_in) - set(MetricSpec.__dataclass_fields__) - {"name"})
+    if unknown:
+        raise ValueError(f"{source}: unknown metric key(s) {unknown}; known: "
+                         f"{', '.join(MetricSpec.__dataclass_fields__)}")
+    if metric_in.get("name", METRIC) != METRIC:
+        raise ValueError(f"{source}: metric.name must be {METRIC!r} (held-out success), got {metric_in['name']!r}")
+    metric = MetricSpec(**{k: v for k, v in metric_in.items() if k != "name"})
+    scheduler = dict(data.get("scheduler") or {"type": "asha"})
+    kind = scheduler.setdefault("type", "asha")
+    if kind not in ("asha", "fifo"):
+        raise ValueError(f"{source}: scheduler.type must be 'asha' or 'fifo', got {kind!r}")
+    allowed = {"type", "grace_period", "reduction_factor"} if kind == "asha" else {"type"}
+    unknown = sorted(set(scheduler) - allowed)
+    if unknown:
+        raise ValueError(f"{source}: unknown scheduler key(s) {unknown} for {kind}; known: {', '.join(sorted(allowed))}")
+    if kind == "asha":
+        _positive("scheduler.grace_period", scheduler.setdefault("grace_period", 1))
+        rf = scheduler.setdefault("reduction_factor", 2)
+        if not isinstance(rf, (int, float)) or isinstance(rf, bool) or rf <= 1:
+            raise ValueError(f"sweep scheduler.reduction_factor must be a number > 1, got {rf!r}")
+    spec = SweepSpec(
+        name=str(data.get("name") or Path(source).stem), algo=algo, fixed=dict(fixed), space=space,
+        samples=_positive("samples", data.get("samples", 1)),
+        report_every=_positive("report_every", data.get("report_every")),
+        metric=metric, scheduler=scheduler,
+        search_seed=_nonnegative("search_seed", data.get("search_seed", 0)),
+    )
+    first = {key: next(iter(axis.values()))[0] for key, axis in space.items()}
+    for key, axis in space.items():
+        if "randint" in axis:
+            first[key] = int(first[key])
+    try:
+        spec.trainer_config(first)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{source}: {err}") from None
+    return spec
+
+
+def load_sweep(path: str | os.PathLike) -> SweepSpec:
+    """Read and check a sweep file (``yaml.safe_load``: tags that would build objects are refused).
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: not YAML, or not a valid sweep (the message names the key).
+    """
+    import yaml
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"sweep file {str(path)!r} does not exist")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as err:
+        raise ValueError(f"{path}: not valid YAML ({' '.join(str(err).split())})") from None
+    return parse_sweep(data, str(path))
+
+
+def param_space(spec: SweepSpec) -> dict[str, Any]:
+    """Tune's search space for the spec's axes."""
+    from ray import tune
+
+    out: dict[str, Any] = {}
+    for key, axis in spec.space.items():
+        [(kind, values)] = axis.items()
+        if kind == "grid":
+            out[key] = tune.grid_search(list(values))
+        elif kind == "choice":
+            out[key] = tune.choice(list(values))
+        elif kind == "uniform":
+            out[key] = tune.uniform(*values)
+        elif kind == "loguniform":
+            out[key] = tune.loguniform(*values)
+        else:
+            out[key] = tune.randint(int(values[0]), int(values[1]))
+    return out
+
+
+# --------------------------------------------------------------------------- trainable
+
+
+def held_out_success(net, metric: MetricSpec) -> float:
+    """The sweep metric: frame success rate of ``net`` acting in the environment (see :class:`MetricSpec`)."""
+    from agents.checkpoint import LearnedPolicy
+    from agents.rollout import success_rate
+
+    was_training = net.training
+    try:
+        success, _ = success_rate(LearnedPolicy(net, "sweep"), metric.env_id, metric.env_kwargs(), metric.seeds())
+    finally:
+        net.train(was_training)
+    return float(success)
+
+
+def _report(metrics: dict[str, Any], save: Any) -> None:
+    from ray import tune
+
+    with tempfile.TemporaryDirectory() as folder:
+        save(Path(folder))
+        tune.report(metrics, checkpoint=tune.Checkpoint.from_directory(folder))
+
+
+def _train_ngransac(spec: SweepSpec, params: Mapping[str, Any]) -> None:
+    from ray import tune
+
+    from agents.ngransac import NGRansacTrainer
+
+    config = spec.trainer_config(params)
+    checkpoint = tune.get_checkpoint()
+    if checkpoint is not None:
+        with checkpoint.as_directory() as folder:
+            trainer = NGRansacTrainer.resume(Path(folder) / "ngransac.pt")
+    else:
+        trainer = NGRansacTrainer(config)
+    while trainer.step < config.frames:
+        trainer.train(frames=min(spec.report_every, config.frames - trainer.step))
+        success = held_out_success(trainer.net, spec.metric)
+        last = trainer.history[-1] if trainer.history else None
+        metrics = {METRIC: success, "step": trainer.step,
+                   "train_loss": float(last.mean_loss) if last is not None else float("nan")}
+        _report(metrics, lambda folder: trainer.save(folder / "ngransac.pt"))
+
+
+def _train_ppo(spec: SweepSpec, params: Mapping[str, Any]) -> None:
+    from ray import tune
+
+    from agents.ppo import build_model, export_actor, load_ppo, make_training_env
+
+    config = spec.trainer_config(params)
+    env = make_training_env(config)
+    try:
+        checkpoint = tune.get_checkpoint()
+        if checkpoint is not None:
+            with checkpoint.as_directory() as folder:
+                model = load_ppo(Path(folder) / "ppo.zip", env=env)
+        else:
+            model = build_model(config, env)
+        while model.num_timesteps < config.timesteps:
+            step = min(spec.report_every, config.timesteps - model.num_timesteps)
+            model.learn(total_timesteps=step, reset_num_timesteps=False, progress_bar=False)
+            success = held_out_success(model.policy.action_net, spec.metric)
+
+            def save(folder: Path) -> None:
+                model.save(str(folder / "ppo.zip"))
+                export_actor(model, folder / "ppo.pt", config)
+
+            _report({METRIC: success, "step": int(model.num_timesteps)}, save)
+    finally:
+        env.close()
+
+
+def sweep_trainable(params: dict[str, Any], spec: dict[str, Any]) -> None:
+    """Tune function trainable: one trainer config (``spec.fixed`` + ``params``), reported every ``report_every``."""
+    import torch
+
+    # One intra-op thread per trial: Tune runs trials side by side, one CPU each.
+    torch.set_num_threads(1)
+    sweep = SweepSpec(**{**spec, "metric": MetricSpec(**spec["metric"])})
+    if sweep.algo == "ngransac":
+        _train_ngransac(sweep, params)
+    else:
+        _train_ppo(sweep, params)
+
+
+# --------------------------------------------------------------------------- running
+
+
+@dataclass
+class SweepOutcome:
+    """What a sweep left: every trial's history, and whether every trial finished."""
+
+    trials: list[dict[str, Any]]
+    complete: bool
+    experiment: Path
+    errors: int = 0
+
+
+def run_sweep(spec: SweepSpec, out: str | os.PathLike, workers: int | None = None, address: str | None = None,
+              resume: bool = False, verbose: int = 1) -> SweepOutcome:
+    """Run (or with ``resume`` restore and complete) the sweep in ``out/tune``.
+
+    Without ``address`` a local Ray instance with ``workers`` CPUs is started (and shut down);
+    ``address="auto"`` or ``"HOST:PORT"`` joins a cluster. Trials run side by side, one CPU each.
+    A Ctrl-C makes Tune save the experiment; ``resume`` continues it from the last checkpoints.
+    """
+    import ray
+    from ray import tune
+    from ray.tune.schedulers import ASHAScheduler, FIFOScheduler
+    from ray.tune.search.basic_variant import BasicVariantGenerator
+
+    out = Path(out).resolve()
+    experiment = out / "tune"
+    started = False
+    if not ray.is_initialized():
+        kwargs: dict[str, Any] = dict(include_dashboard=False, logging_level="ERROR")
+        if address is None:
+            kwargs["num_cpus"] = int(workers or os.cpu_count() or 1)
+        else:
+            kwargs["address"] = address
+        try:
+            ray.init(**kwargs)
+        except ConnectionError as err:
+            raise ValueError(f"--address {address!r}: cannot join a Ray cluster ({err})") from None
+        started = True
+    try:
+        trainable = tune.with_resources(tune.with_parameters(sweep_trainable, spec=spec.as_dict()), {"cpu": 1})
+        if resume and tune.Tuner.can_restore(str(experiment)):
+            tuner = tune.Tuner.restore(str(experiment), trainable, resume_unfinished=True, resume_errored=True)
+        else:
+            if spec.scheduler["type"] == "asha":
+                scheduler = ASHAScheduler(time_attr="training_iteration", max_t=spec.n_reports,
+                                          grace_period=min(spec.scheduler["grace_period"], spec.n_reports),
+                                          reduction_factor=spec.scheduler["reduction_factor"])
+            else:
+                scheduler = FIFOScheduler()
+            tuner = tune.Tuner(
+                trainable, param_space=param_space(spec),
+                tune_config=tune.TuneConfig(metric=METRIC, mode="max", scheduler=scheduler, num_samples=spec.samples,
+                                            max_concurrent_trials=workers,
+                                            search_alg=BasicVariantGenerator(random_state=spec.search_seed)),
+                run_config=tune.RunConfig(name="tune", storage_path=str(out), verbose=verbose,
+                                          checkpoint_config=tune.CheckpointConfig(num_to_keep=None)),
+            )
+        grid = tuner.fit()
+        trials, errors = [], 0
+        for result in grid:
+            frame = result.metrics_dataframe
+            history = [] if frame is None or METRIC not in frame else [
+                {"step": int(s), METRIC: float(v)} for s, v in zip(frame["step"], frame[METRIC])]
+            best = None
+            if result.best_checkpoints:
+                best = max(result.best_checkpoints, key=lambda cm: cm[1].get(METRIC, -1.0))
+            trials.append({
+                "trial": str((result.metrics or {}).get("trial_id") or (Path(result.path).name if result.path else "?")),
+                "params": dict(result.config or {}),
+                "history": history,
+                "error": None if result.error is None else " ".join(str(result.error).split())[:300],
+                "best_checkpoint": None if best is None else best[0].path,
+                "best_success": None if best is None else float(best[1].get(METRIC)),
+            })
+            errors += result.error is not None
+        # A trial ASHA stopped early is TERMINATED too; one cut short by an interrupt is not.
+        complete = grid.num_terminated + grid.num_errors == len(grid)
+        return SweepOutcome(trials, complete, experiment, errors)
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def write_sweep_outputs(spec: SweepSpec, outcome: SweepOutcome, out: str | os.PathLike) -> list[Path]:
+    """``results.csv`` / ``results.md`` (a row per trial), ``metric_over_training.png``, ``best.json``
+    (the best trial's config and metric) and ``best_checkpoint/`` (its checkpoint files)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from stereovo.benchmark import markdown_table
+    from stereovo.io import write_frame_csv
+    from stereovo.trials.store import atomic_path, atomic_write_text
+
+    out = Path(out)
+    keys = list(spec.space)
+    rows = []
+    for t in outcome.trials:
+        hist = t["history"]
+        rows.append({
+            "trial": t["trial"], **{k: t["params"].get(k) for k in keys},
+            "reports": len(hist), "steps": hist[-1]["step"] if hist else 0,
+            "last_success": hist[-1][METRIC] if hist else math.nan,
+            "best_success": max((h[METRIC] for h in hist), default=math.nan),
+            "status": "error" if t["error"] else ("finished" if hist and hist[-1]["step"] >= spec.total_steps
+                                                  else "stopped early"),
+        })
+    rows.sort(key=lambda r: (-(r["best_success"] if r["best_success"] == r["best_success"] else -1), r["trial"]))
+    with atomic_path(out / "results.csv") as tmp:
+        write_frame_csv(tmp, rows)
+    paths = [out / "results.csv"]
+
+    def fmt(v: Any) -> str:
+        return f"{v:.3g}" if isinstance(v, float) else str(v)
+
+    table = markdown_table(["trial", *keys, "reports", "steps", "last success", "best success", "status"],
+                           [[r["trial"], *(fmt(r[k]) for k in keys), r["reports"], r["steps"], fmt(r["last_success"]),
+                             fmt(r["best_success"]), r["status"]] for r in rows])
+    unit = "frames" if spec.algo == "ngransac" else "environment steps"
+    text = [f"# Sweep {spec.name} ({spec.algo})", "",
+            f"Metric: {spec.metric.describe()}; reported every {spec.report_every} {unit} of {spec.total_steps};"
+            f" scheduler {spec.scheduler['type']}; {len(rows)} trials.", "", table, ""]
+    candidates = [t for t in outcome.trials if t["best_checkpoint"]]
+    best = max(candidates, key=lambda t: t["best_success"], default=None)
+    if best is not None:
+        target = out / "best_checkpoint"
+        if target.exists():
+            shutil.rmtree(target)
+        shutil.copytree(best["best_checkpoint"], target)
+        payload = {"trial": best["trial"], "params": best["params"], METRIC: best["best_success"],
+                   "metric": spec.metric.describe(),
+                   "config": {k: (list(v) if isinstance(v, tuple) else v)
+                              for k, v in asdict(spec.trainer_config(best["params"])).items()},
+                   "checkpoint": str(target)}
+        atomic_write_text(out / "best.json", json.dumps(payload, indent=2, default=str) + "\n")
+        text += [f"Best: trial {best['trial']}, {METRIC} {best['best_success']:.3f} with"
+                 f" {json.dumps(best['params'], default=str)}; checkpoint in `best_checkpoint/`.", ""]
+        paths += [out / "best.json", target]
+    atomic_write_text(out / "results.md", "\n".join(text))
+    paths.append(out / "results.md")
+
+    fig = Figure(figsize=(9, 5.2), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    for t in outcome.trials:
+        if t["history"]:
+            xs = [h["step"] for h in t["history"]]
+            ys = [100 * h[METRIC] for h in t["history"]]
+            label = ", ".join(f"{k}={fmt(t['params'].get(k))}" for k in keys)
+            ax.plot(xs, ys, marker="o", ms=3, lw=1.2, label=label)
+    ax.set_xlabel(f"training {unit}")
+    ax.set_ylabel("held-out success [%]")
+    ax.set_ylim(-2, 102)
+    ax.set_title(f"{spec.name}: {spec.metric.describe()}", fontsize="small")
+    ax.grid(True, alpha=0.3)
+    if outcome.trials:
+        ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="x-small")
+    fig.savefig(out / "metric_over_training.png", dpi=110)
+    paths.append(out / "metric_over_training.png")
+    return paths
