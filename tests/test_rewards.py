@@ -56,6 +56,14 @@ def test_supervised_exact_estimate_is_one_minus_the_hypothesis_cost():
     assert supervised_reward(exact, success_bonus=0.5, hypothesis_cost=0.01) == pytest.approx(1.0 - 0.1, abs=1e-12)
 
 
+def test_supervised_defaults_are_half_bonus_no_cost_and_minus_one_on_failure():
+    m = metrics(rot_err_deg=0.5, success=True, n_hypotheses=1000)
+    # success_bonus 0.5, hypothesis_cost 0: 0.5 + 0.5 * (0.5 / 1.5), the 1000 hypotheses free.
+    assert supervised_reward(m) == pytest.approx(0.5 + 0.5 * (0.5 / 1.5), abs=1e-12)
+    assert supervised_reward(metrics(status="failed: degenerate sample", success=False)) == -1.0
+    assert inlier_reward(True, 50, 100, 1000) == pytest.approx(0.5, abs=1e-12)
+
+
 def test_supervised_success_below_the_bound():
     m = metrics(rot_err_deg=0.5, trans_err_m=0.01, t_true_norm_m=1.0, success=True, n_hypotheses=32)
     # e = 0.5: 0.5 * 1 + 0.5 * (0.5 / 1.5) = 0.6666..., minus 32 * 0.001.
@@ -109,6 +117,7 @@ def test_inlier_reward_is_the_inlier_fraction_minus_the_cost():
     assert inlier_reward(True, 200, 200, 5, hypothesis_cost=0.1) == pytest.approx(0.5, abs=1e-12)
     assert inlier_reward(True, 10, 200, 100, hypothesis_cost=0.05) == -1.0  # 0.05 - 5, clipped
     assert inlier_reward(True, 0, 0, 0) == 0.0  # no matches: no division by zero
+    assert inlier_reward(True, 1, 1, 0) == 1.0  # a single match, an inlier: fraction 1 / 1
     assert inlier_reward(False, 120, 200, 32, 0.001, failure_reward=-0.4) == -0.4
     assert inlier_reward(False, 120, 200, 32) == -1.0
 
@@ -152,6 +161,9 @@ def test_msac_reward_truncates_each_squared_error_at_the_gate():
     wide = (4 * 1.0 + 2 * (1 - 1 / 16) + 2 * (1 - 9 / 16)) / 8
     assert msac_reward(True, R, t, prev, curr, camera, 16.0, 0) == pytest.approx(wide, abs=1e-9)
     assert msac_reward(False, R, t, prev, curr, camera, 4.0, 20, failure_reward=-0.6) == -0.6
+    assert msac_reward(False, R, t, prev, curr, camera, 4.0, 20) == -1.0  # the default failure reward
+    # A single match 1 px off: 1 - 1/4 (the mean over one match, not over two).
+    assert msac_reward(True, R, t, prev[1:2], curr[1:2], camera, 4.0, 0) == pytest.approx(0.75, abs=1e-9)
 
 
 # ---------------------------------------------------------------------------- the environment passes the cost on

@@ -1,0 +1,276 @@
+#!/usr/bin/env python
+"""Mutation testing of the core, the environment and the trainers' losses with mutmut 3.
+
+    .venv/bin/python scripts/mutation_test.py                      # every module, in priority order
+    .venv/bin/python scripts/mutation_test.py --only rewards prosac  # some of them
+    .venv/bin/python scripts/mutation_test.py --report-only          # rewrite the report from the last run
+
+mutmut changes one thing in the code (an operator, a constant, a comparison, an argument) and runs
+the tests that call the changed function; a mutant the tests let pass ("survived") is a change of
+behaviour nobody would notice. The run happens in a copy of the repository (``--workdir``), never in
+the working tree: mutmut writes its ``mutants/`` folder there. Each module is checked against a
+fast subset of the suite (``MODULES``), run in order of importance, each within ``--minutes``;
+mutmut runs the tests of a mutant fastest first and stops at the first failure.
+
+Not mutated: the numba kernels (``stereovo/estimation/kernels*.py``, and any ``@njit`` function:
+mutmut leaves decorated functions alone, so also properties and ``lru_cache``d helpers).
+
+Writes the kill rate and every surviving mutant (its diff, and for an equivalent one why it is
+equivalent, from ``EQUIVALENT``) to ``docs/mutation-testing.md``. The kill rate counts killed and
+timed-out mutants over the checked ones that are not equivalent. A developer's tool: a full run
+takes hours on two cores, far beyond CI's budget.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from fnmatch import fnmatch
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SOURCE_PACKAGES = ("stereovo", "vo_gym", "agents")
+
+
+@dataclass(frozen=True)
+class Module:
+    """One module to mutate, the tests that check it, and which of its functions count."""
+
+    name: str
+    path: str
+    tests: tuple[str, ...]
+    functions: tuple[str, ...] = ("*",)  # fnmatch patterns on mutmut's function keys (x_<name>, xǁClassǁmethod)
+
+    @property
+    def dotted(self) -> str:
+        return self.path.removesuffix(".py").replace("/", ".")
+
+    @property
+    def patterns(self) -> list[str]:
+        return [f"{self.dotted}.{f}__mutmut_*" for f in self.functions]
+
+
+# In order of importance: what the issue's planted bugs hit first (rewards, stopping rules, env honesty).
+MODULES: tuple[Module, ...] = (
+    Module("rewards", "vo_gym/rewards.py", ("tests/test_rewards.py",)),
+    Module("termination", "stereovo/estimation/termination.py", ("tests/test_stopping_bounds.py",)),
+    Module("prosac", "stereovo/estimation/prosac.py",
+           ("tests/test_stopping_bounds.py", "tests/test_classical_prosac.py")),
+    Module("tdd", "stereovo/estimation/tdd.py",
+           ("tests/test_stopping_bounds.py", "tests/test_classical_verification.py")),
+    Module("sprt", "stereovo/estimation/sprt.py",
+           ("tests/test_stopping_bounds.py", "tests/test_classical_verification.py")),
+    Module("mlesac", "stereovo/estimation/mlesac.py",
+           ("tests/test_mlesac_densities.py", "tests/test_classical_mlesac.py")),
+    Module("env", "vo_gym/env.py", ("tests/test_env_honesty.py", "tests/test_rewards.py", "tests/test_env.py")),
+    Module("samplers", "stereovo/estimation/samplers.py",
+           ("tests/test_stopping_bounds.py", "tests/test_classical_prosac.py", "tests/test_estimation_core.py")),
+    Module("scoring", "stereovo/estimation/scoring.py",
+           ("tests/test_estimation_core.py", "tests/test_classical_verification.py")),
+    Module("features", "vo_gym/features.py", ("tests/test_features.py", "tests/test_env_honesty.py")),
+    Module("geometry", "stereovo/geometry.py", ("tests/test_geometry.py",)),
+    Module("ngransac-losses", "agents/ngransac.py", ("tests/test_agents_ngransac.py",),
+           ("x_pose_loss", "x_inlier_loss", "x_smooth_inlier_loss", "x__pose_loss", "x_ordered_triplet_log_prob",
+            "xǁNGRansacTrainerǁ_frame_loss")),
+)
+
+# mutmut's exit codes (mutmut/stats.py): 1 and 3 killed, 0 survived, timeouts, None not checked.
+STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped", 35: "suspicious",
+          36: "timeout", -24: "timeout", 24: "timeout", 152: "timeout", 255: "timeout", -11: "segfault",
+          -9: "segfault", None: "not checked"}
+
+# Survivors that cannot change behaviour, with the reason. Keyed by mutmut's mutant name; the report
+# shows each one's diff, so a reviewer can check the reason against the code (names shift when a
+# function's code changes: rerun and recheck).
+EQUIVALENT: dict[str, str] = {
+    "vo_gym.rewards.x_pose_error_ratio__mutmut_12":
+        "rot_err_deg / SUCCESS_ROT_DEG -> * SUCCESS_ROT_DEG: the bound is 1.0 deg, dividing and multiplying by 1 agree.",
+}
+
+
+def copy_tree(destination: Path, commit: str | None) -> None:
+    """The repository's files (tracked plus untracked-not-ignored, or ``commit``'s) into ``destination``."""
+    if destination.exists():
+        shutil.rmtree(destination)
+    destination.mkdir(parents=True)
+    if commit is not None:
+        archive = subprocess.run(["git", "archive", commit], cwd=ROOT, check=True, capture_output=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(destination)], input=archive, check=True)
+        return
+    listed = subprocess.run(["git", "ls-files", "--cached", "--others", "--exclude-standard", "-z"], cwd=ROOT,
+                            check=True, capture_output=True).stdout.decode().split("\0")
+    for name in filter(None, listed):
+        source = ROOT / name
+        if source.is_file():
+            target = destination / name
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(source, target)
+
+
+def write_config(workdir: Path, modules: list[Module]) -> None:
+    tests = sorted({t for m in modules for t in m.tests})
+    config = {
+        "source_paths": list(SOURCE_PACKAGES),
+        "only_mutate": [m.path for m in modules],
+        "pytest_add_cli_args_test_selection": tests,
+        "pytest_add_cli_args": ["-p", "no:cacheprovider", "-W", "ignore"],
+        "timeout_multiplier": 10.0,
+        "timeout_constant": 5.0,
+    }
+    lines = ["[tool.mutmut]"] + [f"{k} = {json.dumps(v, ensure_ascii=False)}" for k, v in config.items()]
+    (workdir / "pyproject.toml").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    (workdir / "setup.cfg").unlink(missing_ok=True)
+
+
+def mutmut_environment() -> dict[str, str]:
+    env = dict(os.environ)
+    # One thread per process: the machines this runs on have two shared cores. CI=1 selects the
+    # deterministic hypothesis profile of tests/conftest.py, so a mutant's verdict does not vary.
+    env.update(OMP_NUM_THREADS="1", MKL_NUM_THREADS="1", NUMBA_NUM_THREADS="1", CI="1")
+    env.pop("PYTHONPATH", None)
+    return env
+
+
+def run_module(workdir: Path, module: Module, minutes: float, max_children: int) -> str:
+    """Run mutmut on one module's mutants; returns ``"done"`` or ``"stopped after N min"``."""
+    mutmut = Path(sys.executable).with_name("mutmut")
+    command = [str(mutmut), "run", "--max-children", str(max_children), *module.patterns]
+    log = (workdir / f"mutmut-{module.name}.log").open("w")
+    start = time.monotonic()
+    process = subprocess.Popen(command, cwd=workdir, env=mutmut_environment(), stdout=log, stderr=subprocess.STDOUT,
+                               start_new_session=True)
+    try:
+        process.wait(timeout=minutes * 60)
+        return f"done in {(time.monotonic() - start) / 60:.1f} min (mutmut exit {process.returncode})"
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, 15)
+        process.wait()
+        return f"stopped after {minutes:g} min"
+
+
+def read_results(workdir: Path, module: Module) -> dict[str, str]:
+    """Status of each of the module's mutants (only the counted functions) from mutmut's meta file."""
+    meta = workdir / "mutants" / (module.path + ".meta")
+    if not meta.is_file():
+        return {}
+    codes = json.loads(meta.read_text(encoding="utf-8"))["exit_code_by_key"]
+    return {name: STATUS.get(code, "suspicious") for name, code in codes.items()
+            if any(fnmatch(name, p) for p in module.patterns)}
+
+
+def mutant_diff(workdir: Path, name: str) -> str:
+    mutmut = Path(sys.executable).with_name("mutmut")
+    shown = subprocess.run([str(mutmut), "show", name], cwd=workdir, env=mutmut_environment(), capture_output=True,
+                           text=True).stdout
+    changed = [line for line in shown.splitlines()
+               if line[:1] in "+-" and not line.startswith(("+++", "---"))]
+    return "\n".join(changed)
+
+
+def write_report(path: Path, workdir: Path, modules: list[Module], notes: dict[str, str]) -> dict[str, dict]:
+    summary, survivors = {}, []
+    for module in modules:
+        results = read_results(workdir, module)
+        counts = {s: 0 for s in ("killed", "timeout", "survived", "equivalent", "not checked", "other")}
+        for name, status in sorted(results.items()):
+            if status == "survived" and name in EQUIVALENT:
+                status = "equivalent"
+            counts[status if status in counts else "other"] += 1
+            if status in ("survived", "equivalent", "suspicious", "no tests"):
+                survivors.append((module, name, status))
+        decided = counts["killed"] + counts["timeout"] + counts["survived"]
+        counts["kill rate"] = (counts["killed"] + counts["timeout"]) / decided if decided else None
+        counts["total"] = len(results)
+        summary[module.name] = counts
+    lines = [
+        "# Mutation testing",
+        "",
+        "`scripts/mutation_test.py` runs [mutmut](https://mutmut.readthedocs.io) 3 over the core's Python",
+        "modules, the environment and the trainers' losses, each against a fast subset of the tests, and",
+        "rewrites this file. It is a developer's tool (hours on two cores), not part of CI:",
+        "",
+        "```bash",
+        ".venv/bin/pip install -e '.[dev]'                # mutmut is in the dev extra",
+        ".venv/bin/python scripts/mutation_test.py        # all modules; --only rewards prosac ... for some",
+        "```",
+        "",
+        "A mutant is one small change (an operator, a constant, a comparison, a default); *killed*",
+        "means a test failed on it, *survived* that every test calling the function passed. The kill",
+        "rate is (killed + timed out) / (killed + timed out + survived), equivalent mutants (changes",
+        "that cannot alter behaviour, each explained below) left out. *Not checked* mutants were not",
+        "reached within the run's time cap. The numba kernels and decorated functions (`@njit`,",
+        "properties, `lru_cache`) are not mutated by mutmut. Target: at least 90 % of the non-equivalent",
+        "mutants killed, each survivor fixed by a test or explained as equivalent.",
+        "",
+        "## Kill rate by module",
+        "",
+        "| module | tests | mutants | killed | timeout | survived | equivalent | not checked | kill rate | run |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for module in modules:
+        c = summary[module.name]
+        rate = "-" if c["kill rate"] is None else f"{100 * c['kill rate']:.1f} %"
+        tests = ", ".join(t.removeprefix("tests/") for t in module.tests)
+        lines.append(f"| `{module.path}` | {tests} | {c['total']} | {c['killed']} | {c['timeout']} | {c['survived']} "
+                     f"| {c['equivalent']} | {c['not checked']} | {rate} | {notes.get(module.name, 'not run')} |")
+    totals = {k: sum(summary[m.name][k] for m in modules) for k in ("killed", "timeout", "survived", "equivalent",
+                                                                   "not checked", "total")}
+    decided = totals["killed"] + totals["timeout"] + totals["survived"]
+    overall = f"{100 * (totals['killed'] + totals['timeout']) / decided:.1f} %" if decided else "-"
+    lines += ["", f"All modules run: {totals['total']} mutants, {decided} decided and not equivalent, "
+                  f"{totals['equivalent']} equivalent, {totals['not checked']} not checked; kill rate {overall}.", ""]
+    lines += ["## Surviving mutants", ""]
+    if not survivors:
+        lines.append("None.")
+    for module, name, status in survivors:
+        reason = EQUIVALENT.get(name, "not yet addressed: needs a test" if status == "survived" else status)
+        lines += [f"- `{name}` ({'equivalent' if status == 'equivalent' else status}): {reason}", "",
+                  "  ```diff", *("  " + line for line in mutant_diff(workdir, name).splitlines()), "  ```", ""]
+    path.write_text("\n".join(lines).rstrip() + "\n", encoding="utf-8")
+    return summary
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--only", nargs="+", choices=[m.name for m in MODULES], help="modules to run (default all)")
+    parser.add_argument("--workdir", type=Path, default=Path("/tmp/vo-gym-mutation"),
+                        help="where the copy of the repository and mutmut's mutants/ go")
+    parser.add_argument("--commit", help="mutate this commit's files instead of the working tree's")
+    parser.add_argument("--minutes", type=float, default=60.0, help="time cap per module (default 60)")
+    parser.add_argument("--max-children", type=int, default=1, help="mutants checked in parallel (default 1)")
+    parser.add_argument("--report", type=Path, default=ROOT / "docs" / "mutation-testing.md")
+    parser.add_argument("--report-only", action="store_true", help="rewrite the report from the last run")
+    parser.add_argument("--keep", action="store_true", help="reuse the workdir of the last run (resume it)")
+    args = parser.parse_args(argv)
+    if shutil.which("mutmut", path=str(Path(sys.executable).parent)) is None:
+        print("mutmut is not installed in this environment: pip install -e '.[dev]'", file=sys.stderr)
+        return 2
+    modules = [m for m in MODULES if args.only is None or m.name in args.only]
+    notes_path = args.workdir / "run-notes.json"
+    notes = json.loads(notes_path.read_text()) if notes_path.is_file() else {}
+    if not args.report_only:
+        if not args.keep:
+            copy_tree(args.workdir, args.commit)
+            notes = {}
+        # Every module listed is mutated at once (one copy, one statistics run), then checked in order.
+        write_config(args.workdir, modules)
+        for module in modules:
+            notes[module.name] = run_module(args.workdir, module, args.minutes, args.max_children)
+            notes_path.write_text(json.dumps(notes, indent=1))
+            print(f"{module.name}: {notes[module.name]}", flush=True)
+    summary = write_report(args.report, args.workdir, modules, notes)
+    for name, c in summary.items():
+        rate = "-" if c["kill rate"] is None else f"{100 * c['kill rate']:.1f} %"
+        print(f"{name:16s} {c['total']:4d} mutants  killed {c['killed']:4d}  survived {c['survived']:3d}  "
+              f"equivalent {c['equivalent']:3d}  not checked {c['not checked']:4d}  kill rate {rate}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
