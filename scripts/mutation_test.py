@@ -173,17 +173,31 @@ def mutant_diff(workdir: Path, name: str) -> str:
     return "\n".join(changed)
 
 
-def write_report(path: Path, workdir: Path, modules: list[Module], notes: dict[str, str]) -> dict[str, dict]:
+def record(store: Path, workdir: Path, module: Module, note: str) -> None:
+    """Merge one module's verdicts (and the diffs of its survivors) into the results file."""
+    results = json.loads(store.read_text()) if store.is_file() else {}
+    statuses = read_results(workdir, module)
+    diffs = {name: mutant_diff(workdir, name) for name, status in statuses.items()
+             if status not in ("killed", "timeout", "not checked")}
+    results[module.name] = {"note": note, "status": statuses, "diff": diffs}
+    store.write_text(json.dumps(results, indent=1, ensure_ascii=False), encoding="utf-8")
+
+
+def write_report(path: Path, store: Path) -> dict[str, dict]:
+    """The report over every module of ``MODULES`` from the results file (modules never run: "not run")."""
+    stored = json.loads(store.read_text()) if store.is_file() else {}
+    modules = list(MODULES)
+    notes = {name: entry["note"] for name, entry in stored.items()}
     summary, survivors = {}, []
     for module in modules:
-        results = read_results(workdir, module)
+        results = stored.get(module.name, {}).get("status", {})
         counts = {s: 0 for s in ("killed", "timeout", "survived", "equivalent", "not checked", "other")}
         for name, status in sorted(results.items()):
             if status == "survived" and name in EQUIVALENT:
                 status = "equivalent"
             counts[status if status in counts else "other"] += 1
             if status in ("survived", "equivalent", "suspicious", "no tests"):
-                survivors.append((module, name, status))
+                survivors.append((module, name, status, stored[module.name]["diff"].get(name, "")))
         decided = counts["killed"] + counts["timeout"] + counts["survived"]
         counts["kill rate"] = (counts["killed"] + counts["timeout"]) / decided if decided else None
         counts["total"] = len(results)
@@ -228,10 +242,10 @@ def write_report(path: Path, workdir: Path, modules: list[Module], notes: dict[s
     lines += ["## Surviving mutants", ""]
     if not survivors:
         lines.append("None.")
-    for module, name, status in survivors:
+    for module, name, status, diff in survivors:
         reason = EQUIVALENT.get(name, "not yet addressed: needs a test" if status == "survived" else status)
         lines += [f"- `{name}` ({'equivalent' if status == 'equivalent' else status}): {reason}", "",
-                  "  ```diff", *("  " + line for line in mutant_diff(workdir, name).splitlines()), "  ```", ""]
+                  "  ```diff", *("  " + line for line in diff.splitlines()), "  ```", ""]
     path.write_text("\n".join(lines).rstrip() + "\n", encoding="utf-8")
     return summary
 
@@ -245,26 +259,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--minutes", type=float, default=60.0, help="time cap per module (default 60)")
     parser.add_argument("--max-children", type=int, default=1, help="mutants checked in parallel (default 1)")
     parser.add_argument("--report", type=Path, default=ROOT / "docs" / "mutation-testing.md")
-    parser.add_argument("--report-only", action="store_true", help="rewrite the report from the last run")
+    parser.add_argument("--results", type=Path, default=Path("/tmp/vo-gym-mutation-results.json"),
+                        help="verdicts of every run so far, merged per module (the report is built from it)")
+    parser.add_argument("--report-only", action="store_true", help="rewrite the report from the results file")
     parser.add_argument("--keep", action="store_true", help="reuse the workdir of the last run (resume it)")
     args = parser.parse_args(argv)
     if shutil.which("mutmut", path=str(Path(sys.executable).parent)) is None:
         print("mutmut is not installed in this environment: pip install -e '.[dev]'", file=sys.stderr)
         return 2
     modules = [m for m in MODULES if args.only is None or m.name in args.only]
-    notes_path = args.workdir / "run-notes.json"
-    notes = json.loads(notes_path.read_text()) if notes_path.is_file() else {}
     if not args.report_only:
-        if not args.keep:
+        if not (args.keep and args.workdir.is_dir()):
             copy_tree(args.workdir, args.commit)
-            notes = {}
-        # Every module listed is mutated at once (one copy, one statistics run), then checked in order.
+        # The modules asked for are mutated at once (one copy, one statistics run), then checked in order.
         write_config(args.workdir, modules)
         for module in modules:
-            notes[module.name] = run_module(args.workdir, module, args.minutes, args.max_children)
-            notes_path.write_text(json.dumps(notes, indent=1))
-            print(f"{module.name}: {notes[module.name]}", flush=True)
-    summary = write_report(args.report, args.workdir, modules, notes)
+            note = run_module(args.workdir, module, args.minutes, args.max_children)
+            record(args.results, args.workdir, module, note)
+            print(f"{module.name}: {note}", flush=True)
+            write_report(args.report, args.results)
+    summary = write_report(args.report, args.results)
     for name, c in summary.items():
         rate = "-" if c["kill rate"] is None else f"{100 * c['kill rate']:.1f} %"
         print(f"{name:16s} {c['total']:4d} mutants  killed {c['killed']:4d}  survived {c['survived']:3d}  "
