@@ -118,3 +118,82 @@ def test_informative_priors_reduce_draws_to_the_first_all_inlier_triplet():
     guided_mean = draws_to_first_all_inlier(guided, inlier, rng)
     assert abs(flat_mean - uniform_mean) < 0.25 * uniform_mean  # constant gamma_i is uniform sampling
     assert guided_mean < 0.5 * uniform_mean
+
+
+FAR_ROW = np.array([[1e8, 1e8, 1e8 - 50, 1e8]])  # usable (50 px disparity) but absurdly far off the image
+
+
+@pytest.mark.filterwarnings("error")  # a NaN/overflow in logaddexp or exp would raise here
+@pytest.mark.parametrize("method", ["mlesac", "guided-mlesac"])
+@pytest.mark.parametrize("seed", [5, 11])
+def test_one_far_off_row_changes_nothing(method, seed):
+    # Issue: one such row on an eps-0.5 frame gave "no consensus" after 10,000 hypotheses, with
+    # logaddexp warnings. Its densities stay finite, so it is one more outlier.
+    from stereovo import estimate_motion
+    from stereovo.geometry import rotation_error
+
+    frame, problem = frame_problem(seed=seed, epsilon=0.5)
+    far = StereoProblem.build(np.vstack([frame.prev, FAR_ROW]), np.vstack([frame.curr, FAR_ROW]),
+                              frame.camera, frame.noise_sigma)
+    quality = MlesacQuality.for_problem(far)
+    assert np.all(np.isfinite(quality.log_normaliser)) and np.all(np.isfinite(quality.log_p_out))
+    assert quality.log_p_out[:-1] == pytest.approx(MlesacQuality.for_problem(problem).log_p_out)  # box unchanged
+
+    def run(prev, curr, priors, **options):
+        kw = {"priors": priors} if method == "guided-mlesac" else {}
+        return estimate_motion(prev, curr, frame.camera, method=method, rng=1, noise_sigma=frame.noise_sigma,
+                               **kw, **options)
+
+    scores = np.append(frame.scores, 0.5)
+    # The paper's recipe: still ok, still right, the far row an outlier, no longer a search.
+    plain = run(frame.prev, frame.curr, frame.scores)
+    extra = run(far.prev, far.curr, scores)
+    assert plain.ok and extra.ok, extra.status
+    assert not extra.inliers[-1]
+    assert np.degrees(rotation_error(extra.rotation, frame.truth.rotation)) < 1.0
+    assert extra.n_hypotheses < 4 * plain.n_hypotheses + 64
+    # With the refinement both land on the same optimum: the row changes nothing.
+    plain = run(frame.prev, frame.curr, frame.scores, polish_iterations=2, refine=True)
+    extra = run(far.prev, far.curr, scores, polish_iterations=2, refine=True)
+    assert extra.ok and not extra.inliers[-1]
+    assert np.count_nonzero(extra.inliers[:-1] != plain.inliers) <= 0.02 * problem.n  # gate-boundary points
+    assert np.degrees(rotation_error(extra.rotation, plain.rotation)) < 0.02
+    assert np.linalg.norm(extra.translation - plain.translation) < 0.01
+
+
+@pytest.mark.filterwarnings("error")
+def test_densities_stay_finite_for_numerically_singular_covariances_and_absurd_disparities():
+    frame, problem = frame_problem(seed=3, epsilon=0.5, n=40)
+    # Row 0: a summed covariance of rank 1 (what rounding leaves of an enormous lateral position);
+    # row 1: its determinant negative by rounding. Other rows keep slogdet's value exactly.
+    u = np.array([0.6, 0.8, 0.0])
+    cov_prev = problem.cov_prev.copy()
+    cov_prev[0] = 1e9 * np.outer(u, u)
+    cov_prev[1] = 1e9 * np.outer(u, u) - 1e-9 * np.eye(3)
+    cov_curr = problem.cov_curr.copy()
+    cov_curr[:2] = 0.0
+    singular = StereoProblem(**{**{k: getattr(problem, k) for k in problem.__dataclass_fields__},
+                                "cov_prev": cov_prev, "cov_curr": cov_curr})
+    normaliser = MlesacQuality.for_problem(singular).log_normaliser
+    assert np.all(np.isfinite(normaliser))
+    assert normaliser[0] < 0  # floored at 1e-12 x 1e9 = 1e-3 m^2 per lost direction: a flat, wide density
+    np.testing.assert_array_equal(normaliser[2:], MlesacQuality.for_problem(problem).log_normaliser[2:])
+    # Squared distances a singular solve returns as NaN or negative are an outlier and a perfect fit.
+    quality = MlesacQuality.for_problem(problem)
+    sq = np.full((1, problem.n), 1.0)
+    sq[0, :2] = [np.nan, -5.0]
+    score = quality.score(sq, 7.81)
+    assert np.isfinite(score[0]) and np.isfinite(quality.gamma(sq)[0])
+    guided = GuidedMlesacQuality.for_problem(problem, np.full(problem.n, 0.5))
+    assert np.isfinite(guided.score(sq, 7.81)[0])
+    # A row with a disparity beyond the image width: the box grows at most to the width, its density stays in range.
+    row = frame.curr[:1].copy()
+    row[0, 2] = row[0, 0] - 5 * frame.camera.width
+    wide = StereoProblem.build(np.vstack([frame.prev, frame.prev[:1]]), np.vstack([frame.curr, row]),
+                               frame.camera, frame.noise_sigma)
+    log_p_out = MlesacQuality.for_problem(wide).log_p_out
+    assert np.all(np.isfinite(log_p_out))
+    cam = frame.camera
+    box = np.log(cam.width) + np.log(cam.height) + np.log(cam.width)
+    nearest = 4 * np.log(cam.fx * cam.baseline / cam.width) - 2 * np.log(cam.fx) - np.log(cam.fy) - np.log(cam.baseline)
+    assert log_p_out[-1] == pytest.approx(-box - nearest)

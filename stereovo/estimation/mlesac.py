@@ -24,6 +24,16 @@ far ones, and MLESAC then prefers a near moving object to the static scene.
 squared Mahalanobis distances, frame-to-frame rotations are a few degrees,
 and the determinant only weighs each point against the outlier density.
 Everything is kept in logs (``np.logaddexp``), so nothing under- or overflows.
+
+One absurd row must not fail a frame (a usable match far off the image, e.g.
+``(1e8, 1e8, 1e8 - 50, 1e8)`` in both frames): both densities stay finite and
+bounded. The outlier box's disparity side is at most the image width and each
+point's depth is taken within what such disparities allow; a summed covariance
+whose smallest eigenvalue is lost to rounding (an enormous lateral position
+makes it numerically singular) gets its eigenvalues floored at
+``COVARIANCE_FLOOR`` times the largest before its determinant is taken; squared
+distances that come back negative or NaN from such a covariance count as 0 and
+infinity (an outlier).
 """
 
 from __future__ import annotations
@@ -35,22 +45,46 @@ import numpy as np
 from stereovo.estimation.problem import StereoProblem
 
 _GAMMA_CLIP = 1e-6  # keeps log(gamma) and log(1 - gamma) finite
+COVARIANCE_FLOOR = 1e-12
+"""Smallest eigenvalue of a summed covariance, relative to its largest, that its determinant uses:
+float64 keeps about 16 digits of a 3x3 matrix, so a smaller eigenvalue is rounding, not measurement."""
 
 
 def inlier_log_normaliser(problem: StereoProblem) -> np.ndarray:
-    """``(N,)`` ``log((2 pi)^(-3/2) |S_X,i + S_Y,i|^(-1/2))`` in log m^-3."""
-    _, logdet = np.linalg.slogdet(problem.cov_prev + problem.cov_curr)
+    """``(N,)`` ``log((2 pi)^(-3/2) |S_X,i + S_Y,i|^(-1/2))`` in log m^-3 (finite for every row)."""
+    S = problem.cov_prev + problem.cov_curr
+    sign, logdet = np.linalg.slogdet(S)
+    eig = np.linalg.eigvalsh(S)  # ascending
+    # Only numerically singular rows change: the others keep slogdet's value bit for bit.
+    bad = (sign <= 0) | ~np.isfinite(logdet) | ~(eig[:, 0] > COVARIANCE_FLOOR * eig[:, 2])
+    if np.any(bad):
+        top = np.maximum(eig[bad, 2:], np.finfo(float).tiny)
+        logdet = logdet.copy()
+        logdet[bad] = np.sum(np.log(np.maximum(eig[bad], COVARIANCE_FLOOR * top)), axis=1)
     return -1.5 * np.log(2 * np.pi) - 0.5 * logdet
 
 
 def outlier_log_density(problem: StereoProblem) -> np.ndarray:
-    """``(N,)`` log density (log m^-3) of a uniform outlier in measurement space, mapped to metres at ``Y_i``."""
+    """``(N,)`` log density (log m^-3) of a uniform outlier in measurement space, mapped to metres at ``Y_i``.
+
+    Bounded: the box's disparity side lies in [1 px, image width], and each depth in the range
+    such disparities triangulate to, so one absurd row can widen the box at most to the image
+    width and its own density stays within the range of real matches'.
+    """
     cam = problem.camera
     disparity = cam.disparity(problem.curr)
-    log_volume = np.log(cam.width) + np.log(cam.height) + np.log(max(float(np.max(disparity)), 1.0))
-    depth = problem.points_curr[:, 2]
+    largest = min(max(float(np.max(disparity)), 1.0), float(cam.width))
+    log_volume = np.log(cam.width) + np.log(cam.height) + np.log(largest)
+    focal_baseline = cam.fx * cam.baseline
+    depth = np.clip(problem.points_curr[:, 2], focal_baseline / cam.width, focal_baseline / cam.min_disparity)
     log_det_jacobian = 4 * np.log(depth) - 2 * np.log(cam.fx) - np.log(cam.fy) - np.log(cam.baseline)
     return -log_volume - log_det_jacobian
+
+
+def _finite_sq(residual_sq: np.ndarray) -> np.ndarray:
+    """Squared distances made safe for the densities: NaN (a singular covariance) is an outlier
+    (inf), a negative value (rounding in such a covariance's solve) is 0."""
+    return np.maximum(np.nan_to_num(residual_sq, nan=np.inf), 0.0)
 
 
 def mixture_log_likelihood(gamma: np.ndarray, log_p_in: np.ndarray, log_p_out: float | np.ndarray) -> np.ndarray:
@@ -126,7 +160,7 @@ class MlesacQuality:
         return cls(inlier_log_normaliser(problem), outlier_log_density(problem), em_iterations, em_tolerance)
 
     def log_p_in(self, residual_sq: np.ndarray) -> np.ndarray:
-        return self.log_normaliser - 0.5 * residual_sq
+        return self.log_normaliser - 0.5 * _finite_sq(residual_sq)
 
     def gamma(self, residual_sq: np.ndarray) -> np.ndarray:
         """The EM inlier fraction ``(H,)`` of each hypothesis."""
@@ -152,5 +186,5 @@ class GuidedMlesacQuality:
         return cls(inlier_log_normaliser(problem), outlier_log_density(problem), g)
 
     def score(self, residual_sq: np.ndarray, threshold_sq: float) -> np.ndarray:
-        log_p_in = self.log_normaliser - 0.5 * residual_sq
+        log_p_in = self.log_normaliser - 0.5 * _finite_sq(residual_sq)
         return np.sum(np.logaddexp(np.log(self.gamma) + log_p_in, np.log1p(-self.gamma) + self.log_p_out), axis=-1)
