@@ -19,68 +19,114 @@ greedy approximation above (start at the node of largest degree, then add the
 candidate with the most links to the other candidates). Not a sampling
 method: priors and orders have no role, so passing them raises.
 
+The fit on the clique is robust (Howard: minimise the reprojection error and
+drop residual outliers). Far points are loosely constrained by distances, so a
+clique may hold a few far outliers, and a least-squares start on all of it can
+be degrees off; instead a small RANSAC inside the clique (uniform minimal
+samples, the 3-D Mahalanobis chi-square gate, adaptive stop) gives the start,
+Huber-weighted reprojection least squares on its inliers follows, then a
+shrinking reprojection gate over the clique's members.
+
+Memory is bounded: the graph is a dense ``(M, M)`` bool matrix built in row
+blocks (M^2 bytes, plus ``(block, M)`` temporaries), on all N matches when
+``N <= graph_max`` (:data:`GRAPH_MAX`, 2000: 4 MB) and otherwise on ``graph_max``
+matches drawn at random with the passed generator; the motion fitted on that
+clique then re-selects the inliers among all N. Never an N x N allocation.
+
 Known limitation (tested): a rigidly moving object is a clique of its own;
 when it has more points than the static scene, it wins and the estimate is
 the object's motion.
+
+Counters (``RansacReport.counters``): ``clique_graph_nodes`` (M),
+``clique_graph_edges`` (links in W), ``clique_size``, ``clique_exact`` (1 if
+Bron-Kerbosch proved the maximum), ``clique_subsampled`` (1 if M < N),
+``clique_fit_hypotheses`` (minimal samples of the RANSAC inside the clique) and
+``clique_fit_inliers`` (its consensus among the clique).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
 
-from stereovo.estimation.loop import RansacReport
+from stereovo.estimation.loop import RansacComponents, RansacReport, run_ransac
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.refinement import ReprojectionRefiner
 from stereovo.estimation.reprojection import gauss_newton_steps
-from stereovo.estimation.scoring import ReprojectionResidual
-from stereovo.estimation.solvers import DEGENERATE_AREA_RATIO, SAMPLE_SIZE, fit_rigid
+from stereovo.estimation.samplers import UniformSampler
+from stereovo.estimation.scoring import CHI2_3_95, InlierCount, MahalanobisResidual, ReprojectionResidual
+from stereovo.estimation.solvers import SAMPLE_SIZE
+from stereovo.estimation.termination import AdaptiveTermination
 
-_ROW_BLOCK = 256  # rows of W built at once: bounds the (block, N, 3) temporaries
-# Gates (multiples of the reprojection threshold) of the robust fit on the clique; None = all members.
-_SHRINKING_GATE = (None, 10.0, 5.0, 3.0, 2.0, 1.0)
+GRAPH_MAX = 2000
+"""Most matches the consistency graph is built on (a 4 MB bool matrix); above, a random subset of
+this many (see the module docstring)."""
+_ROW_BLOCK = 256  # rows of W built at once: bounds the (block, M) temporaries
+# Gates (multiples of the reprojection threshold) of the shrinking fit on the clique's members.
+_SHRINKING_GATE = (10.0, 5.0, 3.0, 2.0, 1.0)
+_FIT_MAX_HYPOTHESES = 1000  # cap of the RANSAC inside the clique (mostly inliers: it stops far sooner)
+
+
+def _quadratic_forms(d: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """``d^T S d`` for ``d (b, M, 3)`` and symmetric ``S`` broadcastable to ``(b, M, 3, 3)``.
+
+    Written out over S's six entries, so that ``(-d)^T S (-d)`` is bit-identical to ``d^T S d``
+    (W comes out exactly symmetric).
+    """
+    d0, d1, d2 = d[..., 0], d[..., 1], d[..., 2]
+    return (S[..., 0, 0] * d0 * d0 + S[..., 1, 1] * d1 * d1 + S[..., 2, 2] * d2 * d2
+            + 2.0 * (S[..., 0, 1] * d0 * d1 + S[..., 0, 2] * d0 * d2 + S[..., 1, 2] * d1 * d2))
 
 
 def consistency_matrix(problem: StereoProblem, c: float = 3.0) -> np.ndarray:
     """``(N, N)`` bool W: pairs whose distance changes by less than ``c`` standard deviations.
 
     Symmetric with a False diagonal (module docstring for the threshold). With
-    ``d_ij = X_i - X_j``, ``u^T (S_i + S_j) u = (q_ij + q_ji) / |d_ij|^2`` where
-    ``q_ij = d_ij^T S_i d_ij``, so one ``(N, N)`` quadratic form per frame suffices.
+    ``d_ij = X_i - X_j``, ``u^T (S_i + S_j) u = (d_ij^T S_i d_ij + d_ij^T S_j d_ij) / |d_ij|^2``.
+    Built in blocks of rows: N^2 bytes for W plus ``(block, N)`` float temporaries.
     """
     n = problem.n
-    length, quad = {}, {}
-    for name, P, S in (("prev", problem.points_prev, problem.cov_prev), ("curr", problem.points_curr, problem.cov_curr)):
-        length[name] = np.empty((n, n))
-        quad[name] = np.empty((n, n))
-        for start in range(0, n, _ROW_BLOCK):
-            rows = slice(start, min(start + _ROW_BLOCK, n))
+    W = np.zeros((n, n), dtype=bool)
+    frames = ((problem.points_prev, problem.cov_prev), (problem.points_curr, problem.cov_curr))
+    for start in range(0, n, _ROW_BLOCK):
+        rows = slice(start, min(start + _ROW_BLOCK, n))
+        length, var = [], 0.0
+        for P, S in frames:
             d = P[rows, None, :] - P[None, :, :]  # (b, N, 3)
-            length[name][rows] = np.sqrt(np.einsum("bna,bna->bn", d, d))
-            quad[name][rows] = np.einsum("bna,bac,bnc->bn", d, S[rows], d, optimize=True)
-    var = np.zeros((n, n))
-    for name in ("prev", "curr"):
-        var += (quad[name] + quad[name].T) / np.maximum(length[name], 1e-12) ** 2
-    W = np.abs(length["prev"] - length["curr"]) < c * np.sqrt(var)
+            sq = np.einsum("bna,bna->bn", d, d)
+            q = _quadratic_forms(d, S[rows, None]) + _quadratic_forms(d, S[None, :])
+            length.append(np.sqrt(sq))
+            var = var + q / np.maximum(sq, 1e-24)
+        W[rows] = np.abs(length[0] - length[1]) < c * np.sqrt(var)
     np.fill_diagonal(W, False)
     return W
 
 
 def greedy_clique(W: np.ndarray) -> np.ndarray:
-    """Howard's greedy clique: sorted int indices ``(k,)``; every pair in it is linked in W."""
+    """Howard's greedy clique: sorted int indices ``(k,)``; every pair in it is linked in W.
+
+    Start at the node of largest degree; repeatedly add the candidate (a node linked to every
+    member) with the most links to the other candidates, the lowest index on ties. The links are
+    kept up to date as candidates drop out, so the whole search costs O(d^2) for a first node of
+    degree d.
+    """
     n = W.shape[0]
     if n == 0:
         return np.zeros(0, dtype=np.int64)
-    Wf = W.astype(np.float32)
     first = int(np.argmax(W.sum(axis=1)))
     clique = [first]
-    candidates = W[first].copy()
-    while np.any(candidates):
-        links = Wf @ candidates.astype(np.float32)  # links of every node to the current candidates
-        pick = int(np.argmax(np.where(candidates, links, -1.0)))
-        clique.append(pick)
-        candidates &= W[pick]
+    idx = np.flatnonzero(W[first])  # every later member is a neighbour of the first
+    Wc = W[np.ix_(idx, idx)]
+    alive = np.ones(idx.size, dtype=bool)
+    links = Wc.sum(axis=1, dtype=np.int64)  # links of each node to the current candidates
+    while np.any(alive):
+        pick = int(np.argmax(np.where(alive, links, -1)))
+        clique.append(int(idx[pick]))
+        removed = alive & ~Wc[pick]  # the pick itself too (False diagonal)
+        alive &= Wc[pick]
+        links -= Wc[:, removed].sum(axis=1, dtype=np.int64)
     return np.sort(np.array(clique, dtype=np.int64))
 
 
@@ -160,14 +206,68 @@ def maximum_consistent_set(
     return clique, W, False
 
 
-def _collinear(points: np.ndarray) -> bool:
-    """True when ``(k, 3)`` points lie (nearly) on a line: the rotation about it would be free.
+def _rows(problem: StereoProblem, rows: np.ndarray) -> StereoProblem:
+    """The problem restricted to ``rows`` (nothing validated or triangulated again)."""
+    return dataclasses.replace(
+        problem, prev=problem.prev[rows], curr=problem.curr[rows], points_prev=problem.points_prev[rows],
+        points_curr=problem.points_curr[rows], cov_prev=problem.cov_prev[rows], cov_curr=problem.cov_curr[rows],
+    )
 
-    Same bound as the minimal solver's triangle test (ALGORITHMS.md Pitfalls): the second
-    singular value of the centred points below ``DEGENERATE_AREA_RATIO`` times the first.
+
+def robust_clique_fit(
+    problem: StereoProblem,
+    clique: np.ndarray,
+    threshold_sq: float,
+    rng: np.random.Generator,
+    gate_sq: float = CHI2_3_95,
+    confidence: float = 0.99,
+    fit_iterations: int = 6,
+) -> tuple[np.ndarray, np.ndarray, RansacReport, int]:
+    """The motion of the clique's majority, robust to the few outliers a clique may hold.
+
+    A RANSAC inside the clique (uniform minimal samples, chi-square Mahalanobis gate ``gate_sq``,
+    adaptive stop at ``confidence``, at most 1000 samples) gives the start; Huber-weighted
+    reprojection least squares on its inliers, then on the members inside a shrinking
+    reprojection gate, refines it (Howard: minimise the reprojection error, drop residual
+    outliers). A clique can also mix two rigid groups (a moving object joined through far,
+    loosely constrained static points): the start and the shrinking gate follow the larger one.
+
+    Returns:
+        ``(R (3, 3), t (3,), inner report, point checks spent)``; when the inner report is not
+        ok (every sample of the clique degenerate, e.g. collinear), ``R, t`` are the identity.
     """
-    s = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
-    return bool(s[1] < DEGENERATE_AREA_RATIO * max(s[0], 1e-12))
+    sub = _rows(problem, clique)
+    inner = run_ransac(sub, RansacComponents(
+        sampler=UniformSampler(sub.n),
+        residual_model=MahalanobisResidual(gate_sq),
+        quality=InlierCount(),
+        threshold_sq=gate_sq,
+        termination=AdaptiveTermination(confidence, _FIT_MAX_HYPOTHESES),
+        refiner=None,
+        batch_size=64,
+        first_batch_size=16,
+        polish_iterations=0,
+        min_inliers=SAMPLE_SIZE,
+    ), rng)
+    checks = inner.n_point_checks
+    if inner.status != "ok":
+        return np.eye(3), np.zeros(3), inner, checks
+    residual_model = ReprojectionResidual(threshold_sq)
+    huber = float(np.sqrt(threshold_sq))
+    R, t = inner.rotation[None], inner.translation[None]
+    rows = np.flatnonzero(inner.inliers)
+    for scale in (None, *_SHRINKING_GATE):
+        if scale is not None:
+            inside = residual_model.squared(sub, R, t)[0] < scale**2 * threshold_sq
+            checks += sub.n
+            if np.count_nonzero(inside) < SAMPLE_SIZE:
+                break
+            rows = np.flatnonzero(inside)
+        R, t, _ = gauss_newton_steps(
+            sub.camera, R, t, sub.points_prev[rows], sub.points_curr[rows], sub.prev[rows], sub.curr[rows],
+            iterations=fit_iterations, huber=huber,
+        )
+    return R[0], t[0], inner, checks
 
 
 def detect_inliers(
@@ -179,60 +279,58 @@ def detect_inliers(
     exact_max: int = 60,
     time_limit_s: float = 0.5,
     fit_iterations: int = 6,
+    rng: np.random.Generator | None = None,
+    graph_max: int = GRAPH_MAX,
+    gate_sq: float = CHI2_3_95,
+    confidence: float = 0.99,
 ) -> RansacReport:
-    """Maximum clique, least-squares fit on it, inliers re-selected by the reprojection gate.
+    """Maximum clique, robust fit on it, inliers re-selected by the reprojection gate.
 
     Args:
         threshold_sq: reprojection gate (px^2).
         refiner: optional final LM refinement with inlier re-selection.
         c, exact_max, time_limit_s: see :func:`maximum_consistent_set`.
-        fit_iterations: Gauss-Newton steps of the reprojection fit on the clique.
+        fit_iterations: Gauss-Newton steps per stage of the reprojection fit on the clique.
+        rng: the generator of the fit's RANSAC and of the graph's subset (default: seed 0).
+        graph_max: most matches the graph is built on; above, a random subset of this many.
+        gate_sq, confidence: Mahalanobis gate and stopping confidence of the fit's RANSAC.
 
     Returns:
-        The loop's :class:`RansacReport`: one hypothesis (the clique's fit);
-        ``n_point_checks`` counts the ``N (N - 1) / 2`` pair tests plus residual evaluations.
+        The loop's :class:`RansacReport`: one hypothesis (the clique's fit); ``n_point_checks``
+        counts the ``M (M - 1) / 2`` pair tests plus residual evaluations; ``counters`` as in the
+        module docstring.
     """
+    rng = np.random.default_rng(0) if rng is None else rng
     n = problem.n
-    clique, W, _ = maximum_consistent_set(problem, c, exact_max, time_limit_s)
-    residual_model = ReprojectionResidual(threshold_sq)
-    checks = n * (n - 1) // 2
+    nodes = np.arange(n) if n <= graph_max else np.sort(rng.choice(n, size=graph_max, replace=False))
+    graph = problem if n <= graph_max else _rows(problem, nodes)
+    found, W, exact = maximum_consistent_set(graph, c, exact_max, time_limit_s)
+    clique = nodes[found]
+    counters = {
+        "clique_graph_nodes": int(graph.n), "clique_graph_edges": int(np.count_nonzero(W)) // 2,
+        "clique_size": int(clique.size), "clique_exact": int(exact), "clique_subsampled": int(graph.n < n),
+        "clique_fit_hypotheses": 0, "clique_fit_inliers": 0,
+    }
+    del W
+    checks = graph.n * (graph.n - 1) // 2
     counts = dict(n_hypotheses=1, n_scored=1, n_degenerate=0, n_local_optimizations=0, best_found_at=1)
+
+    def failed(reason: str, score: float = -np.inf, **changes) -> RansacReport:
+        return RansacReport(np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), score, f"failed: {reason}",
+                            n_point_checks=checks, counters=counters, **{**counts, **changes})
+
     if clique.size < SAMPLE_SIZE:
-        return RansacReport(
-            np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), -np.inf,
-            f"failed: no consensus (largest consistent set has {clique.size} matches, need {SAMPLE_SIZE})",
-            n_point_checks=checks, **counts,
-        )
-    if _collinear(problem.points_prev[clique]) or _collinear(problem.points_curr[clique]):
-        return RansacReport(
-            np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), -np.inf,
-            f"failed: all samples degenerate (the consistent set of {clique.size} matches is collinear)",
-            n_point_checks=checks, **{**counts, "n_scored": 0, "n_degenerate": 1},
-        )
-    # Fit on the clique: Kabsch start, then Huber-weighted reprojection least squares with a
-    # shrinking gate over the clique's members (Howard: minimise reprojection error and drop
-    # residual outliers). A clique can mix two rigid groups (a moving object joined through far,
-    # loosely constrained static points): the robust, shrinking fit follows the larger group
-    # instead of settling between them.
-    member = np.zeros(n, dtype=bool)
-    member[clique] = True
-    R, t = fit_rigid(problem.points_prev[clique], problem.points_curr[clique])
-    R, t = R[None], t[None]
-    huber = float(np.sqrt(threshold_sq))
-    for scale in _SHRINKING_GATE:
-        if scale is None:
-            rows = clique
-        else:
-            inside = member & (residual_model.squared(problem, R, t)[0] < scale**2 * threshold_sq)
-            checks += n
-            if np.count_nonzero(inside) < SAMPLE_SIZE:
-                break
-            rows = np.flatnonzero(inside)
-        R, t, _ = gauss_newton_steps(
-            problem.camera, R, t, problem.points_prev[rows], problem.points_curr[rows],
-            problem.prev[rows], problem.curr[rows], iterations=fit_iterations, huber=huber,
-        )
-    R, t = R[0], t[0]
+        return failed(f"no consensus (largest consistent set has {clique.size} matches, need {SAMPLE_SIZE})")
+    R, t, inner, spent = robust_clique_fit(problem, clique, threshold_sq, rng, gate_sq, confidence, fit_iterations)
+    checks += spent
+    counters["clique_fit_hypotheses"] = int(inner.n_hypotheses)
+    counters["clique_fit_inliers"] = int(np.count_nonzero(inner.inliers))
+    if inner.status != "ok":
+        if inner.n_scored == 0:
+            return failed(f"all samples degenerate (the consistent set of {clique.size} matches is collinear)",
+                          n_scored=0, n_degenerate=1)
+        return failed(f"no consensus (the fit on the consistent set of {clique.size} matches: {inner.status})")
+    residual_model = ReprojectionResidual(threshold_sq)
     inliers = residual_model.squared(problem, R[None], t[None])[0] < threshold_sq
     checks += n
     if refiner is not None and np.count_nonzero(inliers) >= SAMPLE_SIZE:
@@ -240,9 +338,5 @@ def detect_inliers(
         checks += n * refiner.rounds
     count = int(np.count_nonzero(inliers))
     if count < max(min_inliers, SAMPLE_SIZE):
-        return RansacReport(
-            np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), float(count),
-            f"failed: no consensus (clique fit has {count} inliers, need {min_inliers})",
-            n_point_checks=checks, **counts,
-        )
-    return RansacReport(R, t, inliers, float(count), "ok", n_point_checks=checks, **counts)
+        return failed(f"no consensus (clique fit has {count} inliers, need {min_inliers})", float(count))
+    return RansacReport(R, t, inliers, float(count), "ok", n_point_checks=checks, counters=counters, **counts)
