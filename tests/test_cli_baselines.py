@@ -141,3 +141,104 @@ def test_report_script_builds_docs_from_a_run(runs, tmp_path):
     redrawn = tmp_path / "redrawn"
     assert module.main(["--from", str(runs[1]), "--docs", str(redrawn)]) == 0  # run without PNGs
     assert all((redrawn / "img" / "baselines" / name).stat().st_size > 0 for name in PLOT_FILES)
+
+
+# ------------------------------------------------------------------ results that survive
+
+
+def _timeless(path: Path) -> list[dict[str, str]]:
+    """A CSV's rows without its wall-time columns (``time_s``, ``*_time_ms``)."""
+    return [{k: v for k, v in r.items() if "time" not in k} for r in _rows(path)]
+
+
+def test_a_non_empty_out_is_refused_in_one_line(runs, capsys):
+    one = runs[0]
+    before = (one / "trials.csv").read_bytes()
+    assert main(["baselines", *TINY, "--workers", "1", "--out", str(one)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "is not empty" in err[0] and "--resume" in err[0] and "--overwrite" in err[0]
+    assert (one / "trials.csv").read_bytes() == before
+
+
+def test_an_unwritable_out_is_refused_before_computing(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    assert main(["baselines", *TINY, "--out", str(blocker / "sub")]) == 2
+    assert "--out" in capsys.readouterr().err
+
+
+def test_interrupt_then_resume_writes_the_uninterrupted_files(runs, tmp_path, capsys, monkeypatch):
+    from stereovo import benchmark as bm
+
+    one = runs[0]
+    out = tmp_path / "run"
+    real = bm.run_trial
+
+    def stop_at_trial_3(trial, estimators, seed):
+        if trial.index == 3:
+            raise KeyboardInterrupt
+        return real(trial, estimators, seed)
+
+    monkeypatch.setattr(bm, "run_trial", stop_at_trial_3)
+    capsys.readouterr()
+    assert main(["baselines", *TINY, "--workers", "1", "--out", str(out)]) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"interrupted: 3 of 4 trials saved in {out}; rerun with --resume"]
+    assert not (out / "trials.csv").exists()
+    monkeypatch.setattr(bm, "run_trial", real)
+    assert main(["baselines", *TINY, "--workers", "1", "--out", str(out), "--resume"]) == 0
+    assert "resuming: 3 of 4 frames" in capsys.readouterr().out
+    for name in ("trials.csv", "cells.csv", "summary.csv"):
+        assert _timeless(out / name) == _timeless(one / name), name
+    settings = json.loads((out / "run.json").read_text())
+    assert settings["n_resumed"] == 3 and settings["n_trials"] == 4
+
+
+def test_resume_with_other_settings_is_refused(runs, tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["baselines", *TINY, "--workers", "1", "--out", str(out), "--no-plots"]) == 0
+    capsys.readouterr()
+    assert main(["baselines", *TINY, "--seed", "12", "--out", str(out), "--resume"]) == 2
+    assert "other settings (seed differ)" in capsys.readouterr().err
+
+
+def test_report_only_rebuilds_tables_and_plots_from_the_stored_trials(runs, tmp_path, capsys):
+    import shutil
+
+    copy = tmp_path / "copy"
+    shutil.copytree(runs[0], copy)
+    for name in ("summary.csv", "cells.csv", "summary.md", "claims.md", *PLOT_FILES):
+        (copy / name).unlink()
+    assert main(["baselines", "--report-only", str(copy)]) == 0
+    assert "rebuilt the report" in capsys.readouterr().out
+    for name in ("summary.csv", "cells.csv"):
+        assert _rows(copy / name) == _rows(runs[0] / name), name
+    assert (copy / "summary.md").read_text() == (runs[0] / "summary.md").read_text()
+    assert all((copy / name).stat().st_size > 0 for name in PLOT_FILES)
+    assert main(["baselines", "--report-only", str(tmp_path / "nothing")]) == 2
+
+
+def test_ctrl_c_prints_one_line_and_exits_130(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "run"
+    argv = [sys.executable, "-m", "vo_gym.cli", "baselines", "--methods", "ransac,msac", "--epsilons", "0.3,0.5,0.7",
+            "--aucs", "0.9", "--ns", "80", "--frames-per-cell", "200", "--max-iterations", "300", "--no-progress",
+            "--no-plots", "--workers", "2", "--out", str(out)]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    journal = out / "journal.csv"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if journal.is_file() and len(journal.read_text().splitlines()) > 3:
+            break
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    lines = err.strip().splitlines()
+    assert "Traceback" not in err and len(lines) == 1, err
+    saved = len({line.split(",")[0] for line in journal.read_text().splitlines()[1:]})
+    assert lines[0] == f"interrupted: {saved} of 600 trials saved in {out}; rerun with --resume"

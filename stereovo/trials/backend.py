@@ -36,7 +36,7 @@ class Task:
 
     key: int
     payload: Any
-    weight: float = 1.0
+    weight: float = 1
 
 
 class WorkerDied(RuntimeError):

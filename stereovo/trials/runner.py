@@ -57,6 +57,11 @@ def progress_bar(total: float, initial: float, desc: str, unit: str, enabled: bo
                 mininterval=0.5 if interactive else 30.0, smoothing=0.05)
 
 
+def _saved(journal: TrialJournal | None, results: dict[int, Any]) -> int:
+    # Counted on disk: an interrupt may land between a trial's append and its bookkeeping here.
+    return len(journal.read()) if journal is not None else len(results)
+
+
 def run_tasks(
     fn: Callable[[Any], Any],
     tasks: Sequence[Task],
@@ -110,13 +115,13 @@ def run_tasks(
             backend.close()
         finally:
             signal.signal(signal.SIGINT, signal.default_int_handler)
-        raise RunInterrupted(len(results), len(tasks), folder) from None
+        raise RunInterrupted(_saved(journal, results), len(tasks), folder) from None
     except Exception as err:
         from stereovo.trials.backend import WorkerDied
 
         if isinstance(err, WorkerDied):
             bar.close()
-            raise RunInterrupted(len(results), len(tasks), folder, reason=f"stopped ({err})") from None
+            raise RunInterrupted(_saved(journal, results), len(tasks), folder, reason=f"stopped ({err})") from None
         raise
     finally:
         bar.close()
