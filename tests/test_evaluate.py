@@ -137,3 +137,34 @@ def test_unknown_agent_and_missing_checkpoint_exit_non_zero(tmp_path, capsys):
     assert "no checkpoint at" in capsys.readouterr().err
     assert main(["evaluate", "--agent", "uniform", *TINY[:-3], "--methods", "magic", "--out", str(tmp_path)]) == 2
     assert "unknown classical method(s): magic" in capsys.readouterr().err
+
+
+def test_interrupt_then_resume_writes_the_uninterrupted_files(tmp_path, capsys, monkeypatch):
+    import agents.evaluation as evaluation
+
+    argv = ["evaluate", "--agent", "uniform", *TINY, "--methods", "msac", "--workers", "1", "--no-plots"]
+    whole, out = tmp_path / "whole", tmp_path / "run"
+    assert main([*argv, "--out", str(whole)]) == 0
+    n_units = len(evaluation.evaluation_units(
+        EvalConfig(episodes=2, frames_per_episode=3, n=100, epsilons=(0.5, 0.85), budget=8, budgets=(2, 8),
+                   sweep_epsilon=0.85, methods=("msac",)), [resolve_agent("uniform")]))
+    real, calls = evaluation._run_unit, []
+
+    def stop_at_unit_5(unit, config):
+        calls.append(unit)
+        if len(calls) == 6:
+            raise KeyboardInterrupt
+        return real(unit, config)
+
+    monkeypatch.setattr(evaluation, "_run_unit", stop_at_unit_5)
+    capsys.readouterr()
+    assert main([*argv, "--out", str(out)]) == 130
+    assert capsys.readouterr().err.strip().splitlines() == [
+        f"interrupted: 5 of {n_units} trials saved in {out}; rerun with --resume"]
+    monkeypatch.setattr(evaluation, "_run_unit", real)
+    assert main([*argv, "--out", str(out)]) == 2  # not empty: refused without --resume
+    assert "--resume" in capsys.readouterr().err
+    assert main([*argv, "--out", str(out), "--resume"]) == 0
+    assert _read_rows(out / "frames.csv") == _read_rows(whole / "frames.csv")
+    a, b = (json.loads((d / "summary.json").read_text()) for d in (out, whole))
+    assert _strip_summary_times(a) == _strip_summary_times(b)
