@@ -43,9 +43,16 @@ def good_and_bad(frame, n_good, n_bad, rng, degrees=10.0, metres=1.0):
     return np.stack(R), np.stack(t)
 
 
+# The methods' end-to-end behaviour is compared with the project's enhancements on (sample polish,
+# local refit, LM refinement): a raw closed-form minimal fit explains only a few per cent of the
+# inliers under the reprojection gate, so the textbook recipes rarely succeed at these contaminations.
+ENHANCED = {"polish_iterations": 2, "local_refit": True, "refine": True}
+
+
 def estimate(frame, method, rng, **options):
     return estimate_motion(
-        frame.prev, frame.curr, frame.camera, method=method, rng=rng, noise_sigma=frame.noise_sigma, **options
+        frame.prev, frame.curr, frame.camera, method=method, rng=rng, noise_sigma=frame.noise_sigma,
+        **{**ENHANCED, **options},
     )
 
 

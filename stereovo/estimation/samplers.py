@@ -105,11 +105,14 @@ def normalised_weights(priors: np.ndarray) -> np.ndarray:
     p = np.asarray(priors, dtype=float)
     with np.errstate(over="ignore"):  # an overflowing sum is the case handled below
         total = float(np.sum(p))
-    if np.isfinite(total) and total >= np.finfo(float).tiny:
-        return p / total
-    scaled = p / np.max(p)
-    scaled[(p > 0) & (scaled < np.finfo(float).tiny)] = np.finfo(float).tiny
-    return scaled / np.sum(scaled)
+    tiny = np.finfo(float).tiny
+    direct = bool(np.isfinite(total) and total >= tiny)
+    w = p / total if direct else p / np.max(p)
+    lost = (p > 0) & (w < tiny)
+    if direct and not np.any(lost):
+        return w
+    w[lost] = tiny
+    return w / np.sum(w)
 
 
 class WeightedSampler:
