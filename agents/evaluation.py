@@ -46,6 +46,16 @@ import numpy as np
 
 from agents.policies import HEURISTICS, OraclePolicy, Policy, make_heuristic
 from agents.rollout import make_env, success_rate
+from stereovo.reporting import (
+    ERROR_FLOOR,
+    check_plot_format,
+    figure,
+    format_number,
+    format_percent,
+    line_style,
+    plot_success,
+    save_figure,
+)
 
 __all__ = [
     "ORACLE",
@@ -616,14 +626,6 @@ def _success_definition() -> str:
     return success_definition()
 
 
-def _pct(value: Any) -> str:
-    return "n/a" if value is None else f"{100 * value:.1f} %"
-
-
-def _num(value: Any, spec: str = ".3g") -> str:
-    return "n/a" if value is None else format(value, spec)
-
-
 def hypotheses_label(summary: Mapping[str, Any], method: str) -> str:
     h = summary["hypotheses_for_success"]
     value = h["methods"].get(method)
@@ -669,18 +671,18 @@ def evaluation_markdown(summary: Mapping[str, Any], wall_s: float | None = None)
 
     eps_keys = [f"{e:g}" for e in eps["epsilons"]]
     table(f"(a) Success rate vs contamination, budget {eps['budget']}", eps["methods"], eps_keys, "eps",
-          "success_rate", _pct)
+          "success_rate", format_percent)
     table(f"(a) Median rotation error [deg] vs contamination, budget {eps['budget']}", eps["methods"], eps_keys,
-          "eps", "median_rot_err_deg", _num)
+          "eps", "median_rot_err_deg", format_number)
     table(f"(a) Median translation error [m] vs contamination, budget {eps['budget']}", eps["methods"], eps_keys,
-          "eps", "median_trans_err_m", _num)
+          "eps", "median_trans_err_m", format_number)
     bud_keys = [str(b) for b in bud["budgets"]]
     table(f"(b) Success rate vs hypothesis budget, eps {bud['epsilon']:g}", bud["methods"], bud_keys, "budget",
-          "success_rate", _pct,
+          "success_rate", format_percent,
           (f"hyp. for {100 * hyp['target']:g} %", lambda m: hypotheses_label(summary, m)))
     if bud["adaptive"]:
-        body = [[f"`{m}`", _pct(s["success_rate"]), _num(s["mean_hypotheses"], ".0f"),
-                 _num(s["median_hypotheses"], ".0f"), _num(s["median_time_ms"], ".1f")]
+        body = [[f"`{m}`", format_percent(s["success_rate"]), format_number(s["mean_hypotheses"], ".0f"),
+                 format_number(s["median_hypotheses"], ".0f"), format_number(s["median_time_ms"], ".1f")]
                 for m, s in bud["adaptive"].items()]
         lines += [f"## (b) Adaptive classical methods at eps {bud['epsilon']:g} (their own stopping rule)", "",
                   markdown_table(["method", "success", "hypotheses mean", "hypotheses med", "time med [ms]"], body),
@@ -693,36 +695,43 @@ def evaluation_markdown(summary: Mapping[str, Any], wall_s: float | None = None)
 
 # --------------------------------------------------------------------------- outputs
 
-PLOT_FILES = ("success_vs_epsilon.png", "success_vs_budget.png")
+PLOT_NAMES = ("success_vs_epsilon", "success_vs_budget")
+PLOT_FILES = tuple(f"{name}.png" for name in PLOT_NAMES)
+"""The figures' file names in the default format (PNG); ``write_plots(..., fmt=)`` writes pdf or svg."""
 
 
 def _line_style(i: int, kind: str) -> dict[str, Any]:
-    from stereovo.benchmark import _style  # the report's palette
-
-    style = _style(i)
+    style = line_style(i)
     style["linestyle"] = {KIND_AGENT: "-", KIND_ORACLE: ":", KIND_FIXED: "--", KIND_ADAPTIVE: "-."}[kind]
     return style
 
 
-def write_plots(summary: Mapping[str, Any], out: str | os.PathLike) -> list[Path]:
-    """(a) success and median pose errors vs contamination; (b) success vs hypothesis budget."""
-    from stereovo.benchmark import _figure, _save
+def write_plots(summary: Mapping[str, Any], out: str | os.PathLike, fmt: str = "png") -> list[Path]:
+    """(a) success and median pose errors vs contamination; (b) success vs hypothesis budget.
 
+    Success rates carry their 95 % Wilson band over the frames behind each point; ``fmt`` is the
+    file format (png, pdf or svg).
+    """
+    fmt = check_plot_format(fmt)
+    names = [f"{name}.{fmt}" for name in PLOT_NAMES]
     out = Path(out)
     kinds = {m["name"]: m["kind"] for m in summary["methods"]}
     index = {m: i for i, m in enumerate(kinds)}
     eps = summary["epsilon_sweep"]
-    fig = _figure((16, 5))
+    fig = figure((16, 5))
     axes = [fig.add_subplot(1, 3, i + 1) for i in range(3)]
     panels = (("success_rate", 100.0, "success rate [%]", False), ("median_rot_err_deg", 1.0,
               "median rotation error [deg]", True), ("median_trans_err_m", 1.0, "median translation error [m]", True))
     for ax, (key, scale, ylabel, logy) in zip(axes, panels):
         for m, per in eps["methods"].items():
-            pts = [(float(e), s[key] * scale) for e, s in per.items() if s.get(key) is not None]
-            if logy:
-                pts = [(x, max(y, 1e-6)) for x, y in pts]
-            if pts:
-                xs, ys = zip(*sorted(pts))
+            pts = [(float(e), s[key], s.get("frames") or 0) for e, s in per.items() if s.get(key) is not None]
+            if not pts:
+                continue
+            xs, ys, ns = zip(*sorted(pts))
+            if key == "success_rate":
+                plot_success(ax, xs, ys, ns, m, _line_style(index[m], kinds[m]), scale=scale)
+            else:
+                ys = [max(y * scale, ERROR_FLOOR) for y in ys] if logy else [y * scale for y in ys]
                 ax.plot(xs, ys, label=m, lw=1.3, ms=4, **_line_style(index[m], kinds[m]))
         ax.set_xlabel("contamination epsilon")
         ax.set_ylabel(ylabel)
@@ -735,16 +744,17 @@ def write_plots(summary: Mapping[str, Any], out: str | os.PathLike) -> list[Path
     axes[-1].legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="small")
     fig.suptitle(f"(a) vs contamination at a budget of {eps['budget']} hypotheses (adaptive: own stopping rule)",
                  fontsize="medium")
-    paths = [_save(fig, out / PLOT_FILES[0])]
+    paths = [save_figure(fig, out / names[0])]
 
     bud = summary["budget_sweep"]
-    fig = _figure((9.5, 5.5))
+    fig = figure((9.5, 5.5))
     ax = fig.add_subplot()
     for m, per in bud["methods"].items():
-        pts = [(int(b), s["success_rate"] * 100) for b, s in per.items() if s.get("success_rate") is not None]
+        pts = [(int(b), s["success_rate"], s.get("frames") or 0) for b, s in per.items()
+               if s.get("success_rate") is not None]
         if pts:
-            xs, ys = zip(*sorted(pts))
-            ax.plot(xs, ys, label=m, lw=1.3, ms=4, **_line_style(index[m], kinds[m]))
+            xs, ys, ns = zip(*sorted(pts))
+            plot_success(ax, xs, ys, ns, m, _line_style(index[m], kinds[m]))
     for m, s in bud["adaptive"].items():
         if s.get("mean_hypotheses") and s.get("success_rate") is not None:
             style = _line_style(index[m], kinds[m])
@@ -766,12 +776,16 @@ def write_plots(summary: Mapping[str, Any], out: str | os.PathLike) -> list[Path
     ax.set_title(f"(b) Success vs hypothesis budget at eps {bud['epsilon']:g}", fontsize="medium")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="small")
-    paths.append(_save(fig, out / PLOT_FILES[1]))
+    paths.append(save_figure(fig, out / names[1]))
     return paths
 
 
-def write_evaluation(result: EvaluationResult, out: str | os.PathLike, plots: bool = True) -> list[Path]:
-    """``frames.csv`` (per-frame rows), ``summary.json``, ``summary.md`` and the plots under ``out``."""
+def write_evaluation(result: EvaluationResult, out: str | os.PathLike, plots: bool = True,
+                     plot_format: str = "png") -> list[Path]:
+    """``frames.csv`` (per-frame rows), ``summary.json``, ``summary.md`` and the plots (``plot_format``:
+    png, pdf or svg) under ``out``."""
+    if plots:
+        check_plot_format(plot_format)  # before anything is written
     import json
 
     from stereovo.io import write_frame_csv
@@ -787,5 +801,5 @@ def write_evaluation(result: EvaluationResult, out: str | os.PathLike, plots: bo
     atomic_write_text(out / "summary.md", evaluation_markdown(result.summary, result.wall_s))
     paths = [out / "frames.csv", out / "summary.json", out / "summary.md"]
     if plots:
-        paths += write_plots(result.summary, out)
+        paths += write_plots(result.summary, out, plot_format)
     return paths

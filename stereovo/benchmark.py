@@ -48,6 +48,17 @@ import numpy as np
 
 from stereovo.estimation import available_methods, estimate_motion
 from stereovo.metrics import SUCCESS_ROT_DEG, SUCCESS_TRANS_M, SUCCESS_TRANS_REL, frame_metrics
+from stereovo.reporting import (
+    ERROR_FLOOR,
+    MAX_LINES_PER_PANEL,
+    check_plot_format,
+    figure,
+    format_number,
+    format_percent,
+    line_style,
+    plot_success,
+    save_figure,
+)
 from stereovo.simulation import Frame, SimulationConfig, simulate_frame
 
 __all__ = [
@@ -808,14 +819,6 @@ def _ratio(a: float | None, b: float | None) -> float | None:
     return a / b
 
 
-def _pct(x: float | None) -> str:
-    return "n/a" if x is None else f"{100 * x:.1f} %"
-
-
-def _num(x: float | None, spec: str = ".3g") -> str:
-    return "n/a" if x is None else format(x, spec)
-
-
 def _missing(summary: BenchmarkSummary, *methods: str) -> list[str]:
     return [m for m in methods if m not in summary.overall]
 
@@ -844,16 +847,16 @@ def _fewer_hypotheses(summary: BenchmarkSummary, key: str, method: str, referenc
     if r is None:
         return _not_measured(key, claim, source, "no hypothesis counts", note)
     numbers = (
-        f"{where}: mean hypotheses {method} {_num(ma, '.0f')} vs {reference} {_num(mb, '.0f')} (x{r:.2f}),"
-        f" success {_pct(_get(a, 'success_rate'))} vs {_pct(_get(b, 'success_rate'))}"
+        f"{where}: mean hypotheses {method} {format_number(ma, '.0f')} vs {reference} {format_number(mb, '.0f')} (x{r:.2f}),"
+        f" success {format_percent(_get(a, 'success_rate'))} vs {format_percent(_get(b, 'success_rate'))}"
     )
     fa, fb = _get(a, "mean_hypotheses_to_best"), _get(b, "mean_hypotheses_to_best")
     if fa is not None and fb is not None:
         numbers += (f", hypotheses until the final best was found {fa:.0f} vs {fb:.0f}"
-                    f" (x{_num(_ratio(fa, fb), '.2f')})")
+                    f" (x{format_number(_ratio(fa, fb), '.2f')})")
     for auc in aucs[:-1]:
         other = _ratio(_get(per_a[auc], "mean_hypotheses"), _get(per_b[auc], "mean_hypotheses"))
-        numbers += f"; at AUC {auc:g}: x{_num(other, '.2f')}"
+        numbers += f"; at AUC {auc:g}: x{format_number(other, '.2f')}"
     return ClaimCheck(key, claim, source, numbers, AGREES if r <= CUT_RATIO else DISAGREES, note)
 
 
@@ -869,15 +872,15 @@ def _time_vs(summary: BenchmarkSummary, key: str, method: str, reference: str, c
         return _not_measured(key, claim, source, "no timings", note)
     pa, pb = _get(a, "mean_point_checks"), _get(b, "mean_point_checks")
     numbers = (
-        f"median time {method} {_num(ta, '.1f')} ms vs {reference} {_num(tb, '.1f')} ms (x{r:.2f});"
-        f" mean point checks {_num(pa, '.3g')} vs {_num(pb, '.3g')}"
+        f"median time {method} {format_number(ta, '.1f')} ms vs {reference} {format_number(tb, '.1f')} ms (x{r:.2f});"
+        f" mean point checks {format_number(pa, '.3g')} vs {format_number(pb, '.3g')}"
     )
     if len(summary.epsilons) > 1:
         heavy = summary.epsilons[-1]
         ha = _get(summary.by_epsilon.get(method, {}).get(heavy), "median_time_ms")
         hb = _get(summary.by_epsilon.get(reference, {}).get(heavy), "median_time_ms")
         if ha is not None and hb is not None:
-            numbers += f"; at epsilon {heavy:g}: {ha:.1f} ms vs {hb:.1f} ms (x{_num(_ratio(ha, hb), '.2f')})"
+            numbers += f"; at epsilon {heavy:g}: {ha:.1f} ms vs {hb:.1f} ms (x{format_number(_ratio(ha, hb), '.2f')})"
     ok = r <= CUT_RATIO if faster else r >= COST_RATIO
     return ClaimCheck(key, claim, source, numbers, AGREES if ok else DISAGREES, note)
 
@@ -895,10 +898,10 @@ def _accuracy_vs(summary: BenchmarkSummary, key: str, method: str, reference: st
         return _not_measured(key, claim, source, "no error statistics", note)
     gain = sa - sb
     numbers = (
-        f"median rotation error {method} {_num(_get(a, 'median_rot_err_deg'), '.3g')} deg vs"
-        f" {reference} {_num(_get(b, 'median_rot_err_deg'), '.3g')} deg (x{rot:.2f}); median translation error"
-        f" {_num(_get(a, 'median_trans_err_m'), '.3g')} m vs {_num(_get(b, 'median_trans_err_m'), '.3g')} m"
-        f" (x{trans:.2f}); success {_pct(sa)} vs {_pct(sb)}"
+        f"median rotation error {method} {format_number(_get(a, 'median_rot_err_deg'), '.3g')} deg vs"
+        f" {reference} {format_number(_get(b, 'median_rot_err_deg'), '.3g')} deg (x{rot:.2f}); median translation error"
+        f" {format_number(_get(a, 'median_trans_err_m'), '.3g')} m vs {format_number(_get(b, 'median_trans_err_m'), '.3g')} m"
+        f" (x{trans:.2f}); success {format_percent(sa)} vs {format_percent(sb)}"
     )
     better = rot <= ACCURACY_RATIO or trans <= ACCURACY_RATIO or gain >= SUCCESS_MARGIN
     worse = rot > 1 / ACCURACY_RATIO or trans > 1 / ACCURACY_RATIO or gain <= -SUCCESS_MARGIN
@@ -919,7 +922,7 @@ def _constant_time(summary: BenchmarkSummary, key: str, method: str, claim: str,
     numbers = (
         "median time by epsilon: " + ", ".join(f"{e:g}: {t:.1f} ms" for e, t in sorted(times.items()))
         + f" (max/min x{spread:.2f}); median hypotheses: "
-        + ", ".join(f"{e:g}: {_num(h, '.0f')}" for e, h in sorted(hyps.items()))
+        + ", ".join(f"{e:g}: {format_number(h, '.0f')}" for e, h in sorted(hyps.items()))
     )
     ref = summary.by_epsilon.get("ransac", {})
     ref_times = [t for t in (_get(s, "median_time_ms") for s in ref.values()) if t is not None and t > 0]
@@ -945,10 +948,10 @@ def _unreliable_when_contaminated(summary: BenchmarkSummary, key: str, method: s
     s_heavy = _get(summary.by_epsilon[method][heavy], "success_rate")
     if s_light is None or s_heavy is None:
         return _not_measured(key, claim, source, "no success rates", note)
-    numbers = f"success {method} at epsilon {light:g}: {_pct(s_light)}, at {heavy:g}: {_pct(s_heavy)}"
+    numbers = f"success {method} at epsilon {light:g}: {format_percent(s_light)}, at {heavy:g}: {format_percent(s_heavy)}"
     ref = _get(summary.by_epsilon.get("ransac", {}).get(heavy), "success_rate")
     if ref is not None and method != "ransac":
-        numbers += f"; ransac at {heavy:g}: {_pct(ref)}"
+        numbers += f"; ransac at {heavy:g}: {format_percent(ref)}"
     ok = s_heavy < UNRELIABLE_MAX and s_light - s_heavy >= UNRELIABLE_DROP
     return ClaimCheck(key, claim, source, numbers, AGREES if ok else DISAGREES, note)
 
@@ -967,9 +970,9 @@ def _robust_when_contaminated(summary: BenchmarkSummary, key: str, method: str, 
     if s is None or r is None:
         return _not_measured(key, claim, source, f"no success rates at epsilon {heavy:g}", note)
     numbers = (
-        f"success at epsilon {heavy:g}: {method} {_pct(s)} vs {reference} {_pct(r)};"
-        f" overall {_pct(_get(summary.overall[method], 'success_rate'))}"
-        f" vs {_pct(_get(summary.overall[reference], 'success_rate'))}"
+        f"success at epsilon {heavy:g}: {method} {format_percent(s)} vs {reference} {format_percent(r)};"
+        f" overall {format_percent(_get(summary.overall[method], 'success_rate'))}"
+        f" vs {format_percent(_get(summary.overall[reference], 'success_rate'))}"
     )
     return ClaimCheck(key, claim, source, numbers, AGREES if s >= r - ROBUST_MARGIN else DISAGREES, note)
 
@@ -1204,119 +1207,206 @@ def claims_markdown(claims: Sequence[ClaimCheck], heading: str = "# Claims of th
 
 # --------------------------------------------------------------------------- plots
 
-_ERROR_FLOOR = 1e-6  # log axes need a positive floor for exact (zero) errors
+PLOT_NAMES = ("success_vs_epsilon", "hypotheses_vs_epsilon", "time_vs_n", "error_cdf")
+PLOT_FILES = tuple(f"{name}.png" for name in PLOT_NAMES)
+"""The report figures' file names in the default format (PNG); :func:`plot_files` for another."""
+
+REFERENCE_METHOD = "ransac"
+"""Drawn in every panel (black), so each family reads against plain RANSAC."""
+
+METHOD_FAMILIES: dict[str, str] = {
+    "ransac": "scoring", "msac": "scoring", "mlesac": "scoring", "probabilistic": "scoring",
+    "r-ransac": "verification", "waldsac": "verification", "preemptive": "verification",
+    "guided-mlesac": "sampling", "prosac": "sampling", "bansac": "sampling", "ars": "sampling",
+    "lo-ransac": "frameworks", "usac": "frameworks", "inlier-detection": "frameworks",
+}
+"""The figure panel of each registered method; a guided variant goes with ``sampling``, another
+``base+step`` name with ``enhancements``, anything else with ``other``."""
+
+FAMILY_TITLES: dict[str, str] = {
+    "scoring": "how a hypothesis is scored",
+    "verification": "early rejection, preemption",
+    "sampling": "ordered, guided and adaptive sampling",
+    "frameworks": "local optimisation, USAC, inlier detection",
+    "enhancements": "a base method plus single steps",
+    "other": "other methods",
+}
 
 
-def _style(i: int) -> dict[str, Any]:
-    from matplotlib import colormaps
-
-    colors = colormaps["tab20"].colors
-    markers = "os^vDP*Xh<>p"
-    styles = ("-", "--", "-.", ":")
-    return {"color": colors[(2 * i) % 20 if i < 10 else (2 * i + 1) % 20], "marker": markers[i % len(markers)],
-            "linestyle": styles[(i // 10) % len(styles)]}
+def plot_files(fmt: str = "png") -> tuple[str, ...]:
+    """The report figures' file names in ``fmt`` (one of :data:`stereovo.reporting.PLOT_FORMATS`)."""
+    fmt = check_plot_format(fmt)
+    return tuple(f"{name}.{fmt}" for name in PLOT_NAMES)
 
 
-def _figure(figsize: tuple[float, float]):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+def method_family(name: str) -> str:
+    """The panel family of a benchmark method (see :data:`METHOD_FAMILIES`)."""
+    if name in METHOD_FAMILIES:
+        return METHOD_FAMILIES[name]
+    if name in GUIDED_VARIANTS:
+        return "sampling"
+    return "enhancements" if "+" in name else "other"
 
-    fig = Figure(figsize=figsize, layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
+
+def plot_panels(methods: Sequence[str], max_lines: int = MAX_LINES_PER_PANEL) -> list[tuple[str, list[str]]]:
+    """``(title, methods)`` of each panel: one family each, in the order of the families, every panel
+    led by :data:`REFERENCE_METHOD` (when it ran) and at most ``max_lines`` lines (a larger family is
+    split into balanced parts)."""
+    reference = REFERENCE_METHOD if REFERENCE_METHOD in methods else None
+    families: dict[str, list[str]] = {f: [] for f in FAMILY_TITLES}
+    for m in methods:
+        if m != reference:
+            families[method_family(m)].append(m)
+    if reference is not None and not any(families.values()):
+        families["scoring"] = []  # the reference alone still gets its panel
+    room = max(max_lines - (reference is not None), 1)
+    panels = []
+    for family, members in families.items():
+        if not members and not (family == "scoring" and reference is not None):
+            continue
+        parts = max(math.ceil(len(members) / room), 1)
+        size = math.ceil(len(members) / parts) if members else 0
+        for p in range(parts):
+            chunk = members[p * size:(p + 1) * size]
+            title = FAMILY_TITLES[family] + (f" ({p + 1}/{parts})" if parts > 1 else "")
+            panels.append((title, ([reference] if reference else []) + chunk))
+    return panels
 
 
-def _save(fig, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    return path
+def _panel_style(method: str, j: int) -> dict[str, Any]:
+    if method == REFERENCE_METHOD:
+        return {"color": "black", "marker": "o", "linestyle": "-"}
+    return line_style(j)
+
+
+def _panel_grid(n_panels: int, panel_size: tuple[float, float] = (5.2, 4.4)):
+    cols = min(n_panels, 3)
+    rows = math.ceil(n_panels / cols)
+    fig = figure((panel_size[0] * cols, panel_size[1] * rows))
+    axes = [fig.add_subplot(rows, cols, i + 1) for i in range(n_panels)]
+    return fig, axes
+
+
+def _panel_legend(ax) -> None:
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, fontsize="x-small", frameon=False)
 
 
 def _line_plot(summary: BenchmarkSummary, axis: str, key: str, scale: float, ylabel: str, title: str,
-               path: Path, logx: bool = False, logy: bool = False, ylim: tuple[float, float] | None = None) -> Path:
-    per = summary.by_epsilon if axis == "epsilon" else summary.by_n
-    fig = _figure((8.5, 5.2))
-    ax = fig.add_subplot()
-    for i, method in enumerate(summary.methods):
-        points = sorted((x, _get(s, key)) for x, s in per.get(method, {}).items())
-        points = [(x, y * scale) for x, y in points if y is not None]
-        if points:
-            xs, ys = zip(*points)
-            ax.plot(xs, ys, label=method, lw=1.3, ms=4, **_style(i))
+               path: Path, logx: bool = False, logy: bool = False, ylim: tuple[float, float] | None = None,
+               confidence: float | None = None) -> Path:
+    """``key`` against epsilon or N, one panel per family (:func:`plot_panels`), a legend under each.
+
+    With ``confidence``, ``key`` is a success rate and each line carries its Wilson band over the
+    frames behind the point.
+    """
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter, ScalarFormatter
 
+    per = summary.by_epsilon if axis == "epsilon" else summary.by_n
+    panels = plot_panels(summary.methods)
+    fig, axes = _panel_grid(len(panels))
     xs_all = sorted({x for m in summary.methods for x in per.get(m, {})})
-    if logx:
-        ax.set_xscale("log")
-        ax.xaxis.set_minor_formatter(NullFormatter())
-        ax.set_xticks(xs_all)
-        ax.xaxis.set_major_formatter(ScalarFormatter())
-    elif xs_all:
-        ax.set_xticks(xs_all)
-    if logy:
-        ax.set_yscale("log")
-        low, high = ax.dataLim.y0, ax.dataLim.y1
-        decades = math.log10(high / low) if 0 < low < high else 0.0
-        subs = (1.0, 1.5, 2.0, 3.0, 5.0, 7.0) if decades < 1.5 else (1.0, 2.0, 5.0) if decades < 3 else (1.0,)
-        ax.yaxis.set_major_locator(LogLocator(subs=subs))
-        ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-        ax.yaxis.set_minor_formatter(NullFormatter())
-    if ylim:
-        ax.set_ylim(*ylim)
-    ax.set_xlabel("contamination epsilon" if axis == "epsilon" else "correspondences N")
-    ax.set_ylabel(ylabel)
-    ax.set_title(title, fontsize="medium")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="small")
-    return _save(fig, path)
+    for ax, (panel_title, methods) in zip(axes, panels):
+        j = 0
+        for method in methods:
+            points = sorted((x, _get(s, key), s.get("frames", 0)) for x, s in per.get(method, {}).items())
+            points = [(x, y, n) for x, y, n in points if y is not None]
+            if not points:
+                continue
+            style = _panel_style(method, j)
+            j += method != REFERENCE_METHOD
+            xs, ys, ns = zip(*points)
+            if confidence is not None:
+                plot_success(ax, xs, ys, ns, method, style, confidence, scale)
+            else:
+                ax.plot(xs, [y * scale for y in ys], label=method, lw=1.3, ms=4, **style)
+        if logx:
+            ax.set_xscale("log")
+            ax.xaxis.set_minor_formatter(NullFormatter())
+            ax.set_xticks(xs_all)
+            ax.xaxis.set_major_formatter(ScalarFormatter())
+        elif xs_all:
+            ax.set_xticks(xs_all)
+        if logy and ax.has_data():
+            ax.set_yscale("log")
+            low, high = ax.dataLim.y0, ax.dataLim.y1
+            decades = math.log10(high / low) if 0 < low < high else 0.0
+            subs = (1.0, 1.5, 2.0, 3.0, 5.0, 7.0) if decades < 1.5 else (1.0, 2.0, 5.0) if decades < 3 else (1.0,)
+            ax.yaxis.set_major_locator(LogLocator(subs=subs))
+            ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+            ax.yaxis.set_minor_formatter(NullFormatter())
+        if ylim:
+            ax.set_ylim(*ylim)
+        ax.set_xlabel("contamination epsilon" if axis == "epsilon" else "correspondences N")
+        ax.set_ylabel(ylabel)
+        ax.set_title(panel_title, fontsize="small")
+        ax.grid(True, which="both", alpha=0.3)
+        _panel_legend(ax)
+    band = f"; bands: {100 * confidence:g} % Wilson intervals" if confidence is not None else ""
+    fig.suptitle(title + band, fontsize="medium")
+    return save_figure(fig, path)
 
 
 def plot_error_cdf(rows: Sequence[Mapping[str, Any]], methods: Sequence[str], path: Path) -> Path:
-    """Empirical CDFs of rotation and translation error per method, success bounds dashed."""
+    """Empirical CDFs of rotation (left) and translation error (right), one row of panels per family.
+
+    Each panel marks its own success bound (1 deg; 0.05 m or 5 % of the true translation, whichever
+    is larger, so the dashed 0.05 m is the translation bound's floor); the row's legend is on its right.
+    """
     from matplotlib.ticker import NullFormatter
 
-    fig = _figure((12, 5))
-    ax_rot, ax_trans = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
+    panels = plot_panels(methods)
+    fig = figure((12, 3.6 * len(panels)))
     groups = _group(rows, "method")
-    for i, method in enumerate(methods):
-        group = groups.get((method,), [])
-        for ax, column in ((ax_rot, "rot_err_deg"), (ax_trans, "trans_err_m")):
-            values = np.asarray([float(r[column]) for r in group], dtype=float)
-            values = np.where(np.isfinite(values), values, np.inf)  # a raised estimator never succeeds
-            if values.size == 0:
-                continue
-            xs = np.sort(np.maximum(values, _ERROR_FLOOR))
-            ys = np.arange(1, xs.size + 1) / xs.size
-            style = _style(i)
-            ax.step(xs, ys, where="post", label=method, lw=1.2, color=style["color"], linestyle=style["linestyle"])
-    ax_rot.axvline(SUCCESS_ROT_DEG, color="tab:red", ls="--", lw=0.8, label="success bound")
-    ax_trans.axvline(SUCCESS_TRANS_M, color="tab:red", ls="--", lw=0.8, label=f"success bound (>= {SUCCESS_TRANS_M:g} m)")
-    for ax, label in ((ax_rot, "rotation error [deg]"), (ax_trans, "translation error [m]")):
-        ax.set_xscale("log")
-        ax.xaxis.set_minor_formatter(NullFormatter())
-        ax.set_xlabel(label)
-        ax.set_ylabel("fraction of frames")
-        ax.set_ylim(0, 1.01)
-        ax.grid(True, which="both", alpha=0.3)
-    ax_trans.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="small")
+    trans_rel = f"{100 * SUCCESS_TRANS_REL:g} %"
+    for r, (panel_title, members) in enumerate(panels):
+        ax_rot, ax_trans = fig.add_subplot(len(panels), 2, 2 * r + 1), fig.add_subplot(len(panels), 2, 2 * r + 2)
+        j = 0
+        for method in members:
+            group = groups.get((method,), [])
+            style = _panel_style(method, j)
+            j += method != REFERENCE_METHOD
+            for ax, column in ((ax_rot, "rot_err_deg"), (ax_trans, "trans_err_m")):
+                values = np.asarray([float(row[column]) for row in group], dtype=float)
+                values = np.where(np.isfinite(values), values, np.inf)  # a raised estimator never succeeds
+                if values.size == 0:
+                    continue
+                xs = np.sort(np.maximum(values, ERROR_FLOOR))
+                ys = np.arange(1, xs.size + 1) / xs.size
+                ax.step(xs, ys, where="post", label=method, lw=1.2, color=style["color"],
+                        linestyle=style["linestyle"])
+        bounds = ((ax_rot, SUCCESS_ROT_DEG, f"success bound {SUCCESS_ROT_DEG:g} deg", "rotation error [deg]"),
+                  (ax_trans, SUCCESS_TRANS_M, f"success bound {SUCCESS_TRANS_M:g} m (or {trans_rel} of |t|)",
+                   "translation error [m]"))
+        for ax, bound, text, xlabel in bounds:
+            ax.axvline(bound, color="tab:red", ls="--", lw=0.8)
+            ax.text(bound, 0.03, " " + text, color="tab:red", fontsize="x-small", rotation=90, va="bottom",
+                    ha="right")
+            ax.set_xscale("log")
+            ax.xaxis.set_minor_formatter(NullFormatter())
+            ax.set_xlabel(xlabel)
+            ax.set_ylabel("fraction of frames")
+            ax.set_ylim(0, 1.01)
+            ax.grid(True, which="both", alpha=0.3)
+        ax_rot.set_title(panel_title, fontsize="small", loc="left")
+        ax_trans.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="x-small")
     fig.suptitle("Error CDFs over all frames of the grid", fontsize="medium")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
-PLOT_FILES = ("success_vs_epsilon.png", "hypotheses_vs_epsilon.png", "time_vs_n.png", "error_cdf.png")
-
-
-def write_plots(rows: Sequence[Mapping[str, Any]], summary: BenchmarkSummary, out: str | os.PathLike) -> list[Path]:
-    """The four report figures (:data:`PLOT_FILES`) under ``out``."""
+def write_plots(rows: Sequence[Mapping[str, Any]], summary: BenchmarkSummary, out: str | os.PathLike,
+                fmt: str = "png") -> list[Path]:
+    """The four report figures (:data:`PLOT_NAMES`) under ``out`` as ``fmt`` files (png, pdf or svg)."""
     out = Path(out)
+    names = plot_files(fmt)
     return [
         _line_plot(summary, "epsilon", "success_rate", 100.0, "success rate [%]",
-                   "Success rate vs contamination (other axes pooled)", out / PLOT_FILES[0], ylim=(-2, 102)),
+                   "Success rate vs contamination (other axes pooled)", out / names[0], ylim=(-2, 102),
+                   confidence=0.95),
         _line_plot(summary, "epsilon", "mean_hypotheses", 1.0, "mean hypotheses per frame",
-                   "Hypotheses generated vs contamination", out / PLOT_FILES[1], logy=True),
+                   "Hypotheses generated vs contamination", out / names[1], logy=True),
         _line_plot(summary, "n", "median_time_ms", 1.0, "median time per frame [ms]",
-                   "Time vs number of correspondences", out / PLOT_FILES[2], logx=True, logy=True),
-        plot_error_cdf(rows, summary.methods, out / PLOT_FILES[3]),
+                   "Time vs number of correspondences", out / names[2], logx=True, logy=True),
+        plot_error_cdf(rows, summary.methods, out / names[3]),
     ]
 
 
@@ -1325,9 +1415,12 @@ def write_plots(rows: Sequence[Mapping[str, Any]], summary: BenchmarkSummary, ou
 
 def write_outputs(
     rows: Sequence[Mapping[str, Any]], out: str | os.PathLike, settings: Mapping[str, Any] | None = None,
-    plots: bool = True,
+    plots: bool = True, plot_format: str = "png",
 ) -> tuple[BenchmarkSummary, list[ClaimCheck]]:
-    """Write ``trials.csv``, ``cells.csv``, ``summary.csv``, ``summary.md``, ``claims.md`` and the plots."""
+    """Write ``trials.csv``, ``cells.csv``, ``summary.csv``, ``summary.md``, ``claims.md`` and the plots
+    (``plot_format``: png, pdf or svg)."""
+    if plots:
+        check_plot_format(plot_format)  # before anything is written
     from stereovo.io import write_frame_csv
     from stereovo.trials.store import atomic_path, atomic_write_text
 
@@ -1347,5 +1440,5 @@ def write_outputs(
     atomic_write_text(out / "summary.md", summary_markdown(summary, settings))
     atomic_write_text(out / "claims.md", claims_markdown(claims))
     if plots:
-        write_plots(rows, summary, out)
+        write_plots(rows, summary, out, plot_format)
     return summary, claims

@@ -16,15 +16,12 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from stereovo.metrics import SUCCESS_ROT_DEG, SUCCESS_TRANS_M, SUCCESS_TRANS_REL
+from stereovo.reporting import ERROR_FLOOR
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
     from stereovo.odometry import OdometryResult
-
-# Log-scale error plots need a positive floor for exact (zero) errors.
-_ERROR_FLOOR = 1e-6
-
 
 def plot_trajectories(ax: "Axes", est: np.ndarray, true: np.ndarray, label: str = "estimate") -> None:
     """Top-down view (x right, z forward; metres) of ``(F, 4, 4)`` camera-to-world poses."""
@@ -59,8 +56,8 @@ def plot_odometry(result: "OdometryResult", path: str | os.PathLike, title: str 
 
     k = np.asarray(result.frame_indices) if len(result.frame_indices) else np.arange(1, result.n_frames + 1)
     failed = np.asarray(result.fallback, dtype=bool)
-    rot = np.maximum(result.column("rot_err_deg"), _ERROR_FLOOR)
-    trans = np.maximum(result.column("trans_err_m"), _ERROR_FLOOR)
+    rot = np.maximum(result.column("rot_err_deg"), ERROR_FLOOR)
+    trans = np.maximum(result.column("trans_err_m"), ERROR_FLOOR)
     trans_bound = np.maximum(SUCCESS_TRANS_M, SUCCESS_TRANS_REL * result.column("t_true_norm_m"))
     _error_panel(ax_rot, k, rot, failed, "rotation error [deg]")
     ax_rot.axhline(SUCCESS_ROT_DEG, color="tab:red", ls="--", lw=0.8, label="success bound")
