@@ -18,7 +18,7 @@ from typing import Any
 
 import gymnasium
 
-__all__ = ["ENV_IDS", "HARD_SETTINGS", "register_envs"]
+__all__ = ["ENV_IDS", "ADAPTIVE_ENV_IDS", "HARD_SETTINGS", "register_envs"]
 
 ENTRY_POINT = "vo_gym.env:StereoVOEnv"
 
@@ -42,9 +42,19 @@ ENV_IDS: dict[str, dict[str, Any]] = {
 }
 """Registered ids and their keyword arguments."""
 
+ADAPTIVE_ENTRY_POINT = "vo_gym.adaptive_env:StereoVOAdaptiveEnv"
+
+ADAPTIVE_ENV_IDS: dict[str, dict[str, Any]] = {
+    # In-frame adaptive sampling: one step is one batch of hypotheses, the action the next priors and a stop.
+    "vo_gym/StereoVOAdaptive-v0": {},
+    "vo_gym/StereoVOAdaptiveHard-v0": dict(HARD_SETTINGS),
+}
+"""Ids of :class:`vo_gym.adaptive_env.StereoVOAdaptiveEnv` and their keyword arguments."""
+
 
 def register_envs() -> None:
     """Register every id of :data:`ENV_IDS` (idempotent)."""
-    for env_id, kwargs in ENV_IDS.items():
-        if env_id not in gymnasium.registry:
-            gymnasium.register(id=env_id, entry_point=ENTRY_POINT, kwargs=dict(kwargs))
+    for ids, entry_point in ((ENV_IDS, ENTRY_POINT), (ADAPTIVE_ENV_IDS, ADAPTIVE_ENTRY_POINT)):
+        for env_id, kwargs in ids.items():
+            if env_id not in gymnasium.registry:
+                gymnasium.register(id=env_id, entry_point=entry_point, kwargs=dict(kwargs))

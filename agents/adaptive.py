@@ -1,0 +1,318 @@
+"""The learned in-frame sampler of :class:`vo_gym.adaptive_env.StereoVOAdaptiveEnv` and its trainer.
+
+Network (:class:`AdaptiveSamplerNet`): the project's permutation-equivariant correspondence network
+(:class:`agents.network.CorrespondenceNet`, shared MLP with context normalisation) over each
+correspondence's adaptive features with the global loop state appended to every row, so that the
+same weights serve any number of matches and a permutation of the rows permutes the logits. Two heads:
+
+- per-correspondence logits: the next batch's sampling logits, which are also the weights by which
+  the frame's final hypothesis is selected (belief-weighted support);
+- a stop logit from the masked mean and max of the embeddings and the globals: ``sigmoid`` of it is
+  the network's belief that the hypothesis the frame would end on now is right.
+
+Policy (:class:`AdaptiveSamplerPolicy`): the logits as they are, stop once the stop belief reaches
+``confidence``.
+
+Trainer (:func:`train_adaptive`): policy gradient in the adaptive environment (REINFORCE over the
+minimal samples the env drew from the policy's logits, their ordered log-probabilities as in
+NG-RANSAC, and over the stop decisions, a Bernoulli of the stop belief; the return is the frame's
+reward, hypothesis costs included, minus a running-mean baseline), with two supervised auxiliary
+losses that the simulator's labels make available during training only: the logits are trained as
+inlier log-odds (binary cross-entropy against the static-inlier labels: a moving object counts as
+outliers) and the stop belief against whether the hypothesis the frame would end on is right
+(inlier precision >= ``right_precision`` and recall >= ``right_recall`` among its consensus).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from agents.network import PAD_LOGIT, CorrespondenceNet
+from agents.ngransac import ordered_triplet_log_prob
+from vo_gym.adaptive_env import ADAPTIVE_FEATURE_NAMES, GLOBAL_FEATURE_NAMES, StereoVOAdaptiveEnv
+from vo_gym.registration import HARD_SETTINGS
+
+FORMAT = "vo-gym adaptive sampler v1"
+LOGIT_BOUND = 10.0
+STOP_ACTION = 1.0
+
+
+class AdaptiveSamplerNet(nn.Module):
+    """Per-correspondence logits ``(B, N)`` and a stop logit ``(B,)`` from the adaptive observation.
+
+    Inputs: ``features (B, N, F)``, ``mask (B, N)`` bool, ``globals (B, G)``.
+    """
+
+    def __init__(self, n_features: int = len(ADAPTIVE_FEATURE_NAMES), n_globals: int = len(GLOBAL_FEATURE_NAMES),
+                 width: int = 48, blocks: int = 3) -> None:
+        super().__init__()
+        self.n_features, self.n_globals, self.width, self.blocks = n_features, n_globals, width, blocks
+        self.body = CorrespondenceNet(n_features + n_globals, width, blocks)
+        self.stop = nn.Sequential(nn.Linear(2 * width + n_globals, width), nn.ReLU(), nn.Linear(width, 1))
+
+    def config(self) -> dict[str, int]:
+        return {"n_features": self.n_features, "n_globals": self.n_globals, "width": self.width, "blocks": self.blocks}
+
+    def forward(self, features: torch.Tensor, mask: torch.Tensor, globals_: torch.Tensor):
+        mask = mask.bool()
+        rows = torch.cat([features, globals_.unsqueeze(1).expand(-1, features.shape[1], -1)], dim=-1)
+        embedded = self.body.embed(rows, mask)
+        logits = self.body.head(embedded).squeeze(-1).masked_fill(~mask, PAD_LOGIT)
+        m = mask.unsqueeze(-1)
+        mean = embedded.sum(dim=1) / m.sum(dim=1).clamp_min(1)
+        peak = embedded.masked_fill(~m, float("-inf")).amax(dim=1).clamp_min(0.0)
+        stop = self.stop(torch.cat([mean, peak, globals_], dim=-1)).squeeze(-1)
+        return logits, stop
+
+
+def _tensors(obs: dict) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    return (torch.as_tensor(obs["features"], dtype=torch.float32).unsqueeze(0),
+            torch.as_tensor(obs["mask"]).bool().unsqueeze(0),
+            torch.as_tensor(obs["globals"], dtype=torch.float32).unsqueeze(0))
+
+
+def make_action(logits: np.ndarray, mask: np.ndarray, stop: bool) -> np.ndarray:
+    """The env's action ``(M + 1,)`` float32: clipped logits on valid slots, the stop slot +-1."""
+    out = np.where(np.asarray(mask, bool), np.clip(logits, -LOGIT_BOUND, LOGIT_BOUND), -LOGIT_BOUND)
+    return np.concatenate([out, [STOP_ACTION if stop else -STOP_ACTION]]).astype(np.float32)
+
+
+class AdaptiveSamplerPolicy:
+    """The learned in-frame sampler as a policy of the adaptive env: ``act(obs, info) -> action``."""
+
+    def __init__(self, net: AdaptiveSamplerNet, confidence: float = 0.9, name: str = "adaptive") -> None:
+        if not 0 < confidence < 1:
+            raise ValueError(f"confidence must be in (0, 1), got {confidence!r}")
+        self.net, self.confidence, self.name = net.eval(), float(confidence), name
+        self.last_stop_belief = 0.0
+
+    def reset(self) -> None:
+        self.last_stop_belief = 0.0
+
+    @torch.no_grad()
+    def act(self, obs: dict, info: dict | None = None) -> np.ndarray:
+        logits, stop = self.net(*_tensors(obs))
+        self.last_stop_belief = float(torch.sigmoid(stop)[0])
+        return make_action(logits[0].numpy(), obs["mask"], self.last_stop_belief >= self.confidence)
+
+
+# ----------------------------------------------------------------------------- checkpoints
+
+
+def save_adaptive(path: str | Path, net: AdaptiveSamplerNet, config: dict[str, Any], log: list | None = None) -> Path:
+    """Weights, architecture, feature layout and training config; loadable with ``weights_only``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {
+        "format": FORMAT, "network": net.config(), "feature_names": list(ADAPTIVE_FEATURE_NAMES),
+        "global_names": list(GLOBAL_FEATURE_NAMES), "config": json.loads(json.dumps(config)),
+        "log": json.loads(json.dumps(log or [])),
+        "state_dict": {k: v.detach().cpu() for k, v in net.state_dict().items()},
+    }
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    torch.save(payload, tmp)
+    tmp.replace(path)
+    return path
+
+
+def shipped_adaptive_path(name: str) -> Path:
+    """Path of a shipped checkpoint ``agents/checkpoints/NAME.pt`` (``NAME`` starts with ``adaptive-``)."""
+    return Path(str(resources.files("agents").joinpath("checkpoints", f"{name}.pt")))
+
+
+def load_adaptive(name_or_path: str | Path) -> tuple[AdaptiveSamplerNet, dict[str, Any]]:
+    """Load by shipped name (``"adaptive-pg"``) or by path; returns the network (eval mode) and payload.
+
+    Raises:
+        FileNotFoundError: no such file or shipped name.
+        ValueError: not an adaptive-sampler checkpoint, or another feature layout.
+    """
+    path = Path(name_or_path)
+    if not path.is_file() and str(name_or_path).startswith("adaptive-"):
+        path = shipped_adaptive_path(str(name_or_path))
+    if not path.is_file():
+        raise FileNotFoundError(f"no adaptive-sampler checkpoint {name_or_path!r} (neither a file nor a shipped name)")
+    payload = torch.load(path, map_location="cpu", weights_only=True)
+    if not isinstance(payload, dict) or payload.get("format") != FORMAT:
+        raise ValueError(f"{path} is not an adaptive-sampler checkpoint")
+    if tuple(payload["feature_names"]) != ADAPTIVE_FEATURE_NAMES or tuple(payload["global_names"]) != GLOBAL_FEATURE_NAMES:
+        raise ValueError(f"checkpoint {path} was trained on another adaptive feature layout")
+    net = AdaptiveSamplerNet(**payload["network"])
+    net.load_state_dict(payload["state_dict"])
+    return net.eval(), payload
+
+
+# ----------------------------------------------------------------------------- training
+
+
+@dataclass
+class AdaptiveTrainConfig:
+    """Training settings (every field is recorded in the checkpoint).
+
+    Attributes:
+        minutes: wall-clock budget of training.
+        frames_per_episode: frames per training trajectory (the constant-velocity feature needs a chain).
+        epsilons: contamination range of the standard setting's episodes, drawn per episode.
+        hard_fraction: share of episodes on the hard settings (contamination ``hard_epsilons``).
+        batch_size, max_hypotheses, hypothesis_cost: the environment's.
+        n: correspondences per frame.
+        lr, width, blocks: optimiser step and network size.
+        pg_weight, inlier_weight, stop_weight: weights of the policy-gradient and the two auxiliary losses.
+        right_precision, right_recall: when the hypothesis a frame would end on counts as right.
+        frames_per_update: frames whose losses are summed per optimiser step.
+        seed: seeds the episodes (``seed + episode``) and torch.
+    """
+
+    minutes: float = 25.0
+    frames_per_episode: int = 8
+    epsilons: tuple[float, float] = (0.6, 0.92)
+    hard_fraction: float = 0.5
+    hard_epsilons: tuple[float, float] = (0.6, 0.85)
+    batch_size: int = 4
+    max_hypotheses: int = 64
+    hypothesis_cost: float = 0.002
+    n: int = 500
+    lr: float = 1e-3
+    width: int = 32
+    blocks: int = 2
+    pg_weight: float = 0.2
+    inlier_weight: float = 1.0
+    stop_weight: float = 1.0
+    right_precision: float = 0.9
+    right_recall: float = 0.3
+    frames_per_update: int = 4
+    seed: int = 0
+    log_every_s: float = 30.0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def _training_env(config: AdaptiveTrainConfig, episode: int) -> tuple[StereoVOAdaptiveEnv, dict]:
+    rng = np.random.default_rng([config.seed, episode])
+    hard = rng.random() < config.hard_fraction
+    low, high = config.hard_epsilons if hard else config.epsilons
+    kwargs = dict(HARD_SETTINGS) if hard else {}
+    kwargs["outlier_ratio"] = float(rng.uniform(low, high))
+    env = StereoVOAdaptiveEnv(
+        batch_size=config.batch_size, max_hypotheses=config.max_hypotheses, hypothesis_cost=config.hypothesis_cost,
+        n_frames=config.frames_per_episode, n_correspondences=config.n, **kwargs,
+    )
+    return env, {"hard": hard, "epsilon": kwargs["outlier_ratio"]}
+
+
+def right_hypothesis(masks: np.ndarray, weights: np.ndarray, inlier: np.ndarray, precision: float, recall: float) -> bool:
+    """Whether the hypothesis selected by ``weights`` among ``masks (H, N)`` is right against the labels."""
+    if masks.shape[0] == 0:
+        return False
+    chosen = masks[int(np.argmax(masks @ weights))]
+    found = np.count_nonzero(chosen & inlier)
+    return found >= precision * max(np.count_nonzero(chosen), 1) and found >= recall * np.count_nonzero(inlier)
+
+
+def train_adaptive(config: AdaptiveTrainConfig, out: str | Path, log_path: str | Path | None = None) -> Path:
+    """Train :class:`AdaptiveSamplerNet` in the adaptive env for ``config.minutes``; write ``out``."""
+    torch.manual_seed(config.seed)
+    torch.set_num_threads(1)  # small per-step batches: more threads only contend on a shared machine
+    net = AdaptiveSamplerNet(width=config.width, blocks=config.blocks)
+    optimiser = torch.optim.Adam(net.parameters(), lr=config.lr)
+    bce = nn.BCEWithLogitsLoss()
+    baseline, log, start, last_log = 0.0, [], time.time(), time.time()
+    stats = {"frames": 0, "success": 0, "hypotheses": 0, "stops": 0}
+    episode, pending = 0, []
+    log_file = open(log_path, "a") if log_path else None
+    while time.time() - start < 60 * config.minutes:
+        env, setting = _training_env(config, episode)
+        obs, info = env.reset(seed=config.seed * 1_000_003 + episode)
+        episode += 1
+        done = False
+        frame_terms: list[torch.Tensor] = []
+        frame_aux: list[torch.Tensor] = []
+        frame_return = 0.0
+        while not done:
+            frame = env.current_frame
+            inlier = frame.truth.inlier
+            features, mask, globals_ = _tensors(obs)
+            logits, stop_logit = net(features, mask, globals_)
+            n = frame.n
+            valid_logits = logits[0, :n]
+            stop_p = torch.sigmoid(stop_logit[0])
+            can_stop = env.frame_hypotheses > 0
+            stop = bool(can_stop and torch.rand(()) < stop_p.detach())
+            weights = torch.softmax(valid_logits.detach(), dim=0).numpy()
+            # auxiliary labels: inlier log-odds, and whether stopping now would end on a right hypothesis
+            frame_aux.append(config.inlier_weight * bce(valid_logits, torch.as_tensor(inlier, dtype=torch.float32)))
+            if can_stop:
+                right = right_hypothesis(env.scored_inliers, weights, inlier, config.right_precision, config.right_recall)
+                frame_aux.append(config.stop_weight * bce(stop_logit[0], torch.tensor(float(right))))
+                frame_terms.append(torch.log(stop_p if stop else 1 - stop_p).clamp_min(-20))
+            action = make_action(valid_logits.detach().numpy(), obs["mask"][:n], stop)
+            full = np.full(env.action_space.shape, -LOGIT_BOUND, dtype=np.float32)
+            full[:n], full[-1] = action[:n], action[-1]
+            obs, reward, _, truncated, info = env.step(full)
+            frame_return += reward
+            if info["batch_samples"].shape[0]:
+                log_p = torch.log_softmax(valid_logits.clamp(-LOGIT_BOUND, LOGIT_BOUND), dim=0)
+                samples = torch.as_tensor(info["batch_samples"])
+                frame_terms.append(ordered_triplet_log_prob(log_p, samples).sum())
+            if info["frame_done"]:
+                advantage = frame_return - baseline
+                baseline = 0.95 * baseline + 0.05 * frame_return
+                pg = -advantage * torch.stack(frame_terms).sum() if frame_terms else torch.zeros(())
+                pending.append(config.pg_weight * pg + torch.stack(frame_aux).mean())
+                stats["frames"] += 1
+                stats["success"] += int(info["success"])
+                stats["hypotheses"] += int(info["n_hypotheses"])
+                stats["stops"] += int(info["stopped"])
+                frame_terms, frame_aux, frame_return = [], [], 0.0
+                if len(pending) >= config.frames_per_update:
+                    optimiser.zero_grad()
+                    torch.stack(pending).mean().backward()
+                    nn.utils.clip_grad_norm_(net.parameters(), 5.0)
+                    optimiser.step()
+                    pending = []
+            done = truncated
+        if time.time() - last_log >= config.log_every_s:
+            last_log = time.time()
+            frames = max(stats["frames"], 1)
+            row = {"minutes": round((time.time() - start) / 60, 2), "episodes": episode, "frames": stats["frames"],
+                   "success": round(stats["success"] / frames, 3), "mean_hypotheses": round(stats["hypotheses"] / frames, 1),
+                   "stopped": round(stats["stops"] / frames, 3), "baseline": round(baseline, 3)}
+            log.append(row)
+            if log_file:
+                log_file.write(json.dumps(row) + "\n")
+                log_file.flush()
+            stats = {"frames": 0, "success": 0, "hypotheses": 0, "stops": 0}
+            save_adaptive(out, net, asdict(config), log)
+    if log_file:
+        log_file.close()
+    return save_adaptive(out, net, asdict(config), log)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m agents.adaptive --minutes 25 --out agents/checkpoints/adaptive-pg.pt``."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description="train the learned in-frame sampler in the adaptive env")
+    parser.add_argument("--minutes", type=float, default=25.0)
+    parser.add_argument("--out", default="agents/checkpoints/adaptive-pg.pt")
+    parser.add_argument("--log", default=None)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--n", type=int, default=500)
+    args = parser.parse_args(argv)
+    if not math.isfinite(args.minutes) or args.minutes <= 0:
+        parser.error(f"--minutes must be a positive number, got {args.minutes}")
+    train_adaptive(AdaptiveTrainConfig(minutes=args.minutes, seed=args.seed, n=args.n), args.out, args.log)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
