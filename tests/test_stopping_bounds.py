@@ -13,13 +13,11 @@ import math
 import numpy as np
 import pytest
 
-from stereovo import estimate_motion
 from stereovo.estimation.prosac import ProsacTermination
 from stereovo.estimation.samplers import ProsacSampler, prosac_growth
 from stereovo.estimation.sprt import SprtTermination, SprtTest, SprtVerification
 from stereovo.estimation.tdd import TddTermination
 from stereovo.estimation.termination import AdaptiveTermination, all_inlier_probability, required_iterations
-from stereovo.simulation import SimulationConfig, simulate_frame
 
 # ---------------------------------------------------------------------------- RANSAC
 
@@ -45,21 +43,6 @@ def test_ransac_bound_edges_and_clips():
     # q = 3 * 2 * 1 / (1000 * 999 * 998) ~ 6e-9 needs ~7.7e8 draws: clipped to max_iterations.
     assert required_iterations(3, 1000, confidence=0.99, max_iterations=5000) == 5000
     assert AdaptiveTermination(confidence=0.99, min_iterations=300).required(6, 20) == 300
-
-
-def test_uniform_ransac_loop_stops_at_the_first_batch_past_the_bound():
-    # The loop asks the bound of its best support after each batch: it stops at the first batch boundary
-    # at or past k(I) = ceil(log(0.01) / log(1 - I (I-1) (I-2) / (N (N-1) (N-2)))), I the final support.
-    batch = 8
-    for seed in range(3):
-        frame = simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.6), seed)
-        est = estimate_motion(frame.prev, frame.curr, frame.camera, method="ransac", rng=seed, refine=False,
-                              batch_size=batch, confidence=0.99, noise_sigma=frame.noise_sigma)
-        assert est.ok
-        I, N = est.n_inliers, 300
-        assert abs(I - 120) <= 0.15 * 120  # about the 120 true inliers
-        bound = math.ceil(math.log(0.01) / math.log(1 - I * (I - 1) * (I - 2) / (N * (N - 1) * (N - 2))))
-        assert bound <= est.n_hypotheses < bound + batch, (seed, est.n_hypotheses, bound)
 
 
 # ---------------------------------------------------------------------------- T(d,d)
