@@ -4,6 +4,18 @@ A stereo measurement is ``z = (uL, vL, uR, vR)`` in pixels; the right camera
 sits at ``(+baseline, 0, 0)`` in the left camera frame (x right, y down,
 z forward). Every method is vectorised over points: ``(N, 3)`` points in
 metres, ``(N, 4)`` measurements in pixels.
+
+Covariances propagate the noise of what a match measured. On a rectified pair
+the right feature is searched on the left feature's row, so one match
+measures ``(uL, uR, v)`` with a single ``v`` noise (``v_measurement="shared"``,
+the default, and what the simulator does); ``"independent"`` treats ``vL`` and
+``vR`` as two measurements, whose mean has half the variance. Either way the
+check is calibration: a chi-square gate passes its probability of the true
+inliers under the true motion (``tests/test_covariance_calibration.py``).
+
+A match whose disparity is at or below ``min_disparity`` (or whose triangulated
+point is not finite) has no depth: :meth:`StereoCamera.triangulate_usable`
+flags it and gives it NaN; :meth:`StereoCamera.triangulate` refuses it.
 """
 
 from __future__ import annotations
@@ -33,38 +45,63 @@ def _project_rows(X, fx, fy, cx, cy, minus_fx_baseline, out):
 
 
 @njit(cache=True, nogil=True)
-def _triangulate_rows(meas, fx, fy, cx, cy, baseline, min_disparity, sigma, with_covariance):
+def _triangulate_rows(meas, fx, fy, cx, cy, baseline, min_disparity, sigma, v_variance, with_covariance, usable):
     """Points ``(M, 3)`` and, if ``with_covariance``, covariances ``(M, 3, 3)`` (else ``(0, 3, 3)``)
-    of measurements ``meas (M, 4)``, and the first row without depth (-1 if none; the arrays are
-    then incomplete). One pass instead of some forty numpy passes over ``(M,)`` temporaries.
+    of measurements ``meas (M, 4)``; ``usable (M,)`` is set True on rows with depth and False on
+    rows without (disparity not above ``min_disparity``, or a non-finite point or covariance),
+    whose points and covariances are NaN. Returns the number of rows without depth. One pass
+    instead of some forty numpy passes over ``(M,)`` temporaries.
 
     ``C = sigma^2 J J^T`` written out from the sparse rows of the triangulation Jacobian
-    (:meth:`StereoCamera.triangulation_jacobian`):
-    ``(z/fx - x/d, 0, x/d, 0)``, ``(-y/d, z/2fy, y/d, z/2fy)``, ``(-z/d, 0, z/d, 0)``.
+    (:meth:`StereoCamera.triangulation_jacobian`) with respect to ``(uL, uR, v)``:
+    ``(z/fx - x/d, x/d, 0)``, ``(-y/d, y/d, z/fy)``, ``(-z/d, z/d, 0)``; ``v_variance`` is the
+    variance of the v used for y in units of ``sigma^2`` (1: one v per match, 1/2: the mean of
+    independent vL and vR).
     """
     M = meas.shape[0]
     X = np.empty((M, 3))
     C = np.empty((M if with_covariance else 0, 3, 3))
     s2 = sigma * sigma
+    n_bad = 0
     for m in range(M):
         d = meas[m, 0] - meas[m, 2]
-        if not d > min_disparity:
-            return X, C, m
-        depth = fx * baseline / d
-        x = (meas[m, 0] - cx) * depth / fx
-        y = ((meas[m, 1] + meas[m, 3]) / 2 - cy) * depth / fy
-        X[m, 0], X[m, 1], X[m, 2] = x, y, depth
-        if with_covariance:
-            x_d, y_d, z_d = x / d, y / d, depth / d
-            a = depth / fx - x_d
-            h = depth / (2 * fy)
-            C[m, 0, 0] = s2 * (a * a + x_d * x_d)
-            C[m, 0, 1] = C[m, 1, 0] = s2 * (x_d - a) * y_d
-            C[m, 0, 2] = C[m, 2, 0] = s2 * (x_d - a) * z_d
-            C[m, 1, 1] = s2 * 2 * (y_d * y_d + h * h)
-            C[m, 1, 2] = C[m, 2, 1] = s2 * 2 * y_d * z_d
-            C[m, 2, 2] = s2 * 2 * z_d * z_d
-    return X, C, -1
+        ok = d > min_disparity and np.isfinite(d)
+        if ok:
+            depth = fx * baseline / d
+            x = (meas[m, 0] - cx) * depth / fx
+            y = ((meas[m, 1] + meas[m, 3]) / 2 - cy) * depth / fy
+            ok = depth > 0.0 and np.isfinite(x) and np.isfinite(y) and np.isfinite(depth)
+        if ok:
+            X[m, 0], X[m, 1], X[m, 2] = x, y, depth
+            if with_covariance:
+                x_d, y_d, z_d = x / d, y / d, depth / d
+                a = depth / fx - x_d
+                h = depth / fy
+                C[m, 0, 0] = s2 * (a * a + x_d * x_d)
+                C[m, 0, 1] = C[m, 1, 0] = s2 * (x_d - a) * y_d
+                C[m, 0, 2] = C[m, 2, 0] = s2 * (x_d - a) * z_d
+                if v_variance == 1.0:
+                    C[m, 1, 1] = s2 * (2 * y_d * y_d + h * h)
+                else:  # the mean of two v's (written as it always was, so old figures reproduce bit for bit)
+                    h2 = depth / (2 * fy)
+                    C[m, 1, 1] = s2 * 2 * (y_d * y_d + h2 * h2)
+                C[m, 1, 2] = C[m, 2, 1] = s2 * 2 * y_d * z_d
+                C[m, 2, 2] = s2 * 2 * z_d * z_d
+                for i in range(3):
+                    for j in range(3):
+                        if not np.isfinite(C[m, i, j]):
+                            ok = False
+        if not ok:
+            n_bad += 1
+            X[m, :] = np.nan
+            if with_covariance:
+                C[m, :, :] = np.nan
+        usable[m] = ok
+    return X, C, n_bad
+
+
+V_MEASUREMENTS: tuple[str, ...] = ("shared", "independent")
+"""How a match measures its rows (:attr:`StereoCamera.v_measurement`)."""
 
 
 @dataclass(frozen=True)
@@ -77,6 +114,9 @@ class StereoCamera:
         baseline: distance between the two optical centres in metres.
         width, height: image size in pixels.
         min_disparity: disparities at or below this (pixels) carry no usable depth.
+        v_measurement: ``"shared"`` (one ``v`` per rectified match, ``vL = vR``; default) or
+            ``"independent"`` (``vL`` and ``vR`` measured apart, each with the pixel noise): the
+            noise model of triangulation covariances and of the pixel Mahalanobis residual.
     """
 
     fx: float = 718.856
@@ -87,8 +127,13 @@ class StereoCamera:
     width: int = 1241
     height: int = 376
     min_disparity: float = 0.1
+    v_measurement: str = "shared"
 
     def __post_init__(self) -> None:
+        if self.v_measurement not in V_MEASUREMENTS:
+            raise ValueError(
+                f"StereoCamera.v_measurement must be one of {list(V_MEASUREMENTS)}, got {self.v_measurement!r}"
+            )
         for name in ("fx", "fy", "baseline", "width", "height", "min_disparity"):
             value = getattr(self, name)
             if not np.isfinite(value) or value <= 0:
@@ -97,11 +142,23 @@ class StereoCamera:
             if not np.isfinite(getattr(self, name)):
                 raise ValueError(f"StereoCamera.{name} must be finite, got {getattr(self, name)!r}")
 
+    @property
+    def v_per_match(self) -> int:
+        """Independent ``v`` measurements per stereo pair: 1 (``"shared"``) or 2 (``"independent"``)."""
+        return 1 if self.v_measurement == "shared" else 2
+
+    @property
+    def measurement_dof(self) -> int:
+        """Independent pixel coordinates per stereo pair, ``uL``, ``uR`` and the v's: 3 or 4 (the
+        degrees of freedom of a whitened stereo reprojection residual)."""
+        return 2 + self.v_per_match
+
     @functools.cached_property
     def parameters(self) -> np.ndarray:
-        """``(fx, fy, cx, cy, baseline)`` as one read-only float array: the layout compiled kernels
-        take, built once per camera (the estimator passes it a few dozen times per frame)."""
-        vector = np.array([self.fx, self.fy, self.cx, self.cy, self.baseline], dtype=float)
+        """``(fx, fy, cx, cy, baseline, v_per_match)`` as one read-only float array: the layout
+        compiled kernels take, built once per camera (the estimator passes it a few dozen times
+        per frame)."""
+        vector = np.array([self.fx, self.fy, self.cx, self.cy, self.baseline, self.v_per_match], dtype=float)
         vector.flags.writeable = False
         return vector
 
@@ -148,8 +205,9 @@ class StereoCamera:
         """Points ``(..., 3)`` in metres from stereo measurements ``(..., 4)``.
 
         Raises:
-            ValueError: if any disparity is at or below ``min_disparity``; such a
-                measurement has no depth and is never divided by.
+            ValueError: if any measurement has no depth (disparity at or below
+                ``min_disparity``); such a measurement is never divided by. Use
+                :meth:`triangulate_usable` to flag such rows instead.
         """
         return self._triangulate(measurements, None)[0]
 
@@ -158,25 +216,49 @@ class StereoCamera:
         (m) and covariances ``(..., 3, 3)`` (m^2) under isotropic pixel noise ``sigma`` (pixels)."""
         return self._triangulate(measurements, sigma)
 
-    def _triangulate(self, measurements: np.ndarray, sigma: float | None) -> tuple[np.ndarray, np.ndarray]:
+    def triangulate_usable(
+        self, measurements: np.ndarray, sigma: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Points ``(N, 3)``, covariances ``(N, 3, 3)`` and the usable mask ``(N,)`` of measurements
+        ``(N, 4)``, without refusing rows that have no depth: those are False in the mask and NaN in
+        the points and covariances (the estimator treats them as outliers, DESIGN section 3)."""
+        rows = self._rows(measurements)
+        return self._triangulate_rows(rows, sigma)
+
+    def _rows(self, measurements: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(np.asarray(measurements, dtype=float).reshape(-1, 4))
+
+    def _triangulate_rows(
+        self, rows: np.ndarray, sigma: float | None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if sigma is not None and (not np.isfinite(sigma) or sigma <= 0):
             raise ValueError(f"sigma must be a positive pixel noise, got {sigma!r}")
-        z = np.asarray(measurements, dtype=float)
-        rows = np.ascontiguousarray(z.reshape(-1, 4))
-        X, C, bad_row = _triangulate_rows(
+        usable = np.empty(rows.shape[0], dtype=bool)
+        X, C, _ = _triangulate_rows(
             rows, float(self.fx), float(self.fy), float(self.cx), float(self.cy), float(self.baseline),
-            float(self.min_disparity), 1.0 if sigma is None else float(sigma), sigma is not None,
+            float(self.min_disparity), 1.0 if sigma is None else float(sigma), 1.0 / self.v_per_match,
+            sigma is not None, usable,
         )
-        if bad_row >= 0:
-            bad = int(np.count_nonzero(~(self.disparity(z) > self.min_disparity)))
+        return X, C, usable
+
+    def _triangulate(self, measurements: np.ndarray, sigma: float | None) -> tuple[np.ndarray, np.ndarray]:
+        z = np.asarray(measurements, dtype=float)
+        X, C, usable = self._triangulate_rows(self._rows(z), sigma)
+        if not usable.all():
+            bad = int(np.count_nonzero(~usable))
             raise ValueError(
-                f"{bad} measurement(s) have disparity <= min_disparity={self.min_disparity} px: no depth"
+                f"{bad} measurement(s) have disparity <= min_disparity={self.min_disparity} px "
+                "(or no finite triangulation): no depth"
             )
         lead = z.shape[:-1]
         return X.reshape(lead + (3,)), (C.reshape(lead + (3, 3)) if sigma is not None else C)
 
     def triangulation_jacobian(self, measurements: np.ndarray) -> np.ndarray:
-        """Jacobians ``(..., 3, 4)`` of the triangulated point w.r.t. ``(uL, vL, uR, vR)``."""
+        """Jacobians ``(..., 3, 4)`` of the triangulated point w.r.t. ``(uL, vL, uR, vR)``.
+
+        Triangulation uses ``v = (vL + vR) / 2``, so the v columns are halves of
+        :meth:`shared_triangulation_jacobian`'s single v column.
+        """
         X = self.triangulate(measurements)
         d = self.disparity(measurements)
         x, y, depth = X[..., 0], X[..., 1], X[..., 2]
@@ -191,8 +273,23 @@ class StereoCamera:
         J[..., 2, 2] = depth / d
         return J
 
+    def shared_triangulation_jacobian(self, measurements: np.ndarray) -> np.ndarray:
+        """Jacobians ``(..., 3, 3)`` of the triangulated point w.r.t. ``(uL, uR, v)``, the three
+        quantities a rectified match measures (``v = (vL + vR) / 2``)."""
+        J4 = self.triangulation_jacobian(measurements)
+        return np.stack([J4[..., 0], J4[..., 2], J4[..., 1] + J4[..., 3]], axis=-1)
+
+    def measurement_jacobian(self, measurements: np.ndarray) -> np.ndarray:
+        """The triangulation Jacobian w.r.t. the measured quantities of this camera's
+        ``v_measurement``: ``(..., 3, 3)`` over ``(uL, uR, v)`` (shared) or ``(..., 3, 4)`` over
+        ``(uL, vL, uR, vR)`` (independent). Covariances are ``sigma^2 J J^T`` of it."""
+        if self.v_measurement == "shared":
+            return self.shared_triangulation_jacobian(measurements)
+        return self.triangulation_jacobian(measurements)
+
     def triangulation_covariance(self, measurements: np.ndarray, sigma: float) -> np.ndarray:
-        """Covariances ``(..., 3, 3)`` in m^2 of triangulated points: ``sigma^2 J J^T``.
+        """Covariances ``(..., 3, 3)`` in m^2 of triangulated points: ``sigma^2 J J^T`` with ``J`` the
+        :meth:`measurement_jacobian` of this camera's ``v_measurement``.
 
         Args:
             measurements: ``(..., 4)`` stereo measurements in pixels.

@@ -46,8 +46,12 @@ def test_covariance_is_sigma2_JJt_and_depth_error_grows_quadratically(camera):
     X = np.array([[0.0, 0.0, 5.0], [0.0, 0.0, 10.0], [0.0, 0.0, 40.0]])
     z = camera.project(X)
     cov = camera.triangulation_covariance(z, sigma=0.5)
-    J = camera.triangulation_jacobian(z)
+    J = camera.measurement_jacobian(z)  # over (uL, uR, v): one v per rectified match
+    assert J.shape == (3, 3, 3)
     np.testing.assert_allclose(cov, 0.25 * J @ J.transpose(0, 2, 1))
+    J4 = StereoCamera(v_measurement="independent").triangulation_jacobian(z)
+    np.testing.assert_allclose(StereoCamera(v_measurement="independent").triangulation_covariance(z, 0.5),
+                               0.25 * J4 @ J4.transpose(0, 2, 1))
     depth_std = np.sqrt(cov[:, 2, 2])
     # sigma_z = z^2 / (fx b) * sqrt(2) sigma
     np.testing.assert_allclose(depth_std, X[:, 2] ** 2 / (camera.fx * camera.baseline) * np.sqrt(2) * 0.5, rtol=1e-12)
@@ -60,7 +64,7 @@ def test_triangulation_with_covariance_equals_the_two_separate_calls_at_any_shap
     points, cov = camera.triangulate_with_covariance(z, 0.7)
     assert points.shape == (3, 20, 3) and cov.shape == (3, 20, 3, 3)
     np.testing.assert_allclose(points, X.reshape(3, 20, 3), rtol=1e-12)
-    J = camera.triangulation_jacobian(z)
+    J = camera.measurement_jacobian(z)
     np.testing.assert_allclose(cov, 0.49 * J @ np.swapaxes(J, -1, -2), rtol=1e-10)
     np.testing.assert_array_equal(cov, camera.triangulation_covariance(z, 0.7))
     z[1, 7, 2] = z[1, 7, 0]  # no disparity anywhere in the batch: refused, never divided by

@@ -230,8 +230,17 @@ def test_mahalanobis_matches_explicit_inverse():
     ts = np.stack([t, t + 0.1])
     got = MahalanobisResidual().squared(problem, Rs, ts)
     for h in range(2):
-        r = problem.points_curr - (problem.points_prev @ Rs[h].T + ts[h])
-        C = Rs[h] @ problem.cov_prev @ Rs[h].T + problem.cov_curr
+        P = problem.points_prev @ Rs[h].T + ts[h]
+        Y = problem.points_curr
+        r = Y - P
+        # covariances at the fused point: disparity the mean of the two, at k and mapped back to k-1
+        ip, iy = 1 / P[:, 2], 1 / Y[:, 2]
+        Q = (P * ip[:, None] + Y * iy[:, None]) / (ip + iy)[:, None]
+        X_star = (Q - ts[h]) @ Rs[h]
+        np.testing.assert_allclose(CAMERA.disparity(CAMERA.project(Q)), 0.5 * (CAMERA.disparity(CAMERA.project(P))
+                                   + CAMERA.disparity(CAMERA.project(Y))), rtol=1e-12)
+        cov_at = lambda X: CAMERA.triangulation_covariance(CAMERA.project(X), 0.5)  # noqa: E731
+        C = Rs[h] @ cov_at(X_star) @ Rs[h].T + cov_at(Q)
         expected = np.einsum("ni,ni->n", r, np.linalg.solve(C, r[..., None])[..., 0])
         np.testing.assert_allclose(got[h], expected, rtol=1e-8)
 
@@ -254,12 +263,14 @@ def test_capped_mahalanobis_is_exact_below_the_cap_and_at_least_the_cap_above():
     assert np.any(capped[~below] < exact[~below])  # the bound did skip some solves
 
 
-def test_pixel_mahalanobis_matches_explicit_propagated_covariance():
+@pytest.mark.parametrize("v_measurement", ["shared", "independent"])
+def test_pixel_mahalanobis_matches_explicit_propagated_covariance(v_measurement):
     rng = np.random.default_rng(1)
     R, t = random_rotation(rng, 0.1), rng.normal(size=3)
     prev, curr = noise_free_pair(rng, R, t, 30)
     curr = curr + rng.normal(0, 0.5, curr.shape)
-    problem = StereoProblem.build(prev, curr, CAMERA, 0.5)
+    camera = StereoCamera(v_measurement=v_measurement)
+    problem = StereoProblem.build(prev, curr, camera, 0.5)
     Rs = np.stack([R, random_rotation(rng, 0.1)])
     ts = np.stack([t, t + 0.1])
     got = PixelMahalanobisResidual().squared(problem, Rs, ts)
@@ -272,8 +283,10 @@ def test_pixel_mahalanobis_matches_explicit_propagated_covariance():
         J[:, 1] = np.stack([0 * z, fy / z, -fy * y / z**2], -1)
         J[:, 2] = np.stack([fx / z, 0 * z, -fx * (x - b) / z**2], -1)
         J[:, 3] = J[:, 1]
-        C = J @ (Rs[h] @ problem.cov_prev @ Rs[h].T) @ np.swapaxes(J, 1, 2) + 0.25 * np.eye(4)
         r = CAMERA.project(Y) - curr
+        if v_measurement == "shared":  # one v measured: residual (uL, uR, mean v), 3 dof
+            J, r = J[:, [0, 2, 1]], np.stack([r[:, 0], r[:, 2], 0.5 * (r[:, 1] + r[:, 3])], -1)
+        C = J @ (Rs[h] @ problem.cov_prev @ Rs[h].T) @ np.swapaxes(J, 1, 2) + 0.25 * np.eye(J.shape[1])
         expected = np.einsum("ni,ni->n", r, np.linalg.solve(C, r[..., None])[..., 0])
         np.testing.assert_allclose(got[h], expected, rtol=1e-8)
 
@@ -320,12 +333,21 @@ def test_available_methods_lists_core_methods_with_descriptions():
         (np.zeros((5, 3)), np.zeros((5, 3)), r"shape \(N, 4\)"),
         (np.full((5, 4), np.nan), np.ones((5, 4)), "NaN"),
         (np.tile([600.0, 100, 590, 100], (5, 1)), np.tile([600.0, 100, 590, 100], (4, 1)), "same number of rows"),
-        (np.tile([600.0, 100, 600, 100], (5, 1)), np.tile([600.0, 100, 590, 100], (5, 1)), "disparity"),
+        (np.tile([600.0, 100, 590, 100], (5, 1)) + 1j, np.tile([600.0, 100, 590, 100], (5, 1)), "prev must be real"),
+        (np.tile([600.0, 100, 590, 100], (5, 1)), np.tile([600.0, 100, 590, 100], (5, 1)).astype(complex),
+         "curr must be real"),
+        (np.full((5, 4), "a"), np.ones((5, 4)), "prev must be a numeric"),
     ],
 )
 def test_malformed_input_raises_clear_value_error(prev, curr, message):
     with pytest.raises(ValueError, match=message):
         estimate_motion(prev, curr, CAMERA)
+
+
+def test_rows_without_depth_are_not_malformed_input():
+    """A frame whose rows all lack depth is a failed estimate, not a ValueError (DESIGN section 3)."""
+    est = estimate_motion(np.tile([600.0, 100, 600, 100], (8, 1)), np.tile([600.0, 100, 590, 100], (8, 1)), CAMERA)
+    assert not est.ok and est.n_unusable == 8 and "0 of 8 usable" in est.status and est.covariance is None
 
 
 def test_bad_method_option_priors_and_order_raise():

@@ -63,7 +63,8 @@ def test_inputs_carry_no_label():
     assert params == ["prev", "curr", "scores", "camera", "noise_sigma", "previous_motion", "problem"]
     # the optional problem holds only what the estimator sees: measurements, camera, noise, triangulation
     assert {f.name for f in dataclasses.fields(StereoProblem)} == {
-        "prev", "curr", "camera", "noise_sigma", "points_prev", "points_curr", "cov_prev", "cov_curr"
+        "prev", "curr", "camera", "noise_sigma", "points_prev", "points_curr", "cov_prev", "cov_curr",
+        "usable",  # which rows have depth: computed from the measurements
     }
 
 
@@ -162,8 +163,10 @@ def test_malformed_input(sequence, camera):
     with pytest.raises(ValueError, match="camera"):
         compute_features(frame.prev, frame.curr, frame.scores, "kitti", 0.5)
     no_depth = frame.prev.copy()
-    no_depth[0, 2] = no_depth[0, 0]  # zero disparity
-    with pytest.raises(ValueError, match="disparity"):
-        compute_features(no_depth, *args[1:])
+    no_depth[0, 2] = no_depth[0, 0]  # zero disparity: not malformed, a flagged row (tests/test_unusable_rows.py)
+    flagged = compute_features(no_depth, *args[1:])
+    assert np.all(np.isfinite(flagged)) and flagged[0, feature_index("log_depth_prev")] == FEATURE_BOUND
+    with pytest.raises(ValueError, match="prev must be real"):
+        compute_features(frame.prev + 0j, *args[1:])
     empty = compute_features(np.zeros((0, 4)), np.zeros((0, 4)), np.zeros(0), StereoCamera(), 0.5)
     assert empty.shape == (0, N_FEATURES)

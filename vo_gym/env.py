@@ -100,9 +100,10 @@ class StereoVOEnv(gym.Env):
 
     ``Box(-action_bound, action_bound, (max_correspondences,), float32)``, one
     value per correspondence slot; slots ``>= n_correspondences`` are padding
-    and ignored (their values may even be NaN or inf, e.g. masked logits).
-    Values outside the Box are clipped to it; NaN/inf in a valid slot or a
-    wrong shape raises ``ValueError``.
+    and ignored (their values may even be NaN or inf, e.g. masked logits), and
+    so are the slots of matches without depth (``mask`` 0, see below), which the
+    estimator never samples. Values outside the Box are clipped to it; NaN/inf
+    in a slot whose ``mask`` is 1 or a wrong shape raises ``ValueError``.
 
     - ``sampling="guided"`` (``vo_gym/StereoVO-v0``): the values are logits;
       the sampling weights are ``softmax(logit_scale * a)`` over the valid
@@ -122,7 +123,10 @@ class StereoVOEnv(gym.Env):
     estimated motion, the rigid-consistency degree), never its ground-truth
     label; the column layout is :data:`vo_gym.features.FEATURE_NAMES`
     (version :data:`vo_gym.features.FEATURE_LAYOUT_VERSION`). ``mask`` is 1 on
-    valid rows and 0 on padding (whose features are 0).
+    valid rows and 0 on padding (whose features are 0) and on matches without
+    depth (disparity at or below the camera's ``min_disparity`` at k-1 or k:
+    finite, flagged features, see :mod:`vo_gym.features`; the estimator treats
+    them as outliers). The simulator's own frames have none.
 
     ## Rewards
 
@@ -395,16 +399,6 @@ class StereoVOEnv(gym.Env):
         """
         return self._sequence
 
-    @property
-    def estimator_kwargs(self) -> dict[str, Any]:
-        """What each step passes to the estimator besides the frame, ``method``, the action and the generator.
-
-        The validated :class:`~stereovo.estimation.EstimatorOptions` fields and the method's own options,
-        as keyword arguments of :func:`stereovo.estimation.estimate_motion`. A copy: editing it changes
-        nothing in the environment.
-        """
-        return dict(self._estimator_kwargs)
-
     # ------------------------------------------------------------------ gymnasium API
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -521,11 +515,16 @@ class StereoVOEnv(gym.Env):
                 f"StereoVOEnv: the action must have shape ({M},), one value per correspondence slot, got {a.shape}"
             )
         a = a[:n]
-        if not np.all(np.isfinite(a)):
-            bad = np.flatnonzero(~np.isfinite(a))
-            raise ValueError(
-                f"StereoVOEnv: the action has NaN or inf in {bad.size} valid slot(s) (first: slot {int(bad[0])})"
-            )
+        finite = np.isfinite(a)
+        if not np.all(finite):
+            usable = self._problem.usable if self._problem is not None else None
+            bad = np.flatnonzero(~finite if usable is None else ~finite & usable)
+            if bad.size:
+                raise ValueError(
+                    f"StereoVOEnv: the action has NaN or inf in {bad.size} valid slot(s) (first: slot {int(bad[0])})"
+                )
+            # only rows without depth (never sampled): any value will do, the lowest keeps the weights finite
+            a = np.where(finite, a, -self.action_bound)
         return np.clip(a, -self.action_bound, self.action_bound)
 
     def _observation(self) -> dict[str, np.ndarray]:
@@ -538,7 +537,7 @@ class StereoVOEnv(gym.Env):
         )
         M, n = self.max_correspondences, frame.n
         mask = np.zeros(M, dtype=np.int8)
-        mask[:n] = 1
+        mask[:n] = 1 if self._problem.usable is None else self._problem.usable
         if M > n:
             padded = np.zeros((M, N_FEATURES), dtype=np.float32)
             padded[:n] = feats

@@ -34,6 +34,16 @@ row per correspondence, every value clipped to ``[-FEATURE_BOUND, FEATURE_BOUND]
                               the anchors are all other matches, or the MAX_ANCHORS best-scored
 ====  ======================  =====================================================================
 
+A match without depth (disparity at or below ``camera.min_disparity`` at k-1
+or k: an *unusable row*, which the estimator treats as an outlier and never
+samples) gets finite features that say so: its measured columns (score, rank,
+coordinates, disparities) as usual, ``log_depth_prev``, ``log_depth_curr`` and
+``log_depth_std_prev`` at ``+FEATURE_BOUND`` (as if infinitely far; a real point
+would have to lie beyond 220 km), ``cv_residual`` 0 and ``rigid_consistency`` 0,
+and it is no anchor of the other rows' consistency degree.
+:func:`usable_rows` gives the mask; the environment's observation ``mask`` is 0
+on such rows. No exception is raised for them.
+
 The rigid-consistency degree is O(N A): one float32 pairwise-distance
 computation per frame between all N matches and A anchors, ``A = N`` for
 ``N <= MAX_ANCHORS`` and otherwise the ``MAX_ANCHORS`` matches of highest
@@ -55,7 +65,7 @@ import numpy as np
 from numba import njit
 
 from stereovo.camera import StereoCamera
-from stereovo.estimation.problem import StereoProblem
+from stereovo.estimation.problem import StereoProblem, as_measurements
 from stereovo.estimation.reprojection import reprojection_sq
 
 __all__ = [
@@ -68,6 +78,7 @@ __all__ = [
     "feature_index",
     "check_feature_layout",
     "rigid_consistency_degree",
+    "usable_rows",
 ]
 
 FEATURE_NAMES: tuple[str, ...] = (
@@ -125,15 +136,6 @@ def check_feature_layout(names: Sequence[str], version: int) -> None:
             f"{list(names)}, this vo_gym computes version {FEATURE_LAYOUT_VERSION} with {N_FEATURES} "
             f"features {list(FEATURE_NAMES)}"
         )
-
-
-def _measurements(name: str, value: np.ndarray) -> np.ndarray:
-    array = np.asarray(value, dtype=float)
-    if array.ndim != 2 or array.shape[1] != 4:
-        raise ValueError(f"{name} must have shape (N, 4) of (uL, vL, uR, vR) pixels, got shape {array.shape}")
-    if not np.all(np.isfinite(array)):
-        raise ValueError(f"{name} contains NaN or inf")
-    return array
 
 
 def _validate_motion(previous_motion) -> tuple[np.ndarray, np.ndarray] | None:
@@ -215,6 +217,12 @@ def _consistent_pairs(points_prev, points_curr, s2, anchors):
     return counts
 
 
+def usable_rows(features: np.ndarray) -> np.ndarray:
+    """``(N,)`` bool: the rows of :func:`compute_features`' output that have a depth (the
+    others carry ``log_depth_prev = +FEATURE_BOUND``, see the module doc)."""
+    return np.asarray(features)[:, _INDEX["log_depth_prev"]] < FEATURE_BOUND
+
+
 def compute_features(
     prev: np.ndarray,
     curr: np.ndarray,
@@ -237,17 +245,19 @@ def compute_features(
             if the caller built one for the estimator: its triangulated points and covariances
             are reused instead of recomputed.
 
+    Rows without depth get the finite, flagged features of the module doc; they raise nothing.
+
     Raises:
-        ValueError: on malformed input (shapes, NaN/inf, non-positive noise, no depth), or a
-            ``problem`` of another frame.
+        ValueError: on malformed input (shapes, NaN/inf, complex values, non-positive noise), or
+            a ``problem`` of another frame.
     """
     if not isinstance(camera, StereoCamera):
         raise ValueError(f"camera must be a StereoCamera, got {type(camera).__name__}")
     # The problem's own arrays were validated when it was built (the environment's case).
     own_arrays = problem is not None and prev is problem.prev and curr is problem.curr
     if not own_arrays:
-        prev = _measurements("prev", prev)
-        curr = _measurements("curr", curr)
+        prev = as_measurements("prev", prev)
+        curr = as_measurements("curr", curr)
     n = prev.shape[0]
     if curr.shape[0] != n:
         raise ValueError(f"prev and curr must have the same number of rows, got {n} and {curr.shape[0]}")
@@ -269,10 +279,11 @@ def compute_features(
             raise ValueError("problem must be built from the same prev, curr, camera and noise_sigma")
         points_prev, points_curr = problem.points_prev, problem.points_curr
         cov_prev, cov_curr = problem.cov_prev, problem.cov_curr
+        usable = problem.usable  # None: every row has depth
     else:
-        # raises ValueError on a match without depth
-        points_prev, cov_prev = camera.triangulate_with_covariance(prev, noise_sigma)
-        points_curr, cov_curr = camera.triangulate_with_covariance(curr, noise_sigma)
+        points_prev, cov_prev, usable_prev = camera.triangulate_usable(prev, noise_sigma)
+        points_curr, cov_curr, usable_curr = camera.triangulate_usable(curr, noise_sigma)
+        usable = None if (usable_prev.all() and usable_curr.all()) else usable_prev & usable_curr
 
     out[:, 0] = scores
     by_score = np.argsort(-scores, kind="stable")  # best first; also picks the consistency anchors
@@ -284,9 +295,10 @@ def compute_features(
         out[:, col] = meas[:, 0] * u_scale - 1.0
         out[:, col + 1] = meas[:, 1] * v_scale - 1.0
         out[:, col + 2] = camera.disparity(meas) * (_DISPARITY_REF / camera.fx)
-    out[:, 8] = np.log(points_prev[:, 2] / _DEPTH_REF_M)
-    out[:, 9] = np.log(points_curr[:, 2] / _DEPTH_REF_M)
-    out[:, 10] = 0.5 * np.log(np.maximum(cov_prev[:, 2, 2], 1e-300))
+    with np.errstate(invalid="ignore"):  # NaN on rows without depth, overwritten below
+        out[:, 8] = np.log(points_prev[:, 2] / _DEPTH_REF_M)
+        out[:, 9] = np.log(points_curr[:, 2] / _DEPTH_REF_M)
+        out[:, 10] = 0.5 * np.log(np.maximum(cov_prev[:, 2, 2], 1e-300))
     if motion is not None:
         R, t = motion
         sq = reprojection_sq(camera, R[None], t[None], points_prev, curr)[0]  # inf behind the camera
@@ -298,6 +310,14 @@ def compute_features(
         (cov_prev[:, 0, 0] + cov_prev[:, 1, 1] + cov_prev[:, 2, 2])
         + (cov_curr[:, 0, 0] + cov_curr[:, 1, 1] + cov_curr[:, 2, 2])
     )
-    out[:, 13] = rigid_consistency_degree(points_prev, points_curr, spread, priority=scores, priority_order=by_score)
+    if usable is None:
+        out[:, 13] = rigid_consistency_degree(points_prev, points_curr, spread, priority=scores, priority_order=by_score)
+    else:
+        # among the rows with depth only (they alone are anchors); the others are flagged
+        rows = np.flatnonzero(usable)
+        out[rows, 13] = rigid_consistency_degree(points_prev[rows], points_curr[rows], spread[rows], priority=scores[rows])
+        out[~usable, 8:11] = FEATURE_BOUND
+        out[~usable, 11] = 0.0
+        out[~usable, 13] = 0.0
     np.clip(out, -FEATURE_BOUND, FEATURE_BOUND, out=out)
     return out

@@ -19,7 +19,7 @@ uL, vL, uR, vR at k, then backward at k-1), in pixels.
 
 Array arguments: ``R (H, 3, 3)``, ``t (H, 3)``; point arrays ``(G, M, .)`` where
 ``G`` is 1 (shared by all hypotheses) or H (one set per hypothesis); ``cam`` is
-``(fx, fy, cx, cy, baseline)``. All float64, C-contiguous (the wrappers ensure it).
+``(fx, fy, cx, cy, baseline, v_per_match)`` (:attr:`stereovo.camera.StereoCamera.parameters`). All float64, C-contiguous (the wrappers ensure it).
 No kernel draws random numbers or reduces in parallel, so results are
 bit-for-bit repeatable.
 """
@@ -517,44 +517,79 @@ def _motion_entries(R, t, h):
     )
 
 
-@_jit
-def mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr, cap):
-    """``(H, N)`` squared Mahalanobis distances of ``Y - (R X + t)`` under ``R S_X R^T + S_Y``.
+@_inline_jit
+def _covariance_at(x, y, z, fx, fy, fb, v_variance, s2):
+    """Upper triangle ``(c00, c01, c02, c11, c12, c22)`` of the triangulation covariance of a point
+    ``(x, y, z)`` (m^2): ``sigma^2 J J^T`` of :class:`stereovo.camera.StereoCamera`, evaluated at
+    that point (disparity ``fb / z``) rather than read from a measured one."""
+    w = z / fb  # 1 / disparity
+    xd, yd, zd = x * w, y * w, z * w
+    a = z / fx - xd
+    h = z / fy
+    return (
+        s2 * (a * a + xd * xd), s2 * (xd - a) * yd, s2 * (xd - a) * zd,
+        s2 * (2.0 * yd * yd + v_variance * h * h), s2 * 2.0 * yd * zd, s2 * 2.0 * zd * zd,
+    )
 
-    With ``cap > 0`` a distance at or above ``cap`` may come back as any value >= cap: a point
-    whose ``|r|^2 / (tr S_X + tr S_Y)`` already reaches ``cap`` gets that lower bound (the trace
-    bounds C's largest eigenvalue, and is the same for every rotation) and skips the 3x3 solve.
-    Most points of a bad hypothesis are settled this way.
+
+@_jit
+def mahalanobis_sq(R, t, X, Y, cam, sigma_sq, cap):
+    """``(H, N)`` squared Mahalanobis distances of ``r = Y - (R X + t)`` under ``R S_X R^T + S_Y``.
+
+    Both covariances are evaluated at one point, the two observations' fused estimate of the
+    landmark under the hypothesis, not at the two noisy triangulations: in frame k the point
+    ``Q = (P / p_z + Y / y_z) / (1 / p_z + 1 / y_z)`` (``P = R X + t``), whose disparity is the
+    mean of the two (the maximum-likelihood depth for equal disparity noise), and
+    ``R^T (Q - t)`` at k-1. At the measured points a far match whose two depths disagree gets
+    covariances inflated by the disagreement itself (depth variance grows as z^4), and the
+    chi-square gate then passes too many: 0.937 instead of 0.90 at 45-60 m. At the fused point
+    the depth term is the disparity difference, which is linear in the pixels.
+
+    ``inf`` where the moved point is behind the camera. With ``cap > 0`` a distance at or above
+    ``cap`` may come back as any value >= cap: a point whose ``|r|^2 / (tr S_X + tr S_Y)`` already
+    reaches ``cap`` gets that lower bound (the trace bounds C's largest eigenvalue, and is the
+    same for every rotation) and skips the 3x3 solve.
     """
+    fx, fy, bl = cam[0], cam[1], cam[4]
+    fb = fx * bl
+    v_variance = 1.0 / cam[5]
     H, N = R.shape[0], X.shape[0]
     out = np.empty((H, N))
-    inv_trace = np.empty(N)
-    for n in range(N):
-        inv_trace[n] = 1.0 / max(
-            cov_prev[n, 0, 0] + cov_prev[n, 1, 1] + cov_prev[n, 2, 2]
-            + cov_curr[n, 0, 0] + cov_curr[n, 1, 1] + cov_curr[n, 2, 2],
-            1e-300,
-        )
     for h in range(H):
         r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2 = _motion_entries(R, t, h)
         for n in range(N):
             x0, x1, x2 = X[n, 0], X[n, 1], X[n, 2]
-            x = Y[n, 0] - (r00 * x0 + r01 * x1 + r02 * x2 + t0)
-            y = Y[n, 1] - (r10 * x0 + r11 * x1 + r12 * x2 + t1)
-            z = Y[n, 2] - (r20 * x0 + r21 * x1 + r22 * x2 + t2)
+            p0 = r00 * x0 + r01 * x1 + r02 * x2 + t0
+            p1 = r10 * x0 + r11 * x1 + r12 * x2 + t1
+            p2 = r20 * x0 + r21 * x1 + r22 * x2 + t2
+            y0, y1, y2 = Y[n, 0], Y[n, 1], Y[n, 2]
+            x, y, z = y0 - p0, y1 - p1, y2 - p2
+            if p2 <= MIN_DEPTH:
+                out[h, n] = np.inf
+                continue
+            ip, iy = 1.0 / p2, 1.0 / y2
+            iq = 1.0 / (ip + iy)
+            q0, q1, q2 = (p0 * ip + y0 * iy) * iq, (p1 * ip + y1 * iy) * iq, 2.0 * iq
+            # the fused point at k-1: R^T (Q - t)
+            d0, d1, d2 = q0 - t0, q1 - t1, q2 - t2
+            k0 = r00 * d0 + r10 * d1 + r20 * d2
+            k1 = r01 * d0 + r11 * d1 + r21 * d2
+            k2 = r02 * d0 + r12 * d1 + r22 * d2
+            if k2 <= MIN_DEPTH:  # no depth at k-1 for the fused point (odd motions): the measured one
+                k0, k1, k2 = x0, x1, x2
+            sx00, sx01, sx02, sx11, sx12, sx22 = _covariance_at(k0, k1, k2, fx, fy, fb, v_variance, sigma_sq)
+            sy00, sy01, sy02, sy11, sy12, sy22 = _covariance_at(q0, q1, q2, fx, fy, fb, v_variance, sigma_sq)
             if cap > 0.0:
-                bound = (x * x + y * y + z * z) * inv_trace[n]  # a product: a division per point costs more
+                bound = (x * x + y * y + z * z) / max(sx00 + sx11 + sx22 + sy00 + sy11 + sy22, 1e-300)
                 if bound >= cap:
                     out[h, n] = bound
                     continue
-            Sx, Sy = cov_prev[n], cov_curr[n]
             c00, c01, c02, c11, c12, c22 = _congruence(  # R S_X R^T, plus S_Y below
                 r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                Sx[0, 0], Sx[0, 1], Sx[0, 2], Sx[1, 1], Sx[1, 2], Sx[2, 2],
+                sx00, sx01, sx02, sx11, sx12, sx22,
             )
             out[h, n] = _symmetric_quadratic(
-                c00 + Sy[0, 0], c01 + Sy[0, 1], c02 + Sy[0, 2], c11 + Sy[1, 1], c12 + Sy[1, 2], c22 + Sy[2, 2],
-                x, y, z,
+                c00 + sy00, c01 + sy01, c02 + sy02, c11 + sy11, c12 + sy12, c22 + sy22, x, y, z,
             )
     return out
 
@@ -568,13 +603,20 @@ def pixel_mahalanobis_sq(R, t, X, cov_prev, mc, cam, sigma_sq):
     Its vL and vR rows of J are equal, so in the basis ``((e1 + e3) / sqrt 2, (e1 - e3) / sqrt 2)``
     C splits into a 3x3 block (rows a, sqrt(2) b, c) plus ``sigma^2`` for the vertical
     difference; both are inverted in closed form. ``inf`` where the moved point is behind.
+
+    ``cam[5]`` is the camera's v measurements per match. With one (``v_measurement="shared"``)
+    the match measured ``(uL, uR, v)``: the vertical sum carries ``2 sigma^2`` of pixel noise
+    and there is no vertical difference, so the distance has 3 degrees of freedom; with two
+    (``"independent"``) it has 4.
     """
     fx, fy, cx, cy, bl = cam[0], cam[1], cam[2], cam[3], cam[4]
     H, N = R.shape[0], X.shape[0]
     out = np.empty((H, N))
     root2 = np.sqrt(2.0)
     inv_root2 = 1.0 / root2
-    inv_sigma_sq = 1.0 / sigma_sq
+    shared_v = cam[5] == 1.0
+    inv_sigma_sq = 0.0 if shared_v else 1.0 / sigma_sq
+    sum_noise = 2.0 * sigma_sq if shared_v else sigma_sq
     for h in range(H):
         r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2 = _motion_entries(R, t, h)
         for n in range(N):
@@ -608,7 +650,7 @@ def pixel_mahalanobis_sq(R, t, X, cov_prev, mc, cam, sigma_sq):
                 s00, s01, s02, s11, s12, s22,
             )
             out[h, n] = _symmetric_quadratic(
-                c00 + sigma_sq, c01, c02, c11 + sigma_sq, c12, c22 + sigma_sq, e0, s_sum, e2,
+                c00 + sigma_sq, c01, c02, c11 + sum_noise, c12, c22 + sigma_sq, e0, s_sum, e2,
             ) + s_diff * s_diff * inv_sigma_sq
     return out
 
@@ -888,7 +930,7 @@ def _gate_sq(gate, R, t, X, Y, cov_prev, cov_curr, mc, cam, sigma_sq):
     if gate == GATE_REPROJECTION:
         return forward_reprojection_sq(R, t, X, mc, cam)
     if gate == GATE_MAHALANOBIS:
-        return mahalanobis_sq(R, t, X, Y, cov_prev, cov_curr, 0.0)
+        return mahalanobis_sq(R, t, X, Y, cam, sigma_sq, 0.0)
     return pixel_mahalanobis_sq(R, t, X, cov_prev, mc, cam, sigma_sq)
 
 

@@ -20,7 +20,7 @@ from stereovo.camera import StereoCamera
 from stereovo.estimation.local_optimization import ConsensusRefit
 from stereovo.estimation.loop import RansacComponents, RansacReport, run_ransac
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.refinement import ReprojectionRefiner
+from stereovo.estimation.refinement import ReprojectionRefiner, pose_covariance
 from stereovo.estimation.sample_check import RigidityCheck
 from stereovo.estimation.samplers import (
     SAMPLE_SIZE,
@@ -59,7 +59,8 @@ class EstimatorOptions:
         threshold_px: reprojection inlier gate (px); None means ``6 * noise_sigma`` (the k-1 point
             carries its own triangulation noise into frame k, so residuals exceed the pixel noise).
         gate_probability: chi-square(3) quantile of the Mahalanobis inlier gate.
-        refine_gate_probability: chi-square(4) quantile of the pixel Mahalanobis gate with which
+        refine_gate_probability: chi-square quantile (3 dof with one v per match, 4 with independent
+            vL and vR: ``camera.measurement_dof``) of the pixel Mahalanobis gate with which
             ``probabilistic`` re-selects inliers during its final refinement.
         rigidity_gate_probability: chi-square(1) quantile of ``probabilistic``'s rigidity check,
             which drops a minimal sample before fitting if a pairwise distance changes between
@@ -131,6 +132,8 @@ class EstimatorOptions:
 
     @property
     def pixel_mahalanobis_threshold_sq(self) -> float:
+        """The pixel gate for independent vL and vR (4 dof); ``probabilistic`` takes the dof of its
+        camera's measurement model (``camera.measurement_dof``)."""
         return _chi2_quantile(self.refine_gate_probability, 4)
 
 
@@ -300,8 +303,11 @@ def _build_msac(problem, options, priors, order, extra) -> RansacComponents:
 
 
 @functools.lru_cache(maxsize=64)
-def _pixel_gated_refiner(options: EstimatorOptions) -> ReprojectionRefiner | None:
+def _pixel_gated_refiner(options: EstimatorOptions, dof: int = 4) -> ReprojectionRefiner | None:
     """``probabilistic``'s final refinement, which re-selects its inliers with the pixel gate.
+
+    ``dof``: the whitened pixel residual's degrees of freedom, ``camera.measurement_dof`` (3 with
+    one v per rectified match, 4 with independent vL and vR), which sets the gate's quantile.
 
     The 3-D gate misses about a tenth of the inliers, mostly far points (triangulation's skewed
     depth error), and those carry the rotation; the pixel gate keeps them. The local refit keeps
@@ -311,7 +317,7 @@ def _pixel_gated_refiner(options: EstimatorOptions) -> ReprojectionRefiner | Non
     refiner = final_refiner(options)
     if refiner is None:
         return None
-    threshold = options.pixel_mahalanobis_threshold_sq
+    threshold = _chi2_quantile(options.refine_gate_probability, int(dof))
     return dataclasses.replace(refiner, gate=(PixelMahalanobisResidual(threshold), threshold))
 
 
@@ -329,7 +335,7 @@ def _build_probabilistic(problem, options, priors, order, extra) -> RansacCompon
     )
     if options.rigidity_gate_probability is not None:
         components.sample_check = RigidityCheck(_chi2_quantile(options.rigidity_gate_probability, 1))
-    components.refiner = _pixel_gated_refiner(options)
+    components.refiner = _pixel_gated_refiner(options, problem.camera.measurement_dof)
     return components
 
 
@@ -342,13 +348,26 @@ class MotionEstimate:
 
     Attributes:
         rotation, translation: ``(3, 3)`` and ``(3,)``, ``x_k = R x_{k-1} + t`` (identity on failure).
-        inliers: ``(N,)`` bool mask of the final model's inliers.
+        inliers: ``(N,)`` bool mask of the final model's inliers (False on unusable rows).
         status: ``"ok"`` or ``"failed: <reason>"``.
         n_hypotheses: minimal samples drawn; n_scored: hypotheses verified;
         n_point_checks: point-hypothesis residual evaluations.
         time_s: wall time of the estimate in seconds.
         method: the method's name.
-        report: the loop's full report (None when the frame failed before the loop).
+        score: the final model's quality under the method's own measure.
+        report: the loop's full report on the usable rows (None when the frame failed before the
+            loop); its masks have one entry per usable row.
+        unusable: ``(N,)`` bool, the rows without depth (disparity at or below
+            ``camera.min_disparity`` at k-1 or k, or no finite triangulation). They were never
+            sampled and are never inliers; see :attr:`n_unusable`.
+        covariance: ``(6, 6)`` covariance of the motion's error vector
+            ``e = (log(R_est R_true^T), t_est - t_true)`` (rotation first, rad, in the world-side,
+            left-multiplied form; then translation, m), propagated from the pixel noise of both
+            frames through the least-squares fit on the final inliers
+            (:func:`stereovo.estimation.refinement.pose_covariance`); None on a failed estimate.
+        counters: the method's own counters (e.g. T(d,d) passes, SPRT tests, local optimisation
+            runs), name -> number, as its components report them (``RansacReport.counters``);
+            empty for a method that reports none.
     """
 
     rotation: np.ndarray
@@ -362,6 +381,13 @@ class MotionEstimate:
     method: str
     score: float = float("-inf")
     report: RansacReport | None = None
+    unusable: np.ndarray | None = None
+    covariance: np.ndarray | None = None
+    counters: dict = dataclasses.field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.unusable is None:
+            self.unusable = np.zeros(np.shape(self.inliers)[0], dtype=bool)
 
     @classmethod
     def from_report(cls, report: RansacReport, method: str, time_s: float) -> "MotionEstimate":
@@ -378,6 +404,7 @@ class MotionEstimate:
             method=method,
             score=report.score,
             report=report,
+            counters=dict(getattr(report, "counters", None) or {}),
         )
 
     @property
@@ -387,6 +414,11 @@ class MotionEstimate:
     @property
     def n_inliers(self) -> int:
         return int(np.count_nonzero(self.inliers))
+
+    @property
+    def n_unusable(self) -> int:
+        """Number of rows without depth (:attr:`unusable`)."""
+        return int(np.count_nonzero(self.unusable))
 
 
 def as_generator(rng: np.random.Generator | int | np.random.SeedSequence | None) -> np.random.Generator:
@@ -433,12 +465,15 @@ def estimate_motion(
         **options: fields of :class:`EstimatorOptions` and the method's own options.
 
     Returns:
-        A :class:`MotionEstimate`. A hopeless frame (N < 3, every sample degenerate,
-        no consensus) gives ``status="failed: ..."`` with identity motion; it never raises.
+        A :class:`MotionEstimate`. Rows without depth (disparity at or below
+        ``camera.min_disparity`` at k-1 or k) are outliers: the method runs on the other rows and
+        the estimate names them (``unusable``, ``n_unusable``). A hopeless frame (fewer than 3
+        or ``min_inliers`` usable rows, every sample degenerate, no consensus) gives
+        ``status="failed: ..."`` with identity motion; it never raises.
 
     Raises:
-        ValueError: malformed input (shapes, NaN/inf, mismatched N, no depth), bad priors/order,
-            an unknown method or option.
+        ValueError: malformed input (shapes, NaN/inf, mismatched N, complex or non-numeric
+            values), bad priors/order, an unknown method or option.
     """
     start = time.perf_counter()
     spec = method_spec(method)
@@ -489,7 +524,8 @@ def _estimate(
     rng: np.random.Generator | int | None,
     start: float,
 ) -> MotionEstimate:
-    """Validate priors/order, run the method on ``problem``; ``start`` is the caller's perf_counter."""
+    """Validate priors/order, run the method on ``problem``'s usable rows and scatter the result
+    back to all N rows; ``start`` is the caller's perf_counter."""
     method = spec.name
     if priors is not None and order is not None:
         raise ValueError("give either priors (guided sampling) or order (PROSAC), not both")
@@ -497,16 +533,43 @@ def _estimate(
         if value is not None and np.shape(value) != (problem.n,):
             raise ValueError(f"{name} must have shape ({problem.n},), one entry per correspondence, got {np.shape(value)}")
     generator = as_generator(rng)
+    unusable = ~problem.usable_mask
+    need = max(SAMPLE_SIZE, shared.min_inliers)
 
-    if problem.n < max(SAMPLE_SIZE, shared.min_inliers):
+    def failed(reason: str) -> MotionEstimate:
         return MotionEstimate(
-            np.eye(3), np.zeros(3), np.zeros(problem.n, dtype=bool),
-            f"failed: too few correspondences ({problem.n}, need {max(SAMPLE_SIZE, shared.min_inliers)})",
-            0, 0, 0, time.perf_counter() - start, method,
+            np.eye(3), np.zeros(3), np.zeros(problem.n, dtype=bool), f"failed: {reason}",
+            0, 0, 0, time.perf_counter() - start, method, unusable=unusable,
         )
+
+    if problem.n < need:
+        return failed(f"too few correspondences ({problem.n}, need {need})")
     if priors is not None:
         priors = validate_priors(priors, problem.n)
     if order is not None:
         order = validate_order(order, problem.n)
-    report = spec.run(problem, shared, priors, order, extra, generator)
-    return MotionEstimate.from_report(report, method, time.perf_counter() - start)
+    sub, rows = problem.usable_subproblem()
+    if rows is not None:
+        if rows.size < need:
+            return failed(f"too few usable correspondences ({rows.size} of {problem.n} usable, need {need})")
+        if priors is not None:
+            priors = priors[rows]
+            if np.count_nonzero(priors > 0) < SAMPLE_SIZE:
+                return failed(
+                    f"priors have fewer than {SAMPLE_SIZE} positive weights on the {rows.size} usable correspondences"
+                )
+        if order is not None:
+            # the permutation's relative order of the usable rows, renumbered within the sub-problem
+            position = np.cumsum(problem.usable) - 1
+            order = position[order[problem.usable[order]]]
+    report = spec.run(sub, shared, priors, order, extra, generator)
+    estimate = MotionEstimate.from_report(report, method, 0.0)
+    if estimate.ok:
+        estimate.covariance = pose_covariance(sub, estimate.rotation, estimate.translation, estimate.inliers)
+    if rows is not None:
+        inliers = np.zeros(problem.n, dtype=bool)
+        inliers[rows] = estimate.inliers
+        estimate.inliers = inliers
+        estimate.unusable = unusable
+    estimate.time_s = time.perf_counter() - start
+    return estimate

@@ -3,11 +3,22 @@
 ``StereoProblem`` turns two ``(N, 4)`` arrays of stereo measurements into the
 quantities all samplers, solvers and scorers share: triangulated points at
 k-1 and k, their covariances and the pixel noise. Building it is the single
-place where malformed input is rejected with ``ValueError``.
+place where malformed input is rejected with ``ValueError``: shapes, NaN/inf,
+mismatched N, non-real values. The arrays are converted there once to
+C-contiguous float64, so the compiled kernels see one layout whatever the
+caller passed (a Fortran-order, strided or float32 array would otherwise be a
+new compilation).
+
+A row without depth (disparity at or below ``camera.min_disparity`` at k-1 or
+k, or no finite triangulation) is not malformed: real front ends emit such
+mismatches. It is an *unusable row*: flagged in :attr:`StereoProblem.usable`,
+its points and covariances NaN. The estimator runs on
+:meth:`StereoProblem.usable_subproblem` and reports those rows as outliers.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,8 +26,22 @@ import numpy as np
 from stereovo.camera import StereoCamera
 
 
-def _as_measurements(name: str, value: np.ndarray) -> np.ndarray:
-    array = np.asarray(value, dtype=float)
+def as_measurements(name: str, value: np.ndarray) -> np.ndarray:
+    """``value`` as a C-contiguous float64 ``(N, 4)`` array of finite stereo measurements.
+
+    The input is returned itself when it already is one (no copy on the common path).
+
+    Raises:
+        ValueError: naming ``name``: not numeric, complex, wrong shape, NaN or inf.
+    """
+    if np.iscomplexobj(value):
+        raise ValueError(f"{name} must be real (uL, vL, uR, vR) pixels, got complex dtype {np.asarray(value).dtype}")
+    try:
+        array = np.ascontiguousarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"{name} must be a numeric (N, 4) array of (uL, vL, uR, vR) pixels, got {type(value).__name__}"
+        ) from None
     if array.ndim != 2 or array.shape[1] != 4:
         raise ValueError(f"{name} must have shape (N, 4) of (uL, vL, uR, vR) pixels, got shape {array.shape}")
     if not np.all(np.isfinite(array)):
@@ -30,11 +55,14 @@ class StereoProblem:
     """Putative matches between frames k-1 and k with everything derived from them.
 
     Attributes:
-        prev, curr: ``(N, 4)`` stereo measurements (pixels) at k-1 and k.
-        camera: the rectified stereo rig.
+        prev, curr: ``(N, 4)`` stereo measurements (pixels) at k-1 and k, C-contiguous float64.
+        camera: the rectified stereo rig (its ``v_measurement`` sets the covariance model).
         noise_sigma: pixel noise standard deviation (pixels) of every coordinate.
-        points_prev, points_curr: ``(N, 3)`` triangulated points (metres), camera frames k-1 and k.
-        cov_prev, cov_curr: ``(N, 3, 3)`` triangulation covariances (m^2).
+        points_prev, points_curr: ``(N, 3)`` triangulated points (metres), camera frames k-1 and k;
+            NaN on unusable rows.
+        cov_prev, cov_curr: ``(N, 3, 3)`` triangulation covariances (m^2); NaN on unusable rows.
+        usable: ``(N,)`` bool, True where both frames give the match a depth; None when every row
+            is usable (the common case, which then costs nothing).
     """
 
     prev: np.ndarray
@@ -45,36 +73,37 @@ class StereoProblem:
     points_curr: np.ndarray
     cov_prev: np.ndarray
     cov_curr: np.ndarray
+    usable: np.ndarray | None = None
 
     @classmethod
     def build(
         cls, prev: np.ndarray, curr: np.ndarray, camera: StereoCamera, noise_sigma: float = 0.5
     ) -> "StereoProblem":
-        """Validate the measurements and triangulate them.
+        """Validate the measurements and triangulate them; rows without depth are flagged, not refused.
 
         Raises:
-            ValueError: wrong shapes, mismatched N, NaN/inf, a non-positive noise, or a
-                disparity at or below ``camera.min_disparity`` (no depth to triangulate).
+            ValueError: wrong shapes, mismatched N, NaN/inf, complex or non-numeric values, or a
+                non-positive noise.
         """
         if not isinstance(camera, StereoCamera):
             raise ValueError(f"camera must be a StereoCamera, got {type(camera).__name__}")
-        prev = _as_measurements("prev", prev)
-        curr = _as_measurements("curr", curr)
+        prev = as_measurements("prev", prev)
+        curr = as_measurements("curr", curr)
         if prev.shape[0] != curr.shape[0]:
             raise ValueError(f"prev and curr must have the same number of rows, got {prev.shape[0]} and {curr.shape[0]}")
+        if isinstance(noise_sigma, (bool, np.bool_)) or not isinstance(noise_sigma, (int, float, np.integer, np.floating)):
+            raise ValueError(f"noise_sigma must be a positive pixel noise, got {noise_sigma!r}")
         if not np.isfinite(noise_sigma) or noise_sigma <= 0:
             raise ValueError(f"noise_sigma must be a positive pixel noise, got {noise_sigma!r}")
-        triangulated = []
-        for name, meas in (("prev", prev), ("curr", curr)):
-            try:  # triangulation checks every disparity itself; the rows are named only on failure
-                triangulated.append(camera.triangulate_with_covariance(meas, noise_sigma))
-            except ValueError:
-                low = ~camera.has_depth(meas)
-                raise ValueError(
-                    f"{name} has {int(low.sum())} row(s) with disparity uL - uR <= {camera.min_disparity} px "
-                    f"(first at row {int(np.argmax(low))}): no depth can be triangulated"
-                ) from None
-        (points_prev, cov_prev), (points_curr, cov_curr) = triangulated
+        points_prev, cov_prev, usable_prev = camera.triangulate_usable(prev, noise_sigma)
+        points_curr, cov_curr, usable_curr = camera.triangulate_usable(curr, noise_sigma)
+        usable = None
+        if not (usable_prev.all() and usable_curr.all()):
+            usable = usable_prev & usable_curr
+            # a row usable in one frame only is unusable: give it NaN in both, so nothing reads half of it
+            for points, cov in ((points_prev, cov_prev), (points_curr, cov_curr)):
+                points[~usable] = np.nan
+                cov[~usable] = np.nan
         return cls(
             prev=prev,
             curr=curr,
@@ -84,9 +113,41 @@ class StereoProblem:
             points_curr=points_curr,
             cov_prev=cov_prev,
             cov_curr=cov_curr,
+            usable=usable,
         )
 
     @property
     def n(self) -> int:
         """Number of putative correspondences N."""
         return self.prev.shape[0]
+
+    @property
+    def usable_mask(self) -> np.ndarray:
+        """``(N,)`` bool: True where the match has a depth in both frames."""
+        return np.ones(self.n, dtype=bool) if self.usable is None else self.usable
+
+    @property
+    def n_unusable(self) -> int:
+        """Number of rows without depth."""
+        return 0 if self.usable is None else int(np.count_nonzero(~self.usable))
+
+    def usable_subproblem(self) -> tuple["StereoProblem", np.ndarray | None]:
+        """The usable rows as a problem of their own, and their indices ``(M,)`` into this one.
+
+        Without unusable rows this is ``(self, None)``: no copy. The sub-problem's rows are in
+        their original relative order; nothing is validated or triangulated again.
+        """
+        if self.usable is None:
+            return self, None
+        rows = np.flatnonzero(self.usable)
+        sub = dataclasses.replace(
+            self,
+            prev=self.prev[rows],
+            curr=self.curr[rows],
+            points_prev=self.points_prev[rows],
+            points_curr=self.points_curr[rows],
+            cov_prev=self.cov_prev[rows],
+            cov_curr=self.cov_curr[rows],
+            usable=None,
+        )
+        return sub, rows

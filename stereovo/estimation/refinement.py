@@ -160,3 +160,104 @@ class ReprojectionRefiner:
             if same:
                 break
         return R, t, inliers, residual_sq
+
+
+def _hat(v: np.ndarray) -> np.ndarray:
+    """``(M, 3, 3)`` cross-product matrices of ``v (M, 3)``."""
+    H = np.zeros(v.shape[:-1] + (3, 3))
+    H[..., 0, 1], H[..., 0, 2] = -v[..., 2], v[..., 1]
+    H[..., 1, 0], H[..., 1, 2] = v[..., 2], -v[..., 0]
+    H[..., 2, 0], H[..., 2, 1] = -v[..., 1], v[..., 0]
+    return H
+
+
+def _projection_jacobian(camera, P: np.ndarray) -> np.ndarray:
+    """``(M, 4, 3)``: d(uL, vL, uR, vR)/dP of points ``P (M, 3)`` in front of the camera."""
+    x, y, z = P[:, 0], P[:, 1], P[:, 2]
+    iz = 1.0 / z
+    J = np.zeros((P.shape[0], 4, 3))
+    J[:, 0, 0] = J[:, 2, 0] = camera.fx * iz
+    J[:, 1, 1] = J[:, 3, 1] = camera.fy * iz
+    J[:, 0, 2] = -camera.fx * x * iz * iz
+    J[:, 2, 2] = -camera.fx * (x - camera.baseline) * iz * iz
+    J[:, 1, 2] = J[:, 3, 2] = -camera.fy * y * iz * iz
+    return J
+
+
+def motion_error_jacobian(t: np.ndarray) -> np.ndarray:
+    """``(6, 6)`` map from the left perturbation ``delta = (rho, omega)`` of ``(R, t)``
+    (``T <- exp(delta^) T``, the refinement's parametrisation) to the error vector
+    ``e = (log(R' R^T), t' - t)``, to first order: ``e = (omega, rho - t^ omega)``."""
+    M = np.zeros((6, 6))
+    M[0:3, 3:6] = np.eye(3)
+    M[3:6, 0:3] = np.eye(3)
+    M[3:6, 3:6] = -_hat(np.asarray(t, dtype=float)[None])[0]
+    return M
+
+
+def pose_covariance(problem: StereoProblem, R: np.ndarray, t: np.ndarray, inliers: np.ndarray) -> np.ndarray | None:
+    """Covariance ``(6, 6)`` of the error of the motion fitted by least squares on ``inliers``.
+
+    The error vector is ``e = (log(R_est R_true^T), t_est - t_true)``: rotation first (rad, the
+    world-side, left-multiplied form), then translation (m). The fit is the refinement's: the
+    symmetric stereo reprojection error (the k-1 point into both images at k, the k point into
+    both images at k-1, :class:`ReprojectionRefiner`) with equal weights. Both of its residual
+    blocks carry the noise of both frames: the forward residual
+    ``pi(R X(m_prev) + t) - m_curr`` moves with ``m_curr`` and, through triangulation, with
+    ``m_prev``; the backward one the other way round. So the frame-k reprojection Jacobian's
+    ``sigma^2 (J^T J)^-1`` would be overconfident; the consistent first-order covariance of the
+    minimiser (the estimate's implicit function of the measurements) is the sandwich
+
+        ``Cov(delta) = A^-1 (sigma^2 sum_i J_i^T F_i F_i^T J_i) A^-1``, ``A = sum_i J_i^T J_i``,
+
+    ``J_i (8, 6)`` the residuals' pose Jacobian, ``F_i`` their Jacobian with respect to the
+    pixels the match measured in both frames (``(uL, uR, v)`` each, or ``(uL, vL, uR, vR)``
+    under ``camera.v_measurement="independent"``), ``sigma`` the pixel noise. It is carried to
+    ``e`` by :func:`motion_error_jacobian`. Returns None if fewer than 3 inliers or the normal
+    equations are singular. A motion that was not refined (``refine=False``) gets the
+    covariance of the least-squares fit it would have been refined to.
+    """
+    rows = np.flatnonzero(np.asarray(inliers, dtype=bool))
+    if rows.size < 3:
+        return None
+    camera = problem.camera
+    R = np.asarray(R, dtype=float)
+    t = np.asarray(t, dtype=float)
+    X, Y = problem.points_prev[rows], problem.points_curr[rows]
+    mp, mc = problem.prev[rows], problem.curr[rows]
+    P = X @ R.T + t  # the k-1 point in frame k
+    Q = (Y - t) @ R  # the k point in frame k-1: R^T (Y - t)
+    if np.any(P[:, 2] <= kernels.MIN_DEPTH) or np.any(Q[:, 2] <= kernels.MIN_DEPTH):
+        keep = (P[:, 2] > kernels.MIN_DEPTH) & (Q[:, 2] > kernels.MIN_DEPTH)  # no Jacobian behind the camera
+        if np.count_nonzero(keep) < 3:
+            return None
+        X, Y, mp, mc, P, Q = X[keep], Y[keep], mp[keep], mc[keep], P[keep], Q[keep]
+    m = X.shape[0]
+    Jp, Jq = _projection_jacobian(camera, P), _projection_jacobian(camera, Q)
+    # pose Jacobians: forward d/d delta of P = [I | -P^]; backward R^T [-I | Y^]
+    G_fwd = np.concatenate([np.broadcast_to(np.eye(3), (m, 3, 3)), -_hat(P)], axis=2)
+    G_bwd = R.T @ np.concatenate([np.broadcast_to(-np.eye(3), (m, 3, 3)), _hat(Y)], axis=2)
+    J = np.concatenate([Jp @ G_fwd, Jq @ G_bwd], axis=1)  # (m, 8, 6)
+    # measurement Jacobians: the measured pixels of each frame and where they enter the residual rows
+    T_prev, T_curr = camera.measurement_jacobian(mp), camera.measurement_jacobian(mc)
+    k = T_prev.shape[2]
+    E = np.eye(4) if k == 4 else np.array([[1.0, 0, 0], [0, 0, 1], [0, 1, 0], [0, 0, 1]])  # (uL, uR, v) -> rows
+    F = np.zeros((m, 8, 2 * k))
+    F[:, 0:4, 0:k] = Jp @ (R @ T_prev)  # forward rows vs the k-1 pixels (through triangulation)
+    F[:, 0:4, k:] = -E  # ... and the k pixels they are compared with
+    F[:, 4:8, k:] = Jq @ (R.T @ T_curr)  # backward rows vs the k pixels
+    F[:, 4:8, 0:k] = -E
+    A = np.einsum("mri,mrj->ij", J, J)
+    B = np.swapaxes(J, 1, 2) @ F  # (m, 6, 2k): the gradient's sensitivity to each measured pixel
+    S = problem.noise_sigma**2 * np.einsum("mik,mjk->ij", B, B)
+    try:
+        A_inv = np.linalg.inv(A)
+    except np.linalg.LinAlgError:
+        return None
+    cov_delta = A_inv @ S @ A_inv
+    M = motion_error_jacobian(t)
+    cov = M @ cov_delta @ M.T
+    cov = 0.5 * (cov + cov.T)
+    if not np.all(np.isfinite(cov)):
+        return None
+    return cov

@@ -1,0 +1,181 @@
+"""Rows without depth are outliers, not errors (issue 14 item 1), and the input contract at the
+problem's boundary (issue 16: non-real values refused by name, other layouts converted once)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from stereovo import StereoCamera, estimate_motion
+from stereovo.estimation import StereoProblem, estimate_problem
+from stereovo.geometry import rotation_error
+from stereovo.simulation import SimulationConfig, simulate_frame
+from vo_gym.features import FEATURE_BOUND, FEATURE_NAMES, compute_features, feature_index, usable_rows
+
+CAMERA = StereoCamera()
+
+
+@pytest.fixture(scope="module")
+def frame():
+    return simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.3), rng=11)
+
+
+def _spoil(frame, rows, where="prev"):
+    """Copies of the frame's measurements with ``rows`` given no depth (zero disparity) in ``where``."""
+    prev, curr = frame.prev.copy(), frame.curr.copy()
+    target = prev if where == "prev" else curr
+    target[rows, 2] = target[rows, 0]  # uR = uL: disparity 0
+    return prev, curr
+
+
+@pytest.mark.parametrize("method", ["probabilistic", "ransac", "msac", "mlesac", "inlier-detection"])
+def test_unusable_rows_are_reported_and_never_inliers(frame, method):
+    rows = np.array([0, 5, 17, 42, 100, 299])
+    prev, curr = _spoil(frame, rows[:3], "prev")
+    curr[rows[3:], 2] = curr[rows[3:], 0] + 0.05  # disparity -0.05: none either
+    est = estimate_motion(prev, curr, CAMERA, method=method, rng=3)
+    assert est.ok, est.status
+    expected = np.zeros(frame.n, dtype=bool)
+    expected[rows] = True
+    np.testing.assert_array_equal(est.unusable, expected)
+    assert est.n_unusable == rows.size
+    assert est.inliers.shape == (frame.n,) and not est.inliers[rows].any()
+    assert np.degrees(rotation_error(est.rotation, frame.truth.rotation)) < 0.5
+
+
+def test_a_frame_without_unusable_rows_is_unchanged_and_not_copied(frame):
+    problem = StereoProblem.build(frame.prev, frame.curr, CAMERA, 0.5)
+    assert problem.usable is None and problem.n_unusable == 0
+    assert problem.prev is frame.prev  # C-contiguous float64 already: no copy
+    sub, rows = problem.usable_subproblem()
+    assert sub is problem and rows is None
+
+
+def test_result_equals_the_estimate_on_the_usable_rows_alone(frame):
+    rows = np.array([3, 4, 250])
+    prev, curr = _spoil(frame, rows, "curr")
+    keep = np.setdiff1d(np.arange(frame.n), rows)
+    full = estimate_motion(prev, curr, CAMERA, rng=9)
+    alone = estimate_motion(prev[keep], curr[keep], CAMERA, rng=9)
+    np.testing.assert_array_equal(full.rotation, alone.rotation)
+    np.testing.assert_array_equal(full.translation, alone.translation)
+    np.testing.assert_array_equal(full.inliers[keep], alone.inliers)
+    np.testing.assert_array_equal(full.covariance, alone.covariance)
+
+
+def test_priors_and_order_map_to_the_usable_rows(frame):
+    rows = np.array([1, 2, 10])
+    prev, curr = _spoil(frame, rows, "prev")
+    keep = np.setdiff1d(np.arange(frame.n), rows)
+    order = np.argsort(-frame.scores, kind="stable")
+    full = estimate_motion(prev, curr, CAMERA, method="prosac", order=order, rng=1)
+    # the permutation's relative order of the usable rows, renumbered among them
+    position = np.full(frame.n, -1)
+    position[keep] = np.arange(keep.size)
+    sub_order = position[order][position[order] >= 0]
+    alone = estimate_motion(prev[keep], curr[keep], CAMERA, method="prosac", order=sub_order, rng=1)
+    np.testing.assert_array_equal(full.rotation, alone.rotation)
+    np.testing.assert_array_equal(full.inliers[keep], alone.inliers)
+    guided = estimate_motion(prev, curr, CAMERA, method="ransac", priors=frame.scores, rng=1)
+    guided_alone = estimate_motion(prev[keep], curr[keep], CAMERA, method="ransac", priors=frame.scores[keep], rng=1)
+    np.testing.assert_array_equal(guided.rotation, guided_alone.rotation)
+
+
+def test_too_few_usable_rows_is_a_failed_status_naming_the_counts(frame):
+    prev, curr = _spoil(frame, np.arange(2, frame.n), "prev")
+    est = estimate_motion(prev, curr, CAMERA)
+    assert not est.ok
+    assert est.status == f"failed: too few usable correspondences (2 of {frame.n} usable, need 6)"
+    assert est.n_unusable == frame.n - 2 and est.covariance is None
+    np.testing.assert_array_equal(est.rotation, np.eye(3))
+
+
+def test_priors_only_on_unusable_rows_fail_the_frame_without_raising(frame):
+    prev, curr = _spoil(frame, np.arange(3), "prev")
+    priors = np.zeros(frame.n)
+    priors[:3] = 1.0
+    est = estimate_motion(prev, curr, CAMERA, method="ransac", priors=priors)
+    assert not est.ok and "positive weights" in est.status
+
+
+def test_far_and_non_finite_depth_rows_are_unusable():
+    cam = StereoCamera()
+    meas = np.array([[600.0, 100, 590, 100], [600.0, 100, 599.95, 100], [1e308, 100, -1e308, 100]])
+    points, cov, usable = cam.triangulate_usable(meas, 0.5)
+    np.testing.assert_array_equal(usable, [True, False, False])
+    assert np.all(np.isnan(points[1:])) and np.all(np.isnan(cov[1:]))
+    with pytest.raises(ValueError, match="no depth"):
+        cam.triangulate(meas)
+
+
+@pytest.mark.parametrize("name", ["prev", "curr"])
+def test_complex_measurements_are_refused_by_name_without_a_cast(frame, name):
+    prev, curr = frame.prev.astype(complex), frame.curr.copy()
+    if name == "curr":
+        prev, curr = frame.prev.copy(), frame.curr.astype(complex)
+    with pytest.raises(ValueError, match=f"{name} must be real"):
+        estimate_motion(prev, curr, CAMERA)
+    with pytest.raises(ValueError, match=f"{name} must be real"):
+        StereoProblem.build(prev, curr, CAMERA)
+
+
+def test_other_layouts_are_converted_once_to_the_same_result(frame):
+    reference = estimate_motion(frame.prev, frame.curr, CAMERA, rng=2)
+    fortran = estimate_motion(np.asfortranarray(frame.prev), np.asfortranarray(frame.curr), CAMERA, rng=2)
+    wide = np.zeros((frame.n, 8))
+    wide[:, ::2] = frame.prev
+    strided = estimate_motion(wide[:, ::2], frame.curr, CAMERA, rng=2)
+    as_list = estimate_motion(frame.prev.tolist(), frame.curr.tolist(), CAMERA, rng=2)
+    for est in (fortran, strided, as_list):
+        np.testing.assert_array_equal(est.rotation, reference.rotation)
+        np.testing.assert_array_equal(est.inliers, reference.inliers)
+    problem = StereoProblem.build(np.asfortranarray(frame.prev), frame.curr.astype(np.float32), CAMERA)
+    for array in (problem.prev, problem.curr):
+        assert array.dtype == np.float64 and array.flags.c_contiguous
+
+
+def test_estimate_problem_scatters_like_estimate_motion(frame):
+    prev, curr = _spoil(frame, np.array([7, 8]), "prev")
+    problem = StereoProblem.build(prev, curr, CAMERA, 0.5)
+    assert problem.n_unusable == 2 and not problem.usable[[7, 8]].any()
+    a = estimate_problem(problem, rng=4)
+    b = estimate_motion(prev, curr, CAMERA, rng=4)
+    np.testing.assert_array_equal(a.inliers, b.inliers)
+    np.testing.assert_array_equal(a.unusable, b.unusable)
+
+
+def test_features_flag_unusable_rows_with_finite_values(frame):
+    prev, curr = _spoil(frame, np.array([0, 9]), "curr")
+    feats = compute_features(prev, curr, frame.scores, CAMERA, 0.5, previous_motion=(np.eye(3), np.zeros(3)))
+    assert feats.shape == (frame.n, len(FEATURE_NAMES)) and np.all(np.isfinite(feats))
+    np.testing.assert_array_equal(~usable_rows(feats), np.isin(np.arange(frame.n), [0, 9]))
+    for name in ("log_depth_prev", "log_depth_curr", "log_depth_std_prev"):
+        np.testing.assert_array_equal(feats[[0, 9], feature_index(name)], FEATURE_BOUND)
+    np.testing.assert_array_equal(feats[[0, 9], feature_index("rigid_consistency")], 0.0)
+    problem = StereoProblem.build(prev, curr, CAMERA, 0.5)
+    with_problem = compute_features(prev, curr, frame.scores, CAMERA, 0.5, (np.eye(3), np.zeros(3)), problem=problem)
+    np.testing.assert_array_equal(with_problem, feats)
+    # the other rows' consistency degree is over the rows with depth only
+    keep = np.setdiff1d(np.arange(frame.n), [0, 9])
+    alone = compute_features(prev[keep], curr[keep], frame.scores[keep], CAMERA, 0.5)
+    np.testing.assert_array_equal(feats[keep, feature_index("rigid_consistency")],
+                                  alone[:, feature_index("rigid_consistency")])
+
+
+def test_environment_steps_through_frames_with_unusable_rows():
+    import gymnasium
+
+    import vo_gym  # noqa: F401
+
+    env = gymnasium.make("vo_gym/StereoVO-v0", n_frames=3, n_correspondences=100).unwrapped
+    obs, _ = env.reset(seed=0)
+    frame = env.current_frame
+    frame.prev[:4, 2] = frame.prev[:4, 0]  # the next step's frame loses the depth of four rows
+    obs = env._observation()
+    assert np.all(np.isfinite(obs["features"]))
+    np.testing.assert_array_equal(obs["mask"][:4], 0)
+    assert obs["mask"][4:].all()
+    action = np.zeros(env.action_space.shape, dtype=np.float32)
+    action[:4] = -np.inf  # masked logits on the unusable rows are accepted
+    obs, reward, terminated, truncated, info = env.step(action)
+    assert np.isfinite(reward) and info["status"] == "ok"
