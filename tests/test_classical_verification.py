@@ -273,3 +273,169 @@ def test_preemptive_fails_more_often_than_adaptive_ransac_at_high_contamination(
             est = estimate(frame, method, i)
             ok[method] += succeeded(est, frame)
     assert ok["ransac"] >= 4 and ok["preemptive"] <= ok["ransac"] - 2, ok
+
+
+# ----------------------------------------------------------------------------- compiled early rejection, robustness
+
+
+class SameResidualOtherModel(ReprojectionResidual):
+    """The reprojection residual under another class: the verifiers' numpy route (the compiled one
+    is chosen only for ReprojectionResidual itself)."""
+
+
+def numpy_route(ctx):
+    model = SameResidualOtherModel(ctx.threshold_sq)
+    object.__setattr__(model, "__class__", SameResidualOtherModel)
+    return ScoringContext(ctx.problem, model, ctx.quality, ctx.threshold_sq)
+
+
+def test_compiled_sprt_decides_exactly_like_the_vectorised_test():
+    import stereovo.estimation.sprt as sprt_module
+
+    frame, problem, ctx = setup()
+    rng = np.random.default_rng(3)
+    R, t = good_and_bad(frame, 5, 120, rng)
+    samples = np.stack([rng.choice(problem.n, 3, replace=False) for _ in range(R.shape[0])])
+    results = []
+    original = sprt_module.ReprojectionResidual
+    for compiled in (True, False):
+        verifier = SprtVerification(problem.n, t_m=200.0, epsilon0=0.4, delta0=0.05)
+        # the numpy route: make the compiled branch's type test fail for this call
+        sprt_module.ReprojectionResidual = original if compiled else SameResidualOtherModel
+        try:
+            scores, checks = verifier.verify(ctx, R, t, np.random.default_rng(9), samples=samples)
+        finally:
+            sprt_module.ReprojectionResidual = original
+        results.append((scores, checks, verifier._n_rejected, verifier._ratio_sum))
+    np.testing.assert_array_equal(results[0][0], results[1][0])
+    assert results[0][1:3] == results[1][1:3]
+    assert results[0][3] == pytest.approx(results[1][3])
+
+
+def test_compiled_tdd_pretest_points_are_uniform_and_exclude_the_sample():
+    from stereovo.estimation.kernels_verification import tdd_pretest
+
+    frame, problem, ctx = setup()
+    H, d = 4000, 3
+    R = np.repeat(frame.truth.rotation[None], H, axis=0)
+    t = np.repeat(frame.truth.translation[None], H, axis=0)
+    samples = np.tile(np.array([5, 0, 299]), (H, 1))
+    # a gate of +inf passes every point, so all d are checked; record which by perturbing one row at a time
+    passed, checks, consistent = tdd_pretest(R, t, problem.points_prev, problem.curr, problem.camera.parameters,
+                                             np.inf, samples, np.random.default_rng(0).random((H, d)), False)
+    assert np.all(passed) and np.all(checks == d) and np.all(consistent == d)
+    # the same uniforms select the points the closed-form shift gives: distinct, never 0, 5 or 299
+    u = np.random.default_rng(1).random((H, d))
+    picked = []
+    for h in range(200):
+        excluded = sorted([0, 5, 299])
+        row = []
+        for j in range(d):
+            idx = min(int(u[h, j] * (problem.n - 3 - j)), problem.n - 4 - j)
+            for e in excluded:
+                if idx >= e:
+                    idx += 1
+            excluded = sorted(excluded + [idx])
+            row.append(idx)
+        picked.append(row)
+    picked = np.array(picked)
+    assert not np.isin(picked, [0, 5, 299]).any() and all(len(set(r)) == d for r in picked)
+    # pass rate of the true motion on the pre-test = its support fraction among the other points
+    sq = ctx.residuals(frame.truth.rotation[None], frame.truth.translation[None])[0]
+    support = np.delete(sq < ctx.threshold_sq, [0, 5, 299])
+    passed, checks, _ = tdd_pretest(R, t, problem.points_prev, problem.curr, problem.camera.parameters,
+                                    ctx.threshold_sq, samples, np.random.default_rng(2).random((H, 1)), True)
+    lo, hi = binom.interval(0.999, H, support.mean())
+    assert lo <= passed.sum() <= hi and np.all(checks == 1)
+
+
+def test_tdd_measured_pass_probability_matches_that_of_true_all_inlier_fits():
+    """The verifier's alpha (mean pass probability of the hypotheses whose samples lie in the best
+    model's inliers) against the pass rate of minimal fits on truly all-inlier samples."""
+    from stereovo.estimation.solvers import minimal_hypotheses
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=500, outlier_ratio=0.5), 21)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    threshold = 9.0
+    ctx = ScoringContext(problem, ReprojectionResidual(threshold), InlierCount(), threshold)
+    rng = np.random.default_rng(4)
+    inl = np.flatnonzero(frame.truth.inlier)
+    truth_samples = np.stack([rng.choice(inl, 3, replace=False) for _ in range(2000)])
+    R, t, valid = minimal_hypotheses(problem, truth_samples, 2)
+    sq = ctx.residuals(R[valid], t[valid])
+    own = np.take_along_axis(sq < threshold, truth_samples[valid], axis=1).sum(axis=1)
+    true_alpha = np.mean(((sq < threshold).sum(axis=1) - own) / (problem.n - 3))
+    verifier = TddVerification(1, max_measured=10_000)
+    verifier.on_new_best(frame.truth.inlier, None)
+    mixed = np.stack([rng.choice(problem.n, 3, replace=False) for _ in range(6000)])
+    Rm, tm, validm = minimal_hypotheses(problem, mixed, 2)
+    verifier.verify(ctx, Rm[validm], tm[validm], rng, samples=mixed[validm])
+    counters = verifier.counters()
+    assert counters["tdd_good_measured"] > 400
+    assert counters["tdd_alpha"] == pytest.approx(true_alpha, rel=0.15), (counters, true_alpha)
+    assert counters["tdd_alpha"] < 0.6 * (1 - 0.5)  # far below the textbook w^d
+
+
+def planar_pair(rng, n=120, collinear=False):
+    """Points on the plane z = 12 m (or on one line in it), seen before and after a small motion."""
+    if collinear:
+        s = rng.uniform(-8, 8, n)
+        X = np.c_[s, 0.3 * s + rng.normal(0, 1e-6, n), np.full(n, 12.0)]
+    else:
+        X = np.c_[rng.uniform(-8, 8, n), rng.uniform(-2, 2, n), np.full(n, 12.0)]
+    from stereovo.geometry import se3_exp
+
+    R, t = se3_exp(np.array([0.02, -0.01, 0.5, 0.01, 0.02, -0.005]))
+    return frame_camera().project(X), frame_camera().project(X @ R.T + t)
+
+
+def frame_camera():
+    return simulate_frame(SimulationConfig(n_correspondences=20), 0).camera
+
+
+@pytest.mark.parametrize("method", ["waldsac", "usac"])
+@pytest.mark.parametrize("case", ["outlier-free", "identical", "coplanar", "near-collinear"])
+def test_sprt_never_overflows(method, case):
+    rng = np.random.default_rng(5)
+    if case == "outlier-free":
+        frame = simulate_frame(SimulationConfig(n_correspondences=400, outlier_ratio=0.0), 8)
+        prev, curr, camera = frame.prev, frame.curr, frame.camera
+    elif case == "identical":
+        frame = simulate_frame(SimulationConfig(n_correspondences=400, outlier_ratio=0.0), 8)
+        prev, curr, camera = frame.prev, frame.prev.copy(), frame.camera
+    else:
+        prev, curr = planar_pair(rng, collinear=case == "near-collinear")
+        camera = frame_camera()
+    with np.errstate(over="raise"):
+        est = estimate_motion(prev, curr, camera, method=method, rng=0, noise_sigma=0.5)
+    assert est.status == "ok" or est.status.startswith("failed:")
+    if case in ("outlier-free", "identical", "coplanar"):
+        assert est.ok, est.status
+        assert est.n_inliers >= 0.5 * prev.shape[0]
+    if case == "outlier-free":
+        assert np.degrees(rotation_error(est.rotation, frame.truth.rotation)) < 1.0
+    if case == "identical":
+        assert np.degrees(rotation_error(est.rotation, np.eye(3))) < 0.05 and np.linalg.norm(est.translation) < 0.01
+    counters = est.report.counters
+    assert counters["sprt_designs"] >= 1 and np.isfinite(counters["sprt_epsilon"])
+
+
+def test_good_model_exponent_is_finite_for_clean_frames():
+    for epsilon, epsilon_i, delta_i in ((0.999999, 0.1, 0.01), (1 - 1e-12, 0.3, 0.001), (0.999, 0.9999, 0.3)):
+        h = good_model_exponent(epsilon, epsilon_i, delta_i)
+        assert np.isfinite(h) or h == np.inf
+        a, b = delta_i / epsilon_i, (1 - delta_i) / (1 - epsilon_i)
+        if 0 < h < np.inf:
+            assert np.logaddexp(np.log(epsilon) + h * np.log(a), np.log1p(-epsilon) + h * np.log(b)) == pytest.approx(0, abs=1e-9)
+
+
+def test_waldsac_through_the_environment_on_an_outlier_free_episode():
+    import gymnasium
+
+    import vo_gym  # noqa: F401
+
+    env = gymnasium.make("vo_gym/StereoVO-v0", max_episode_steps=3, method="waldsac", outlier_ratio=0.0)
+    env.reset(seed=0)
+    for _ in range(3):
+        env.step(env.action_space.sample())
+    env.close()

@@ -21,13 +21,14 @@ inner sample and every shrinking-gate branch is fitted in one batched call.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from stereovo.estimation.reprojection import gauss_newton_steps
 from stereovo.estimation.solvers import SAMPLE_SIZE, kabsch_batch
 from stereovo.estimation.verification import ScoringContext
+from stereovo.options import Integer, Number
 
 
 def _fit_subsets(ctx: ScoringContext, idx: np.ndarray, weights: np.ndarray, R0, t0, iterations: int):
@@ -63,17 +64,23 @@ class InnerRansacLO:
     fit_cap: int = 84
     fit_iterations: int = 3
     subsumed_by_refinement: bool = False  # its inner RANSAC searches; the refinement does not
+    # this run's counts (a recipe builds its optimiser per estimate); mutable inside the frozen class
+    counts: dict = field(
+        default_factory=lambda: {"lo_runs": 0, "lo_skipped": 0, "lo_improved": 0, "lo_checks": 0},
+        repr=False, compare=False,
+    )
 
     def __post_init__(self) -> None:
-        for name, ok in (
-            ("lo_inner_iterations", self.inner_iterations >= 1),
-            ("lo_sample_cap", self.sample_cap >= SAMPLE_SIZE + 1),
-            ("lo_threshold_multiplier", self.threshold_multiplier >= 1),
-            ("lo_steps", self.steps >= 1),
+        # The estimator's option contract (stereovo.options), under the names the methods take.
+        for field, rule in (
+            ("inner_iterations", Integer(low=1)),
+            ("sample_cap", Integer(low=SAMPLE_SIZE + 1)),
+            ("threshold_multiplier", Number(low=1.0)),
+            ("steps", Integer(low=1)),
+            ("fit_cap", Integer(low=SAMPLE_SIZE)),
+            ("fit_iterations", Integer(low=0)),
         ):
-            value = getattr(self, name.removeprefix("lo_"))
-            if not ok or (name != "lo_threshold_multiplier" and int(value) != value):
-                raise ValueError(f"option {name} has an invalid value {value!r}")
+            object.__setattr__(self, field, rule.check(f"lo_{field}", getattr(self, field)))
 
     def improve(
         self,
@@ -88,7 +95,9 @@ class InnerRansacLO:
         members = np.flatnonzero(inliers)
         n = ctx.problem.n
         if members.size < 2 * SAMPLE_SIZE:
+            self.counts["lo_skipped"] += 1
             return R, t, inliers, score, 0
+        self.counts["lo_runs"] += 1
         checks = 0
         candidates_R, candidates_t, candidates_sq = [], [], []
 
@@ -134,6 +143,13 @@ class InnerRansacLO:
         all_sq = np.concatenate(candidates_sq)
         scores = ctx.quality.score(all_sq, ctx.threshold_sq)
         best = int(np.argmax(scores))
+        self.counts["lo_checks"] += checks
         if scores[best] > score:
+            self.counts["lo_improved"] += 1
             return all_R[best], all_t[best], all_sq[best] < ctx.threshold_sq, float(scores[best]), checks
         return R, t, inliers, score, checks
+
+    def counters(self) -> dict[str, int | float]:
+        """``lo_runs`` (LO run on a new best), ``lo_skipped`` (fewer than 2 s inliers), ``lo_improved``
+        (the result replaced the best), ``lo_checks`` (point checks spent in LO)."""
+        return dict(self.counts)

@@ -10,7 +10,7 @@ would otherwise be fed too small an inlier count.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -24,6 +24,8 @@ class ConsensusRefit:
 
     refiner: ReprojectionRefiner = ReprojectionRefiner(iterations=3, rounds=2)
     subsumed_by_refinement: bool = True  # the final refinement refits on the consensus too
+    # this run's counts (a recipe builds its optimiser per estimate); mutable inside the frozen class
+    counts: dict = field(default_factory=lambda: {"refit_runs": 0, "refit_improved": 0}, repr=False, compare=False)
 
     def improve(
         self,
@@ -36,6 +38,7 @@ class ConsensusRefit:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
         if np.count_nonzero(inliers) < 3:
             return R, t, inliers, score, 0
+        self.counts["refit_runs"] += 1
         R_new, t_new, _, residual_sq = self.refiner.refine_with_residuals(
             ctx.problem, R, t, inliers, ctx.residual_model, ctx.threshold_sq
         )
@@ -48,5 +51,10 @@ class ConsensusRefit:
             new_score, new_inliers = float(scores[0]), masks[0]
             checks += ctx.problem.n
         if new_score > score:
+            self.counts["refit_improved"] += 1
             return R_new, t_new, new_inliers, new_score, checks
         return R, t, inliers, score, checks
+
+    def counters(self) -> dict[str, int | float]:
+        """``refit_runs``: consensus refits run; ``refit_improved``: those that replaced the best."""
+        return dict(self.counts)

@@ -64,6 +64,8 @@ class PreemptiveVerification:
         self.hypotheses, self.block = int(self.hypotheses), int(self.block)
         self.last_preemption_evaluations = 0
         self.last_observations = 0  # observations the breadth-first phase reached
+        self.n_evaluations = 0  # over the run (the loop hands the whole set over once)
+        self.n_hypotheses = 0
 
     def verify(
         self, ctx: ScoringContext, R: np.ndarray, t: np.ndarray, rng: np.random.Generator
@@ -96,6 +98,8 @@ class PreemptiveVerification:
         winner = int(alive[np.argmax(total[alive])])
         self.last_preemption_evaluations = evaluations
         self.last_observations = seen
+        self.n_evaluations += evaluations
+        self.n_hypotheses += H
         extra = 0
         if seen < n:  # the breadth-first phase stopped early: finish the winner's residuals only
             rest = order[seen:]
@@ -104,3 +108,12 @@ class PreemptiveVerification:
         scores = np.full(H, -np.inf)
         scores[winner] = float(ctx.quality.score(sq_store[winner : winner + 1], T2)[0])
         return scores, evaluations + extra
+
+    def counters(self) -> dict[str, int | float]:
+        """``preemptive_hypotheses`` verified, ``preemptive_evaluations`` (breadth-first residuals,
+        ``sum_i f(i)``), ``preemptive_observations`` (observations the breadth-first phase reached)."""
+        return {
+            "preemptive_hypotheses": self.n_hypotheses,
+            "preemptive_evaluations": self.n_evaluations,
+            "preemptive_observations": self.last_observations,
+        }
