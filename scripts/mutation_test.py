@@ -271,6 +271,12 @@ def main(argv: list[str] | None = None) -> int:
     if not args.report_only:
         if not (args.keep and args.workdir.is_dir()):
             copy_tree(args.workdir, args.commit)
+            # A tree caught half-edited is no baseline: mutmut needs the selected tests green first.
+            check = subprocess.run([sys.executable, "-c", "import stereovo, vo_gym, agents.ngransac"],
+                                   cwd=args.workdir, env=mutmut_environment(), capture_output=True, text=True)
+            if check.returncode != 0:
+                print(f"the copied tree does not import:\n{check.stderr[-2000:]}", file=sys.stderr)
+                return 1
         # The modules asked for are mutated at once (one copy, one statistics run), then checked in order.
         write_config(args.workdir, modules)
         for module in modules:

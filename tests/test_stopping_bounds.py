@@ -9,6 +9,7 @@ asked of the code under test.
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -56,6 +57,13 @@ def test_tdd_bound_is_stretched_by_the_pass_probability():
     assert TddTermination(confidence=0.99, d=1).required(6, 20) == 1486
     # d = 2: alpha = (3 / 17) * (2 / 16); k = ceil(11897.3) = 11898.
     assert TddTermination(confidence=0.99, d=2, max_iterations=100_000).required(6, 20) == 11898
+    # A measured pass probability replaces the fallback: alpha = 1/2 gives ceil(log(0.01) / log(1 - q / 2)) =
+    # ceil(522.6) = 523, alpha = 1/4 gives ceil(1047.7) = 1048 (and no measurement yet: the fallback, 1486).
+    assert math.ceil(math.log(0.01) / math.log(1 - q / 2)) == 523
+    assert math.ceil(math.log(0.01) / math.log(1 - q / 4)) == 1048
+    for measured, expected in ((0.5, 523), (0.25, 1048), (None, 1486)):
+        verifier = SimpleNamespace(alpha=lambda measured=measured: measured)
+        assert TddTermination(confidence=0.99, d=1, verifier=verifier).required(6, 20) == expected, measured
     # Plain RANSAC's 261 is the d = 0 limit: the pre-test only ever stretches the bound.
     assert TddTermination(confidence=0.99, d=1).required(300, 300) == 1
     assert TddTermination(confidence=0.99, d=1, max_iterations=900).required(3, 300) == 900
