@@ -1,0 +1,327 @@
+"""The in-frame comparison: success against mean hypotheses per frame on identical frames.
+
+Every sampler runs as a policy of :class:`vo_gym.adaptive_env.StereoVOAdaptiveEnv` (same judge,
+same final refinement, same chained motion), on the same held-out episode seeds, so the frames are
+identical for all (they depend on the seed only):
+
+- ``learned``: the in-frame sampler of :mod:`agents.adaptive`, its own stop at several confidences;
+- ``bansac`` / ``ars``: the samplers of :mod:`stereovo.estimation.bansac` / ``ars`` fed by the env's
+  per-hypothesis verdicts, with the match scores as priors, BANSAC's own stop at several confidences,
+  ARS's adaptive bound (ARS's deterministic "most probable sample" becomes guided sampling on
+  ``p ** 20``, nearly always the most probable points: the env samples, it takes no indices);
+- ``ngransac`` / ``ppo`` (one-shot): the shipped samplers' logits on the frame features, fixed budgets;
+- ``uniform`` and ``prosac-score``: uniform logits at fixed budgets; PROSAC by match score (the core's
+  ``prosac`` method with its own stop, run on the same frames by :func:`estimate_problem`).
+
+A policy is ``act(obs, step) -> action``, with ``step`` the runner's view of the last env step
+(``frame_hypotheses``, ``batch_samples``, ``batch_inliers``, ``new_frame``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from stereovo.estimation import estimate_problem
+from stereovo.estimation.ars import baysac_failure_update
+from stereovo.estimation.bansac import BansacSampler, initial_beliefs
+from stereovo.estimation.loop import LoopState
+from stereovo.estimation.problem import StereoProblem
+from stereovo.estimation.termination import required_iterations
+from stereovo.metrics import frame_metrics
+from vo_gym.adaptive_env import StereoVOAdaptiveEnv
+from vo_gym.features import N_FEATURES, feature_index
+from vo_gym.registration import HARD_SETTINGS
+
+LOGIT_BOUND = 10.0
+MATCH_SCORE = feature_index("match_score")
+
+
+def _action(logits: np.ndarray, mask: np.ndarray, stop: bool) -> np.ndarray:
+    mask = np.asarray(mask, bool)
+    out = np.full(mask.shape[0] + 1, -LOGIT_BOUND, dtype=np.float32)
+    out[: mask.shape[0]][mask] = np.clip(logits[mask], -LOGIT_BOUND, LOGIT_BOUND)
+    out[-1] = 1.0 if stop else -1.0
+    return out
+
+
+class BudgetPolicy:
+    """Fixed logits per frame (``logits_fn(obs)`` at the frame's first step), stop at ``budget``."""
+
+    def __init__(self, name: str, budget: int, logits_fn: Callable[[dict], np.ndarray]) -> None:
+        self.name, self.budget, self.logits_fn = name, int(budget), logits_fn
+        self._logits: np.ndarray | None = None
+
+    def act(self, obs: dict, step: dict) -> np.ndarray:
+        if step["new_frame"] or self._logits is None:
+            self._logits = self.logits_fn(obs)
+        return _action(self._logits, obs["mask"], step["frame_hypotheses"] >= self.budget)
+
+
+class BansacPolicy:
+    """BANSAC's beliefs (match scores as priors) updated from each step's verdicts; its own stop."""
+
+    def __init__(self, confidence: float, name: str = "bansac") -> None:
+        self.name, self.confidence = name, float(confidence)
+        self._sampler: BansacSampler | None = None
+
+    def act(self, obs: dict, step: dict) -> np.ndarray:
+        mask = np.asarray(obs["mask"], bool)
+        n = int(mask.sum())
+        if step["new_frame"] or self._sampler is None:
+            self._sampler = BansacSampler(n, np.asarray(obs["features"][:n, MATCH_SCORE], float))
+        elif step["batch_samples"].shape[0]:
+            self._sampler.on_hypotheses(None, None, step["batch_inliers"], None,
+                                        LoopState(step["frame_hypotheses"], 0.0, samples=step["batch_samples"]))
+        stop = step["frame_hypotheses"] > 0 and self._sampler.stop_confidence() >= self.confidence
+        logits = np.zeros(mask.shape[0])
+        logits[:n] = np.log(self._sampler.beliefs)
+        return _action(logits, mask, stop)
+
+
+class ArsPolicy:
+    """ARS's probabilities (match scores as priors), BaySAC failure updates, adaptive bound."""
+
+    def __init__(self, confidence: float = 0.99, sharpness: float = 20.0, name: str = "ars") -> None:
+        self.name, self.confidence, self.sharpness = name, float(confidence), float(sharpness)
+        self._p: np.ndarray | None = None
+        self._best = -1
+
+    def act(self, obs: dict, step: dict) -> np.ndarray:
+        mask = np.asarray(obs["mask"], bool)
+        n = int(mask.sum())
+        if step["new_frame"] or self._p is None:
+            self._p = initial_beliefs(n, np.asarray(obs["features"][:n, MATCH_SCORE], float), 0.5, 0.6)
+            self._best = -1
+        for sample, verdicts in zip(step["batch_samples"], step["batch_inliers"]):
+            support = int(verdicts.sum())
+            if support > self._best:
+                self._best = support
+            else:
+                self._p = baysac_failure_update(self._p, sample)
+        drawn = step["frame_hypotheses"]
+        stop = drawn > 0 and drawn >= required_iterations(max(self._best, 0), n, self.confidence)
+        logits = np.zeros(mask.shape[0])
+        logits[:n] = self.sharpness * np.log(self._p)
+        logits[:n] -= logits[:n].max()
+        return _action(logits, mask, stop)
+
+
+class LearnedAdaptivePolicy:
+    """:class:`agents.adaptive.AdaptiveSamplerPolicy` in the runner's interface."""
+
+    def __init__(self, policy, name: str) -> None:
+        self.policy, self.name = policy, name
+
+    def act(self, obs: dict, step: dict) -> np.ndarray:
+        return self.policy.act(obs)
+
+
+def one_shot_logits(sampler) -> Callable[[dict], np.ndarray]:
+    """A shipped one-shot sampler's logits on the frame-feature columns of the adaptive observation."""
+
+    def logits(obs: dict) -> np.ndarray:
+        return np.asarray(sampler.act({"features": obs["features"][:, :N_FEATURES], "mask": obs["mask"]}), float)
+
+    return logits
+
+
+def run_policy(env: StereoVOAdaptiveEnv, policy, seed: int) -> list[dict[str, Any]]:
+    """One episode of ``policy``; one row per frame (success, hypotheses, stopped, all-inlier drawn)."""
+    obs, _ = env.reset(seed=seed)
+    step = {"frame_hypotheses": 0, "batch_samples": np.zeros((0, 3), np.int64),
+            "batch_inliers": np.zeros((0, 0), bool), "new_frame": True}
+    rows = []
+    while True:
+        obs, _, _, truncated, info = env.step(policy.act(obs, step))
+        step = {"frame_hypotheses": 0 if info["frame_done"] else info["frame_hypotheses"],
+                "batch_samples": info["batch_samples"], "batch_inliers": info["batch_inliers"],
+                "new_frame": info["frame_done"]}
+        if info["frame_done"]:
+            rows.append({"seed": seed, "frame": info["frame"], "success": bool(info["success"]),
+                         "n_hypotheses": int(info["n_hypotheses"]), "stopped": bool(info["stopped"]),
+                         "all_inlier_drawn": bool(info["all_inlier_drawn"]),
+                         "rot_err_deg": info["rot_err_deg"], "trans_err_m": info["trans_err_m"]})
+        if truncated:
+            return rows
+
+
+def run_prosac_by_score(env: StereoVOAdaptiveEnv, seed: int) -> list[dict[str, Any]]:
+    """PROSAC ordered by match score (the core's ``prosac`` with its stop) on the episode's frames."""
+    env.reset(seed=seed)
+    rows = []
+    for k in range(1, env.sim_config.n_frames + 1):
+        frame = env.sequence.frame(k)
+        problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, env.estimator_options.noise_sigma)
+        est = estimate_problem(problem, method="prosac", order=np.argsort(-frame.scores, kind="stable"),
+                               rng=np.random.default_rng([seed, k]), max_iterations=2000)
+        m = frame_metrics(est, frame.truth)
+        rows.append({"seed": seed, "frame": k, "success": bool(m.success), "n_hypotheses": int(est.n_hypotheses),
+                     "stopped": True, "all_inlier_drawn": None, "rot_err_deg": m.rot_err_deg,
+                     "trans_err_m": m.trans_err_m})
+    return rows
+
+
+@dataclass(frozen=True)
+class AdaptiveComparison:
+    """Settings of the comparison (held-out seeds ``seed .. seed + episodes - 1``)."""
+
+    learned: str = "adaptive-pg"
+    confidences: tuple[float, ...] = (0.5, 0.8, 0.9, 0.95, 0.98)
+    bansac_confidences: tuple[float, ...] = (0.9, 0.99, 0.999)
+    budgets: tuple[int, ...] = (4, 8, 16, 32, 64)
+    one_shot: tuple[str, ...] = ("ngransac-supervised", "ppo")
+    episodes: int = 10
+    frames_per_episode: int = 10
+    seed: int = 5000
+    n: int = 500
+    max_hypotheses: int = 64
+    settings: tuple[tuple[str, float], ...] = (("standard", 0.9), ("hard", 0.8))
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def make_env(config: AdaptiveComparison, setting: str, epsilon: float) -> StereoVOAdaptiveEnv:
+    kwargs = dict(HARD_SETTINGS) if setting == "hard" else {}
+    kwargs["outlier_ratio"] = float(epsilon)
+    return StereoVOAdaptiveEnv(n_frames=config.frames_per_episode, n_correspondences=config.n,
+                               max_hypotheses=config.max_hypotheses, **kwargs)
+
+
+def policies(config: AdaptiveComparison) -> list[tuple[str, Any, Any]]:
+    """``(family, point label, policy)`` for every curve point."""
+    from agents.adaptive import AdaptiveSamplerPolicy, load_adaptive
+    from agents.checkpoint import load_sampler
+
+    out: list[tuple[str, Any, Any]] = []
+    net, _ = load_adaptive(config.learned)
+    for c in config.confidences:
+        out.append(("learned (own stop)", c, LearnedAdaptivePolicy(AdaptiveSamplerPolicy(net, c), "learned")))
+    for c in config.bansac_confidences:
+        out.append(("bansac (own stop)", c, BansacPolicy(c)))
+    out.append(("ars (adaptive bound)", 0.99, ArsPolicy(0.99)))
+    for name in config.one_shot:
+        logits = one_shot_logits(load_sampler(name))
+        for b in config.budgets:
+            out.append((f"{name} (one-shot)", b, BudgetPolicy(name, b, logits)))
+    for b in config.budgets:
+        out.append(("uniform", b, BudgetPolicy("uniform", b, lambda obs: np.zeros(np.asarray(obs["mask"]).shape))))
+    return out
+
+
+def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    success = np.array([r["success"] for r in rows])
+    stopped = [r for r in rows if r["stopped"] and r["all_inlier_drawn"] is not None]
+    miss = [not r["all_inlier_drawn"] for r in stopped]
+    k = int(success.sum())
+    return {"frames": len(rows), "success": float(success.mean()), "successes": k,
+            "mean_hypotheses": float(np.mean([r["n_hypotheses"] for r in rows])),
+            "stopped": len(stopped), "miss_rate": float(np.mean(miss)) if miss else None,
+            "success_ci95": list(wilson(k, len(rows)))}
+
+
+def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion."""
+    if n == 0:
+        return (math.nan, math.nan)
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return (max(0.0, centre - half), min(1.0, centre + half))
+
+
+def run_comparison(config: AdaptiveComparison, log: Callable[[str], None] = print) -> dict[str, Any]:
+    """Every policy on every setting; returns ``{setting: [{family, point, ...summary}]}``."""
+    result: dict[str, Any] = {"config": {k: v for k, v in config.__dict__.items()}}
+    seeds = [config.seed + i for i in range(config.episodes)]
+    for setting, epsilon in config.settings:
+        env = make_env(config, setting, epsilon)
+        table = []
+        for family, point, policy in policies(config):
+            start = time.time()
+            rows = [r for s in seeds for r in run_policy(env, policy, s)]
+            table.append({"family": family, "point": point, **summarise(rows)})
+            log(f"{setting} eps {epsilon}: {family} {point}: {table[-1]['success']:.3f} "
+                f"at {table[-1]['mean_hypotheses']:.1f} ({time.time() - start:.0f} s)")
+        rows = [r for s in seeds for r in run_prosac_by_score(env, s)]
+        table.append({"family": "prosac by score (own stop)", "point": None, **summarise(rows)})
+        log(f"{setting} eps {epsilon}: prosac by score: {table[-1]['success']:.3f} at {table[-1]['mean_hypotheses']:.1f}")
+        result[f"{setting} eps {epsilon}"] = table
+    return result
+
+
+def comparison_markdown(result: dict[str, Any]) -> str:
+    lines = []
+    for key, table in result.items():
+        if key == "config":
+            continue
+        lines += [f"### {key}", "", "| sampler | point | success | 95 % CI | mean hypotheses | stop miss rate |",
+                  "|---|---|---|---|---|---|"]
+        for r in table:
+            ci = r["success_ci95"]
+            miss = "" if r["miss_rate"] is None else f"{100 * r['miss_rate']:.1f} % of {r['stopped']}"
+            point = "" if r["point"] is None else r["point"]
+            lines.append(f"| {r['family']} | {point} | {100 * r['success']:.1f} % | {100 * ci[0]:.0f}-{100 * ci[1]:.0f} % "
+                         f"| {r['mean_hypotheses']:.1f} | {miss} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def write_comparison(result: dict[str, Any], out: str | Path) -> list[Path]:
+    """``adaptive.json``, ``adaptive.md`` and one ``adaptive-<setting>.png`` per setting in ``out``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [out / "adaptive.json", out / "adaptive.md"]
+    paths[0].write_text(json.dumps(result, indent=1, default=float))
+    paths[1].write_text(comparison_markdown(result))
+    for key, table in result.items():
+        if key == "config":
+            continue
+        fig, ax = plt.subplots(figsize=(6, 4))
+        for family in dict.fromkeys(r["family"] for r in table):
+            pts = sorted((r["mean_hypotheses"], 100 * r["success"]) for r in table if r["family"] == family)
+            ax.plot(*zip(*pts), marker="o", label=family)
+        ax.set_xscale("log")
+        ax.set_xlabel("mean hypotheses per frame")
+        ax.set_ylabel("success (%)")
+        ax.set_title(key)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+        path = out / f"adaptive-{key.replace(' ', '-')}.png"
+        fig.tight_layout()
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+    return paths
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m agents.adaptive_evaluation --out runs/adaptive``."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description="in-frame adaptive sampling comparison")
+    parser.add_argument("--out", default="runs/adaptive")
+    parser.add_argument("--learned", default="adaptive-pg")
+    parser.add_argument("--episodes", type=int, default=10)
+    parser.add_argument("--frames", type=int, default=10)
+    parser.add_argument("--seed", type=int, default=5000)
+    args = parser.parse_args(argv)
+    config = AdaptiveComparison(learned=args.learned, episodes=args.episodes, frames_per_episode=args.frames,
+                                seed=args.seed)
+    for path in write_comparison(run_comparison(config), args.out):
+        print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
