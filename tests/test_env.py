@@ -280,14 +280,39 @@ def test_reward_modes_are_bounded_and_ordered():
     assert info["status"] != "ok" and info["fallback"] and reward == -0.7
 
 
-def test_render_rgb_array():
-    env = gym.make("vo_gym/StereoVOProsac-v0", n_frames=2, n_correspondences=100, render_mode="rgb_array")
-    env.reset(seed=0)
-    first = env.render()
-    env.step(np.linspace(-1, 1, 100, dtype=np.float32))
-    image = env.render()
-    assert image.dtype == np.uint8 and image.ndim == 3 and image.shape[2] == 3
-    assert image.shape == first.shape and not np.array_equal(image, first)
+def _near(image, rgb, tol=0.06):
+    """Pixels within ``tol`` (per channel, 0-1 scale) of the colour ``rgb``."""
+    return int(np.count_nonzero(np.all(np.abs(image / 255.0 - np.asarray(rgb)) < tol, axis=-1)))
+
+
+def _reddish(image):
+    """Pixels of the estimated-inlier rings (tab:red, antialiased): strong red, weak green and blue."""
+    im = image.astype(int)
+    return int(np.count_nonzero((im[..., 0] > 150) & (im[..., 1] < 120) & (im[..., 2] < 120)))
+
+
+def test_render_rgb_array_draws_the_weights_and_the_inliers():
+    teal, purple = (0.128, 0.567, 0.551), (0.267, 0.005, 0.329)  # viridis at 1 x uniform (mid-scale) and at 1e-2
+
+    def render_after(action, seed=0):
+        env = gym.make("vo_gym/StereoVO-v0", n_frames=2, n_correspondences=100, render_mode="rgb_array")
+        env.reset(seed=seed)
+        before = env.render()
+        env.step(action)
+        return before, env.render()
+
+    first, uniform = render_after(np.zeros(100, np.float32))
+    _, again = render_after(np.zeros(100, np.float32))
+    # Half the matches at +10, half at -10: weights 2 and ~2e-20 x uniform (drawn at the 1e-2 end of the scale).
+    _, split = render_after(np.where(np.arange(100) < 50, 10.0, -10.0).astype(np.float32))
+    assert uniform.dtype == np.uint8 and uniform.shape == (420, 1200, 3) and first.shape == uniform.shape
+    assert np.array_equal(uniform, again)  # same seed, same actions: the same picture
+    # Before any step no estimate exists: nothing ringed; after one, the estimate's inliers are ringed in red.
+    assert _reddish(first) == 0 and _reddish(uniform) > 100
+    # The matches are coloured by their weight: mid-scale teal under uniform weights; half of them move to
+    # the purple end when their weight collapses (the colour bar draws both colours in both images).
+    assert _near(uniform, teal) > _near(split, teal) + 500
+    assert _near(split, purple) > _near(uniform, purple) + 200
     with pytest.warns(UserWarning, match="render_mode"):
         assert StereoVOEnv(n_frames=1).render() is None  # no render_mode: nothing to draw
 
