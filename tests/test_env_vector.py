@@ -43,21 +43,52 @@ def test_gymnasium_sync_and_async_agree():
     assert "trajectory" in final_info and final_info["_trajectory"].all()
 
 
+def _plain_episode(seed, actions):
+    """Observations, rewards and the last info of one plain env episode under ``actions``."""
+    env = gym.make("vo_gym/StereoVOProsac-v0", **KWARGS)
+    obs, _ = env.reset(seed=seed)
+    trace = [obs]
+    rewards, info = [], {}
+    for action in actions:
+        obs, reward, _, _, info = env.step(action)
+        trace.append(obs)
+        rewards.append(reward)
+    env.close()
+    return trace, rewards, info
+
+
 @pytest.mark.parametrize("vec_cls", [DummyVecEnv, SubprocVecEnv])
-def test_sb3_vec_envs(vec_cls):
+def test_sb3_vec_envs_step_exactly_like_the_plain_env(vec_cls):
     # Workers are forked here to keep the test fast (forkserver/spawn workers import torch afresh, ~10 s).
     # Under forkserver/spawn a worker has not imported vo_gym: name the module in the id,
     # "vo_gym:vo_gym/StereoVOProsac-v0" (test_env.py checks that form in a fresh interpreter).
     vec_kwargs = {"start_method": "fork"} if vec_cls is SubprocVecEnv else None
     venv = make_vec_env("vo_gym:vo_gym/StereoVOProsac-v0", n_envs=2, seed=0, env_kwargs=KWARGS, vec_env_cls=vec_cls,
                         vec_env_kwargs=vec_kwargs)
+    ramp = np.linspace(-1, 1, N, dtype=np.float32)
+    actions = np.stack([np.stack([ramp, -ramp]) * (step + 1) for step in range(3)])  # (steps, envs, N)
     try:
         obs = venv.reset()
-        assert obs["features"].shape == (2, N, N_FEATURES)
+        trace, rewards, dones, infos = [obs], [], [], []
         for step in range(3):
-            obs, reward, done, infos = venv.step(np.zeros((2, N), np.float32))
-        assert done.all()  # truncated after 3 frames, auto-reset by SB3
-        assert all("terminal_observation" in info and "trajectory" in info for info in infos)
-        assert all(info["TimeLimit.truncated"] for info in infos)
+            obs, reward, done, info = venv.step(actions[step])
+            trace.append(obs)
+            rewards.append(reward)
+            dones.append(done)
+            infos.append(info)
     finally:
         venv.close()
+    assert [d.tolist() for d in dones] == [[False, False], [False, False], [True, True]]
+    # SB3 seeds env i with seed + i: each worker replays the plain env's episode bit for bit.
+    for i in range(2):
+        plain, plain_rewards, plain_info = _plain_episode(i, actions[:, i])
+        for k in range(3):  # the reset observation and the two steps before the end
+            for key in ("features", "mask"):
+                np.testing.assert_array_equal(trace[k][key][i], plain[k][key])
+        np.testing.assert_array_equal(np.float32([r[i] for r in rewards]), np.float32(plain_rewards))  # SB3 may cast
+        final = infos[-1][i]
+        assert final["TimeLimit.truncated"]  # truncated, not terminated, then auto-reset by SB3
+        for key in ("features", "mask"):
+            np.testing.assert_array_equal(final["terminal_observation"][key], plain[3][key])
+        assert final["trajectory"] == plain_info["trajectory"]
+    assert not np.array_equal(trace[1]["features"][0], trace[1]["features"][1])  # two different episodes
