@@ -134,6 +134,22 @@ def test_frame_has_exactly_n_rows_with_documented_shapes(n: int) -> None:
     assert frame.noise_sigma == 0.5 and frame.camera == StereoCamera()
 
 
+@pytest.mark.parametrize("n", [3, 57, 500])
+def test_each_inlier_row_is_one_point_seen_twice_under_the_true_motion(n: int) -> None:
+    # Noise-free: row i of prev, triangulated, moved by the true (R, t) and projected, is row i of curr
+    # exactly for an inlier, and far from it for a random mismatch; the rows are rectified (vL = vR).
+    frame = simulate_frame(SimulationConfig(n_correspondences=n, noise_sigma=0.0, outlier_ratio=0.5,
+                                            outlier_mix=(1.0, 0.0, 0.0)), 1)
+    cam, truth = frame.camera, frame.truth
+    assert int(np.count_nonzero(~truth.inlier)) == round(0.5 * n)
+    moved = cam.triangulate(frame.prev) @ truth.rotation.T + truth.translation
+    error = np.linalg.norm(cam.project(moved) - frame.curr, axis=1)  # px
+    assert np.all(error[truth.inlier] < 1e-6)
+    assert np.median(error[~truth.inlier]) > 10.0
+    np.testing.assert_allclose(frame.prev[:, 1], frame.prev[:, 3], atol=1e-9)
+    np.testing.assert_allclose(frame.curr[:, 1], frame.curr[:, 3], atol=1e-9)
+
+
 @pytest.mark.parametrize("epsilon", [0.0, 0.3, 0.5, 0.97])
 def test_outlier_count_is_round_epsilon_n_and_kinds_follow_the_mix(epsilon: float) -> None:
     frame = simulate_frame(SimulationConfig(outlier_ratio=epsilon), 2)
