@@ -76,6 +76,11 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print the summary as JSON instead of the tables")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument("--adaptive", action="store_true",
+                        help="run the in-frame adaptive comparison instead (agents.adaptive_evaluation): the learned"
+                             " in-frame sampler, BANSAC, ARS, one-shot samplers, uniform and PROSAC by score on"
+                             " identical held-out frames at eps 0.9 and on the hard id at eps 0.8; uses --episodes,"
+                             " --frames-per-episode, --seed, --n and --out")
     add_backend_options(parser, "episodes")
 
 
@@ -91,7 +96,25 @@ def run(args: argparse.Namespace) -> int:
         return _error(str(err))
 
 
+def _run_adaptive(args: argparse.Namespace) -> int:
+    from agents.adaptive_evaluation import AdaptiveComparison, comparison_markdown, run_comparison, write_comparison
+
+    config = AdaptiveComparison(episodes=args.episodes, frames_per_episode=args.frames_per_episode, seed=args.seed,
+                                n=args.n)
+    out = open_run_folder(args)  # before any computing
+    result = run_comparison(config, log=(lambda line: None) if args.json else print)
+    paths = write_comparison(result, out)
+    if args.json:
+        print(json.dumps(result, indent=2, default=float))
+        return 0
+    print(comparison_markdown(result))
+    print(f"wrote {out}/: {', '.join(p.name for p in paths)}")
+    return 0
+
+
 def _run(args: argparse.Namespace) -> int:
+    if args.adaptive:
+        return _run_adaptive(args)
     from dataclasses import asdict
 
     from agents.evaluation import (
