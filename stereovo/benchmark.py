@@ -340,6 +340,8 @@ GUIDED_VARIANTS: dict[str, tuple[str, str]] = {
     "ransac+guided": ("ransac", "priors"),
     "ransac+prosac-order": ("ransac", "order"),
     "probabilistic+guided": ("probabilistic", "priors"),
+    "bansac+guided": ("bansac", "priors"),
+    "ars+guided": ("ars", "priors"),
 }
 """Extra benchmark entries: a registered method run with the match scores as
 sampling priors (guided sampling) or as a PROSAC order, everything else unchanged."""
