@@ -22,6 +22,7 @@ vectorised numpy route with the same draws' distribution.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -82,11 +83,16 @@ class TddVerification:
     d: int = 1
     measure_points: int = 64
     max_measured: int = 256
+    t_m: float = 200.0
+    adaptive: bool = True
+    min_measured: int = 16
     uses_samples: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.t_m, (int, float)) and np.isfinite(self.t_m) and self.t_m > 0):
+            raise ValueError(f"option tdd_t_m must be a positive number, got {self.t_m!r}")
         for name, value, low in (("tdd_d", self.d, 1), ("tdd_measure_points", self.measure_points, 1),
-                                 ("tdd_max_measured", self.max_measured, 1)):
+                                 ("tdd_max_measured", self.max_measured, 1), ("tdd_min_measured", self.min_measured, 1)):
             if isinstance(value, bool) or int(value) != value or value < low:
                 raise ValueError(f"option {name} must be an integer >= {low}, got {value!r}")
         self.d, self.measure_points, self.max_measured = int(self.d), int(self.measure_points), int(self.max_measured)
@@ -94,15 +100,54 @@ class TddVerification:
         self.n_tested = 0
         self.n_measure_checks = 0
         self._best: np.ndarray | None = None
-        self._samples: list[np.ndarray] = []  # (k, 3) samples of the hypotheses measured
-        self._alphas: list[np.ndarray] = []  # (k,) their measured pass probabilities
-        self._good = 0  # measured hypotheses that are good under the current best
+        self._samples = np.empty((0, SAMPLE_SIZE), dtype=np.int64)  # samples of the hypotheses measured
+        self._alphas = np.empty(0)  # their measured pass probabilities
+        self._good_mask = np.empty(0, dtype=bool)  # which are good under the current best
+        self._good = 0
+        self._alpha: float | None = None  # cached mean over the good ones
+        self.active = True  # the pre-test is on (off once the measured rates say it cannot pay)
+        self.n_on = 0  # hypotheses verified with the pre-test on / off
+        self.n_off = 0
+        self.n_switches = 0
+        self._pass_sum = 0.0  # pass probabilities of all verified hypotheses (counted or computed)
+        self._optimistic: float | None = None
 
     # ------------------------------------------------------------------ the measured pass rate
 
     def on_new_best(self, inliers: np.ndarray, state) -> None:
         self._best = np.asarray(inliers, dtype=bool).copy()
-        self._good = int(np.count_nonzero(self._good_rows(np.concatenate(self._samples)))) if self._samples else 0
+        self._good_mask = self._good_rows(self._samples)
+        # the pass chance of a hypothesis explaining the best's whole support: an optimistic alpha
+        support = int(np.count_nonzero(self._best))
+        self._optimistic = float(pass_probability(max(support - SAMPLE_SIZE, 0), self._best.size - SAMPLE_SIZE, self.d))
+        self._refresh()
+        self._decide(self._best.size)
+
+    def _refresh(self) -> None:
+        self._good = int(np.count_nonzero(self._good_mask))
+        self._alpha = float(np.mean(self._alphas[self._good_mask])) if self._good else None
+
+    def pays(self, n: int) -> bool:
+        """Matas & Chum's cost model with the measured rates: the pre-test pays iff
+        ``(t_M + d + P_pass (N - d)) / alpha < t_M + N``, i.e. the expected cost of finding a good
+        hypothesis falls (``P_pass``: the pass rate of all hypotheses, ``alpha``: of good ones).
+
+        Until ``min_measured`` good hypotheses were measured, ``alpha`` is the optimistic chance of a
+        hypothesis explaining the best model's whole support: if even that cannot pay, none will.
+        Before any best model the paper's test stays on."""
+        alpha = self._alpha if self._alpha is not None and self._good >= self.min_measured else self._optimistic
+        if alpha is None:
+            return True
+        if alpha <= 0.0:
+            return False
+        p_pass = self._pass_sum / max(self.n_on + self.n_off, 1)
+        return (self.t_m + self.d + p_pass * (n - self.d)) / alpha < self.t_m + n
+
+    def _decide(self, n: int) -> None:
+        if self.adaptive:
+            active = self.pays(n)
+            self.n_switches += active != self.active
+            self.active = active
 
     def _good_rows(self, samples: np.ndarray) -> np.ndarray:
         return np.all(self._best[samples], axis=1)
@@ -112,13 +157,7 @@ class TddVerification:
 
         The mean of the per-hypothesis pass probabilities of the measured hypotheses whose samples
         lie in the current best model's inliers."""
-        if self._best is None or not self._samples:
-            return None
-        samples, alphas = np.concatenate(self._samples), np.concatenate(self._alphas)
-        good = self._good_rows(samples)
-        if not np.any(good):
-            return None
-        return float(np.mean(alphas[good]))
+        return self._alpha
 
     # ------------------------------------------------------------------ verification
 
@@ -132,6 +171,8 @@ class TddVerification:
             return ctx.score(R, t), H * n
         samples = np.ascontiguousarray(samples, dtype=np.int64)
         compiled = isinstance(ctx.residual_model, ReprojectionResidual)
+        if not self.active:
+            return self._verify_fully(ctx, R, t, samples, d)
         if compiled:
             p = ctx.problem
             passed, spent, _ = kernels_verification.tdd_pretest(
@@ -147,20 +188,42 @@ class TddVerification:
             checks = int(np.sum(first_fail[~passed])) + int(np.count_nonzero(passed)) * d
         scores = np.full(H, -np.inf)
         rows = np.flatnonzero(passed)
-        masks = None
+        sq = None
         if rows.size:
             scores[rows], sq = ctx.score_with_residuals(R[rows], t[rows])
             checks += rows.size * (n - d)  # its d pre-test points were counted above
             row_of = np.full(H, -1, dtype=np.int64)
             row_of[rows] = np.arange(rows.size)
             ctx.remember(R, sq, row_of)
-            masks = sq < ctx.threshold_sq
         self.n_passed += int(rows.size)
         self.n_tested += H
-        checks += self._measure(ctx, R, t, rng, samples, passed, masks, d, compiled)
+        self.n_on += H
+        self._pass_sum += float(rows.size)
+        checks += self._measure(ctx, R, t, rng, samples, passed, sq, d, compiled)
+        self._decide(n)
         return scores, checks
 
-    def _measure(self, ctx, R, t, rng, samples, passed, masks, d, compiled) -> int:
+    def _verify_fully(self, ctx, R, t, samples, d) -> tuple[np.ndarray, int]:
+        """The pre-test switched off: score every hypothesis on all points; every one's pass
+        probability (and a good one's, for alpha) then follows exactly from its support."""
+        H, n = R.shape[0], ctx.problem.n
+        scores, sq = ctx.score_with_residuals(R, t)
+        masks = sq < ctx.threshold_sq
+        own = np.take_along_axis(masks, samples, axis=1).sum(axis=1)
+        chance = pass_probability(masks.sum(axis=1) - own, n - SAMPLE_SIZE, d)
+        self._pass_sum += float(np.sum(chance))
+        self.n_off += H
+        if self._best is not None:
+            good = self._good_rows(samples)
+            if np.any(good):
+                self._samples = np.concatenate([self._samples, samples[good]])
+                self._alphas = np.concatenate([self._alphas, chance[good]])
+                self._good_mask = np.concatenate([self._good_mask, np.ones(int(good.sum()), dtype=bool)])
+                self._refresh()
+        self._decide(n)
+        return scores, H * n
+
+    def _measure(self, ctx, R, t, rng, samples, passed, passed_sq, d, compiled) -> int:
         """Record the pass probabilities of this batch's good hypotheses; returns the checks spent."""
         if self._best is None:
             return 0
@@ -173,9 +236,9 @@ class TddVerification:
         good_passed = good & passed
         if np.any(good_passed):  # exact: their full support is known
             in_batch = np.flatnonzero(passed)
-            pick = good_passed[in_batch]
-            support = masks[pick].sum(axis=1)
-            own = np.take_along_axis(masks[pick], samples[good_passed], axis=1).sum(axis=1)
+            masks = passed_sq[good_passed[in_batch]] < ctx.threshold_sq
+            support = masks.sum(axis=1)
+            own = np.take_along_axis(masks, samples[good_passed], axis=1).sum(axis=1)
             found_s.append(samples[good_passed])
             found_a.append(pass_probability(support - own, others, d))
         spent = 0
@@ -197,10 +260,11 @@ class TddVerification:
             spent = rows.size * m
             found_s.append(samples[rows])
             found_a.append(pass_probability(consistent, m, d))
-        if found_s:
-            self._samples.append(np.concatenate(found_s))
-            self._alphas.append(np.concatenate(found_a))
-            self._good += int(sum(len(a) for a in found_a))
+        if found_s:  # all good under the current best
+            self._samples = np.concatenate([self._samples, *found_s])
+            self._alphas = np.concatenate([self._alphas, *found_a])
+            self._good_mask = np.concatenate([self._good_mask, np.ones(sum(len(a) for a in found_a), dtype=bool)])
+            self._refresh()
         self.n_measure_checks += spent
         return spent
 
@@ -215,18 +279,25 @@ class TddVerification:
             "tdd_good_measured": self._good,
             "tdd_alpha": -1.0 if alpha is None else alpha,
             "tdd_measure_checks": self.n_measure_checks,
+            "tdd_on": self.n_on,
+            "tdd_off": self.n_off,
+            "tdd_switches": self.n_switches,
         }
 
 
 @dataclass
 class TddTermination:
-    """``k = log(1 - p) / log(1 - q alpha)``: RANSAC's bound with the pre-test's measured pass rate.
+    """RANSAC's bound with the pre-test's measured pass rate: stop once a good hypothesis would have
+    been found with probability ``confidence``.
 
-    ``q`` is the all-inlier probability of one draw of the sampler (the without-replacement count
-    formula for uniform sampling); ``alpha`` the verifier's measured pass probability of a good
-    hypothesis. Until one was measured it falls back to ``prod_{j<d} (I - 3 - j) / (N - 3 - j)``,
-    the chance for a hypothesis explaining the best model's whole support. A loop listener (for a
-    guided sampler's q).
+    Each hypothesis verified with the pre-test on finds a good model with chance ``q alpha``, one
+    verified fully (the pre-test switched off because it does not pay) with chance ``q``; the run
+    stops when ``(1 - q alpha)^k_on (1 - q)^k_off <= 1 - confidence``. With the pre-test on
+    throughout this is ``k = log(1 - p) / log(1 - q alpha)`` (Matas & Chum). ``q``: one draw of the
+    sampler is all-inlier (the without-replacement count formula for uniform sampling); ``alpha``:
+    the verifier's measured pass probability of a good hypothesis. Until one was measured,
+    ``prod_{j<d} (I - 3 - j) / (N - 3 - j)``, the chance for a hypothesis explaining the best model's
+    whole support. A loop listener (the draws so far, a guided sampler's q).
     """
 
     confidence: float = 0.99
@@ -238,17 +309,34 @@ class TddTermination:
     def __post_init__(self) -> None:
         self.probability = SampleProbability(self.sampler)
         self.last_alpha = float("nan")
+        self._drawn = 0
 
     def on_new_best(self, inliers: np.ndarray, state) -> None:
         self.probability.on_new_best(inliers, state)
 
+    def on_batch(self, state) -> None:
+        self._drawn = int(state.n_hypotheses)
+
     def required(self, n_inliers: int, n: int) -> int:
         q = self.probability.of(n_inliers, n)
-        alpha = self.verifier.alpha() if self.verifier is not None else None
+        v = self.verifier
+        alpha = v.alpha() if v is not None else None
         if alpha is None:
             alpha = float(pass_probability(max(n_inliers - SAMPLE_SIZE, 0), n - SAMPLE_SIZE, self.d))
         self.last_alpha = alpha
-        return iterations_for(q * alpha, self.confidence, self.max_iterations)
+        if v is None or v.n_off == 0 and v.active:
+            return iterations_for(q * alpha, self.confidence, self.max_iterations)
+        if not q > 0:
+            return self.max_iterations
+        # draws so far under each mode, then what the current mode still needs
+        log_miss = v.n_on * math.log1p(-min(q * alpha, 1 - 1e-16)) + v.n_off * math.log1p(-min(q, 1 - 1e-16))
+        per_draw = q * alpha if v.active else q
+        if not per_draw > 0:
+            return self.max_iterations
+        if per_draw >= 1:
+            return min(self._drawn + 1, self.max_iterations)
+        remaining = (math.log1p(-self.confidence) - log_miss) / math.log1p(-per_draw)
+        return int(min(max(self._drawn + math.ceil(max(remaining, 0.0)), 1), self.max_iterations))
 
     def counters(self) -> dict[str, int | float]:
         return {"tdd_alpha_used": self.last_alpha}
