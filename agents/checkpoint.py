@@ -1,14 +1,28 @@
 """Checkpoints of learned samplers: weights plus the config and feature layout they need.
 
-A checkpoint from another feature layout is refused with a clear message,
-because a network fed columns in a different meaning would still run and
-silently sample nonsense.
+Loading never runs code from the file: ``torch.load(..., weights_only=True)`` unpickles only
+tensors and plain data (dicts, lists, strings, numbers), and refuses anything else before it
+is built. Every way a file can be unusable (unreadable, empty, truncated, not a torch file, a
+foreign payload, missing keys, weights that do not fit the network it declares, another
+feature layout) raises :class:`CheckpointError`, one line naming the file and what is wrong;
+a checkpoint from another feature layout is refused because a network fed columns in a
+different meaning would still run and silently sample nonsense.
+
+The samplers shipped with the package (:data:`SHIPPED_SAMPLERS`) are found by name through
+``importlib.resources``, from any directory and any kind of install: :func:`load_sampler`,
+:func:`shipped_checkpoint`.
 """
 
 from __future__ import annotations
 
+import contextlib
+import importlib.resources
+import numbers
+import os
+import pickle
+import zipfile
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 import torch
@@ -38,27 +52,155 @@ def save_checkpoint(path: str | Path, net: CorrespondenceNet, config: dict[str, 
     return path
 
 
-def load_checkpoint(path: str | Path) -> tuple[CorrespondenceNet, dict[str, Any]]:
+REQUIRED_KEYS = ("format_version", "network", "state_dict", "feature_names", "feature_layout_version")
+NETWORK_KEYS = ("n_features", "width", "blocks")
+SHIPPED_PACKAGE = "agents"
+SHIPPED_FOLDER = "checkpoints"
+SHIPPED_SAMPLERS: tuple[str, ...] = (
+    "ngransac-supervised", "ngransac-self-supervised", "ngransac-self-supervised-smooth", "ppo",
+)
+"""Names of the samplers shipped inside the package (``agents/checkpoints/NAME.pt``)."""
+
+
+class CheckpointError(ValueError):
+    """A checkpoint file that cannot be used; the one-line message names the file and what is wrong."""
+
+
+def _fail(path: Path, what: str) -> CheckpointError:
+    return CheckpointError(f"checkpoint {path}: {what}")
+
+
+def _torch_load(path: Path) -> Any:
+    """``torch.load`` restricted to tensors and plain data; every failure as one CheckpointError line."""
+    try:
+        size = path.stat().st_size
+    except OSError as err:
+        raise _fail(path, f"cannot be read ({err.strerror or err})") from None
+    if size == 0:
+        raise _fail(path, "is empty")
+    try:
+        return torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError as err:
+        text = str(err)
+        # The restricted unpickler names a global (class or function) it will not build: code refused.
+        # Anything else it cannot parse ("Unsupported operand", bad opcodes) is simply not a checkpoint.
+        if "global" in text.lower() or "Unsupported class" in text:
+            raise _fail(path, "refused: it holds Python objects other than tensors and plain data, "
+                              "which could run code when unpickled (nothing was run)") from None
+        raise _fail(path, "is not a torch checkpoint (not a pickle or zip archive torch can read)") from None
+    except (EOFError, zipfile.BadZipFile):
+        raise _fail(path, "is truncated or corrupt (it ends before the data does)") from None
+    except (RuntimeError, OSError, ValueError, KeyError, IndexError, TypeError, AttributeError,
+            UnicodeDecodeError, MemoryError, OverflowError) as err:
+        first = (str(err).strip().splitlines() or [type(err).__name__])[0]
+        if "zip" in first.lower() or "inline_container" in first or "central directory" in first:
+            if zipfile.is_zipfile(path):  # a whole archive, but not torch's layout
+                raise _fail(path, "is a zip archive but not a torch checkpoint") from None
+            raise _fail(path, "is truncated or corrupt (its zip archive is incomplete)") from None
+        raise _fail(path, f"is not a readable torch checkpoint ({type(err).__name__}: {first[:160]})") from None
+
+
+def _check_payload(path: Path, payload: Any) -> None:
+    """The payload's schema: what :func:`save_checkpoint` writes."""
+    if not isinstance(payload, dict):
+        raise _fail(path, f"is not a vo-gym sampler checkpoint (holds a {type(payload).__name__}, not a dict)")
+    missing = [k for k in REQUIRED_KEYS if k not in payload]
+    if missing:
+        raise _fail(path, f"is not a vo-gym sampler checkpoint (missing key(s) {', '.join(missing)})")
+    network = payload["network"]
+    if not isinstance(network, dict):
+        raise _fail(path, f"its 'network' entry must be a dict of {', '.join(NETWORK_KEYS)}, got {type(network).__name__}")
+    unknown = sorted(set(map(str, network)) - set(NETWORK_KEYS))
+    if unknown:
+        raise _fail(path, f"unknown network keyword(s) {', '.join(unknown)} (known: {', '.join(NETWORK_KEYS)})")
+    for key, value in network.items():
+        if not isinstance(value, numbers.Integral) or isinstance(value, bool) or not 1 <= value <= 4096:
+            raise _fail(path, f"network {key} must be an integer in [1, 4096], got {value!r}")
+    state = payload["state_dict"]
+    if not isinstance(state, dict) or not all(isinstance(k, str) and isinstance(v, torch.Tensor) for k, v in state.items()):
+        raise _fail(path, "its 'state_dict' must map parameter names to tensors")
+    names, version = payload["feature_names"], payload["feature_layout_version"]
+    if not isinstance(names, (list, tuple)) or not all(isinstance(n, str) for n in names):
+        raise _fail(path, "its 'feature_names' must be a list of strings")
+    if not isinstance(version, numbers.Integral) or isinstance(version, bool):
+        raise _fail(path, f"its 'feature_layout_version' must be an integer, got {version!r}")
+    for key in ("config", "trainer_state"):
+        if key in payload and not isinstance(payload[key], dict):
+            raise _fail(path, f"its {key!r} entry must be a dict, got {type(payload[key]).__name__}")
+
+
+def load_checkpoint(path: str | os.PathLike) -> tuple[CorrespondenceNet, dict[str, Any]]:
     """Load a checkpoint; returns the network (eval mode) and the whole payload.
+
+    Nothing in the file is run (``weights_only=True``).
 
     Raises:
         FileNotFoundError: no such file.
-        ValueError: not a vo-gym checkpoint, or its feature layout differs from this version's.
+        CheckpointError: (a ``ValueError``) the file is unreadable, not a vo-gym checkpoint,
+            its weights do not fit the network it declares, or its feature layout differs from
+            this version's; one line naming the file and what is wrong.
     """
     path = Path(path)
     if not path.is_file():
+        if path.exists():
+            raise _fail(path, "is not a file")
         raise FileNotFoundError(f"no checkpoint at {path}")
-    payload = torch.load(path, map_location="cpu", weights_only=False)
-    if not isinstance(payload, dict) or "feature_names" not in payload or "network" not in payload:
-        raise ValueError(f"{path} is not a vo-gym sampler checkpoint")
+    payload = _torch_load(path)
+    _check_payload(path, payload)
     try:
         check_feature_layout(payload["feature_names"], payload["feature_layout_version"])
     except ValueError as err:
-        raise ValueError(f"checkpoint {path} was trained on another feature layout: {err}") from None
+        raise CheckpointError(f"checkpoint {path} was trained on another feature layout: {err}") from None
     net = CorrespondenceNet(**payload["network"])
-    net.load_state_dict(payload["state_dict"])
+    try:
+        net.load_state_dict(payload["state_dict"])
+    except RuntimeError as err:
+        lines = [ln.strip() for ln in str(err).splitlines() if ln.strip()]
+        detail = lines[1] if len(lines) > 1 else (lines[0] if lines else "")
+        raise _fail(path, f"its weights do not fit the network it declares {payload['network']} ({detail[:200]})") from None
     net.eval()
     return net, payload
+
+
+@contextlib.contextmanager
+def shipped_checkpoint(name: str) -> Iterator[Path]:
+    """A file path of the shipped sampler ``name`` (one of :data:`SHIPPED_SAMPLERS`), for a ``with`` block.
+
+    Found with ``importlib.resources`` inside the installed ``agents`` package, so it works from
+    any directory, editable or not (a zipped install gets a temporary copy for the block).
+
+    Raises:
+        ValueError: an unknown name (listing the shipped ones).
+        FileNotFoundError: the install lacks the file (a build that left out the package data).
+    """
+    if name not in SHIPPED_SAMPLERS:
+        raise ValueError(f"unknown shipped sampler {name!r}; shipped: {', '.join(SHIPPED_SAMPLERS)}")
+    resource = importlib.resources.files(SHIPPED_PACKAGE).joinpath(SHIPPED_FOLDER, f"{name}.pt")
+    if not resource.is_file():
+        raise FileNotFoundError(f"shipped sampler {name!r} is missing from this install ({resource})")
+    with importlib.resources.as_file(resource) as file:
+        yield Path(file)
+
+
+def load_sampler(name_or_path: str | os.PathLike, temperature: float = 1.0) -> "LearnedPolicy":
+    """A learned sampler as a policy: a shipped one by name (:data:`SHIPPED_SAMPLERS`) or a ``.pt`` path.
+
+    Example: ``policy = load_sampler("ngransac-supervised"); logits = policy.act(observation)``.
+
+    Raises:
+        ValueError: an unknown name; CheckpointError: an unusable file; FileNotFoundError: no such file.
+    """
+    text = os.fspath(name_or_path)
+    if text in SHIPPED_SAMPLERS:
+        with shipped_checkpoint(text) as path:
+            net, _ = load_checkpoint(path)
+        return LearnedPolicy(net, text, temperature)
+    path = Path(text).expanduser()
+    if not path.exists() and path.suffix != ".pt" and os.sep not in text:
+        raise ValueError(f"unknown sampler {text!r}: not a shipped one ({', '.join(SHIPPED_SAMPLERS)}) "
+                         "and not a checkpoint file")
+    net, _ = load_checkpoint(path)
+    return LearnedPolicy(net, path.stem, temperature)
 
 
 class LearnedPolicy:

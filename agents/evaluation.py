@@ -158,7 +158,8 @@ def load_agent_checkpoint(path: str | os.PathLike, name: str | None = None):
 
 
 def resolve_agent(text: str) -> AgentSpec:
-    """``uniform``/``match-score``/``consistency``/``constant-velocity``, ``oracle`` or a checkpoint path.
+    """``uniform``/``match-score``/``consistency``/``constant-velocity``, ``oracle``, a shipped sampler's
+    name (:data:`agents.checkpoint.SHIPPED_SAMPLERS`) or a checkpoint path.
 
     A checkpoint is loaded once here, so a missing file, a foreign file or another feature
     layout is reported before anything runs.
@@ -167,17 +168,23 @@ def resolve_agent(text: str) -> AgentSpec:
         ValueError: an unknown name, or a checkpoint that cannot be used (the message says why).
         FileNotFoundError: a checkpoint path that does not exist.
     """
+    from agents.checkpoint import SHIPPED_SAMPLERS, shipped_checkpoint
+
     name = text.strip()
     if name in HEURISTICS:
         return AgentSpec(name, "heuristic", name)
     if name == ORACLE:
         return AgentSpec(ORACLE_LABEL, "oracle", ORACLE)
+    if name in SHIPPED_SAMPLERS:  # a packaged sampler by name, found wherever the package is installed
+        with shipped_checkpoint(name) as shipped:
+            load_agent_checkpoint(shipped)
+            return AgentSpec(name, "checkpoint", str(shipped))
     path = Path(name).expanduser()
     looks_like_path = path.suffix in CHECKPOINT_SUFFIXES or os.sep in name or path.exists()
     if not looks_like_path:
         raise ValueError(
-            f"unknown agent {name!r}: not a heuristic ({', '.join(HEURISTICS)}), not {ORACLE!r} and not a "
-            f"checkpoint file (.pt or PPO .zip)"
+            f"unknown agent {name!r}: not a heuristic ({', '.join(HEURISTICS)}), not {ORACLE!r}, not a shipped "
+            f"sampler ({', '.join(SHIPPED_SAMPLERS)}) and not a checkpoint file (.pt or PPO .zip)"
         )
     if not path.is_file():
         raise FileNotFoundError(f"agent {name!r}: no checkpoint at {path}")

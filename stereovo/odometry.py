@@ -97,6 +97,7 @@ def run_odometry(
     order_fn: FrameFn | None = None,
     kitti_lengths: Sequence[float] = KITTI_LENGTHS,
     kitti_step: int = KITTI_STEP,
+    on_estimate: Callable[[Any, Any], None] | None = None,
     **estimator_options: Any,
 ) -> OdometryResult:
     """Run frame-to-frame odometry over a ``stereovo.simulation.Sequence``.
@@ -110,6 +111,8 @@ def run_odometry(
         priors_fn: ``frame -> (N,) priors or None`` for guided sampling, e.g.
             ``lambda f: f.scores``.
         order_fn: ``frame -> (N,) ordering or None`` for PROSAC-style methods.
+        on_estimate: optional ``(frame, estimate) -> None`` called after each frame's estimate
+            (e.g. a learned sampler that feeds the last motion into its next frame's features).
         kitti_lengths, kitti_step: KITTI segment lengths (m) and start stride
             (frames) for the trajectory drift metric.
         **estimator_options: passed to every ``estimate_motion`` call. A
@@ -141,6 +144,8 @@ def run_odometry(
             noise_sigma=frame.noise_sigma if noise_sigma is None else noise_sigma,
             **estimator_options,
         )
+        if on_estimate is not None:
+            on_estimate(frame, est)
         if est.ok:
             R_last, t_last = est.rotation, est.translation
         # A failed frame keeps the last motion: constant-velocity fallback.

@@ -50,6 +50,7 @@ from scipy.signal import lfilter
 from scipy.special import ndtr, ndtri
 
 from .camera import StereoCamera
+from .options import Choice, Integer, Number, Option, is_integer, is_real
 from .geometry import (
     invert_transform,
     make_transform,
@@ -177,12 +178,22 @@ _DEFAULT_WORLD = {"car": "street", "free": "open"}
 # --------------------------------------------------------------------------- config
 
 
-def _is_int(value: object) -> bool:
-    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+MAX_NOISE_SIGMA_PX = 1e3
+"""The largest simulated pixel noise (px): noise as large as the image; beyond it the measurements
+are no longer pixels of this camera (and at ~1e300 they overflow)."""
 
-
-def _is_real(value: object) -> bool:
-    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+_CONFIG_RULES: dict[str, Option] = {
+    "preset": Choice(choices=tuple(sorted(PRESETS))),
+    "world": Choice(choices=tuple(WORLDS), allow_none=True),
+    "n_frames": Integer(low=1, high=10**9),
+    "n_correspondences": Integer(low=3, high=10**8),
+    "noise_sigma": Number(low=0.0, high=MAX_NOISE_SIGMA_PX, unit="px"),
+    "score_auc": Number(low=0.5, high=1.0, high_open=True),
+    "z_min": Number(low=0.0, high=1e6, low_open=True, unit="m"),
+    "z_max": Number(low=0.0, high=1e6, low_open=True, unit="m"),
+    "speed": Number(low=0.0, high=1e3, unit="m/frame", allow_none=True),
+}
+"""Declarations (:mod:`stereovo.options`) of :class:`SimulationConfig`'s scalar fields."""
 
 
 @dataclass(frozen=True)
@@ -195,7 +206,7 @@ class SimulationConfig:
             ``car`` and open otherwise.
         n_frames: frame pairs per :class:`Sequence` (>= 1).
         n_correspondences: putative matches per frame, exactly (>= 3).
-        noise_sigma: std of the Gaussian pixel noise on every coordinate (px, >= 0).
+        noise_sigma: std of the Gaussian pixel noise on every coordinate (px, in [0, 1e3]).
         outlier_ratio: contamination epsilon in [0, 1), or ``(low, high)`` drawn
             uniformly per frame.
         outlier_mix: non-negative weights of random mismatches, stereo mismatches
@@ -227,44 +238,32 @@ class SimulationConfig:
         def fail(name: str, requirement: str) -> None:
             raise ValueError(f"SimulationConfig.{name} must be {requirement}, got {getattr(self, name)!r}")
 
-        if not isinstance(self.preset, str) or self.preset not in PRESETS:
-            fail("preset", f"one of {sorted(PRESETS)}")
-        if self.world is not None and self.world not in WORLDS:
-            fail("world", f"None or one of {list(WORLDS)}")
-        for name, low in (("n_frames", 1), ("n_correspondences", 3)):
-            value = getattr(self, name)
-            if not _is_int(value) or value < low:
-                fail(name, f"an integer >= {low}")
-            object.__setattr__(self, name, int(value))
-        if not _is_real(self.noise_sigma) or not math.isfinite(self.noise_sigma) or self.noise_sigma < 0:
-            fail("noise_sigma", ">= 0")
+        # The scalar fields by the one options contract (stereovo.options); the composite ones below.
+        for name, rule in _CONFIG_RULES.items():
+            object.__setattr__(self, name, rule.check(name, getattr(self, name), prefix="SimulationConfig."))
         object.__setattr__(self, "noise_sigma", float(self.noise_sigma))
 
         ratio = self.outlier_ratio
-        bounds = (ratio, ratio) if _is_real(ratio) else tuple(ratio) if isinstance(ratio, (tuple, list)) else ()
-        if len(bounds) != 2 or not all(_is_real(x) and math.isfinite(x) for x in bounds):
+        bounds = (ratio, ratio) if is_real(ratio) else tuple(ratio) if isinstance(ratio, (tuple, list)) else ()
+        if len(bounds) != 2 or not all(is_real(x) and math.isfinite(x) for x in bounds):
             fail("outlier_ratio", "a number in [0, 1) or a (low, high) pair in [0, 1)")
         low, high = float(bounds[0]), float(bounds[1])
         if not (0.0 <= low <= high < 1.0):
             fail("outlier_ratio", "in [0, 1) (a range needs 0 <= low <= high < 1)")
-        object.__setattr__(self, "outlier_ratio", low if _is_real(ratio) else (low, high))
+        object.__setattr__(self, "outlier_ratio", low if is_real(ratio) else (low, high))
 
         mix = self.outlier_mix
         mix_ok = isinstance(mix, (tuple, list, np.ndarray)) and len(mix) == 3
-        mix_ok = mix_ok and all(_is_real(w) and math.isfinite(w) and w >= 0 for w in mix) and sum(mix) > 0
+        mix_ok = mix_ok and all(is_real(w) and math.isfinite(w) and w >= 0 for w in mix) and sum(mix) > 0
         if not mix_ok:
             fail("outlier_mix", "3 finite weights >= 0 with a positive sum")
         object.__setattr__(self, "outlier_mix", tuple(float(w) for w in mix))
 
-        if not _is_real(self.score_auc) or not (0.5 <= self.score_auc < 1.0):
-            fail("score_auc", "in [0.5, 1)")
         object.__setattr__(self, "score_auc", float(self.score_auc))
 
         if not isinstance(self.camera, StereoCamera):
             fail("camera", "a StereoCamera")
-        if not _is_real(self.z_min) or not math.isfinite(self.z_min) or self.z_min <= 0:
-            fail("z_min", "a finite depth > 0 (m)")
-        if not _is_real(self.z_max) or not math.isfinite(self.z_max) or self.z_max <= self.z_min:
+        if self.z_max <= self.z_min:
             fail("z_max", f"a finite depth > z_min={self.z_min} (m)")
         cam = self.camera
         if cam.fx * cam.baseline / self.z_min <= cam.min_disparity:
@@ -273,8 +272,6 @@ class SimulationConfig:
         object.__setattr__(self, "z_max", float(self.z_max))
 
         if self.speed is not None:
-            if not _is_real(self.speed) or not math.isfinite(self.speed) or self.speed < 0:
-                fail("speed", "None or a finite speed >= 0 (m/frame)")
             object.__setattr__(self, "speed", float(self.speed))
 
     @property
@@ -1022,7 +1019,7 @@ class Sequence:
         Raises:
             IndexError: if k is out of range.
         """
-        if not _is_int(k) or not 1 <= k <= self.config.n_frames:
+        if not is_integer(k) or not 1 <= k <= self.config.n_frames:
             raise IndexError(f"frame index must be an integer in [1, {self.config.n_frames}], got {k!r}")
         k = int(k)
         rng = self._child_rng(k)

@@ -63,7 +63,7 @@ def test_summary_table_states_units(tmp_path, capsys):
         (["--outliers", "1.5"], "outlier ratio 1.5"),
         (["--outliers", "0.9:0.3"], "lo <= hi"),
         (["--outliers", "half"], "not a number"),
-        (["--frames", "0"], "--frames must be positive"),
+        (["--frames", "0"], "--frames must be >= 1"),
         (["--method", "nonsense"], "invalid choice: 'nonsense'"),
         (["--preset", "boat"], "invalid choice: 'boat'"),
     ],

@@ -56,7 +56,7 @@ def assert_frames_identical(a: Frame, b: Frame) -> None:
 
 
 def test_invalid_noise_message_names_field_and_value() -> None:
-    with pytest.raises(ValueError, match=r"^SimulationConfig\.noise_sigma must be >= 0, got -1$"):
+    with pytest.raises(ValueError, match=r"^SimulationConfig\.noise_sigma must be a finite number in \[0, 1000\] \(px\), got -1$"):
         SimulationConfig(noise_sigma=-1)
 
 

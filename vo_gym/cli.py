@@ -3,7 +3,9 @@
 Each command module exposes ``add_parser(subparsers)`` (declares its options)
 and ``run(args) -> int`` (does the work, returns the exit code). Modules are
 imported lazily so that ``vo-gym --help`` stays fast and a command's heavy
-imports (torch, matplotlib) load only when it runs.
+imports (torch, matplotlib) load only when it runs. Every command runs inside
+:func:`vo_gym.commands.common.guarded`: a usage error is one line and exit 2,
+Ctrl-C one line and exit 130.
 """
 
 from __future__ import annotations
@@ -12,14 +14,40 @@ import argparse
 import importlib
 import sys
 
+from vo_gym.commands.common import ArgumentParser, HelpFormatter, guarded
+
 COMMANDS = {
-    "vo": "Run stereo visual odometry over a simulated sequence.",
-    "baselines": "Evaluate the classical RANSAC family on a benchmark grid.",
-    "bench": "Time the estimator core (and optional peers) on identical frames.",
-    "train": "Train a learned sampling policy.",
-    "evaluate": "Compare agents and classical methods on held-out seeds.",
+    "vo": "Run stereo visual odometry over a simulated sequence and write its trajectory.",
+    "baselines": "Compare the classical RANSAC family on a grid of simulated frames.",
+    "bench": "Time the estimator (and OpenCV / PoseLib, if installed) on identical frames.",
+    "train": "Train a learned sampler (NG-RANSAC-style or PPO).",
+    "evaluate": "Compare learned samplers, heuristics and classical methods on held-out frames.",
     "sweep": "Sweep the NG-RANSAC or PPO trainer's hyperparameters on Ray Tune (a YAML search space).",
 }
+
+DESCRIPTION = (
+    "vo-gym: a simulated stereo camera, a RANSAC motion estimator with the classical family "
+    "(RANSAC, MSAC, PROSAC, MLESAC, LO-RANSAC, USAC, ...), and Gymnasium environments for "
+    "learning where to sample."
+)
+EPILOG = (
+    "examples:\n"
+    "  vo-gym vo --frames 300 --method probabilistic      visual odometry, writes runs/vo/\n"
+    "  vo-gym vo --agent ngransac-supervised              the same with a shipped learned sampler\n"
+    "  vo-gym baselines                                   the classical methods side by side\n"
+    "  vo-gym evaluate --agent ngransac-supervised        learned vs classical on held-out seeds\n"
+    "run 'vo-gym COMMAND --help' for a command's options (each shows its default)."
+)
+
+
+def version() -> str:
+    """The installed distribution's version (the source tree's pyproject when not installed)."""
+    try:
+        from importlib.metadata import PackageNotFoundError, version as dist_version
+
+        return dist_version("vo-gym")
+    except PackageNotFoundError:  # running from a source tree that was never installed
+        return "unknown (not installed)"
 
 
 def _command_module(name: str):
@@ -27,8 +55,11 @@ def _command_module(name: str):
 
 
 def build_parser(names: list[str] | None = None) -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="vo-gym", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    parser = ArgumentParser(
+        prog="vo-gym", description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"vo-gym {version()}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands", parser_class=ArgumentParser)
     for name in names or COMMANDS:
         try:
             module = _command_module(name)
@@ -36,7 +67,9 @@ def build_parser(names: list[str] | None = None) -> argparse.ArgumentParser:
             if err.name != f"vo_gym.commands.{name}":
                 raise
             continue
-        module.add_parser(sub.add_parser(name, help=COMMANDS[name], description=COMMANDS[name]))
+        command = sub.add_parser(name, help=COMMANDS[name], description=COMMANDS[name])
+        module.add_parser(command)
+        command.formatter_class = HelpFormatter  # after the module's: every option shows its default
     return parser
 
 
@@ -45,11 +78,12 @@ def main(argv: list[str] | None = None) -> int:
     # Build only the requested subcommand's parser when we can tell which one it is.
     names = [argv[0]] if argv and argv[0] in COMMANDS else None
     parser = build_parser(names)
+    # argparse's own usage errors print one line and raise SystemExit(2); --help / --version SystemExit(0).
     args = parser.parse_args(argv)
     if args.command is None:
         parser.print_help()
         return 2
-    return int(_command_module(args.command).run(args) or 0)
+    return guarded(args.command, lambda: _command_module(args.command).run(args))
 
 
 if __name__ == "__main__":

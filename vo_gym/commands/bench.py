@@ -18,6 +18,17 @@ from typing import Callable
 
 import numpy as np
 
+from vo_gym.commands.common import (
+    bounded_int,
+    check_output_file,
+    csv_list,
+    finite_float,
+    method_name,
+    positive_int,
+    score_inputs,
+)
+from vo_gym.commands.common import seed as seed_type
+
 DEFAULT_NS = (200, 500, 1000)
 DEFAULT_EPSILONS = (0.2, 0.5, 0.8)
 PEER_REPROJECTION_PX = 2.0  # peers judge one image; 2 px at sigma 0.5 is their usual setting
@@ -40,9 +51,13 @@ class Outcome:
 def _ours(method: str) -> Callable:
     from stereovo import estimate_motion
 
+    inputs = score_inputs(method)  # PROSAC / guided MLESAC sample by the match scores
+
     def run(frame, seed: int) -> Outcome:
+        given = {key.removesuffix("_fn"): fn(frame) for key, fn in inputs.items()}
         start = time.perf_counter()
-        est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=seed, noise_sigma=frame.noise_sigma)
+        est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=seed, noise_sigma=frame.noise_sigma,
+                              **given)
         elapsed = time.perf_counter() - start
         return Outcome(est.rotation, est.translation, est.n_hypotheses, elapsed)
 
@@ -98,47 +113,40 @@ def _poselib() -> Callable | None:
 
 
 def add_parser(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--ns", default=",".join(map(str, DEFAULT_NS)), help="comma-separated correspondence counts N")
-    parser.add_argument("--epsilons", default=",".join(map(str, DEFAULT_EPSILONS)), help="comma-separated contaminations")
+    parser.add_argument("--ns", type=csv_list(bounded_int("--ns", 3), "--ns"), default=list(DEFAULT_NS),
+                        metavar="N,...", help="comma-separated correspondence counts N (each >= 3)")
+    parser.add_argument("--epsilons", type=csv_list(finite_float("--epsilons", 0.0, 1.0, high_open=True), "--epsilons"),
+                        default=list(DEFAULT_EPSILONS), metavar="E,...",
+                        help="comma-separated contaminations, each in [0, 1)")
     parser.add_argument(
-        "--frames", type=int, default=100,
+        "--frames", type=positive_int("--frames"), default=100,
         help="frames per (N, epsilon) cell (a median rotation error over fewer frames can tie by chance)",
     )
-    parser.add_argument("--method", default="probabilistic", help="our method to time")
+    parser.add_argument("--method", type=method_name("--method"), default="probabilistic",
+                        help="our method to time (PROSAC-style methods get the match scores' order, "
+                             "guided MLESAC the scores as priors)")
     parser.add_argument(
         "--outliers", choices=sorted(BENCH_OUTLIER_MIXES), default="random",
         help="outlier kinds: random mismatches (same contamination for every estimator) or a stereo blend",
     )
-    parser.add_argument("--noise", type=float, default=0.5, help="pixel noise sigma (px)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--noise", type=finite_float("--noise", 1e-3, 1e3), default=0.5,
+                        help="pixel noise sigma (px), in [0.001, 1000]")
+    parser.add_argument("--seed", type=seed_type, default=0, help="seed of the frames and of the estimators (>= 0)")
     parser.add_argument("--no-peers", action="store_true", help="skip OpenCV and PoseLib even if installed")
-    parser.add_argument("--out", default=None, help="optional CSV path for the per-cell table")
-
-
-def _parse_list(text: str, cast, name: str) -> list:
-    try:
-        values = [cast(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise SystemExit(f"vo-gym bench: error: --{name} must be a comma-separated list, got {text!r}")
-    if not values:
-        raise SystemExit(f"vo-gym bench: error: --{name} is empty")
-    return values
+    parser.add_argument("--out", default=None, metavar="CSV",
+                        help="optional CSV path for the per-cell table (default: none)")
 
 
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from stereovo import available_methods
     from stereovo.geometry import rotation_error
     from stereovo.metrics import is_success
     from stereovo.simulation import SimulationConfig, simulate_frame
 
-    if args.method not in available_methods():
-        raise SystemExit(f"vo-gym bench: error: unknown method {args.method!r}; available: {', '.join(available_methods())}")
-    if args.frames < 1:
-        raise SystemExit("vo-gym bench: error: --frames must be >= 1")
-    ns = _parse_list(args.ns, int, "ns")
-    epsilons = _parse_list(args.epsilons, float, "epsilons")
+    if args.out:
+        check_output_file(args.out, "--out")  # before any computing, so no result is lost
+    ns, epsilons = list(args.ns), list(args.epsilons)
     runners: dict[str, Callable] = {f"ours:{args.method}": _ours(args.method)}
     if not args.no_peers:
         for name, factory in (("opencv", _opencv), ("poselib", _poselib)):

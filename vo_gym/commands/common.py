@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import re
 import sys
 import tempfile
 from pathlib import Path
@@ -22,6 +23,45 @@ EXIT_INTERRUPTED = 130
 
 class UsageError(Exception):
     """A bad argument or unusable path; the message names the argument and the value."""
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse's parser whose usage errors are one line, ``vo-gym CMD: error: MESSAGE``, exit 2.
+
+    The usage synopsis is left out (``--help`` shows it), and argparse's ``argument --x: --x ...``
+    prefix is shortened when the message names the option itself.
+    """
+
+    def error(self, message: str):  # type: ignore[override]
+        match = re.match(r"argument ([^:]+): (.*)$", message, flags=re.S)
+        if match and match.group(2).startswith(match.group(1).split("/")[0]):
+            message = match.group(2)
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {' '.join(message.split())}\n")
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Every option's help ends with its default, unless the text already states one.
+
+    Flags (``store_true``) and options whose default is None (meaning "the library's default",
+    which their text then names) get nothing appended; descriptions and epilogs keep their lines.
+    """
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if (
+            "default" in text
+            or action.default is None
+            or action.default is argparse.SUPPRESS
+            or action.nargs == 0  # flags: store_true / store_false / help / version
+            or not action.option_strings
+        ):
+            return text
+        default = action.default
+        if isinstance(default, (list, tuple)):
+            shown = ",".join(str(v) for v in default)
+        else:
+            shown = str(default)
+        return f"{text} (default: {shown.replace('%', '%%')})".strip()
 
 
 def csv_list(kind: Callable[[str], Any], name: str) -> Callable[[str], list[Any]]:
@@ -66,8 +106,8 @@ def seed(text: str) -> int:
 
 
 def finite_float(name: str, low: float | None = None, high: float | None = None,
-                 low_open: bool = False) -> Callable[[str], float]:
-    """An argparse type for finite floats in ``[low, high]`` (``(low, high]`` if ``low_open``)."""
+                 low_open: bool = False, high_open: bool = False) -> Callable[[str], float]:
+    """An argparse type for finite floats in ``[low, high]`` (``low_open`` / ``high_open`` exclude a bound)."""
 
     def parse(text: str) -> float:
         try:
@@ -78,8 +118,8 @@ def finite_float(name: str, low: float | None = None, high: float | None = None,
             raise argparse.ArgumentTypeError(f"{name} must be finite, got {text!r}")
         if low is not None and (value < low or (low_open and value == low)):
             raise argparse.ArgumentTypeError(f"{name} must be {'>' if low_open else '>='} {low}, got {value}")
-        if high is not None and value > high:
-            raise argparse.ArgumentTypeError(f"{name} must be <= {high}, got {value}")
+        if high is not None and (value > high or (high_open and value == high)):
+            raise argparse.ArgumentTypeError(f"{name} must be {'<' if high_open else '<='} {high}, got {value}")
         return value
 
     return parse
@@ -102,6 +142,51 @@ def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
     except OSError as err:
         raise UsageError(f"{option} {str(out)!r} is not writable ({err.strerror or err})") from None
     return out
+
+
+def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:
+    """Prove a file can be written at ``path`` (its folder created if needed), before any computing.
+
+    Raises:
+        UsageError: naming ``option`` and the path when it is a folder or cannot be written.
+    """
+    out = Path(path)
+    if out.is_dir():
+        raise UsageError(f"{option} {str(out)!r} is a directory, not a file")
+    check_output_dir(out.parent if str(out.parent) else Path("."), option)
+    if out.exists() and not os.access(out, os.W_OK):
+        raise UsageError(f"{option} {str(out)!r} is not writable")
+    return out
+
+
+def method_name(name: str = "--method") -> Callable[[str], str]:
+    """An argparse type for a registered estimator method; the error lists them (imports the core on use)."""
+
+    def parse(text: str) -> str:
+        from stereovo.estimation import available_methods
+
+        methods = list(available_methods())
+        if text not in methods:
+            raise argparse.ArgumentTypeError(f"{name}: unknown method {text!r}; available: {', '.join(methods)}")
+        return text
+
+    return parse
+
+
+def score_inputs(method: str) -> dict[str, Any]:
+    """``priors_fn`` / ``order_fn`` (``frame -> array``) that feed a method the frames' match scores
+    when it needs them: PROSAC-style methods get the scores' ranking (best first), methods that need
+    priors (guided MLESAC) the scores as inlier probabilities; others get neither (uniform sampling)."""
+    import numpy as np
+
+    from stereovo.estimation import method_spec
+
+    needs = method_spec(method).inputs
+    if needs == "order":
+        return {"order_fn": lambda frame: np.argsort(-frame.scores, kind="stable")}
+    if needs == "priors":
+        return {"priors_fn": lambda frame: frame.scores}
+    return {}
 
 
 def guarded(command: str, run: Callable[[], int]) -> int:

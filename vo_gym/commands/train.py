@@ -14,83 +14,101 @@ import argparse
 import json
 from pathlib import Path
 
+from vo_gym.commands.common import (
+    UsageError,
+    bounded_int,
+    check_output_dir,
+    finite_float,
+    positive_int,
+    seed,
+)
+
 
 def add_parser(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--algo", choices=("ngransac", "ppo"), default="ngransac")
+    parser.add_argument("--algo", choices=("ngransac", "ppo"), default="ngransac",
+                        help="trainer: NG-RANSAC-style policy gradient or stable-baselines3 PPO")
     parser.add_argument("--out", default="runs/train", help="directory for checkpoints and TensorBoard logs")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--resume", default=None, help="checkpoint to continue from")
-    parser.add_argument("--no-progress", action="store_true")
+    parser.add_argument("--seed", type=seed, default=0, help="seed of the simulation, the sampler and the network")
+    parser.add_argument("--resume", default=None, metavar="CHECKPOINT",
+                        help="checkpoint to continue from (.pt for ngransac, the SB3 .zip for ppo; default: start afresh)")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ng = parser.add_argument_group("ngransac")
     ng.add_argument("--loss", choices=("supervised", "self-supervised", "self-supervised-smooth"), default="supervised",
                     help="task loss: pose error against ground truth; minus the inlier fraction (no ground truth); "
                          "or that plus a motion-smoothness penalty (no ground truth)")
-    ng.add_argument("--frames", type=int, default=None,
+    ng.add_argument("--frames", type=positive_int("--frames"), default=None,
                     help="total training frames (policy-gradient steps; default 16000); with --resume, the new total")
-    ng.add_argument("--epsilon", default="0.3:0.9", help="training contamination, a value or a range lo:hi")
+    ng.add_argument("--epsilon", type=_epsilon_text, default="0.3:0.9", help="training contamination, a value or a range lo:hi")
     # Defaults of None take agents.ngransac.NGRansacConfig's.
-    ng.add_argument("--budget", type=int, default=None, help="hypotheses per pool (default 11)")
-    ng.add_argument("--pools", type=int, default=None,
+    ng.add_argument("--budget", type=positive_int("--budget"), default=None, help="hypotheses per pool (default 11)")
+    ng.add_argument("--pools", type=positive_int("--pools"), default=None,
                     help="pools per frame; their mean loss is the baseline (default 8)")
-    ng.add_argument("--lr", type=float, default=None, help="Adam learning rate (default 1e-4)")
-    ng.add_argument("--max-grad-norm", type=float, default=None,
+    ng.add_argument("--lr", type=finite_float("--lr", 0.0, low_open=True), default=None, help="Adam learning rate (default 1e-4)")
+    ng.add_argument("--max-grad-norm", type=finite_float("--max-grad-norm", 0.0), default=None,
                     help="clip the policy gradient's norm to this (default 5; 0: no clipping)")
-    ng.add_argument("--entropy-weight", type=float, default=None,
+    ng.add_argument("--entropy-weight", type=finite_float("--entropy-weight", 0.0), default=None,
                     help="entropy bonus on the sampling distribution, normalised by log N (default 0)")
-    ng.add_argument("--frames-per-sequence", type=int, default=None,
+    ng.add_argument("--frames-per-sequence", type=positive_int("--frames-per-sequence"), default=None,
                     help="frames per simulated training sequence; each starts without a constant-velocity "
                          "prediction (default 10)")
-    ng.add_argument("--eval-every", type=int, default=None, help="frames between evaluations (default 1000)")
-    ng.add_argument("--eval-frames", type=int, default=None, help="frames per evaluation (default 300)")
+    ng.add_argument("--eval-every", type=positive_int("--eval-every"), default=None,
+                    help="frames between evaluations (default 1000; for ppo: environment steps, default 2000)")
+    ng.add_argument("--eval-frames", type=positive_int("--eval-frames"), default=None, help="frames per evaluation (default 300)")
     ppo = parser.add_argument_group("ppo")
-    ppo.add_argument("--timesteps", type=int, default=20_000, help="PPO environment steps")
-    ppo.add_argument("--env-id", default="vo_gym/StereoVO-v0")
-    ppo.add_argument("--n-envs", type=int, default=2)
+    ppo.add_argument("--timesteps", type=positive_int("--timesteps"), default=20_000, help="PPO environment steps")
+    ppo.add_argument("--env-id", default="vo_gym/StereoVO-v0", help="registered environment id to train in")
+    ppo.add_argument("--n-envs", type=positive_int("--n-envs"), default=2, help="environments stepped in parallel")
     # PPO-specific settings (None: agents.ppo.PPOConfig's default); --seed, --budget, --epsilon,
     # --eval-frames and --eval-every (environment steps here; default 2000) apply to PPO too.
     ppo.add_argument("--vec-env", choices=("dummy", "subproc"), default=None,
                      help="SB3 vectorised env: DummyVecEnv (default) or SubprocVecEnv")
-    ppo.add_argument("--frames-per-episode", type=int, default=None,
+    ppo.add_argument("--frames-per-episode", type=positive_int("--frames-per-episode"), default=None,
                      help="frame pairs per training episode (default 8)")
-    ppo.add_argument("--ppo-lr", type=float, default=None,
+    ppo.add_argument("--ppo-lr", type=finite_float("--ppo-lr", 0.0, low_open=True), default=None,
                      help="PPO learning rate (default 1e-4; --lr is NG-RANSAC's)")
-    ppo.add_argument("--n-correspondences", type=int, default=None,
+    ppo.add_argument("--n-correspondences", type=bounded_int("--n-correspondences", 3), default=None,
                      help="matches per training frame (default 100; the net serves any N)")
-    ppo.add_argument("--eval-n", type=int, default=None,
+    ppo.add_argument("--eval-n", type=bounded_int("--eval-n", 3), default=None,
                      help="matches per evaluation frame (default 500)")
     ppo.add_argument("--reward-mode", choices=("supervised", "inliers", "msac"), default=None,
                      help="the env's reward (default supervised)")
-    ppo.add_argument("--n-steps", type=int, default=None, help="rollout steps per env and update (default 256)")
-    ppo.add_argument("--batch-size", type=int, default=None, help="minibatch size (default 128)")
-    ppo.add_argument("--n-epochs", type=int, default=None, help="epochs per update (default 4)")
-    ppo.add_argument("--gamma", type=float, default=None, help="discount (default 0.5: a frame's action mostly "
+    ppo.add_argument("--n-steps", type=positive_int("--n-steps"), default=None, help="rollout steps per env and update (default 256)")
+    ppo.add_argument("--batch-size", type=positive_int("--batch-size"), default=None, help="minibatch size (default 128)")
+    ppo.add_argument("--n-epochs", type=positive_int("--n-epochs"), default=None, help="epochs per update (default 4)")
+    ppo.add_argument("--gamma", type=finite_float("--gamma", 0.0, 1.0), default=None, help="discount (default 0.5: a frame's action mostly "
                      "affects its own reward, the next one's only through the constant-velocity feature)")
-    ppo.add_argument("--gae-lambda", type=float, default=None, help="GAE lambda (default 0.9)")
-    ppo.add_argument("--clip-range", type=float, default=None, help="PPO clip range (default 0.2)")
-    ppo.add_argument("--ent-coef", type=float, default=None, help="entropy bonus (default 0)")
-    ppo.add_argument("--target-kl", type=float, default=None,
+    ppo.add_argument("--gae-lambda", type=finite_float("--gae-lambda", 0.0, 1.0), default=None, help="GAE lambda (default 0.9)")
+    ppo.add_argument("--clip-range", type=finite_float("--clip-range", 0.0, low_open=True), default=None, help="PPO clip range (default 0.2)")
+    ppo.add_argument("--ent-coef", type=finite_float("--ent-coef", 0.0), default=None, help="entropy bonus (default 0)")
+    ppo.add_argument("--target-kl", type=finite_float("--target-kl", 0.0, low_open=True), default=None,
                      help="stop an update's epochs above this KL (default off)")
-    ppo.add_argument("--width", type=int, default=None, help="actor net width (default 32)")
-    ppo.add_argument("--blocks", type=int, default=None, help="actor net residual blocks (default 3)")
-    ppo.add_argument("--log-std-init", type=float, default=None, help="initial log-std of the logits (default 1)")
+    ppo.add_argument("--width", type=positive_int("--width"), default=None, help="actor net width (default 32)")
+    ppo.add_argument("--blocks", type=positive_int("--blocks"), default=None, help="actor net residual blocks (default 3)")
+    ppo.add_argument("--log-std-init", type=finite_float("--log-std-init", -20.0, 20.0), default=None, help="initial log-std of the logits (default 1)")
     ppo.add_argument("--share-trunk", action="store_true", default=None,
                      help="the critic pools the actor net's embeddings (default: its own trunk)")
-    ppo.add_argument("--max-minutes", type=float, default=None,
+    ppo.add_argument("--max-minutes", type=finite_float("--max-minutes", 0.0, low_open=True), default=None,
                      help="stop after this much wall time even before --timesteps (default: no limit)")
-    ppo.add_argument("--checkpoint-every", type=int, default=None,
+    ppo.add_argument("--checkpoint-every", type=positive_int("--checkpoint-every"), default=None,
                      help="environment steps between SB3 zips (default 5000)")
 
 
 def _epsilon_range(text: str) -> tuple[float, float]:
+    """``"0.5"`` -> (0.5, 0.5); ``"0.3:0.9"`` -> (0.3, 0.9); each in [0, 1), lo <= hi."""
     try:
         parts = [float(v) for v in text.split(":")]
     except ValueError:
-        raise SystemExit(f"vo-gym train: error: --epsilon must be a number or lo:hi, got {text!r}")
+        raise argparse.ArgumentTypeError(f"--epsilon must be a number or lo:hi, got {text!r}") from None
     if len(parts) == 1:
         parts = parts * 2
-    if len(parts) != 2:
-        raise SystemExit(f"vo-gym train: error: --epsilon must be a number or lo:hi, got {text!r}")
+    if len(parts) != 2 or not all(0.0 <= p < 1.0 for p in parts) or parts[0] > parts[1]:
+        raise argparse.ArgumentTypeError(f"--epsilon must be a number or lo:hi in [0, 1) with lo <= hi, got {text!r}")
     return parts[0], parts[1]
+
+
+def _epsilon_text(text: str) -> str:
+    _epsilon_range(text)  # validated at parse time; kept as text for the trainers' configs
+    return text
 
 
 def _train_ngransac(args: argparse.Namespace, out: Path) -> int:
@@ -113,8 +131,10 @@ def _train_ngransac(args: argparse.Namespace, out: Path) -> int:
                 given["max_grad_norm"] = args.max_grad_norm or None  # 0 switches clipping off
             config = NGRansacConfig(loss=args.loss, epsilon_range=_epsilon_range(args.epsilon), seed=args.seed, **given)
             trainer = NGRansacTrainer(config)
-    except (ValueError, FileNotFoundError) as err:
-        raise SystemExit(f"vo-gym train: error: {err}")
+    except (ValueError, FileNotFoundError) as err:  # CheckpointError is a ValueError: one line naming the file
+        raise UsageError(str(err)) from None
+    except (TypeError, KeyError) as err:  # a checkpoint whose config this version's trainer does not take
+        raise UsageError(f"--resume {args.resume}: its training config does not fit this version ({err})") from None
     writer = SummaryWriter(str(out / "tb"))
     checkpoint = out / f"ngransac-{trainer.config.loss}.pt"
 
@@ -183,7 +203,7 @@ def _train_ppo(args: argparse.Namespace, out: Path) -> int:
             )
         result = train_ppo(config, out, resume=resume, progress=not getattr(args, "no_progress", False))
     except (ValueError, FileNotFoundError) as err:
-        raise SystemExit(f"vo-gym train: error: {err}")
+        raise UsageError(str(err)) from None
     print(f"model: {result.zip_path}")
     print(f"checkpoint: {result.checkpoint_path}")
     if result.history:
@@ -196,9 +216,24 @@ def _train_ppo(args: argparse.Namespace, out: Path) -> int:
     return 0
 
 
+def _check_env_id(env_id: str) -> None:
+    import gymnasium as gym
+
+    import vo_gym  # noqa: F401  (registers the vo_gym ids)
+
+    try:
+        gym.spec(env_id)
+    except gym.error.Error as err:
+        ids = sorted(k for k in gym.registry if k.startswith("vo_gym/"))
+        raise UsageError(f"--env-id {env_id!r} is not a registered environment ({err}); vo_gym's: {', '.join(ids)}") from None
+
+
 def run(args: argparse.Namespace) -> int:
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_output_dir(args.out, "--out")  # before any computing: a bad --out loses no training
+    if args.resume is not None and not Path(args.resume).is_file():
+        raise UsageError(f"--resume: no checkpoint at {args.resume}")
+    if args.algo == "ppo":
+        _check_env_id(args.env_id)
     if args.algo == "ngransac":
         return _train_ngransac(args, out)
     return _train_ppo(args, out)

@@ -12,9 +12,18 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 from pathlib import Path
 from typing import Any, Iterator
+
+from vo_gym.commands.common import (
+    UsageError,
+    bounded_int,
+    check_output_dir,
+    finite_float,
+    positive_int,
+    score_inputs,
+    seed,
+)
 
 
 class _LazyMethodChoices:
@@ -58,35 +67,62 @@ def parse_outliers(text: str) -> float | tuple[float, float]:
     return values[0]
 
 
-def _positive(kind: type, name: str):
-    def parse(text: str):
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} {text!r} is not a valid {kind.__name__}") from None
-        if not value > 0 or (isinstance(value, float) and not math.isfinite(value)):
-            raise argparse.ArgumentTypeError(f"{name} must be positive, got {text}")
-        return value
-
-    return parse
-
-
 def add_parser(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--preset", default="car", choices=["car", "free"], help="motion preset (default: car)")
-    parser.add_argument("--frames", type=_positive(int, "--frames"), default=300, help="frame pairs to simulate")
+    parser.add_argument("--preset", default="car", choices=["car", "free"], help="motion preset")
+    parser.add_argument("--frames", type=positive_int("--frames"), default=300, help="frame pairs to simulate")
     parser.add_argument(
         "--outliers", type=parse_outliers, default=0.5, metavar="EPS|LO:HI",
         help="outlier ratio, fixed (0.5) or drawn per frame from a range (0.3:0.9)",
     )
-    parser.add_argument("--noise", type=_positive(float, "--noise"), default=0.5, help="pixel noise sigma [px]")
-    parser.add_argument("--n", type=_positive(int, "--n"), default=500, help="correspondences per frame")
-    parser.add_argument("--auc", type=float, default=0.75, help="match-score ROC AUC (0.5 = uninformative)")
+    parser.add_argument("--noise", type=finite_float("--noise", 1e-3, 1e3), default=0.5,
+                        help="pixel noise sigma (px), in [0.001, 1000]")
+    parser.add_argument("--n", type=bounded_int("--n", 3), default=500, help="correspondences per frame (>= 3)")
+    parser.add_argument("--auc", type=finite_float("--auc"), default=0.75,
+                        help="match-score ROC AUC in [0.5, 1) (0.5 = uninformative)")
     parser.add_argument(
-        "--method", default="probabilistic", choices=_LazyMethodChoices(), help="estimator (default: probabilistic)"
+        "--method", default="probabilistic", choices=_LazyMethodChoices(),
+        help="estimator; PROSAC-style methods sample by the match scores' order, guided MLESAC by the "
+             "scores as priors",
     )
-    parser.add_argument("--seed", type=int, default=0, help="seed of the simulation and of the estimator stream")
-    parser.add_argument("--out", type=Path, default=Path("runs/vo"), help="output folder (default: runs/vo)")
+    parser.add_argument("--agent", default=None, metavar="NAME|PATH",
+                        help="a learned sampler that sets the method's sampling weights each frame: a shipped "
+                             f"one ({', '.join(_SHIPPED)}) or a .pt checkpoint (default: none)")
+    parser.add_argument("--seed", type=seed, default=0, help="seed of the simulation and of the estimator stream")
+    parser.add_argument("--out", type=Path, default=Path("runs/vo"), help="output folder")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+# Mirrors agents.checkpoint.SHIPPED_SAMPLERS without importing torch to build the parser (a test checks they agree).
+_SHIPPED = ("ngransac-supervised", "ngransac-self-supervised", "ngransac-self-supervised-smooth", "ppo")
+
+
+class _LearnedSampling:
+    """A learned sampler's per-frame sampling input: its logits on the frame's features.
+
+    The features carry the constant-velocity prediction of the last successful estimate, as in
+    the environment the sampler was trained in (none before the first success).
+    """
+
+    def __init__(self, policy: Any, noise_sigma: float, order: bool) -> None:
+        self.policy, self.noise_sigma, self.order = policy, noise_sigma, order
+        self.previous_motion: tuple | None = None
+
+    def __call__(self, frame: Any):
+        import numpy as np
+
+        from vo_gym.features import compute_features
+
+        features = compute_features(frame.prev, frame.curr, frame.scores, frame.camera, self.noise_sigma,
+                                    self.previous_motion)
+        logits = np.asarray(self.policy.act({"features": features, "mask": np.ones(frame.n, dtype=np.int8)}),
+                            dtype=np.float64)
+        if self.order:
+            return np.argsort(-logits, kind="stable")
+        return np.exp(logits - logits.max())  # guided-sampling weights, softmax up to a constant
+
+    def observe(self, frame: Any, estimate: Any) -> None:
+        if estimate.ok:
+            self.previous_motion = (estimate.rotation, estimate.translation)
 
 
 def _json_safe(value: Any) -> Any:
@@ -130,6 +166,27 @@ def _summary_lines(s: dict[str, Any]) -> list[str]:
     return [f"  {k:<{width}}  {v}" for k, v in table]
 
 
+def _sampling(args: argparse.Namespace) -> dict[str, Any]:
+    """``priors_fn`` / ``order_fn`` / ``on_estimate`` of ``run_odometry`` for ``--method`` and ``--agent``."""
+    from stereovo.estimation import method_spec
+
+    needs = method_spec(args.method).inputs
+    if args.agent is None:
+        return score_inputs(args.method)
+    if needs == "none":
+        raise UsageError(f"--agent {args.agent}: method {args.method!r} does not sample hypotheses, so a learned "
+                         "sampler has no role in it; pick a sampling method (e.g. --method msac)")
+    from agents.checkpoint import load_sampler
+
+    try:
+        policy = load_sampler(args.agent)
+    except (ValueError, FileNotFoundError) as err:
+        raise UsageError(f"--agent: {err}") from None
+    sampling = _LearnedSampling(policy, args.noise, order=needs == "order")
+    key = "order_fn" if needs == "order" else "priors_fn"
+    return {key: sampling, "on_estimate": sampling.observe}
+
+
 def run(args: argparse.Namespace) -> int:
     from stereovo.io import write_frame_csv, write_kitti, write_tum
     from stereovo.odometry import run_odometry
@@ -147,13 +204,12 @@ def run(args: argparse.Namespace) -> int:
         )
         sequence = Sequence(config, seed=args.seed)
     except ValueError as err:
-        # Invalid settings (the config validates them): a message, not a traceback.
-        print(f"vo-gym vo: error: {err}", file=sys.stderr)
-        return 2
-    result = run_odometry(sequence, method=args.method, seed=args.seed, progress=not args.no_progress)
+        # Invalid settings (the config validates them, naming the field): a message, not a traceback.
+        raise UsageError(str(err)) from None
+    sampling = _sampling(args)
+    out: Path = check_output_dir(args.out)  # before computing: a bad --out loses no result
+    result = run_odometry(sequence, method=args.method, seed=args.seed, progress=not args.no_progress, **sampling)
 
-    out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
     write_tum(out / "trajectory_est.tum", result.poses)
     write_tum(out / "trajectory_true.tum", result.true_poses)
     write_kitti(out / "trajectory_est.kitti.txt", result.poses)
@@ -165,12 +221,14 @@ def run(args: argparse.Namespace) -> int:
     settings = {
         "preset": args.preset, "frames": args.frames, "outliers": args.outliers, "noise_px": args.noise,
         "n_correspondences": args.n, "score_auc": args.auc, "method": args.method, "seed": args.seed,
+        "agent": args.agent,
     }
     (out / "summary.json").write_text(
         json.dumps(_json_safe({"settings": settings, "metrics": summary}), indent=2) + "\n"
     )
+    agent = "" if args.agent is None else f", sampler {args.agent}"
     print(f"vo-gym vo: {args.preset}, {args.frames} frames, outliers {args.outliers}, noise {args.noise} px, "
-          f"N {args.n}, AUC {args.auc}, seed {args.seed}")
+          f"N {args.n}, AUC {args.auc}, seed {args.seed}{agent}")
     print("\n".join(_summary_lines(summary)))
     print(f"  wrote {out}/: trajectory_{{est,true}}.tum, trajectory_{{est,true}}.kitti.txt, "
           "frames.csv, odometry.png, summary.json")

@@ -1,0 +1,181 @@
+"""The one contract for options: typed declarations that validate a value and name it on failure.
+
+Every layer that takes settings (the estimator's :class:`~stereovo.estimation.EstimatorOptions`
+and each method's own options, :class:`~stereovo.simulation.SimulationConfig`, the environment's
+keywords, the command line) declares them with these types, so the same value is accepted or
+refused, with the same message, wherever it enters:
+
+- :class:`Integer`: Python or numpy integers only. ``bool`` is refused (``True`` is not a count),
+  and so is ``3.0`` or ``1.5`` (a float that happens to be whole is a sign of a computed value
+  that was meant to be rounded by the caller, not here).
+- :class:`Boolean`: ``True``/``False`` (or numpy bools) only; ``"no"`` or ``0`` is refused
+  (``"no"`` is truthy and would silently act as True).
+- :class:`Number`: a real, finite number in a range; ``"0.9"``, ``nan``, ``inf`` and complex
+  numbers are refused.
+- :class:`Choice`: one of a fixed set of strings; the message lists them.
+
+Each declaration may allow ``None``. :meth:`Option.check` returns the value normalised to a
+plain Python ``int``/``float``/``bool``/``str`` (never changing it numerically), or raises
+:class:`OptionError` (a ``ValueError``) of the form
+``option NAME must be RULE, got VALUE``.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+from typing import Any, Iterable, Mapping
+
+import numpy as np
+
+__all__ = ["OptionError", "Option", "Integer", "Boolean", "Number", "Choice", "check_options", "is_integer", "is_real"]
+
+
+class OptionError(ValueError):
+    """An option's value breaks its declaration; the message names the option and the value."""
+
+
+def is_integer(value: Any) -> bool:
+    """A Python or numpy integer, not a bool."""
+    return isinstance(value, (numbers.Integral, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
+def is_real(value: Any) -> bool:
+    """A real Python or numpy number (int or float), not a bool, not complex, not a string."""
+    return isinstance(value, (numbers.Real, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+def _fmt(x: float) -> str:
+    return f"{x:g}" if isinstance(x, float) else str(x)
+
+
+@dataclass(frozen=True)
+class Option:
+    """Base declaration; subclasses define :meth:`_accepts` and :attr:`rule`.
+
+    Attributes:
+        allow_none: ``None`` is a valid value (meaning "not set"; the owner's docstring says what it means).
+        prefix: text before the option's name in messages (e.g. ``"SimulationConfig."``; default ``"option "``).
+    """
+
+    allow_none: bool = False
+
+    @property
+    def rule(self) -> str:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+    def describe(self) -> str:
+        """The rule in words, as the error message says it."""
+        return f"None or {self.rule}" if self.allow_none else self.rule
+
+    def check(self, name: str, value: Any, prefix: str = "option ") -> Any:
+        """``value`` normalised to a plain Python type, or :class:`OptionError` naming ``name`` and ``value``."""
+        if value is None and self.allow_none:
+            return None
+        ok, normalised = self._accepts(value)
+        if not ok:
+            raise OptionError(f"{prefix}{name} must be {self.describe()}, got {value!r}")
+        return normalised
+
+    def _accepts(self, value: Any) -> tuple[bool, Any]:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class Integer(Option):
+    """An integer in ``[low, high]`` (either bound optional)."""
+
+    low: int | None = None
+    high: int | None = None
+
+    @property
+    def rule(self) -> str:
+        bounds = ([f">= {self.low}"] if self.low is not None else []) + (
+            [f"<= {self.high}"] if self.high is not None else [])
+        return "an integer" + (" " + " and ".join(bounds) if bounds else "")
+
+    def _accepts(self, value: Any) -> tuple[bool, Any]:
+        if not is_integer(value):
+            return False, None
+        v = int(value)
+        ok = (self.low is None or v >= self.low) and (self.high is None or v <= self.high)
+        return ok, v
+
+
+@dataclass(frozen=True)
+class Boolean(Option):
+    """``True`` or ``False``."""
+
+    @property
+    def rule(self) -> str:
+        return "True or False"
+
+    def _accepts(self, value: Any) -> tuple[bool, Any]:
+        if isinstance(value, (bool, np.bool_)):
+            return True, bool(value)
+        return False, None
+
+
+@dataclass(frozen=True)
+class Number(Option):
+    """A finite real number between ``low`` and ``high``; ``low_open``/``high_open`` exclude the bound."""
+
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    high_open: bool = False
+    unit: str = ""
+
+    @property
+    def rule(self) -> str:
+        if self.low is not None and self.high is not None:
+            left, right = "(" if self.low_open else "[", ")" if self.high_open else "]"
+            rule = f"a finite number in {left}{_fmt(self.low)}, {_fmt(self.high)}{right}"
+        elif self.low is not None:
+            rule = f"a finite number {'>' if self.low_open else '>='} {_fmt(self.low)}"
+        elif self.high is not None:
+            rule = f"a finite number {'<' if self.high_open else '<='} {_fmt(self.high)}"
+        else:
+            rule = "a finite number"
+        return rule + (f" ({self.unit})" if self.unit else "")
+
+    def _accepts(self, value: Any) -> tuple[bool, Any]:
+        if not is_real(value):
+            return False, None
+        v = float(value)
+        if not math.isfinite(v):
+            return False, None
+        if self.low is not None and (v < self.low or (self.low_open and v == self.low)):
+            return False, None
+        if self.high is not None and (v > self.high or (self.high_open and v == self.high)):
+            return False, None
+        # An integer given for a number keeps its type: digests hash the options' values.
+        return True, int(value) if is_integer(value) else v
+
+
+@dataclass(frozen=True)
+class Choice(Option):
+    """One of ``choices`` (strings)."""
+
+    choices: tuple[str, ...] = ()
+
+    @property
+    def rule(self) -> str:
+        return "one of " + ", ".join(repr(c) for c in self.choices)
+
+    def _accepts(self, value: Any) -> tuple[bool, Any]:
+        if isinstance(value, str) and value in self.choices:
+            return True, value
+        return False, None
+
+
+def check_options(declarations: Mapping[str, Option], values: Mapping[str, Any], prefix: str = "option ",
+                  only: Iterable[str] | None = None) -> dict[str, Any]:
+    """Validate ``values`` (a subset of ``declarations``' keys) and return them normalised.
+
+    Raises:
+        OptionError: for the first bad value, naming it.
+    """
+    names = values.keys() if only is None else only
+    return {name: declarations[name].check(name, values[name], prefix) for name in names}
