@@ -120,6 +120,10 @@ def write_config(workdir: Path, modules: list[Module]) -> None:
         "only_mutate": [m.path for m in modules],
         "pytest_add_cli_args_test_selection": tests,
         "pytest_add_cli_args": ["-p", "no:cacheprovider", "-W", "ignore"],
+        # Fork each mutant from a server that only imported and collected the tests, not from the
+        # process that ran them for mutmut's statistics: there lru_caches (the stopping bound's) are
+        # already filled with the unmutated answers, and a mutant under them would pass unseen.
+        "process_isolation": "forkserver",
         "timeout_multiplier": 10.0,
         "timeout_constant": 5.0,
     }

@@ -18,7 +18,13 @@ from stereovo.estimation.prosac import ProsacTermination
 from stereovo.estimation.samplers import ProsacSampler, prosac_growth
 from stereovo.estimation.sprt import SprtTermination, SprtTest, SprtVerification
 from stereovo.estimation.tdd import TddTermination
-from stereovo.estimation.termination import AdaptiveTermination, all_inlier_probability, required_iterations
+from stereovo.estimation.termination import (
+    AdaptiveTermination,
+    FixedBudget,
+    all_inlier_probability,
+    iterations_for,
+    required_iterations,
+)
 
 # ---------------------------------------------------------------------------- RANSAC
 
@@ -46,6 +52,82 @@ def test_ransac_bound_edges_and_clips():
     assert AdaptiveTermination(confidence=0.99, min_iterations=300).required(6, 20) == 300
 
 
+def test_all_inlier_probability_is_zero_below_a_sample_and_elementwise():
+    assert float(all_inlier_probability(2, 20)) == 0.0  # (2)(1)(0) / (20 * 19 * 18)
+    assert float(all_inlier_probability(1, 20)) == 0.0
+    q = all_inlier_probability(np.array([[6, 20], [2, 3]]), 20)
+    assert q.dtype == np.float64 and q.shape == (2, 2)
+    np.testing.assert_allclose(q, [[120 / 6840, 1.0], [0.0, 6 / 6840]], rtol=1e-12)
+    # A 2-point sample: q = 6 * 5 / (20 * 19).
+    assert float(all_inlier_probability(6, 20, sample_size=2)) == pytest.approx(30 / 380, rel=1e-12)
+
+
+def test_required_iterations_defaults_shapes_and_sample_size():
+    assert required_iterations(6, 20) == 261  # confidence 0.99 by default
+    assert required_iterations(3, 1000) == 10_000  # max_iterations 10000 by default
+    k = required_iterations(np.array([[150, 300], [2, 6]]), 300, 0.99, 10_000)
+    assert k.dtype == np.int64 and k.shape == (2, 2)
+    # (150, 300): 35; all inliers: 1; fewer than 3: the cap; (6, 300): q = 120 / (300 * 299 * 298), ~1e6: the cap.
+    np.testing.assert_array_equal(k, [[35, 1], [10_000, 10_000]])
+    # 2-point samples: q = 30 / 380, ceil(log(0.01) / log(1 - 30/380)) = ceil(55.998) = 56.
+    assert math.ceil(math.log(0.01) / math.log(1 - 30 / 380)) == 56
+    np.testing.assert_array_equal(required_iterations(np.array([6]), 20, 0.99, 10_000, sample_size=2), [56])
+    assert AdaptiveTermination(confidence=0.99, max_iterations=123).required(3, 1000) == 123
+
+
+def test_iterations_for_a_given_q():
+    assert iterations_for(120 / 6840, 0.99, 10_000) == 261
+    assert iterations_for(0.999999, 0.5, 100) == 1  # ceil(log 0.5 / log 1e-6) = ceil(0.05) = 1
+    assert iterations_for(0.5, 0.99, 100) == 7  # ceil(log 0.01 / log 0.5) = ceil(6.64)
+    assert iterations_for(1.0, 0.99, 100) == 1
+    assert iterations_for(0.0, 0.99, 100) == 100
+    assert iterations_for(float("nan"), 0.99, 100) == 100
+    assert iterations_for(1e-9, 0.99, 100) == 100  # ~4.6e9 draws: the cap
+
+
+def test_adaptive_termination_asks_a_guided_sampler_for_q():
+    calls = []
+
+    def q_of(inliers):
+        calls.append(int(np.count_nonzero(inliers)))
+        return 0.5
+
+    guided = SimpleNamespace(all_inlier_probability=q_of)
+    stop = AdaptiveTermination(confidence=0.99, max_iterations=500, sampler=guided)
+    assert stop.required(6, 20) == 500  # no best model yet: q = 0, keep drawing
+    assert stop.counters() == {"stop_guided": 1, "stop_q": 0.0}
+    inliers = np.zeros(20, dtype=bool)
+    inliers[:6] = True
+    stop.on_new_best(inliers, None)
+    assert calls == [6]
+    assert stop.required(6, 20) == 7  # the sampler's q = 0.5, not the count formula's 261
+    assert stop.counters() == {"stop_guided": 1, "stop_q": 0.5}
+    floor = AdaptiveTermination(confidence=0.99, min_iterations=20, sampler=guided)
+    floor.on_new_best(inliers, None)
+    assert floor.required(6, 20) == 20  # 7 draws needed, but at least min_iterations
+    # A sampler that declares itself uniform, or cannot tell its q, gets the count formula.
+    for sampler in (SimpleNamespace(uniform=True, all_inlier_probability=q_of), SimpleNamespace(), None):
+        stop = AdaptiveTermination(confidence=0.99, sampler=sampler)
+        stop.on_new_best(inliers, None)
+        assert stop.required(6, 20) == 261 and stop.counters() == {"stop_guided": 0}
+    assert calls == [6, 6]  # never asked by those
+
+
+def test_termination_settings_are_validated():
+    for confidence in (0.0, 1.0, 1.5):
+        with pytest.raises(ValueError, match=rf"^confidence must be in \(0, 1\), got {confidence}$"):
+            AdaptiveTermination(confidence=confidence)
+    for low, high in ((0, 10), (1, 0), (5, 3)):
+        with pytest.raises(ValueError, match=rf"^need 1 <= min_iterations <= max_iterations, got {low} and {high}$"):
+            AdaptiveTermination(min_iterations=low, max_iterations=high)
+    AdaptiveTermination(confidence=0.5, min_iterations=3, max_iterations=3)  # the edges are allowed
+    with pytest.raises(ValueError, match=r"^hypothesis budget must be >= 1, got 0$"):
+        FixedBudget(0)
+    budget = FixedBudget(7)
+    assert budget.required(0, 20) == budget.required(20, 20) == budget.max_iterations == 7
+    assert FixedBudget(1).required(5, 5) == 1 and FixedBudget().budget == 32
+
+
 # ---------------------------------------------------------------------------- T(d,d)
 
 
@@ -62,7 +144,8 @@ def test_tdd_bound_is_stretched_by_the_pass_probability():
     assert math.ceil(math.log(0.01) / math.log(1 - q / 2)) == 523
     assert math.ceil(math.log(0.01) / math.log(1 - q / 4)) == 1048
     for measured, expected in ((0.5, 523), (0.25, 1048), (None, 1486)):
-        verifier = SimpleNamespace(alpha=lambda measured=measured: measured)
+        # A verifier whose pre-test stayed on for every draw (n_off = 0), with the measured alpha.
+        verifier = SimpleNamespace(alpha=lambda measured=measured: measured, active=True, n_on=0, n_off=0)
         assert TddTermination(confidence=0.99, d=1, verifier=verifier).required(6, 20) == expected, measured
     # Plain RANSAC's 261 is the d = 0 limit: the pre-test only ever stretches the bound.
     assert TddTermination(confidence=0.99, d=1).required(300, 300) == 1
