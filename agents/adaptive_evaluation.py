@@ -6,10 +6,12 @@ identical for all (they depend on the seed only):
 
 - ``learned``: the in-frame sampler of :mod:`agents.adaptive`, its own stop at several confidences;
 - ``bansac`` / ``ars``: the samplers of :mod:`stereovo.estimation.bansac` / ``ars`` fed by the env's
-  per-hypothesis verdicts, with the match scores as priors, BANSAC's own stop at several confidences,
+  per-hypothesis verdicts, with the match scores or the first one-shot network's weights as priors
+  (ARS-MAGSAC's neural guidance), BANSAC's own stop at several confidences,
   ARS's adaptive bound (ARS's deterministic "most probable sample" becomes guided sampling on
   ``p ** 20``, nearly always the most probable points: the env samples, it takes no indices);
-- ``ngransac`` / ``ppo`` (one-shot): the shipped samplers' logits on the frame features, fixed budgets;
+- ``ngransac`` / ``ppo`` (one-shot): the shipped samplers' logits on the frame features, fixed budgets
+  and the prior-aware stop (the all-inlier chance of one draw from their weights);
 - ``uniform`` and ``prosac-score``: uniform logits at fixed budgets; PROSAC by match score (the core's
   ``prosac`` method with its own stop, run on the same frames by :func:`estimate_problem`).
 
@@ -35,12 +37,13 @@ from stereovo.estimation.loop import LoopState
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.termination import required_iterations
 from stereovo.metrics import frame_metrics
-from vo_gym.adaptive_env import StereoVOAdaptiveEnv
+from vo_gym.adaptive_env import LOOP_FEATURE_NAMES, StereoVOAdaptiveEnv
 from vo_gym.features import N_FEATURES, feature_index
 from vo_gym.registration import HARD_SETTINGS
 
 LOGIT_BOUND = 10.0
 MATCH_SCORE = feature_index("match_score")
+IN_BEST = N_FEATURES + LOOP_FEATURE_NAMES.index("in_best")
 
 
 def _action(logits: np.ndarray, mask: np.ndarray, stop: bool) -> np.ndarray:
@@ -64,18 +67,51 @@ class BudgetPolicy:
         return _action(self._logits, obs["mask"], step["frame_hypotheses"] >= self.budget)
 
 
-class BansacPolicy:
-    """BANSAC's beliefs (match scores as priors) updated from each step's verdicts; its own stop."""
+class PriorAwareStopPolicy:
+    """A one-shot sampler's fixed logits with the prior-aware stop: stop once
+    ``1 - (1 - q)^k >= confidence``, ``q = (sum of the weights of the best model's consensus)^3`` the
+    chance that one draw from these weights is three points of that consensus (with replacement)."""
 
-    def __init__(self, confidence: float, name: str = "bansac") -> None:
-        self.name, self.confidence = name, float(confidence)
+    def __init__(self, name: str, confidence: float, logits_fn: Callable[[dict], np.ndarray]) -> None:
+        self.name, self.confidence, self.logits_fn = name, float(confidence), logits_fn
+        self._logits: np.ndarray | None = None
+
+    def act(self, obs: dict, step: dict) -> np.ndarray:
+        if step["new_frame"] or self._logits is None:
+            self._logits = self.logits_fn(obs)
+        mask = np.asarray(obs["mask"], bool)
+        drawn = step["frame_hypotheses"]
+        stop = False
+        if drawn:
+            logits = np.clip(self._logits[mask], -LOGIT_BOUND, LOGIT_BOUND)
+            w = np.exp(logits - logits.max())
+            in_best = np.asarray(obs["features"][mask, IN_BEST]) > 0.5
+            q = min(float(w[in_best].sum() / w.sum()) ** 3, 1 - 1e-12)
+            stop = q > 0 and drawn >= math.log1p(-self.confidence) / math.log1p(-q)
+        return _action(self._logits, obs["mask"], stop)
+
+
+def _priors(obs: dict, n: int, logits_fn: Callable[[dict], np.ndarray] | None) -> np.ndarray:
+    """Prior weights ``(n,)``: the match scores, or ``exp`` of a network's logits (max-normalised)."""
+    if logits_fn is None:
+        return np.asarray(obs["features"][:n, MATCH_SCORE], float)
+    logits = np.clip(logits_fn(obs)[:n], -LOGIT_BOUND, LOGIT_BOUND)
+    return np.exp(logits - logits.max())
+
+
+class BansacPolicy:
+    """BANSAC's beliefs (priors: the match scores, or a network's weights) updated from each step's
+    verdicts; its own stop."""
+
+    def __init__(self, confidence: float, name: str = "bansac", logits_fn: Callable[[dict], np.ndarray] | None = None) -> None:
+        self.name, self.confidence, self.logits_fn = name, float(confidence), logits_fn
         self._sampler: BansacSampler | None = None
 
     def act(self, obs: dict, step: dict) -> np.ndarray:
         mask = np.asarray(obs["mask"], bool)
         n = int(mask.sum())
         if step["new_frame"] or self._sampler is None:
-            self._sampler = BansacSampler(n, np.asarray(obs["features"][:n, MATCH_SCORE], float))
+            self._sampler = BansacSampler(n, _priors(obs, n, self.logits_fn))
         elif step["batch_samples"].shape[0]:
             self._sampler.on_hypotheses(None, None, step["batch_inliers"], None,
                                         LoopState(step["frame_hypotheses"], 0.0, samples=step["batch_samples"]))
@@ -86,10 +122,12 @@ class BansacPolicy:
 
 
 class ArsPolicy:
-    """ARS's probabilities (match scores as priors), BaySAC failure updates, adaptive bound."""
+    """ARS's probabilities (priors: the match scores, or a network's weights), BaySAC failure updates,
+    adaptive bound."""
 
-    def __init__(self, confidence: float = 0.99, sharpness: float = 20.0, name: str = "ars") -> None:
-        self.name, self.confidence, self.sharpness = name, float(confidence), float(sharpness)
+    def __init__(self, confidence: float = 0.99, sharpness: float = 20.0, name: str = "ars",
+                 logits_fn: Callable[[dict], np.ndarray] | None = None) -> None:
+        self.name, self.confidence, self.sharpness, self.logits_fn = name, float(confidence), float(sharpness), logits_fn
         self._p: np.ndarray | None = None
         self._best = -1
 
@@ -97,7 +135,7 @@ class ArsPolicy:
         mask = np.asarray(obs["mask"], bool)
         n = int(mask.sum())
         if step["new_frame"] or self._p is None:
-            self._p = initial_beliefs(n, np.asarray(obs["features"][:n, MATCH_SCORE], float), 0.5, 0.6)
+            self._p = initial_beliefs(n, _priors(obs, n, self.logits_fn), 0.5, 0.6)
             self._best = -1
         for sample, verdicts in zip(step["batch_samples"], step["batch_inliers"]):
             support = int(verdicts.sum())
@@ -176,6 +214,7 @@ class AdaptiveComparison:
     confidences: tuple[float, ...] = (0.5, 0.8, 0.9, 0.95, 0.98)
     bansac_confidences: tuple[float, ...] = (0.9, 0.99, 0.999)
     budgets: tuple[int, ...] = (4, 8, 16, 32, 64)
+    prior_aware_confidences: tuple[float, ...] = (0.9, 0.99)
     one_shot: tuple[str, ...] = ("ngransac-supervised", "ppo")
     episodes: int = 10
     frames_per_episode: int = 10
@@ -202,13 +241,18 @@ def policies(config: AdaptiveComparison) -> list[tuple[str, Any, Any]]:
     net, _ = load_adaptive(config.learned)
     for c in config.confidences:
         out.append(("learned (own stop)", c, LearnedAdaptivePolicy(AdaptiveSamplerPolicy(net, c), "learned")))
+    guide = one_shot_logits(load_sampler(config.one_shot[0]))
     for c in config.bansac_confidences:
-        out.append(("bansac (own stop)", c, BansacPolicy(c)))
-    out.append(("ars (adaptive bound)", 0.99, ArsPolicy(0.99)))
+        out.append(("bansac, score priors (own stop)", c, BansacPolicy(c)))
+        out.append((f"bansac, {config.one_shot[0]} priors (own stop)", c, BansacPolicy(c, logits_fn=guide)))
+    out.append(("ars, score priors (adaptive bound)", 0.99, ArsPolicy(0.99)))
+    out.append((f"ars, {config.one_shot[0]} priors (adaptive bound)", 0.99, ArsPolicy(0.99, logits_fn=guide)))
     for name in config.one_shot:
         logits = one_shot_logits(load_sampler(name))
         for b in config.budgets:
             out.append((f"{name} (one-shot)", b, BudgetPolicy(name, b, logits)))
+        for c in config.prior_aware_confidences:
+            out.append((f"{name} (one-shot, prior-aware stop)", c, PriorAwareStopPolicy(name, c, logits)))
     for b in config.budgets:
         out.append(("uniform", b, BudgetPolicy("uniform", b, lambda obs: np.zeros(np.asarray(obs["mask"]).shape))))
     return out

@@ -1,0 +1,95 @@
+"""The learned in-frame sampler: equivariance, checkpoints by name, acting in the env, training, policies."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from agents.adaptive import (
+    AdaptiveSamplerNet,
+    AdaptiveSamplerPolicy,
+    AdaptiveTrainConfig,
+    load_adaptive,
+    right_hypothesis,
+    save_adaptive,
+    train_adaptive,
+)
+from agents.adaptive_evaluation import ArsPolicy, BansacPolicy, BudgetPolicy, run_policy, summarise, wilson
+from vo_gym.adaptive_env import StereoVOAdaptiveEnv
+
+
+def test_network_is_permutation_equivariant_and_ignores_padding():
+    torch.manual_seed(0)
+    net = AdaptiveSamplerNet(n_features=5, n_globals=3, width=16, blocks=2).eval()
+    x, g = torch.randn(1, 30, 5), torch.randn(1, 3)
+    mask = torch.ones(1, 30, dtype=torch.bool)
+    logits, stop = net(x, mask, g)
+    perm = torch.randperm(30)
+    logits_p, stop_p = net(x[:, perm], mask[:, perm], g)
+    torch.testing.assert_close(logits_p, logits[:, perm], atol=1e-5, rtol=1e-5)
+    torch.testing.assert_close(stop_p, stop, atol=1e-5, rtol=1e-5)
+    padded = torch.cat([x, 100 * torch.randn(1, 10, 5)], dim=1)
+    pmask = torch.cat([mask, torch.zeros(1, 10, dtype=torch.bool)], dim=1)
+    logits_pad, stop_pad = net(padded, pmask, g)
+    torch.testing.assert_close(logits_pad[:, :30], logits, atol=1e-5, rtol=1e-5)
+    torch.testing.assert_close(stop_pad, stop, atol=1e-5, rtol=1e-5)
+
+
+def test_shipped_checkpoint_loads_by_name_and_acts_in_the_env():
+    net, payload = load_adaptive("adaptive-pg")
+    assert payload["config"]["minutes"] <= 30 and payload["log"]
+    env = StereoVOAdaptiveEnv(n_frames=2, n_correspondences=120, outlier_ratio=0.5)
+    policy = AdaptiveSamplerPolicy(net, confidence=0.9)
+    obs, _ = env.reset(seed=0)
+    action = policy.act(obs)
+    assert action.shape == env.action_space.shape and env.action_space.contains(action)
+    with pytest.raises(FileNotFoundError):
+        load_adaptive("adaptive-missing")
+    with pytest.raises(ValueError, match="confidence"):
+        AdaptiveSamplerPolicy(net, confidence=1.0)
+
+
+def test_checkpoint_round_trip_and_layout_check(tmp_path):
+    net = AdaptiveSamplerNet(width=8, blocks=1)
+    path = save_adaptive(tmp_path / "a.pt", net, {"minutes": 1})
+    loaded, payload = load_adaptive(path)
+    for key, value in net.state_dict().items():
+        torch.testing.assert_close(loaded.state_dict()[key], value)
+    payload["feature_names"] = ["x"]
+    torch.save(payload, tmp_path / "b.pt")
+    with pytest.raises(ValueError, match="feature layout"):
+        load_adaptive(tmp_path / "b.pt")
+
+
+def test_right_hypothesis_label():
+    inlier = np.array([1, 1, 1, 1, 0, 0, 0, 0], bool)
+    masks = np.array([[1, 1, 0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 1, 1, 1, 0]], bool)
+    assert not right_hypothesis(masks, np.full(8, 1 / 8), inlier, 0.9, 0.3)  # largest = the outliers' consensus
+    weights = np.array([0.2, 0.2, 0.2, 0.2, 0.05, 0.05, 0.05, 0.05])
+    assert right_hypothesis(masks, weights, inlier, 0.9, 0.3)
+
+
+def test_training_runs_and_writes_a_loadable_checkpoint(tmp_path):
+    config = AdaptiveTrainConfig(minutes=0.05, n=60, frames_per_episode=2, width=8, blocks=1, log_every_s=0.0)
+    path = train_adaptive(config, tmp_path / "t.pt", tmp_path / "t.log")
+    net, payload = load_adaptive(path)
+    assert payload["config"]["n"] == 60 and (tmp_path / "t.log").read_text().strip()
+
+
+@pytest.mark.parametrize("policy", [BansacPolicy(0.99), ArsPolicy(0.99), BudgetPolicy("uniform", 8, lambda o: np.zeros(len(o["mask"])))])
+def test_classical_samplers_act_as_policies_of_the_env(policy):
+    env = StereoVOAdaptiveEnv(n_frames=2, n_correspondences=150, outlier_ratio=0.5, max_hypotheses=32)
+    rows = run_policy(env, policy, seed=3)
+    again = run_policy(env, policy, seed=3)
+    assert rows == again and len(rows) == 2
+    assert all(1 <= r["n_hypotheses"] <= 32 for r in rows)
+    if isinstance(policy, BudgetPolicy):
+        assert all(r["n_hypotheses"] == 8 and r["stopped"] for r in rows)
+    summary = summarise(rows)
+    assert summary["frames"] == 2 and 0 <= summary["success"] <= 1
+
+
+def test_wilson_interval():
+    low, high = wilson(99, 100)
+    assert low == pytest.approx(0.9455, abs=1e-3) and high == pytest.approx(0.9982, abs=1e-3)
