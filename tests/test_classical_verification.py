@@ -439,3 +439,42 @@ def test_waldsac_through_the_environment_on_an_outlier_free_episode():
     for _ in range(3):
         env.step(env.action_space.sample())
     env.close()
+
+
+def test_r_ransac_at_eps_08_is_not_capped_and_switches_off_a_pretest_that_cannot_pay():
+    """eps 0.8, N 500: the measured good-model pass rate (~0.1 with polished fits, a few per cent with
+    raw ones) makes T(1,1) a loss under the cost model, so the pre-test switches itself off and the
+    run stops by the bound, well inside max_iterations, and finds the motion."""
+    config = SimulationConfig(n_correspondences=500, outlier_ratio=0.8)
+    draws = []
+    for seed in range(6):
+        frame = simulate_frame(config, 1000 + seed)
+        est = estimate(frame, "r-ransac", seed)
+        counters = est.report.counters
+        assert succeeded(est, frame), seed
+        assert counters["tdd_off"] > 0 and counters["tdd_switches"] >= 1
+        assert counters["tdd_alpha"] < 0.2  # measured (or -1: switched off on the optimistic bound first)
+        draws.append(est.n_hypotheses)
+    assert max(draws) < 10_000 and np.median(draws) < 3000, draws
+
+
+def test_tdd_pretest_stays_on_where_it_pays():
+    """Low noise and a generous gate (every inlier passes, alpha ~ w = 0.5), N = 2000, a cheap fit
+    (t_M = 20 point checks): d + P(pass) N + t_M (1 - alpha) < alpha N, so the pre-test stays on."""
+    from stereovo.estimation.solvers import minimal_hypotheses
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=2000, outlier_ratio=0.5, noise_sigma=0.05), 3)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    ctx = ScoringContext(problem, ReprojectionResidual(4.0), InlierCount(), 4.0)
+    rng = np.random.default_rng(0)
+    verifier = TddVerification(1, t_m=20.0)
+    verifier.on_new_best(frame.truth.inlier, None)
+    samples = np.stack([rng.choice(problem.n, 3, replace=False) for _ in range(3000)])
+    R, t, valid = minimal_hypotheses(problem, samples, 2)
+    for start in range(0, int(valid.sum()), 128):
+        rows = np.flatnonzero(valid)[start : start + 128]
+        verifier.verify(ctx, R[rows], t[rows], rng, samples=samples[rows])
+    counters = verifier.counters()
+    assert counters["tdd_good_measured"] >= 16 and counters["tdd_alpha"] > 0.3
+    assert verifier.active and counters["tdd_off"] == 0
+    assert counters["tdd_passed"] < 0.3 * counters["tdd_tested"]

@@ -136,7 +136,7 @@ class TddVerification:
         hypothesis explaining the best model's whole support: if even that cannot pay, none will.
         Before any best model the paper's test stays on."""
         alpha = self._alpha if self._alpha is not None and self._good >= self.min_measured else self._optimistic
-        if alpha is None:
+        if alpha is None or self.n_on == 0:  # nothing measured yet: the paper's test stays on
             return True
         if alpha <= 0.0:
             return False
@@ -204,21 +204,23 @@ class TddVerification:
         return scores, checks
 
     def _verify_fully(self, ctx, R, t, samples, d) -> tuple[np.ndarray, int]:
-        """The pre-test switched off: score every hypothesis on all points; every one's pass
-        probability (and a good one's, for alpha) then follows exactly from its support."""
+        """The pre-test switched off: score every hypothesis on all points. A good one's pass
+        probability (for alpha) follows exactly from its support; the pass rate of all hypotheses
+        keeps its value from while the test was on (recomputing it would cost a pass over every
+        hypothesis' residuals)."""
         H, n = R.shape[0], ctx.problem.n
         scores, sq = ctx.score_with_residuals(R, t)
-        masks = sq < ctx.threshold_sq
-        own = np.take_along_axis(masks, samples, axis=1).sum(axis=1)
-        chance = pass_probability(masks.sum(axis=1) - own, n - SAMPLE_SIZE, d)
-        self._pass_sum += float(np.sum(chance))
         self.n_off += H
+        self._pass_sum += H * self._pass_sum / max(self.n_on, 1)
         if self._best is not None:
             good = self._good_rows(samples)
             if np.any(good):
+                masks = sq[good] < ctx.threshold_sq
+                own = np.take_along_axis(masks, samples[good], axis=1).sum(axis=1)
+                chance = pass_probability(masks.sum(axis=1) - own, n - SAMPLE_SIZE, d)
                 self._samples = np.concatenate([self._samples, samples[good]])
-                self._alphas = np.concatenate([self._alphas, chance[good]])
-                self._good_mask = np.concatenate([self._good_mask, np.ones(int(good.sum()), dtype=bool)])
+                self._alphas = np.concatenate([self._alphas, chance])
+                self._good_mask = np.concatenate([self._good_mask, np.ones(chance.size, dtype=bool)])
                 self._refresh()
         self._decide(n)
         return scores, H * n
