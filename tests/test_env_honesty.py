@@ -179,3 +179,17 @@ def test_observations_ignore_the_labels(monkeypatch, sequence_cls, sampling):
     assert len(plain) == len(relabelled) == 5
     for k, (a, b) in enumerate(zip(plain, relabelled)):
         assert data_equivalence(a, b, exact=True), f"observation {k} differs"
+
+
+def test_observation_carries_the_match_scores_and_their_ranks():
+    # Columns 0 and 1 by hand: the frame's own scores (float32), and rank / (N - 1) with 0 the best score.
+    env = StereoVOEnv(**KWARGS)
+    obs, _ = env.reset(seed=3)
+    scores = env.current_frame.scores
+    features = obs["features"]
+    np.testing.assert_array_equal(features[:, feature_index("match_score")], scores.astype(np.float32))
+    rank = np.empty(120)
+    rank[np.argsort(-scores)] = np.arange(120)
+    np.testing.assert_allclose(features[:, feature_index("score_rank")], rank / 119, atol=1e-7)
+    assert features[np.argmax(scores), feature_index("score_rank")] == 0.0
+    assert features[np.argmin(scores), feature_index("score_rank")] == 1.0
