@@ -35,6 +35,9 @@ class OdometryResult:
             frame's motion was reused (constant velocity).
         trajectory: metrics of ``poses`` against ``true_poses``.
         frame_indices: ``(F,)`` the simulator's index of each frame.
+        covariances: ``(F, 6, 6)`` each frame's motion covariance
+            (:attr:`stereovo.estimation.MotionEstimate.covariance`: error vector
+            ``(log(R_est R_true^T), t_est - t_true)``, rad then m); NaN where the estimate failed.
     """
 
     method: str
@@ -45,6 +48,7 @@ class OdometryResult:
     fallback: np.ndarray
     trajectory: TrajectoryMetrics
     frame_indices: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    covariances: np.ndarray = field(default_factory=lambda: np.zeros((0, 6, 6)))
 
     @property
     def n_frames(self) -> int:
@@ -130,6 +134,7 @@ def run_odometry(
     metrics: list[FrameMetrics] = []
     fallback: list[bool] = []
     indices: list[int] = []
+    covariances: list[np.ndarray] = []
     R_last, t_last = np.eye(3), np.zeros(3)
 
     for frame in _progress(sequence, progress, method):
@@ -152,6 +157,7 @@ def run_odometry(
         poses.append(pose_update(poses[-1], R_last, t_last))
         metrics.append(frame_metrics(est, frame.truth))
         fallback.append(not est.ok)
+        covariances.append(est.covariance if est.covariance is not None else np.full((6, 6), np.nan))
         indices.append(int(frame.index))
 
     est_poses = np.stack(poses)
@@ -165,6 +171,7 @@ def run_odometry(
         fallback=np.array(fallback, dtype=bool),
         trajectory=trajectory_metrics(est_poses, true_poses, kitti_lengths=kitti_lengths, kitti_step=kitti_step),
         frame_indices=np.array(indices, dtype=int),
+        covariances=np.array(covariances, dtype=float).reshape(-1, 6, 6),
     )
 
 

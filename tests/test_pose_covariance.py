@@ -93,3 +93,27 @@ def test_direct_and_loop_methods_both_carry_covariances(method):
     frame = simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.3), rng=2)
     est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=0)
     assert est.ok and est.covariance is not None and np.all(np.isfinite(est.covariance))
+
+
+def test_vo_command_writes_one_covariance_per_frame(tmp_path):
+    from vo_gym.cli import main
+
+    out = tmp_path / "run"
+    assert main(["vo", "--frames", "6", "--n", "200", "--outliers", "0.4", "--seed", "2", "--out", str(out),
+                 "--no-progress"]) == 0
+    cov = np.load(out / "covariances.npy")
+    assert cov.shape == (6, 6, 6)
+    ok = np.all(np.isfinite(cov), axis=(1, 2))
+    assert ok.all()  # an easy sequence: every frame estimated
+    assert np.all(np.linalg.eigvalsh(cov) > 0)
+
+
+def test_odometry_result_carries_the_covariances_nan_on_failed_frames():
+    from stereovo.odometry import run_odometry
+    from stereovo.simulation import Sequence
+
+    sequence = Sequence(SimulationConfig(n_frames=4, n_correspondences=150, outlier_ratio=0.3), seed=1)
+    result = run_odometry(sequence, min_inliers=150)  # cannot be met: every frame fails
+    assert result.covariances.shape == (4, 6, 6) and np.all(np.isnan(result.covariances))
+    good = run_odometry(sequence)
+    assert np.all(np.isfinite(good.covariances))

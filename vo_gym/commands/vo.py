@@ -2,8 +2,12 @@
 
 Writes to ``--out``: ``trajectory_est.tum``, ``trajectory_true.tum``,
 ``trajectory_est.kitti.txt``, ``trajectory_true.kitti.txt``, ``frames.csv``
-(one row per frame), ``odometry.png`` and ``summary.json``; prints a summary
-table. The TUM files load directly in evo (``evo_ape tum trajectory_true.tum
+(one row per frame), ``covariances.npy``, ``odometry.png`` and ``summary.json``;
+prints a summary table. ``covariances.npy`` holds one ``(6, 6)`` covariance per
+frame (``(F, 6, 6)`` float64, ``numpy.load``), row k for the motion of frame
+pair k: the covariance of the error ``(log(R_est R_true^T), t_est - t_true)``,
+rotation first (rad) then translation (m), as
+:attr:`stereovo.estimation.MotionEstimate.covariance`; NaN on a failed frame. The TUM files load directly in evo (``evo_ape tum trajectory_true.tum
 trajectory_est.tum --align``).
 """
 
@@ -88,7 +92,11 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                         help="a learned sampler that sets the method's sampling weights each frame: a shipped "
                              f"one ({', '.join(_SHIPPED)}) or a .pt checkpoint (default: none)")
     parser.add_argument("--seed", type=seed, default=0, help="seed of the simulation and of the estimator stream")
-    parser.add_argument("--out", type=Path, default=Path("runs/vo"), help="output folder")
+    parser.add_argument(
+        "--out", type=Path, default=Path("runs/vo"),
+        help="output folder: trajectories (TUM, KITTI), frames.csv, covariances.npy (one 6x6 motion covariance "
+        "per frame, rotation rad then translation m; NaN where the estimate failed), odometry.png, summary.json",
+    )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
@@ -188,6 +196,8 @@ def _sampling(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from stereovo.io import write_frame_csv, write_kitti, write_tum
     from stereovo.odometry import run_odometry
     from stereovo.plotting import plot_odometry
@@ -215,6 +225,7 @@ def run(args: argparse.Namespace) -> int:
     write_kitti(out / "trajectory_est.kitti.txt", result.poses)
     write_kitti(out / "trajectory_true.kitti.txt", result.true_poses)
     write_frame_csv(out / "frames.csv", result.rows())
+    np.save(out / "covariances.npy", result.covariances)
     plot_odometry(result, out / "odometry.png")
 
     summary = result.summary()
@@ -231,5 +242,5 @@ def run(args: argparse.Namespace) -> int:
           f"N {args.n}, AUC {args.auc}, seed {args.seed}{agent}")
     print("\n".join(_summary_lines(summary)))
     print(f"  wrote {out}/: trajectory_{{est,true}}.tum, trajectory_{{est,true}}.kitti.txt, "
-          "frames.csv, odometry.png, summary.json")
+          "frames.csv, covariances.npy, odometry.png, summary.json")
     return 0
