@@ -29,11 +29,14 @@ __all__ = ["StereoVOEnv", "SAMPLING_MODES", "DEFAULT_ESTIMATOR_OPTIONS"]
 
 SAMPLING_MODES: tuple[str, ...] = ("guided", "prosac")
 
-DEFAULT_ESTIMATOR_OPTIONS: dict[str, Any] = {"local_refit": False, "refine_iterations": 3, "refine_rounds": 2}
-"""The environment's defaults for :class:`~stereovo.estimation.EstimatorOptions` fields it
-changes (the rest keep the core's defaults): the final refinement stays, with fewer
-iterations and rounds, and the per-hypothesis local refit goes, which keeps a step fast;
-pass any of them as a keyword to change it."""
+DEFAULT_ESTIMATOR_OPTIONS: dict[str, Any] = {
+    "polish_iterations": 2, "refine": True, "local_refit": False, "refine_iterations": 3, "refine_rounds": 2,
+}
+"""The environment's defaults for :class:`~stereovo.estimation.EstimatorOptions` fields (the rest
+keep the method's defaults): two of the core's enhancements, named explicitly because the named
+methods default to their papers' recipes: the sample polish and the final LM refinement (with
+fewer iterations and rounds); no per-hypothesis local refit, which keeps a step fast. Pass any of
+them as a keyword to change it."""
 
 # FrameMetrics fields that must not reach info: wall-clock time breaks determinism.
 _NON_DETERMINISTIC_METRICS = ("time_s",)

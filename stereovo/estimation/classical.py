@@ -20,7 +20,8 @@ Method-specific options (keyword arguments of ``estimate_motion``):
 - ``lo-ransac``: ``lo_inner_iterations`` (10), ``lo_sample_cap`` (12),
   ``lo_threshold_multiplier`` (3), ``lo_steps`` (4).
 - ``preemptive``: ``preemptive_hypotheses`` (M = 500, or ``budget``), ``preemptive_block`` (B = 100).
-- ``inlier-detection``: ``clique_c`` (3), ``clique_exact_max`` (60), ``clique_time_limit_s`` (0.5).
+- ``inlier-detection``: ``clique_c`` (3), ``clique_exact_max`` (60), ``clique_time_limit_s`` (0.5),
+  ``clique_graph_max`` (2000: above this N the graph is built on a random subset of that many).
 - ``usac``: the ``sprt_*``, ``lo_*`` and ``prosac_*`` options.
 """
 
@@ -30,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stereovo.estimation.clique import detect_inliers
+from stereovo.estimation.clique import GRAPH_MAX, detect_inliers
 from stereovo.estimation.lo import InnerRansacLO
 from stereovo.estimation.loop import RansacComponents
 from stereovo.estimation.methods import (
@@ -39,11 +40,12 @@ from stereovo.estimation.methods import (
     final_refiner,
     register_estimator,
     register_method,
+    register_variant,
 )
 from stereovo.estimation.mlesac import GuidedMlesacQuality, MlesacQuality
 from stereovo.estimation.preemptive import PreemptiveVerification
 from stereovo.estimation.prosac import ProsacTermination
-from stereovo.estimation.samplers import ProsacSampler, WeightedSampler
+from stereovo.estimation.samplers import SAMPLE_SIZE, ProsacSampler, WeightedSampler
 from stereovo.estimation.scoring import InlierCount, MahalanobisResidual, ReprojectionResidual, TruncatedQuadratic
 from stereovo.estimation.sprt import SprtTermination, SprtVerification
 from stereovo.estimation.tdd import TddTermination, TddVerification
@@ -276,7 +278,7 @@ def _build_usac(problem, options, priors, order, extra) -> RansacComponents:
     "inlier-detection",
     "maximum clique of rigid-distance-consistent matches (depth-aware), fit on it, reprojection re-gating",
     "Hirschmueller et al. 2002; Howard 2008",
-    extra_options=("clique_c", "clique_exact_max", "clique_time_limit_s"),
+    extra_options=("clique_c", "clique_exact_max", "clique_time_limit_s", "clique_graph_max"),
 )
 def _run_inlier_detection(problem, options, priors, order, extra, rng):
     if priors is not None or order is not None:
@@ -287,8 +289,33 @@ def _run_inlier_detection(problem, options, priors, order, extra, rng):
         problem,
         options.reprojection_threshold_sq,
         min_inliers=int(options.min_inliers),
-        refiner=final_refiner(options),
+        # Howard's own last step is the reprojection fit on the clique; the LM refinement is an enhancement
+        refiner=final_refiner(options) if options.refine else None,
         c=_number(extra, "clique_c", 3.0, low=0, low_open=True),
         exact_max=_number(extra, "clique_exact_max", 60, integer=True, low=0),
         time_limit_s=_number(extra, "clique_time_limit_s", 0.5, low=0, low_open=True),
+        rng=rng,
+        graph_max=_number(extra, "clique_graph_max", GRAPH_MAX, integer=True, low=SAMPLE_SIZE),
+        gate_sq=options.mahalanobis_threshold_sq,
+        confidence=options.confidence,
     )
+
+
+# ----------------------------------------------------------------------------- "+ enhancement" variants
+
+ENHANCED_VARIANTS: tuple[str, ...] = tuple(
+    register_variant(base, *enhancements)
+    for base, enhancements in (
+        ("ransac", ("polish",)),
+        ("ransac", ("refit",)),
+        ("ransac", ("rigidity",)),
+        ("ransac", ("lm",)),
+        ("ransac", ("polish", "refit", "lm")),  # what ``ransac`` ran before it became the paper's recipe
+        ("msac", ("polish", "lm")),  # the environment's recipe
+        ("lo-ransac", ("polish", "lm")),
+        ("inlier-detection", ("lm",)),
+    )
+)
+"""The registered ``method+enhancement...`` variants (:func:`~stereovo.estimation.methods.register_variant`):
+the baseline report's "+ enhancement" rows beside the papers' recipes, so that each addition's gain is
+measured on the same frames."""

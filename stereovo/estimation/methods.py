@@ -12,7 +12,7 @@ import dataclasses
 import functools
 import time
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -62,15 +62,30 @@ class EstimatorOptions:
         refine_gate_probability: chi-square quantile (3 dof with one v per match, 4 with independent
             vL and vR: ``camera.measurement_dof``) of the pixel Mahalanobis gate with which
             ``probabilistic`` re-selects inliers during its final refinement.
-        rigidity_gate_probability: chi-square(1) quantile of ``probabilistic``'s rigidity check,
-            which drops a minimal sample before fitting if a pairwise distance changes between
-            the frames by more than its triangulation noise allows; None turns the check off.
-        polish_iterations: Gauss-Newton steps on each minimal sample's reprojection error.
-        refine: run the final Levenberg-Marquardt refinement on the inliers.
+        rigidity_gate_probability: chi-square(1) quantile of the rigidity check (an enhancement,
+            ``probabilistic``'s by default), which drops a minimal sample before fitting if a
+            pairwise distance changes between the frames by more than its triangulation noise
+            allows; None (the default) turns the check off.
+        polish_iterations: Gauss-Newton steps on each minimal sample's reprojection error (an
+            enhancement; 0, the default, keeps the paper's closed-form minimal fit).
+        refine: end with the iterated two-image Levenberg-Marquardt refinement: refine on the
+            inliers, re-select them, repeat until they settle (at most ``refine_rounds`` rounds; an
+            enhancement, off by default).
         refine_iterations: LM iterations per refinement round.
         refine_rounds: at most this many refine / re-select-inliers rounds.
-        local_refit: refit each new best on its consensus (a light local optimisation).
+        local_refit: refit each new best on its consensus (a light local optimisation; an
+            enhancement, off by default).
+        least_squares_refit: without ``refine``, end as Fischler & Bolles do: refit the best model
+            by least squares on its inliers (``refine_iterations`` LM steps on their stereo
+            reprojection error, one round) and re-select the inliers once under the method's gate;
+            False keeps the best hypothesis as it is.
         min_inliers: fewer inliers in the final model is reported as "no consensus".
+
+    The defaults are the papers' recipes. Each registered method may declare its own defaults
+    (:attr:`MethodSpec.defaults`, applied by :func:`estimate_motion` unless the caller gives the
+    option): ``probabilistic`` declares its tuned recipe, and the ``+ enhancement`` variants
+    (``ransac+polish``, ``ransac+lm``, ...) switch on the enhancements their names list
+    (:data:`ENHANCEMENTS`).
     """
 
     noise_sigma: float = 0.5
@@ -82,12 +97,13 @@ class EstimatorOptions:
     threshold_px: float | None = None
     gate_probability: float = 0.95
     refine_gate_probability: float = 0.99
-    rigidity_gate_probability: float | None = 0.999
-    polish_iterations: int = 2
-    refine: bool = True
+    rigidity_gate_probability: float | None = None
+    polish_iterations: int = 0
+    refine: bool = False
     refine_iterations: int = 6
     refine_rounds: int = 3
-    local_refit: bool = True
+    local_refit: bool = False
+    least_squares_refit: bool = True
     min_inliers: int = 6
 
     def __post_init__(self) -> None:
@@ -165,6 +181,9 @@ class MethodSpec:
     build: MethodBuilder | None
     extra_options: tuple[str, ...] = ()  # method-specific keyword options besides EstimatorOptions
     runner: MethodRunner | None = None
+    # The method's own defaults for EstimatorOptions fields (e.g. probabilistic's tuned recipe, a
+    # variant's enhancements): plain values, applied unless the caller gives the option.
+    defaults: Mapping[str, Any] = dataclasses.field(default_factory=dict)
 
     def run(
         self,
@@ -187,16 +206,23 @@ _METHODS: dict[str, MethodSpec] = {}
 def _register(spec: MethodSpec) -> None:
     if spec.name in _METHODS:
         raise ValueError(f"method {spec.name!r} is already registered")
+    unknown = set(spec.defaults) - {f.name for f in dataclasses.fields(EstimatorOptions)}
+    if unknown:
+        raise ValueError(f"method {spec.name!r}: defaults {sorted(unknown)} are not EstimatorOptions fields")
+    EstimatorOptions(**spec.defaults)  # each default obeys its declaration
     _METHODS[spec.name] = spec
 
 
 def register_method(
-    name: str, description: str, reference: str, extra_options: tuple[str, ...] = ()
+    name: str, description: str, reference: str, extra_options: tuple[str, ...] = (),
+    defaults: Mapping[str, Any] | None = None,
 ) -> Callable[[MethodBuilder], MethodBuilder]:
-    """Decorator registering ``build(problem, options, priors, order, extra) -> RansacComponents``."""
+    """Decorator registering ``build(problem, options, priors, order, extra) -> RansacComponents``;
+    ``defaults``: :attr:`MethodSpec.defaults`."""
 
     def decorator(build: MethodBuilder) -> MethodBuilder:
-        _register(MethodSpec(name, description, reference, build, tuple(extra_options)))
+        _register(MethodSpec(name, description, reference, build, tuple(extra_options),
+                             defaults=dict(defaults or {})))
         return build
 
     return decorator
@@ -219,8 +245,9 @@ def register_estimator(
 
 
 def available_methods() -> dict[str, str]:
-    """Registered method names mapped to ``"description (reference)"``."""
-    return {name: f"{spec.description} ({spec.reference})" for name, spec in _METHODS.items()}
+    """Registered method names mapped to ``"description; recipe (reference)"``: the recipe says
+    which enhancements (:data:`ENHANCEMENTS`) the method uses by default, or that it has none."""
+    return {name: f"{spec.description}; {recipe_note(spec.defaults)} ({spec.reference})" for name, spec in _METHODS.items()}
 
 
 def method_spec(name: str) -> MethodSpec:
@@ -247,11 +274,76 @@ def default_termination(options: EstimatorOptions):
     return AdaptiveTermination(options.confidence, int(options.max_iterations))
 
 
+ENHANCEMENTS: dict[str, tuple[str, dict[str, Any]]] = {
+    "polish": ("sample polish (2 Gauss-Newton steps of each minimal fit on its points' reprojection error)",
+               {"polish_iterations": 2}),
+    "refit": ("local refit (each new best refitted on its consensus)", {"local_refit": True}),
+    "rigidity": ("rigidity check (samples whose pairwise distances change beyond their noise are dropped unfitted)",
+                 {"rigidity_gate_probability": 0.999}),
+    "lm": ("iterated two-image LM refinement (refine, re-select the inliers, until they settle)", {"refine": True}),
+}
+"""The project's additions to the papers' recipes, by the name a ``+`` variant gives them, with the
+:class:`EstimatorOptions` values that switch each one on (any method accepts them as options)."""
+
+
+def enhancements_used(values: Mapping[str, Any]) -> list[str]:
+    """Names of :data:`ENHANCEMENTS` that the option ``values`` switch on (absent = the default, off)."""
+    used = []
+    if values.get("polish_iterations", 0):
+        used.append("polish")
+    if values.get("local_refit", False):
+        used.append("refit")
+    if values.get("rigidity_gate_probability") is not None:
+        used.append("rigidity")
+    if values.get("refine", False):
+        used.append("lm")
+    return used
+
+
+def recipe_note(defaults: Mapping[str, Any]) -> str:
+    """Which enhancements a method's ``defaults`` switch on, in words (for its description)."""
+    used = enhancements_used(defaults)
+    if not used:
+        return "the paper's recipe, no enhancements"
+    return "enhancements: " + ", ".join(ENHANCEMENTS[name][0] for name in used)
+
+
+def register_variant(base: str, *enhancements: str) -> str:
+    """Register ``base+e1+e2...``: method ``base`` with the named :data:`ENHANCEMENTS` switched on by
+    default (for the baseline report's "+ enhancement" rows). Returns the variant's name."""
+    unknown = [e for e in enhancements if e not in ENHANCEMENTS]
+    if unknown or not enhancements:
+        raise ValueError(f"enhancements must be some of {sorted(ENHANCEMENTS)}, got {list(enhancements)}")
+    spec = method_spec(base)
+    defaults = dict(spec.defaults)
+    for name in enhancements:
+        defaults.update(ENHANCEMENTS[name][1])
+    name = "+".join((base, *enhancements))
+    _register(dataclasses.replace(spec, name=name, defaults=defaults))
+    return name
+
+
 def final_refiner(options: EstimatorOptions) -> ReprojectionRefiner | None:
-    """The final LM refinement the options ask for (None without ``refine``)."""
-    if not options.refine:
+    """The final step the options ask for.
+
+    With ``refine``: the iterated two-image LM refinement (refine, re-select the inliers, repeat
+    until they settle, at most ``refine_rounds`` rounds). Else, with ``least_squares_refit``: the
+    papers' last step, one least-squares refit of the best model on its inliers (LM on their
+    stereo reprojection error, as OpenCV's RANSAC refits on its inliers) and one re-selection of
+    the inliers under the method's gate. Else None: the best hypothesis as it is.
+    """
+    if options.refine:
+        return ReprojectionRefiner(iterations=options.refine_iterations, rounds=int(options.refine_rounds))
+    if options.least_squares_refit:
+        return ReprojectionRefiner(iterations=options.refine_iterations, rounds=1)
+    return None
+
+
+def sample_check(options: EstimatorOptions) -> RigidityCheck | None:
+    """The rigidity check the options ask for (None without ``rigidity_gate_probability``)."""
+    if options.rigidity_gate_probability is None:
         return None
-    return ReprojectionRefiner(iterations=options.refine_iterations, rounds=int(options.refine_rounds))
+    return RigidityCheck(_chi2_quantile(options.rigidity_gate_probability, 1))
 
 
 def base_components(
@@ -277,12 +369,13 @@ def base_components(
         first_batch_size=int(options.first_batch_size) if options.budget is None else None,
         polish_iterations=int(options.polish_iterations),
         min_inliers=int(options.min_inliers),
+        sample_check=sample_check(options),
     )
 
 
 @register_method(
     "ransac",
-    "inlier count under a stereo reprojection gate",
+    "minimal 3-point fits, inlier count under a stereo reprojection gate, exact (without replacement) stop",
     "Fischler & Bolles 1981",
 )
 def _build_ransac(problem, options, priors, order, extra) -> RansacComponents:
@@ -293,7 +386,7 @@ def _build_ransac(problem, options, priors, order, extra) -> RansacComponents:
 
 @register_method(
     "msac",
-    "truncated quadratic cost under a stereo reprojection gate",
+    "minimal 3-point fits, truncated quadratic cost under a stereo reprojection gate",
     "Torr & Zisserman 2000",
 )
 def _build_msac(problem, options, priors, order, extra) -> RansacComponents:
@@ -321,20 +414,24 @@ def _pixel_gated_refiner(options: EstimatorOptions, dof: int = 4) -> Reprojectio
     return dataclasses.replace(refiner, gate=(PixelMahalanobisResidual(threshold), threshold))
 
 
+PROBABILISTIC_RECIPE: dict[str, Any] = {
+    "polish_iterations": 2, "local_refit": True, "rigidity_gate_probability": 0.999, "refine": True,
+}
+"""``probabilistic``'s defaults: the project's tuned recipe, every enhancement on (each still an option)."""
+
+
 @register_method(
     "probabilistic",
     "Mahalanobis-gated consensus with triangulation covariances, chi-square(3) gate; "
-    "samples whose pairwise distances are not rigid within their noise are dropped unfitted; "
-    "final inliers by a chi-square(4) gate on the whitened pixel residuals",
+    "final inliers by a chi-square(4) gate on the whitened pixel residuals; the project's tuned recipe",
     "Brink et al.",
+    defaults=PROBABILISTIC_RECIPE,
 )
 def _build_probabilistic(problem, options, priors, order, extra) -> RansacComponents:
     threshold = options.mahalanobis_threshold_sq
     components = base_components(
         problem, options, priors, order, MahalanobisResidual(threshold), InlierCount(), threshold
     )
-    if options.rigidity_gate_probability is not None:
-        components.sample_check = RigidityCheck(_chi2_quantile(options.rigidity_gate_probability, 1))
     components.refiner = _pixel_gated_refiner(options, problem.camera.measurement_dof)
     return components
 
@@ -437,7 +534,7 @@ def _split_options(spec: MethodSpec, options: dict) -> tuple[EstimatorOptions, d
     if unknown:
         allowed = sorted(known | set(spec.extra_options))
         raise ValueError(f"unknown option(s) {sorted(unknown)} for method {spec.name!r}; known options: {allowed}")
-    shared = EstimatorOptions(**{k: v for k, v in options.items() if k in known})
+    shared = EstimatorOptions(**{**spec.defaults, **{k: v for k, v in options.items() if k in known}})
     extra = {k: v for k, v in options.items() if k not in known}
     return shared, extra
 
