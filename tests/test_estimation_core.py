@@ -445,13 +445,14 @@ def test_small_first_batch_and_refit_skipped_only_in_the_batch_that_ends_the_sea
     curr = curr + rng.normal(0, 0.5, curr.shape)
     curr[:, 3] = curr[:, 1]
     curr[:20] = curr[rng.permutation(20)]  # 10 % mismatched: the bound falls below one batch at once
-    ends_at_once = estimate_motion(prev, curr, CAMERA, method="msac", rng=0)
+    refitting = dict(polish_iterations=2, local_refit=True, refine=True)  # msac's paper recipe has no local refit
+    ends_at_once = estimate_motion(prev, curr, CAMERA, method="msac", rng=0, **refitting)
     # one first batch of first_batch_size (16) hypotheses, not batch_size (128): the bound is met
     assert ends_at_once.n_hypotheses == 16 and ends_at_once.report.n_local_optimizations == 0
-    assert estimate_motion(prev, curr, CAMERA, method="msac", rng=0, first_batch_size=32).n_hypotheses == 32
-    assert estimate_motion(prev, curr, CAMERA, method="msac", rng=0, budget=40).n_hypotheses == 40
+    assert estimate_motion(prev, curr, CAMERA, method="msac", rng=0, **refitting, first_batch_size=32).n_hypotheses == 32
+    assert estimate_motion(prev, curr, CAMERA, method="msac", rng=0, **refitting, budget=40).n_hypotheses == 40
     assert np.degrees(rotation_error(ends_at_once.rotation, R_true)) < 0.1  # the refinement did its work
-    searching = estimate_motion(prev, curr, CAMERA, method="msac", rng=0, batch_size=1)
+    searching = estimate_motion(prev, curr, CAMERA, method="msac", rng=0, **refitting, batch_size=1)
     assert searching.report.n_local_optimizations >= 1  # new bests before the last batch are refit
     lo = estimate_motion(prev, curr, CAMERA, method="lo-ransac", rng=0)
     assert lo.report.n_local_optimizations >= 1
