@@ -787,3 +787,14 @@ def test_compiled_refinement_rounds_equal_the_python_loop(gate_kind):
         for a, b in zip(compiled, python):
             np.testing.assert_array_equal(a, b)
         assert compiled[2].sum() > 0.9 * start.sum()
+
+
+@pytest.mark.parametrize("method", ["waldsac", "r-ransac", "inlier-detection"])
+def test_estimate_exposes_the_methods_counters(method):
+    from stereovo.simulation import SimulationConfig, simulate_frame
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.5), rng=6)
+    est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=0)
+    assert est.counters and est.counters == est.report.counters
+    assert all(isinstance(v, (int, float)) for v in est.counters.values())
+    assert estimate_motion(frame.prev[:2], frame.curr[:2], frame.camera, method=method).counters == {}
