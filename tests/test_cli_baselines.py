@@ -218,7 +218,8 @@ def test_report_only_rebuilds_tables_and_plots_from_the_stored_trials(runs, tmp_
     assert main(["baselines", "--report-only", str(tmp_path / "nothing")]) == 2
 
 
-def test_ctrl_c_prints_one_line_and_exits_130(tmp_path):
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_ctrl_c_or_sigterm_prints_one_line_and_exits_130(tmp_path, signame):
     import signal
     import subprocess
     import sys
@@ -235,7 +236,7 @@ def test_ctrl_c_prints_one_line_and_exits_130(tmp_path):
         if journal.is_file() and len(journal.read_text().splitlines()) > 3:
             break
         time.sleep(0.2)
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(getattr(signal, signame))
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
     lines = err.strip().splitlines()

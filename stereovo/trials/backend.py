@@ -73,13 +73,17 @@ def _token(warmup: Callable[[], None] | None) -> str:
         return f"id-{id(warmup)}"
 
 
-def _pool_worker_start(warmup: Callable[[], None] | None) -> None:
+def _pool_worker_start() -> None:
     # Ctrl-C is the driver's business: it cancels the run and terminates the workers itself;
     # workers that also caught SIGINT would each print a traceback.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    if warmup is not None:
-        warmup()
+
+
+def _warm_chunk(fn, warmup, token, chunk):
+    """A chunk in a worker process, after that process's one warm-up."""
+    _ensure_warm(warmup, token)
+    return _run_chunk(fn, chunk)
 
 
 class Backend:
@@ -108,8 +112,9 @@ class Backend:
 class LocalBackend(Backend):
     """This process (``workers == 1``) or a pool of ``workers`` processes on this machine.
 
-    At most ``2 * workers`` chunks are queued at once, so an interrupt has little to cancel.
-    A worker that dies raises :class:`WorkerDied` (the finished trials are already kept).
+    The pool lives until :meth:`close`, so its workers stay warm across runs. At most
+    ``2 * workers`` chunks are queued at once, so an interrupt has little to cancel (the pool is
+    then terminated). A worker that dies raises :class:`WorkerDied` (finished trials are kept).
     """
 
     name = "local"
@@ -122,21 +127,23 @@ class LocalBackend(Backend):
 
     def run(self, fn, chunks, warmup=None):
         chunks = list(chunks)
-        if self.workers == 1 or len(chunks) <= 1:
-            if warmup is not None and chunks:
-                warmup()
+        token = _token(warmup)
+        if self.workers == 1:
             for chunk in chunks:
+                _ensure_warm(warmup, token)
                 yield _run_chunk(fn, chunk)
             return
         from concurrent.futures.process import BrokenProcessPool
 
-        self._pool = ProcessPoolExecutor(max_workers=min(self.workers, len(chunks)),
-                                         initializer=_pool_worker_start, initargs=(warmup,))
+        if self._pool is None:
+            self._pool = ProcessPoolExecutor(max_workers=self.workers, initializer=_pool_worker_start)
+        pool = self._pool
         queue = iter(chunks)
         pending: set = set()
+        finished = False
         try:
             for chunk in queue:
-                pending.add(self._pool.submit(_run_chunk, fn, chunk))
+                pending.add(pool.submit(_warm_chunk, fn, warmup, token, chunk))
                 if len(pending) >= 2 * self.workers:
                     break
             while pending:
@@ -149,9 +156,11 @@ class LocalBackend(Backend):
                     yield result
                     nxt = next(queue, None)
                     if nxt is not None:
-                        pending.add(self._pool.submit(_run_chunk, fn, nxt))
+                        pending.add(pool.submit(_warm_chunk, fn, warmup, token, nxt))
+            finished = True
         finally:
-            self.close()
+            if not finished:  # interrupted or failed: stop the trials in flight now
+                self.close()
 
     def close(self) -> None:
         pool, self._pool = self._pool, None
@@ -168,11 +177,6 @@ class LocalBackend(Backend):
                 if process.is_alive():
                     process.terminate()
         pool.shutdown(wait=True)
-
-
-def _ray_chunk(fn, warmup, token, chunk):
-    _ensure_warm(warmup, token)
-    return _run_chunk(fn, chunk)
 
 
 class RayBackend(Backend):
@@ -213,7 +217,7 @@ class RayBackend(Backend):
             self._started = True
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.workers = int(workers) if (workers is not None and address is None) else cpus
-        self._remote = ray.remote(num_cpus=1, max_retries=self.max_retries, retry_exceptions=False)(_ray_chunk)
+        self._remote = ray.remote(num_cpus=1, max_retries=self.max_retries, retry_exceptions=False)(_warm_chunk)
 
     def describe(self) -> str:
         where = "a local instance" if self.address is None else f"cluster {self.address}"

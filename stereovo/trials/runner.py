@@ -18,7 +18,7 @@ from typing import Any, Callable, Sequence
 from stereovo.trials.backend import Backend, Task, chunked
 from stereovo.trials.store import TrialJournal
 
-__all__ = ["RunInterrupted", "RunResult", "run_tasks", "interrupted_message", "progress_bar"]
+__all__ = ["RunInterrupted", "RunResult", "run_tasks", "interrupted_message", "progress_bar", "sigterm_as_interrupt"]
 
 
 class RunInterrupted(Exception):
@@ -30,6 +30,30 @@ class RunInterrupted(Exception):
 
     def message(self) -> str:
         return interrupted_message(self.saved, self.total, self.folder, self.reason)
+
+
+class sigterm_as_interrupt:
+    """Within this block SIGTERM (a batch scheduler's or ``kill``'s stop) is handled like Ctrl-C.
+
+    So a run stopped either way closes its journal and workers and says how to resume. Only in
+    the main thread (signal handlers cannot be set elsewhere); elsewhere it does nothing.
+    """
+
+    def __enter__(self) -> "sigterm_as_interrupt":
+        import threading
+
+        self._previous = None
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGTERM, self._raise)
+        return self
+
+    @staticmethod
+    def _raise(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    def __exit__(self, *exc: Any) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGTERM, self._previous)
 
 
 def interrupted_message(saved: int, total: int, folder: Path | None, reason: str = "interrupted") -> str:
@@ -109,12 +133,12 @@ def run_tasks(
                 computed += 1
                 bar.update(weights[key])
     except KeyboardInterrupt:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the clean-up short
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the clean-up short
         try:
             bar.close()
             backend.close()
         finally:
-            signal.signal(signal.SIGINT, signal.default_int_handler)
+            signal.signal(signal.SIGINT, previous)
         raise RunInterrupted(_saved(journal, results), len(tasks), folder) from None
     except Exception as err:
         from stereovo.trials.backend import WorkerDied

@@ -144,8 +144,11 @@ def _json_safe(value: Any) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
+    from stereovo.trials.runner import sigterm_as_interrupt
+
     try:
-        return _run(args)
+        with sigterm_as_interrupt():  # kill / a scheduler's stop: the same clean stop as Ctrl-C
+            return _run(args)
     except UsageError as err:
         return _error(str(err))
 

@@ -90,8 +90,11 @@ def _error(message: str) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    from stereovo.trials.runner import sigterm_as_interrupt
+
     try:
-        return _run(args)
+        with sigterm_as_interrupt():  # kill / a scheduler's stop: the same clean stop as Ctrl-C
+            return _run(args)
     except UsageError as err:
         return _error(str(err))
 
