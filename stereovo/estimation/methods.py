@@ -423,7 +423,8 @@ PROBABILISTIC_RECIPE: dict[str, Any] = {
 @register_method(
     "probabilistic",
     "Mahalanobis-gated consensus with triangulation covariances, chi-square(3) gate; "
-    "final inliers by a chi-square(4) gate on the whitened pixel residuals; the project's tuned recipe",
+    "final inliers by a chi-square gate on the whitened pixel residuals (3 dof: one v per rectified match); "
+    "the project's tuned recipe",
     "Brink et al.",
     defaults=PROBABILISTIC_RECIPE,
 )
