@@ -7,10 +7,10 @@
 
 mutmut changes one thing in the code (an operator, a constant, a comparison, an argument) and runs
 the tests that call the changed function; a mutant the tests let pass ("survived") is a change of
-behaviour nobody would notice. The run happens in a copy of the repository (``--workdir``), never in
-the working tree: mutmut writes its ``mutants/`` folder there. Each module is checked against a
-fast subset of the suite (``MODULES``), run in order of importance, each within ``--minutes``;
-mutmut runs the tests of a mutant fastest first and stops at the first failure.
+behaviour nobody would notice. The run happens in copies of the repository (``--workdir``), never in
+the working tree: mutmut writes its ``mutants/`` folder there. Each module is checked in its own
+copy against a fast subset of the suite (``MODULES``), in order of importance, each within
+``--minutes``; mutmut runs the tests of a mutant fastest first and stops at the first failure.
 
 Not mutated: the numba kernels (``stereovo/estimation/kernels*.py``, and any ``@njit`` function:
 mutmut leaves decorated functions alone, so also properties and ``lru_cache``d helpers).
@@ -258,7 +258,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--only", nargs="+", choices=[m.name for m in MODULES], help="modules to run (default all)")
     parser.add_argument("--workdir", type=Path, default=Path("/tmp/vo-gym-mutation"),
-                        help="where the copy of the repository and mutmut's mutants/ go")
+                        help="where the copies of the repository (base/, then one per module with mutmut's mutants/) go")
     parser.add_argument("--commit", help="mutate this commit's files instead of the working tree's")
     parser.add_argument("--minutes", type=float, default=60.0, help="time cap per module (default 60)")
     parser.add_argument("--max-children", type=int, default=1, help="mutants checked in parallel (default 1)")
@@ -273,19 +273,26 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     modules = [m for m in MODULES if args.only is None or m.name in args.only]
     if not args.report_only:
-        if not (args.keep and args.workdir.is_dir()):
-            copy_tree(args.workdir, args.commit)
+        base = args.workdir / "base"
+        if not (args.keep and base.is_dir()):
+            copy_tree(base, args.commit)
             # A tree caught half-edited is no baseline: mutmut needs the selected tests green first.
             check = subprocess.run([sys.executable, "-c", "import stereovo, vo_gym, agents.ngransac"],
-                                   cwd=args.workdir, env=mutmut_environment(), capture_output=True, text=True)
+                                   cwd=base, env=mutmut_environment(), capture_output=True, text=True)
             if check.returncode != 0:
                 print(f"the copied tree does not import:\n{check.stderr[-2000:]}", file=sys.stderr)
                 return 1
-        # The modules asked for are mutated at once (one copy, one statistics run), then checked in order.
-        write_config(args.workdir, modules)
         for module in modules:
-            note = run_module(args.workdir, module, args.minutes, args.max_children)
-            record(args.results, args.workdir, module, note)
+            # One copy per module, with only its own tests: mutmut's statistics run (every selected
+            # test once) then stays short, and the time cap is the module's alone.
+            workdir = args.workdir / module.name
+            if not (args.keep and workdir.is_dir()):
+                if workdir.exists():
+                    shutil.rmtree(workdir)
+                shutil.copytree(base, workdir, symlinks=True)
+            write_config(workdir, [module])
+            note = run_module(workdir, module, args.minutes, args.max_children)
+            record(args.results, workdir, module, note)
             print(f"{module.name}: {note}", flush=True)
             write_report(args.report, args.results)
     summary = write_report(args.report, args.results)

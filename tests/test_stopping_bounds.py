@@ -55,6 +55,7 @@ def test_ransac_bound_edges_and_clips():
 def test_all_inlier_probability_is_zero_below_a_sample_and_elementwise():
     assert float(all_inlier_probability(2, 20)) == 0.0  # (2)(1)(0) / (20 * 19 * 18)
     assert float(all_inlier_probability(1, 20)) == 0.0
+    assert float(all_inlier_probability(3, 3)) == 1.0  # (3/3)(2/2)(1/1): the last factor's denominator is 1
     q = all_inlier_probability(np.array([[6, 20], [2, 3]]), 20)
     assert q.dtype == np.float64 and q.shape == (2, 2)
     np.testing.assert_allclose(q, [[120 / 6840, 1.0], [0.0, 6 / 6840]], rtol=1e-12)
