@@ -179,3 +179,30 @@ def test_environment_steps_through_frames_with_unusable_rows():
     action[:4] = -np.inf  # masked logits on the unusable rows are accepted
     obs, reward, terminated, truncated, info = env.step(action)
     assert np.isfinite(reward) and info["status"] == "ok"
+
+
+def _kernel_signatures() -> dict[str, int]:
+    """Compiled signatures of every numba dispatcher of the estimator's kernel modules."""
+    import importlib
+
+    counts = {}
+    for name in ("stereovo.estimation.kernels", "stereovo.camera", "stereovo.estimation.refinement"):
+        module = importlib.import_module(name)
+        for attr, value in vars(module).items():
+            if hasattr(value, "signatures") and hasattr(value, "py_func"):
+                counts[f"{name}.{attr}"] = len(value.signatures)
+    return counts
+
+
+def test_other_layouts_compile_nothing_new(frame):
+    """A Fortran-order, strided or float32 input is converted once at the boundary: after a warm-up
+    call with ordinary arrays, no kernel gains a compiled signature (issue 16: 11-28 s otherwise)."""
+    for method, kw in (("probabilistic", {}), ("ransac", {"priors": frame.scores})):
+        estimate_motion(frame.prev, frame.curr, CAMERA, method=method, rng=0, **kw)
+    before = _kernel_signatures()
+    wide = np.zeros((frame.n, 8))
+    wide[:, 1::2] = frame.curr
+    estimate_motion(np.asfortranarray(frame.prev), wide[:, 1::2], CAMERA, rng=0)
+    estimate_motion(frame.prev.astype(np.float32), frame.curr, CAMERA, method="ransac",
+                    priors=np.asfortranarray(np.stack([frame.scores, frame.scores], 1))[:, 0], rng=0)
+    assert _kernel_signatures() == before

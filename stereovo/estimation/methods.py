@@ -643,7 +643,7 @@ def _estimate(
     if problem.n < need:
         return failed(f"too few correspondences ({problem.n}, need {need})")
     if priors is not None:
-        priors = validate_priors(priors, problem.n)
+        priors = np.ascontiguousarray(validate_priors(priors, problem.n))  # one layout for the compiled draws
     if order is not None:
         order = validate_order(order, problem.n)
     sub, rows = problem.usable_subproblem()
