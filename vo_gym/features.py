@@ -65,6 +65,7 @@ import numpy as np
 from numba import njit
 
 from stereovo.camera import StereoCamera
+from stereovo.estimation.methods import ESTIMATOR_OPTION_RULES
 from stereovo.estimation.problem import StereoProblem, as_measurements
 from stereovo.estimation.reprojection import reprojection_sq
 
@@ -261,11 +262,16 @@ def compute_features(
     n = prev.shape[0]
     if curr.shape[0] != n:
         raise ValueError(f"prev and curr must have the same number of rows, got {n} and {curr.shape[0]}")
-    scores = np.asarray(scores, dtype=float)
+    if np.iscomplexobj(scores):
+        raise ValueError(f"scores must be real, got complex dtype {np.asarray(scores).dtype}")
+    try:
+        scores = np.asarray(scores, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"scores must be a finite ({n},) array of numbers, got {type(scores).__name__}") from None
     if scores.shape != (n,) or not np.all(np.isfinite(scores)):
         raise ValueError(f"scores must be a finite ({n},) array, got shape {scores.shape}")
-    if not (np.isfinite(noise_sigma) and noise_sigma > 0):
-        raise ValueError(f"noise_sigma must be a positive pixel noise, got {noise_sigma!r}")
+    # The estimator's own rule for noise_sigma (the one options contract), so both accept the same values.
+    noise_sigma = ESTIMATOR_OPTION_RULES["noise_sigma"].check("noise_sigma", noise_sigma, prefix="")
     motion = _validate_motion(previous_motion)
 
     out = np.zeros((n, N_FEATURES), dtype=np.float32)
