@@ -88,9 +88,21 @@ STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests"
 # Survivors that cannot change behaviour, with the reason. Keyed by mutmut's mutant name; the report
 # shows each one's diff, so a reviewer can check the reason against the code (names shift when a
 # function's code changes: rerun and recheck).
+_T = "stereovo.estimation.termination."
 EQUIVALENT: dict[str, str] = {
     "vo_gym.rewards.x_pose_error_ratio__mutmut_12":
         "rot_err_deg / SUCCESS_ROT_DEG -> * SUCCESS_ROT_DEG: the bound is 1.0 deg, dividing and multiplying by 1 agree.",
+    _T + "x_all_inlier_probability__mutmut_3":
+        "asarray(dtype=None) instead of float: I - i stays integer, but np.maximum(., 0.0) and the division make q "
+        "float64 either way.",
+    _T + "x_all_inlier_probability__mutmut_5": "the same without the dtype argument.",
+    _T + "x_required_iterations__mutmut_22":
+        "np.array(list of Python ints, dtype=None) is int64 on the 64-bit platforms we support, as asked.",
+    _T + "x_required_iterations__mutmut_24": "the same without the dtype argument.",
+    _T + "xǁSampleProbabilityǁ__init____mutmut_9":
+        "getattr(sampler, 'uniform', None) instead of False as the default: `not None` is `not False`.",
+    _T + "xǁAdaptiveTerminationǁon_new_best__mutmut_2":
+        "passes None for the loop state: SampleProbability.on_new_best never reads the state.",
 }
 
 

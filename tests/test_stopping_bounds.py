@@ -102,6 +102,10 @@ def test_adaptive_termination_asks_a_guided_sampler_for_q():
     stop.on_new_best(inliers, None)
     assert calls == [6]
     assert stop.required(6, 20) == 7  # the sampler's q = 0.5, not the count formula's 261
+    # What T(d,d)'s and the SPRT's bounds read: the sampler's q, and how often it was asked.
+    assert stop.probability.of(6, 20) == 0.5 and stop.probability.updates == 1
+    stop.on_new_best(inliers, None)
+    assert stop.probability.updates == 2
     assert stop.counters() == {"stop_guided": 1, "stop_q": 0.5}
     floor = AdaptiveTermination(confidence=0.99, min_iterations=20, sampler=guided)
     floor.on_new_best(inliers, None)
@@ -111,7 +115,8 @@ def test_adaptive_termination_asks_a_guided_sampler_for_q():
         stop = AdaptiveTermination(confidence=0.99, sampler=sampler)
         stop.on_new_best(inliers, None)
         assert stop.required(6, 20) == 261 and stop.counters() == {"stop_guided": 0}
-    assert calls == [6, 6]  # never asked by those
+    assert calls == [6, 6, 6]  # never asked by those
+    assert stop.probability.of(6, 20) == pytest.approx(120 / 6840, rel=1e-12) and stop.probability.updates == 0
 
 
 def test_termination_settings_are_validated():
@@ -122,6 +127,7 @@ def test_termination_settings_are_validated():
         with pytest.raises(ValueError, match=rf"^need 1 <= min_iterations <= max_iterations, got {low} and {high}$"):
             AdaptiveTermination(min_iterations=low, max_iterations=high)
     AdaptiveTermination(confidence=0.5, min_iterations=3, max_iterations=3)  # the edges are allowed
+    assert AdaptiveTermination(min_iterations=1, max_iterations=1).required(2, 20) == 1
     with pytest.raises(ValueError, match=r"^hypothesis budget must be >= 1, got 0$"):
         FixedBudget(0)
     budget = FixedBudget(7)
