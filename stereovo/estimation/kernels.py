@@ -518,14 +518,15 @@ def _motion_entries(R, t, h):
 
 
 @_inline_jit
-def _covariance_at(x, y, z, fx, fy, fb, v_variance, s2):
+def _covariance_at(x, y, z, inv_fx, inv_fy, inv_fb, v_variance, s2):
     """Upper triangle ``(c00, c01, c02, c11, c12, c22)`` of the triangulation covariance of a point
     ``(x, y, z)`` (m^2): ``sigma^2 J J^T`` of :class:`stereovo.camera.StereoCamera`, evaluated at
-    that point (disparity ``fb / z``) rather than read from a measured one."""
-    w = z / fb  # 1 / disparity
+    that point (disparity ``fb / z``) rather than read from a measured one. Reciprocals of the
+    camera constants are passed in: divisions would dominate the kernel that calls this."""
+    w = z * inv_fb  # 1 / disparity
     xd, yd, zd = x * w, y * w, z * w
-    a = z / fx - xd
-    h = z / fy
+    a = z * inv_fx - xd
+    h = z * inv_fy
     return (
         s2 * (a * a + xd * xd), s2 * (xd - a) * yd, s2 * (xd - a) * zd,
         s2 * (2.0 * yd * yd + v_variance * h * h), s2 * 2.0 * yd * zd, s2 * 2.0 * zd * zd,
@@ -551,10 +552,13 @@ def mahalanobis_sq(R, t, X, Y, cam, sigma_sq, cap):
     same for every rotation) and skips the 3x3 solve.
     """
     fx, fy, bl = cam[0], cam[1], cam[4]
-    fb = fx * bl
+    inv_fx, inv_fy, inv_fb = 1.0 / fx, 1.0 / fy, 1.0 / (fx * bl)
     v_variance = 1.0 / cam[5]
     H, N = R.shape[0], X.shape[0]
     out = np.empty((H, N))
+    inv_depth = np.empty(N)
+    for n in range(N):
+        inv_depth[n] = 1.0 / Y[n, 2]
     for h in range(H):
         r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2 = _motion_entries(R, t, h)
         for n in range(N):
@@ -564,10 +568,8 @@ def mahalanobis_sq(R, t, X, Y, cam, sigma_sq, cap):
             p2 = r20 * x0 + r21 * x1 + r22 * x2 + t2
             y0, y1, y2 = Y[n, 0], Y[n, 1], Y[n, 2]
             x, y, z = y0 - p0, y1 - p1, y2 - p2
-            if p2 <= MIN_DEPTH:
-                out[h, n] = np.inf
-                continue
-            ip, iy = 1.0 / p2, 1.0 / y2
+            behind = p2 <= MIN_DEPTH  # a select, not a branch: the loop stays vectorisable
+            ip, iy = 1.0 / (MIN_DEPTH if behind else p2), inv_depth[n]
             iq = 1.0 / (ip + iy)
             q0, q1, q2 = (p0 * ip + y0 * iy) * iq, (p1 * ip + y1 * iy) * iq, 2.0 * iq
             # the fused point at k-1: R^T (Q - t)
@@ -577,20 +579,22 @@ def mahalanobis_sq(R, t, X, Y, cam, sigma_sq, cap):
             k2 = r02 * d0 + r12 * d1 + r22 * d2
             if k2 <= MIN_DEPTH:  # no depth at k-1 for the fused point (odd motions): the measured one
                 k0, k1, k2 = x0, x1, x2
-            sx00, sx01, sx02, sx11, sx12, sx22 = _covariance_at(k0, k1, k2, fx, fy, fb, v_variance, sigma_sq)
-            sy00, sy01, sy02, sy11, sy12, sy22 = _covariance_at(q0, q1, q2, fx, fy, fb, v_variance, sigma_sq)
+            sx00, sx01, sx02, sx11, sx12, sx22 = _covariance_at(k0, k1, k2, inv_fx, inv_fy, inv_fb, v_variance, sigma_sq)
+            sy00, sy01, sy02, sy11, sy12, sy22 = _covariance_at(q0, q1, q2, inv_fx, inv_fy, inv_fb, v_variance, sigma_sq)
             if cap > 0.0:
-                bound = (x * x + y * y + z * z) / max(sx00 + sx11 + sx22 + sy00 + sy11 + sy22, 1e-300)
-                if bound >= cap:
-                    out[h, n] = bound
+                r2 = x * x + y * y + z * z
+                trace = sx00 + sx11 + sx22 + sy00 + sy11 + sy22
+                if r2 >= cap * trace or behind:  # no division: |r|^2 / trace >= cap
+                    out[h, n] = np.inf if behind else r2 / max(trace, 1e-300)
                     continue
             c00, c01, c02, c11, c12, c22 = _congruence(  # R S_X R^T, plus S_Y below
                 r00, r01, r02, r10, r11, r12, r20, r21, r22,
                 sx00, sx01, sx02, sx11, sx12, sx22,
             )
-            out[h, n] = _symmetric_quadratic(
+            d2 = _symmetric_quadratic(
                 c00 + sy00, c01 + sy01, c02 + sy02, c11 + sy11, c12 + sy12, c22 + sy22, x, y, z,
             )
+            out[h, n] = np.inf if behind else d2
     return out
 
 
