@@ -186,3 +186,21 @@ def test_guided_ransac_draws_fewer_hypotheses_with_informative_priors():
             right[name] += est.ok and np.degrees(rotation_error(est.rotation, frame.truth.rotation)) < 1.0
     assert np.mean(draws["guided"]) <= 0.5 * np.mean(draws["uniform"]), draws
     assert right["guided"] >= right["uniform"] - 1, right
+
+
+def test_evaluate_runs_agents_adaptively_beside_the_classical_adaptive_rows():
+    from agents.evaluation import KIND_AGENT_ADAPTIVE, EvalConfig, resolve_agents, run_evaluation
+
+    config = EvalConfig(episodes=1, frames_per_episode=3, epsilons=(0.7,), budgets=(16,), budget=16,
+                        sweep_epsilon=0.7, n=200, methods=("prosac",), max_iterations=500, adaptive_agents=True)
+    result = run_evaluation(config, resolve_agents(["match-score"]), workers=1, progress=False)
+    adaptive = [r for r in result.rows if r["method"] == "match-score (adaptive)"]
+    fixed = [r for r in result.rows if r["method"] == "match-score"]
+    assert len(adaptive) == len(fixed) == 3 * 1  # the fixed-budget setting only (sweep eps = eps)
+    assert all(r["kind"] == KIND_AGENT_ADAPTIVE and r["budget"] == 16 for r in adaptive)
+    assert all(r["n_hypotheses"] == 16 for r in fixed)
+    assert all(1 <= r["n_hypotheses"] <= 500 for r in adaptive) and any(r["n_hypotheses"] != 16 for r in adaptive)
+    table = result.summary["budget_sweep"]["adaptive"]
+    assert {"prosac (adaptive)", "match-score (adaptive)"} <= set(table)
+    with pytest.raises(ValueError, match="adaptive_agents"):
+        EvalConfig(adaptive_agents=1)
