@@ -252,3 +252,18 @@ def test_prosac_n_star_minimises_the_draws():
     inliers[31::2] = True
     stop.on_new_best(inliers, None)
     assert stop.n_star == 30 and stop.required(65, 100) == 1
+
+
+def test_prosac_counters_and_validation():
+    sampler = ProsacSampler(np.arange(100))
+    stop = ProsacTermination(sampler, confidence=0.99, max_iterations=777)
+    # Before any model: n* is N, the bound the cap, no update.
+    assert stop.counters() == {"prosac_n_star": 100, "prosac_k_stop": 777.0, "prosac_updates": 0}
+    inliers = np.zeros(100, dtype=bool)
+    inliers[:40] = True
+    stop.on_new_best(inliers, None)
+    assert stop.counters() == {"prosac_n_star": 40, "prosac_k_stop": 1.0, "prosac_updates": 1}
+    for name, value in (("beta", 0.0), ("beta", 1.0), ("psi", 0.0), ("psi", 1.5), ("min_n", 3), ("min_n", 20.5)):
+        with pytest.raises(ValueError, match=rf"^option prosac_{name} has an invalid value {value!r}$"):
+            ProsacTermination(ProsacSampler(np.arange(100)), **{name: value})
+    ProsacTermination(ProsacSampler(np.arange(100)), min_n=4)  # the smallest allowed prefix, 3 + 1
