@@ -6,7 +6,7 @@ method is run twice: as registered, and with its verifier replaced by full scori
 hypothesis on every point and its stop by the plain adaptive bound (what the early-rejection
 stop reduces to without a test). Printed per cell: median wall time of each and their ratio,
 median time per hypothesis and its ratio, median hypotheses drawn, success (rotation < 1 deg),
-and for r-ransac the measured pass probability alpha of a good hypothesis, which decides whether
+the time inside the verifier per verified hypothesis and its ratio, and for r-ransac the measured pass probability alpha of a good hypothesis, which decides whether
 the T(1,1) pre-test can pay: with fit cost t_M (in point checks), the pre-test pays only if
 ``(t_M + 1 + P_pass N) / alpha < t_M + N`` (Matas & Chum 2004's cost model).
 
@@ -35,9 +35,9 @@ from stereovo.simulation import SimulationConfig, simulate_frame
 ENHANCED = {"polish_iterations": 2, "local_refit": True, "refine": True}
 
 
-def components(method: str, problem: StereoProblem, options: EstimatorOptions, full: bool):
+def components(method: str, problem: StereoProblem, options: EstimatorOptions, full: bool, method_options=None):
     """``method``'s recipe; with ``full``, full verification and the plain adaptive bound instead."""
-    c = method_spec(method).build(problem, options, None, None, {})
+    c = method_spec(method).build(problem, options, None, None, dict(method_options or {}))
     if full:
         old = (c.verifier, c.termination)
         c.verifier = FullVerification()
@@ -63,9 +63,10 @@ def fit_cost_in_point_checks(problem: StereoProblem, options: EstimatorOptions, 
     return (best_fit / 256) / (best_score / (256 * problem.n))
 
 
-def run_cell(method: str, n: int, eps: float, frames: int, extra: dict) -> dict:
+def run_cell(method: str, n: int, eps: float, frames: int, extra: dict, method_options=None) -> dict:
     times = {False: [], True: []}
     per_hyp = {False: [], True: []}
+    verify_per_hyp = {False: [], True: []}
     draws = {False: [], True: []}
     right = {False: 0, True: 0}
     alphas, pass_rates, t_m = [], [], []
@@ -74,12 +75,22 @@ def run_cell(method: str, n: int, eps: float, frames: int, extra: dict) -> dict:
         problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
         options = EstimatorOptions(noise_sigma=frame.noise_sigma, **extra)
         for full in (False, True):
-            c = components(method, problem, options, full)
+            c = components(method, problem, options, full, method_options)
+            verify, spent = c.verifier.verify, [0.0]
+
+            def timed(*a, _verify=verify, _spent=spent, **k):
+                t0 = time.perf_counter()
+                out = _verify(*a, **k)
+                _spent[0] += time.perf_counter() - t0
+                return out
+
+            c.verifier.verify = timed
             t0 = time.perf_counter()
             report = run_ransac(problem, c, np.random.default_rng(seed))
             elapsed = time.perf_counter() - t0
             times[full].append(elapsed)
             per_hyp[full].append(elapsed / max(report.n_hypotheses, 1))
+            verify_per_hyp[full].append(spent[0] / max(report.n_scored, 1))
             draws[full].append(report.n_hypotheses)
             right[full] += report.status == "ok" and np.degrees(rotation_error(report.rotation, frame.truth.rotation)) < 1
             if not full and method == "r-ransac":
@@ -94,11 +105,14 @@ def run_cell(method: str, n: int, eps: float, frames: int, extra: dict) -> dict:
         "time_ms": float(np.median(times[False]) * 1e3), "full_time_ms": float(np.median(times[True]) * 1e3),
         "per_hypothesis_us": float(np.median(per_hyp[False]) * 1e6),
         "full_per_hypothesis_us": float(np.median(per_hyp[True]) * 1e6),
+        "verify_us": float(np.median(verify_per_hyp[False]) * 1e6),
+        "full_verify_us": float(np.median(verify_per_hyp[True]) * 1e6),
         "hypotheses": float(np.median(draws[False])), "full_hypotheses": float(np.median(draws[True])),
         "success": right[False] / frames, "full_success": right[True] / frames,
     }
     row["time_ratio"] = row["time_ms"] / row["full_time_ms"]
     row["per_hypothesis_ratio"] = row["per_hypothesis_us"] / row["full_per_hypothesis_us"]
+    row["verify_ratio"] = row["verify_us"] / row["full_verify_us"]
     if method == "r-ransac":
         alpha = float(np.median(alphas)) if alphas else float("nan")
         p_pass = float(np.median(pass_rates))
@@ -116,19 +130,22 @@ def main() -> None:
     parser.add_argument("--methods", nargs="+", default=["waldsac", "r-ransac"])
     parser.add_argument("--enhanced", action="store_true", help="sample polish, local refit, LM refinement on")
     parser.add_argument("--json", help="also write the rows to this file")
+    parser.add_argument("--method-option", action="append", default=[], metavar="NAME=VALUE",
+                        help="a method option for the recipe (e.g. sprt_t_m=1000), repeatable")
     args = parser.parse_args()
     extra = ENHANCED if args.enhanced else {}
+    method_options = {k: float(v) for k, v in (item.split("=", 1) for item in args.method_option)}
 
     for method in args.methods:  # warm-up: compile every kernel both routes use
-        run_cell(method, 300, 0.5, 1, extra)
+        run_cell(method, 300, 0.5, 1, extra, method_options)
 
     rows = []
     print(f"{'method':9s} {'N':>5s} {'eps':>4s} | {'time ms':>8s} {'full ms':>8s} {'ratio':>6s} | "
-          f"{'us/hyp':>7s} {'full':>7s} {'ratio':>6s} | {'hyps':>6s} {'full':>6s} | {'succ':>4s} {'full':>4s} | notes")
+          f"{'us/hyp':>7s} {'full':>7s} {'ratio':>6s} | {'verify us/hyp':>13s} {'full':>6s} {'ratio':>5s} | {'hyps':>6s} {'full':>6s} | {'succ':>4s} {'full':>4s} | notes")
     for method in args.methods:
         for n in args.sizes:
             for eps in args.eps:
-                row = run_cell(method, n, eps, args.frames, extra)
+                row = run_cell(method, n, eps, args.frames, extra, method_options)
                 rows.append(row)
                 note = ""
                 if method == "r-ransac":
@@ -136,7 +153,8 @@ def main() -> None:
                             f"T(1,1) {'pays' if row['pretest_pays'] else 'does not pay'}")
                 print(f"{method:9s} {n:5d} {eps:4.1f} | {row['time_ms']:8.1f} {row['full_time_ms']:8.1f} "
                       f"{row['time_ratio']:6.2f} | {row['per_hypothesis_us']:7.1f} {row['full_per_hypothesis_us']:7.1f} "
-                      f"{row['per_hypothesis_ratio']:6.2f} | {row['hypotheses']:6.0f} {row['full_hypotheses']:6.0f} | "
+                      f"{row['per_hypothesis_ratio']:6.2f} | {row['verify_us']:13.2f} {row['full_verify_us']:6.2f} "
+                      f"{row['verify_ratio']:5.2f} | {row['hypotheses']:6.0f} {row['full_hypotheses']:6.0f} | "
                       f"{row['success']:4.2f} {row['full_success']:4.2f} | {note}", flush=True)
     if args.json:
         with open(args.json, "w") as fh:
