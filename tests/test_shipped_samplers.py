@@ -20,7 +20,11 @@ from agents.checkpoint import LearnedPolicy, load_checkpoint
 from agents.network import CorrespondenceNet
 from vo_gym import StereoVOEnv
 
-CHECKPOINTS = sorted((Path(__file__).resolve().parents[1] / "agents" / "checkpoints").glob("*.pt"))
+SHIPPED = Path(__file__).resolve().parents[1] / "agents" / "checkpoints"
+# The guided-sampling checkpoints (agents.checkpoint format). adaptive-pg.pt drives the adaptive
+# in-frame environment, another action space and file format: not a LearnedPolicy.
+CHECKPOINTS = [SHIPPED / name for name in ("ngransac-self-supervised-smooth.pt", "ngransac-self-supervised.pt",
+                                           "ngransac-supervised.pt", "ppo.pt")]
 SEEDS = (0, 1, 2)
 SETTING = dict(outlier_ratio=0.8, budget=16, n_frames=10, n_correspondences=500)
 MARGIN = 0.4
@@ -53,9 +57,8 @@ def random_policy(network: dict, seed: int) -> LearnedPolicy:
 
 
 def test_every_checkpoint_ships():
-    names = {p.name for p in CHECKPOINTS}
-    assert {"ngransac-supervised.pt", "ngransac-self-supervised.pt", "ppo.pt"} <= names
     for path in CHECKPOINTS:
+        assert path.is_file(), path.name
         assert path.stat().st_size < 300_000, path.name  # weights, config and layout only
 
 
