@@ -20,6 +20,7 @@ test's error bounds use; a hypothesis' own three sample points are skipped.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -87,14 +88,16 @@ def good_model_exponent(epsilon: float, epsilon_i: float, delta_i: float) -> flo
         return np.inf
     if epsilon <= 0.0:
         return 0.0
-    log_a, log_b = np.log(delta_i / epsilon_i), np.log1p(-delta_i) - np.log1p(-epsilon_i)
+    log_a, log_b = math.log(delta_i / epsilon_i), math.log1p(-delta_i) - math.log1p(-epsilon_i)
     slope = epsilon * log_a + (1 - epsilon) * log_b
     if slope >= 0 or log_b <= 0:
         return 0.0
-    log_eps, log_rest = np.log(epsilon), np.log1p(-epsilon)
+    log_eps, log_rest = math.log(epsilon), math.log1p(-epsilon)
 
-    def f(h: float) -> float:
-        return float(np.logaddexp(log_eps + h * log_a, log_rest + h * log_b))
+    def f(h: float) -> float:  # logaddexp in scalar math (the solver calls it a few dozen times)
+        x, y = log_eps + h * log_a, log_rest + h * log_b
+        top = max(x, y)
+        return top + math.log1p(math.exp(-abs(x - y)))
 
     hi = 1.0
     while f(hi) <= 0 and hi < 1e6:
