@@ -121,3 +121,28 @@ def test_write_outputs_refuses_an_unknown_format_before_writing(tmp_path):
     with pytest.raises(ValueError, match="'jpeg'"):
         bm.write_outputs(_rows(["ransac"], frames=1), tmp_path / "out", plot_format="jpeg")
     assert not (tmp_path / "out").exists()
+
+
+def test_the_command_line_offers_exactly_the_library_formats(tmp_path):
+    from stereovo.reporting import PLOT_FORMATS
+    from vo_gym.cli import main
+    from vo_gym.commands import baselines
+
+    assert baselines.PLOT_FORMATS == PLOT_FORMATS
+    with pytest.raises(SystemExit) as exit_info:
+        main(["baselines", "--format", "tiff", "--out", str(tmp_path / "x")])
+    assert exit_info.value.code == 2
+
+
+def test_baselines_writes_its_figures_in_the_chosen_format(tmp_path, capsys):
+    from vo_gym.cli import main
+
+    out = tmp_path / "run"
+    argv = ["baselines", "--methods", "ransac,msac", "--frames-per-cell", "1", "--epsilons", "0.5", "--aucs", "0.75",
+            "--ns", "60", "--sigmas", "0.5", "--outlier-kinds", "random", "--no-progress", "--out", str(out)]
+    assert main([*argv, "--format", "svg"]) == 0
+    assert all((out / name).stat().st_size > 0 for name in bm.plot_files("svg"))
+    assert not any((out / name).exists() for name in bm.PLOT_FILES)
+    assert "error_cdf.svg" in capsys.readouterr().out
+    assert main(["baselines", "--report-only", str(out), "--format", "pdf"]) == 0
+    assert all((out / name).read_bytes()[:5] == b"%PDF-" for name in bm.plot_files("pdf"))

@@ -48,6 +48,10 @@ from vo_gym.commands.common import (
     seed as parse_seed,
 )
 
+# stereovo.reporting.PLOT_FORMATS, spelled out so that building the parser imports no numerical code
+# (a test checks that the two agree).
+PLOT_FORMATS = ("png", "pdf", "svg")
+
 # Kept for modules that imported the old private names.
 _csv_list, _positive_int, _seed = csv_list, positive_int, parse_seed
 
@@ -119,7 +123,9 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--preset", default="car", choices=["car", "free"], help="motion preset (default: car)")
     parser.add_argument("--seed", type=_seed, default=0, help="base seed of frames and estimators (default: 0)")
     parser.add_argument("--out", type=Path, default=Path("runs/baselines"), help="output folder (default: runs/baselines)")
-    parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    parser.add_argument("--no-plots", action="store_true", help="skip the figures")
+    parser.add_argument("--format", choices=PLOT_FORMATS, default="png", dest="plot_format",
+                        help="file format of the figures (default: png)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument("--report-only", type=Path, default=None, metavar="DIR",
                         help="rebuild the tables and plots of the run in DIR from its stored trials; runs nothing")
@@ -189,12 +195,12 @@ def _report_only(args: argparse.Namespace) -> int:
     rows, settings = _stored_rows(folder)
     if not rows:
         raise UsageError(f"--report-only {str(folder)!r}: no finished trials stored yet")
-    summary, claims = bm.write_outputs(rows, folder, settings, plots=not args.no_plots)
+    summary, claims = bm.write_outputs(rows, folder, settings, plots=not args.no_plots, plot_format=args.plot_format)
     n_frames = len({r["trial"] for r in rows})
     print(f"vo-gym baselines: rebuilt the report of {folder} from {n_frames} stored frames ({len(rows)} rows)\n")
     print(bm.overall_table(summary))
     print(f"\n  wrote {folder}/: trials.csv, summary.csv, cells.csv, summary.md, claims.md"
-          + ("" if args.no_plots else ", " + ", ".join(bm.PLOT_FILES)))
+          + ("" if args.no_plots else ", " + ", ".join(bm.plot_files(args.plot_format))))
     return 0
 
 
@@ -286,7 +292,7 @@ def _run(args: argparse.Namespace) -> int:
         "wall_s": round(wall, 1),
         "machine": f"{platform.machine()}, {bm.default_workers()} CPUs available, Python {platform.python_version()}",
     }
-    summary, claims = bm.write_outputs(rows, out, settings, plots=not args.no_plots)
+    summary, claims = bm.write_outputs(rows, out, settings, plots=not args.no_plots, plot_format=args.plot_format)
     atomic_write_text(out / "run.json", json.dumps(_json_safe(settings), indent=2) + "\n")
 
     print(f"\n{len(trials)} frames x {len(names)} methods in {wall:.1f} s"
@@ -301,6 +307,6 @@ def _run(args: argparse.Namespace) -> int:
         print(f"  warning: {errors} estimator call(s) raised; see the status column of trials.csv", file=sys.stderr)
     files = "trials.csv, summary.csv, cells.csv, summary.md, claims.md, run.json"
     if not args.no_plots:
-        files += ", " + ", ".join(bm.PLOT_FILES)
+        files += ", " + ", ".join(bm.plot_files(args.plot_format))
     print(f"\n  wrote {out}/: {files}")
     return 0
