@@ -331,16 +331,22 @@ def write_comparison(result: dict[str, Any], out: str | Path) -> list[Path]:
     for key, table in result.items():
         if key == "config":
             continue
-        fig, ax = plt.subplots(figsize=(6, 4))
-        for family in dict.fromkeys(r["family"] for r in table):
+        fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), gridspec_kw={"width_ratios": [1, 1]})
+        colours = plt.get_cmap("tab20").colors
+        for i, family in enumerate(dict.fromkeys(r["family"] for r in table)):
             pts = sorted((r["mean_hypotheses"], 100 * r["success"]) for r in table if r["family"] == family)
-            ax.plot(*zip(*pts), marker="o", label=family)
-        ax.set_xscale("log")
-        ax.set_xlabel("mean hypotheses per frame")
-        ax.set_ylabel("success (%)")
-        ax.set_title(key)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
+            style = {"marker": "os^vD<>ph*"[i % 10], "color": colours[i % len(colours)], "label": family}
+            for ax in axes:
+                ax.plot(*zip(*pts), **style)
+        for ax, low in zip(axes, (0, 90)):
+            ax.set_xscale("log")
+            ax.set_ylim(low, 100.5)
+            ax.set_xlabel("mean hypotheses per frame")
+            ax.set_ylabel("success (%)")
+            ax.grid(alpha=0.3)
+        axes[0].set_title(f"{key}: all")
+        axes[1].set_title(f"{key}: success >= 90 %")
+        axes[1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.02, 0.5))
         path = out / f"adaptive-{key.replace(' ', '-')}.png"
         fig.tight_layout()
         fig.savefig(path, dpi=110)
