@@ -17,7 +17,7 @@ import pytest
 from stereovo.estimation.prosac import ProsacTermination
 from stereovo.estimation.samplers import ProsacSampler, prosac_growth
 from stereovo.estimation.sprt import SprtTermination, SprtTest, SprtVerification
-from stereovo.estimation.tdd import TddTermination
+from stereovo.estimation.tdd import TddTermination, random_points_excluding
 from stereovo.estimation.termination import (
     AdaptiveTermination,
     FixedBudget,
@@ -157,6 +157,20 @@ def test_tdd_bound_is_stretched_by_the_pass_probability():
     # Plain RANSAC's 261 is the d = 0 limit: the pre-test only ever stretches the bound.
     assert TddTermination(confidence=0.99, d=1).required(300, 300) == 1
     assert TddTermination(confidence=0.99, d=1, max_iterations=900).required(3, 300) == 900
+
+
+def test_tdd_pretest_points_are_the_smallest_random_keys_outside_the_sample():
+    # The documented draw: one uniform key per correspondence, +inf on the row's own sample, then the
+    # d smallest keys in increasing order. Rebuilt here from the same seed.
+    samples = np.array([[0, 1, 2], [5, 9, 3], [7, 8, 6]])
+    for d in (1, 2, 4):
+        got = random_points_excluding(samples, 12, d, np.random.default_rng(11))
+        keys = np.random.default_rng(11).random((3, 12))
+        for row, sample in enumerate(samples):
+            keys[row, sample] = np.inf
+        np.testing.assert_array_equal(got, np.argsort(keys, axis=1)[:, :d])
+        for row, sample in enumerate(samples):
+            assert not set(got[row]) & set(sample) and len(set(got[row])) == d
 
 
 # ---------------------------------------------------------------------------- SPRT
