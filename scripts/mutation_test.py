@@ -94,6 +94,8 @@ STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests"
 # shows each one's diff, so a reviewer can check the reason against the code (names shift when a
 # function's code changes: rerun and recheck).
 _T = "stereovo.estimation.termination."
+_D = "stereovo.estimation.tdd."
+_AXIS = "drops axis=1: the default axis -1 is axis 1 of these 2-D arrays."
 EQUIVALENT: dict[str, str] = {
     "vo_gym.rewards.x_pose_error_ratio__mutmut_12":
         "rot_err_deg / SUCCESS_ROT_DEG -> * SUCCESS_ROT_DEG: the bound is 1.0 deg, dividing and multiplying by 1 agree.",
@@ -106,6 +108,13 @@ EQUIVALENT: dict[str, str] = {
     _T + "x_required_iterations__mutmut_24": "the same without the dtype argument.",
     _T + "xǁSampleProbabilityǁ__init____mutmut_9":
         "getattr(sampler, 'uniform', None) instead of False as the default: `not None` is `not False`.",
+    _D + "x_random_points_excluding__mutmut_5":
+        "keys of the sample set to None instead of inf: a float array stores NaN, and argpartition/argsort put "
+        "NaN last, as they put inf.",
+    _D + "x_random_points_excluding__mutmut_13": "argpartition " + _AXIS,
+    _D + "x_random_points_excluding__mutmut_22": "take_along_axis " + _AXIS,
+    _D + "x_random_points_excluding__mutmut_26": "argsort " + _AXIS,
+    _D + "x_random_points_excluding__mutmut_32": "the inner take_along_axis " + _AXIS,
     _T + "xǁAdaptiveTerminationǁon_new_best__mutmut_2":
         "passes None for the loop state: SampleProbability.on_new_best never reads the state.",
 }
