@@ -18,10 +18,12 @@ import numpy as np
 from gymnasium import spaces
 
 from stereovo.camera import StereoCamera
-from stereovo.estimation import EstimatorOptions, StereoProblem, estimate_motion, estimate_problem, method_spec
+from stereovo.estimation import EstimatorOptions, StereoProblem, estimate_problem, method_spec, validate_options
+from stereovo.estimation.methods import ESTIMATOR_OPTION_RULES, MAX_COUNT
 from stereovo.geometry import pose_update
 from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, frame_metrics, trajectory_metrics
-from stereovo.simulation import Frame, Sequence, SimulationConfig, simulate_frame
+from stereovo.options import Choice, Integer, Number, Option, check_options
+from stereovo.simulation import Frame, Sequence, SimulationConfig
 from vo_gym.features import FEATURE_BOUND, FEATURE_LAYOUT_VERSION, FEATURE_NAMES, N_FEATURES, compute_features
 from vo_gym.rewards import REWARD_MODES, inlier_reward, msac_reward, pose_error_ratio, supervised_reward
 
@@ -42,32 +44,24 @@ them as a keyword to change it."""
 _NON_DETERMINISTIC_METRICS = ("time_s",)
 
 
-def _finite_number(name: str, value: Any, low: float | None = None, high: float | None = None,
-                   low_open: bool = False) -> float:
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    ok = ok and math.isfinite(float(value))
-    if ok and low is not None:
-        ok = float(value) > low if low_open else float(value) >= low
-    if ok and high is not None:
-        ok = float(value) <= high
-    if not ok:
-        bounds = []
-        if low is not None:
-            bounds.append(f"{'>' if low_open else '>='} {low:g}")
-        if high is not None:
-            bounds.append(f"<= {high:g}")
-        rule = "a finite number" + (" " + " and ".join(bounds) if bounds else "")
-        raise ValueError(f"StereoVOEnv: {name} must be {rule}, got {value!r}")
-    return float(value)
-
-
-def _positive_int(name: str, value: Any, allow_none: bool = False) -> int | None:
-    if value is None and allow_none:
-        return None
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 1:
-        rule = "None or an integer >= 1" if allow_none else "an integer >= 1"
-        raise ValueError(f"StereoVOEnv: {name} must be {rule}, got {value!r}")
-    return int(value)
+_PREFIX = "StereoVOEnv: "
+_ENV_RULES: dict[str, Option] = {
+    "sampling": Choice(choices=SAMPLING_MODES),
+    "reward_mode": Choice(choices=REWARD_MODES),
+    "render_mode": Choice(choices=("rgb_array",), allow_none=True),
+    "action_bound": Number(low=0.0, low_open=True),
+    "logit_scale": Number(low=0.0, low_open=True),
+    "success_bonus": Number(low=0.0, high=1.0),
+    "hypothesis_cost": Number(low=0.0),
+    "failure_reward": Number(low=-1.0, high=1.0),
+    "max_correspondences": Integer(low=1, high=MAX_COUNT, allow_none=True),
+    "estimator_noise_sigma": dataclasses.replace(ESTIMATOR_OPTION_RULES["noise_sigma"], allow_none=True),
+    "budget": dataclasses.replace(ESTIMATOR_OPTION_RULES["budget"], allow_none=True),
+    "batch_size": dataclasses.replace(ESTIMATOR_OPTION_RULES["batch_size"], allow_none=True),
+}
+"""The environment's own keywords' declarations (:mod:`stereovo.options`); the simulator's are
+:class:`~stereovo.simulation.SimulationConfig`'s and the estimator's
+:data:`~stereovo.estimation.methods.ESTIMATOR_OPTION_RULES` and the method's."""
 
 
 def _nan_to_none(value: Any) -> Any:
@@ -254,27 +248,26 @@ class StereoVOEnv(gym.Env):
         **estimator_options: Any,
     ) -> None:
         super().__init__()
-        if sampling not in SAMPLING_MODES:
-            raise ValueError(f"StereoVOEnv: sampling must be one of {list(SAMPLING_MODES)}, got {sampling!r}")
-        if reward_mode not in REWARD_MODES:
-            raise ValueError(f"StereoVOEnv: reward_mode must be one of {list(REWARD_MODES)}, got {reward_mode!r}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
-                f"StereoVOEnv: render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}"
-            )
-        self.sampling = sampling
-        self.reward_mode = reward_mode
-        self.render_mode = render_mode
-        self.action_bound = _finite_number("action_bound", action_bound, 0.0, low_open=True)
-        self.logit_scale = _finite_number("logit_scale", logit_scale, 0.0, low_open=True)
+        given = dict(
+            sampling=sampling, reward_mode=reward_mode, render_mode=render_mode, action_bound=action_bound,
+            logit_scale=logit_scale, success_bonus=success_bonus, hypothesis_cost=hypothesis_cost,
+            failure_reward=failure_reward, max_correspondences=max_correspondences,
+            estimator_noise_sigma=estimator_noise_sigma, budget=budget, batch_size=batch_size,
+        )
+        checked = check_options(_ENV_RULES, given, prefix=_PREFIX)
+        self.sampling = checked["sampling"]
+        self.reward_mode = checked["reward_mode"]
+        self.render_mode = checked["render_mode"]
+        self.action_bound = float(checked["action_bound"])
+        self.logit_scale = float(checked["logit_scale"])
         if self.action_bound * self.logit_scale > 300:
             raise ValueError(
                 f"StereoVOEnv: action_bound * logit_scale must be <= 300 (weights exp(+-300) stay representable), "
                 f"got {self.action_bound * self.logit_scale:g}"
             )
-        self.success_bonus = _finite_number("success_bonus", success_bonus, 0.0, 1.0)
-        self.hypothesis_cost = _finite_number("hypothesis_cost", hypothesis_cost, 0.0)
-        self.failure_reward = _finite_number("failure_reward", failure_reward, -1.0, 1.0)
+        self.success_bonus = float(checked["success_bonus"])
+        self.hypothesis_cost = float(checked["hypothesis_cost"])
+        self.failure_reward = float(checked["failure_reward"])
         try:
             self.kitti_lengths = tuple(float(x) for x in kitti_lengths)
         except (TypeError, ValueError):
@@ -295,16 +288,14 @@ class StereoVOEnv(gym.Env):
         self._sequence_config = dataclasses.replace(self.sim_config, n_frames=self.sim_config.n_frames + 1)
         n = self.sim_config.n_correspondences
         self.n_correspondences = n
-        self.max_correspondences = n if max_correspondences is None else _positive_int(
-            "max_correspondences", max_correspondences
-        )
+        self.max_correspondences = n if checked["max_correspondences"] is None else checked["max_correspondences"]
         if self.max_correspondences < n:
             raise ValueError(
                 f"StereoVOEnv: max_correspondences={self.max_correspondences} is smaller than "
                 f"n_correspondences={n}: every frame has exactly n_correspondences matches and all must fit"
             )
 
-        if estimator_noise_sigma is None:
+        if checked["estimator_noise_sigma"] is None:
             if self.sim_config.noise_sigma <= 0:
                 raise ValueError(
                     "StereoVOEnv: noise_sigma=0 (noise-free frames) needs estimator_noise_sigma > 0: "
@@ -312,14 +303,14 @@ class StereoVOEnv(gym.Env):
                 )
             self.estimator_noise_sigma = self.sim_config.noise_sigma
         else:
-            self.estimator_noise_sigma = _finite_number("estimator_noise_sigma", estimator_noise_sigma, 0.0, low_open=True)
+            self.estimator_noise_sigma = float(checked["estimator_noise_sigma"])
         try:
             spec = method_spec(method)
         except ValueError as err:
             raise ValueError(f"StereoVOEnv: method: {err}") from None
         self.method = method
-        self.budget = _positive_int("budget", budget, allow_none=True)
-        self.batch_size = _positive_int("batch_size", batch_size, allow_none=True)
+        self.budget = checked["budget"]
+        self.batch_size = checked["batch_size"]
         if self.batch_size is None:
             self.batch_size = self.budget if self.budget is not None else EstimatorOptions.batch_size
         known = {f.name for f in dataclasses.fields(EstimatorOptions)}
@@ -332,18 +323,24 @@ class StereoVOEnv(gym.Env):
                 f"argument nor an option of estimator method {method!r} (its options: {allowed})"
             )
         options = {**DEFAULT_ESTIMATOR_OPTIONS, **estimator_options}
-        shared = {k: v for k, v in options.items() if k in known}
+        # Validity comes from the options' declarations (the one contract), never from running the
+        # method: the shared options, the method's own, and whether it takes this sampling's input.
         try:
-            self.estimator_options = EstimatorOptions(
-                noise_sigma=self.estimator_noise_sigma, budget=self.budget, batch_size=self.batch_size, **shared
+            self.estimator_options, extra = validate_options(
+                method,
+                {**options, "noise_sigma": self.estimator_noise_sigma, "budget": self.budget,
+                 "batch_size": self.batch_size},
             )
         except (TypeError, ValueError) as err:
             raise ValueError(f"StereoVOEnv: invalid estimator setting: {err}") from None
+        try:
+            spec.check_inputs(priors=self.sampling == "guided", order=self.sampling == "prosac")
+        except ValueError as err:
+            raise ValueError(f"StereoVOEnv: estimator method {method!r} with sampling={self.sampling!r}: {err}") from None
         self._estimator_kwargs = {
             **{f.name: getattr(self.estimator_options, f.name) for f in dataclasses.fields(EstimatorOptions)},
-            **{k: v for k, v in options.items() if k not in known},
+            **extra,
         }
-        self._check_method_options()
 
         M = self.max_correspondences
         self.observation_space = spaces.Dict(
@@ -382,7 +379,10 @@ class StereoVOEnv(gym.Env):
 
     @property
     def estimated_poses(self) -> np.ndarray:
-        """``(k, 4, 4)`` camera-to-world poses estimated so far (the first is the true start)."""
+        """``(k, 4, 4)`` camera-to-world poses estimated so far in this episode (the first is the true start).
+
+        The history is per episode: ``reset`` starts it afresh, so it holds at most ``n_frames + 1``
+        poses (128 B each; ``scripts/soak.py`` checks the bound over 10,000 steps)."""
         return np.array(self._poses)
 
     @property
@@ -488,25 +488,10 @@ class StereoVOEnv(gym.Env):
 
     # ------------------------------------------------------------------ internals
 
-    def _check_method_options(self) -> None:
-        """Run the method once on a tiny frame, so that its own options and its use of priors (guided) or
-        an order (PROSAC) are checked when the environment is made rather than at the first step."""
-        probe = simulate_frame(SimulationConfig(n_frames=1, n_correspondences=16, outlier_ratio=0.0), rng=0)
-        kwargs = {**self._estimator_kwargs, "budget": 1, "batch_size": 1, "max_iterations": 1}
-        if self.sampling == "guided":
-            kwargs["priors"] = np.ones(probe.n)
-        else:
-            kwargs["order"] = np.arange(probe.n)
-        try:
-            estimate_motion(probe.prev, probe.curr, probe.camera, method=self.method, rng=0, **kwargs)
-        except (TypeError, ValueError) as err:
-            raise ValueError(
-                f"StereoVOEnv: estimator method {self.method!r} with sampling={self.sampling!r} and these "
-                f"options fails: {err}"
-            ) from None
-
     def _validate_action(self, action) -> np.ndarray:
         M, n = self.max_correspondences, self.n_correspondences
+        if np.iscomplexobj(action):  # a cast would drop the imaginary part with only a warning
+            raise ValueError(f"StereoVOEnv: the action must be real, got complex dtype {np.asarray(action).dtype}")
         try:
             a = np.asarray(action, dtype=np.float64)
         except (TypeError, ValueError):

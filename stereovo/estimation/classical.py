@@ -14,7 +14,7 @@ Method-specific options (keyword arguments of ``estimate_motion``):
 - ``mlesac``: ``mlesac_em_iterations`` (5), ``mlesac_em_tolerance`` (1e-4).
 - ``guided-mlesac``: none; ``priors=`` is required (the gamma_i).
 - ``prosac``: ``prosac_beta`` (0.05), ``prosac_psi`` (0.05), ``prosac_min_n`` (20),
-  ``prosac_min_inlier_fraction`` (0.2), ``prosac_t_n`` (200000); ``order=`` is required.
+  ``prosac_t_n`` (200000); ``order=`` is required.
 - ``r-ransac``: ``tdd_d`` (1).
 - ``waldsac``: ``sprt_t_m`` (500), ``sprt_epsilon0`` (0.1), ``sprt_delta0`` (0.01), ``sprt_chunk`` (16).
 - ``lo-ransac``: ``lo_inner_iterations`` (10), ``lo_sample_cap`` (12),
@@ -35,8 +35,11 @@ from stereovo.estimation.clique import GRAPH_MAX, detect_inliers
 from stereovo.estimation.lo import InnerRansacLO
 from stereovo.estimation.loop import RansacComponents
 from stereovo.estimation.methods import (
+    MAX_COUNT,
     EstimatorOptions,
     base_components,
+    declare_options,
+    declared_option,
     final_refiner,
     register_estimator,
     register_method,
@@ -50,26 +53,52 @@ from stereovo.estimation.scoring import InlierCount, MahalanobisResidual, Reproj
 from stereovo.estimation.sprt import SprtTermination, SprtVerification
 from stereovo.estimation.tdd import TddTermination, TddVerification
 from stereovo.estimation.termination import FixedBudget
+from stereovo.options import Integer, Number
 
 # ----------------------------------------------------------------------------- option parsing
 
 
+declare_options({
+    "mlesac_em_iterations": Integer(low=1, high=MAX_COUNT),
+    "mlesac_em_tolerance": Number(low=0.0, low_open=True),
+    "prosac_beta": Number(low=0.0, high=1.0, low_open=True, high_open=True),
+    "prosac_psi": Number(low=0.0, high=1.0, low_open=True, high_open=True),
+    "prosac_min_n": Integer(low=4, high=MAX_COUNT),
+    "prosac_t_n": Number(low=1.0, high=1e15),
+    "tdd_d": Integer(low=1, high=MAX_COUNT),
+    "sprt_t_m": Number(low=0.0, high=1e15, low_open=True),
+    "sprt_epsilon0": Number(low=0.0, high=1.0, low_open=True, high_open=True),
+    "sprt_delta0": Number(low=0.0, high=1.0, low_open=True, high_open=True),
+    "sprt_chunk": Integer(low=1, high=MAX_COUNT),
+    "lo_inner_iterations": Integer(low=1, high=MAX_COUNT),
+    "lo_sample_cap": Integer(low=4, high=MAX_COUNT),
+    "lo_threshold_multiplier": Number(low=1.0, high=1e6),
+    "lo_steps": Integer(low=1, high=MAX_COUNT),
+    "preemptive_hypotheses": Integer(low=1, high=MAX_COUNT),
+    "preemptive_block": Integer(low=1, high=MAX_COUNT),
+    "clique_c": Number(low=0.0, high=1e6, low_open=True),
+    "clique_exact_max": Integer(low=0, high=MAX_COUNT),
+    "clique_time_limit_s": Number(low=0.0, high=1e6, low_open=True, unit="s"),
+    "clique_graph_max": Integer(low=SAMPLE_SIZE, high=20_000),  # 20,000: a 400 MB graph at most
+})
+"""The method options' declarations (:mod:`stereovo.options`), checked by ``estimate_motion`` (and the
+environment) before a method runs, whether or not the recipe uses the option on that call (``usac``
+checks its ``prosac_*`` options without an order, as ``prosac`` does)."""
+
+
 def _number(extra: dict, name: str, default, integer: bool = False, low=None, high=None, low_open: bool = False):
-    """A method option from ``extra`` (or its default), checked; ValueError names it."""
+    """A method option from ``extra`` (or its ``default``), as int or float; ValueError names it.
+
+    A declared option (above) is held to its declaration, the one rule ``estimate_motion`` has
+    already applied; the bounds given here are the rule only for an option without one.
+    """
     value = extra.get(name, default)
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-    ok = ok and bool(np.isfinite(value)) and (not integer or int(value) == value)
-    if ok and low is not None:
-        ok = value > low if low_open else value >= low
-    if ok and high is not None:
-        ok = value < high
-    if not ok:
-        rule = "an integer" if integer else "a number"
-        if low is not None:
-            rule += f" {'>' if low_open else '>='} {low}"
-        if high is not None:
-            rule += f" and < {high}"
-        raise ValueError(f"option {name} must be {rule}, got {value!r}")
+    rule = declared_option(name)
+    if rule is None:
+        rule = (Integer(low=low) if integer else
+                Number(low=None if low is None else float(low), high=None if high is None else float(high),
+                       low_open=low_open, high_open=high is not None))
+    value = rule.check(name, value)
     return int(value) if integer else float(value)
 
 
@@ -85,7 +114,6 @@ def _prosac_termination(sampler: ProsacSampler, options: EstimatorOptions, extra
         beta=_number(extra, "prosac_beta", 0.05, low=0, high=1, low_open=True),
         psi=_number(extra, "prosac_psi", 0.05, low=0, high=1, low_open=True),
         min_n=_number(extra, "prosac_min_n", 20, integer=True, low=4),
-        min_inlier_fraction=_number(extra, "prosac_min_inlier_fraction", 0.2, low=0, high=1),
     )
 
 
@@ -122,7 +150,8 @@ class EarliestTermination:
         return min(rule.required(n_inliers, n) for rule in self.rules)
 
 
-_PROSAC_OPTIONS = ("prosac_beta", "prosac_psi", "prosac_min_n", "prosac_min_inlier_fraction", "prosac_t_n")
+
+_PROSAC_OPTIONS = ("prosac_beta", "prosac_psi", "prosac_min_n", "prosac_t_n")
 _SPRT_OPTIONS = ("sprt_t_m", "sprt_epsilon0", "sprt_delta0", "sprt_chunk")
 _LO_OPTIONS = ("lo_inner_iterations", "lo_sample_cap", "lo_threshold_multiplier", "lo_steps")
 
@@ -149,6 +178,7 @@ def _build_mlesac(problem, options, priors, order, extra) -> RansacComponents:
     "guided-mlesac",
     "MLESAC with a prior inlier probability gamma_i per match (priors=, required), sampling by gamma_i",
     "Tordoff & Murray 2005",
+    inputs="priors",
 )
 def _build_guided_mlesac(problem, options, priors, order, extra) -> RansacComponents:
     if priors is None:
@@ -168,6 +198,7 @@ def _build_guided_mlesac(problem, options, priors, order, extra) -> RansacCompon
     "progressive sampling from the top of order= (required), PROSAC's non-randomness and maximality stop",
     "Chum & Matas 2005",
     extra_options=_PROSAC_OPTIONS,
+    inputs="order",
 )
 def _build_prosac(problem, options, priors, order, extra) -> RansacComponents:
     if order is None:

@@ -17,6 +17,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from stereovo.camera import StereoCamera
+from stereovo.options import Boolean, Integer, Number, Option, check_options
 from stereovo.estimation.local_optimization import ConsensusRefit
 from stereovo.estimation.loop import RansacComponents, RansacReport, run_ransac
 from stereovo.estimation.problem import StereoProblem
@@ -41,12 +42,45 @@ from stereovo.estimation.termination import AdaptiveTermination, FixedBudget
 from scipy.stats import chi2
 
 
+MAX_COUNT = 10**9
+"""Upper bound of every hypothesis or iteration count option (a cap that keeps counts in int64 arithmetic)."""
+
+NOISE_SIGMA_RANGE_PX = (1e-3, 1e3)
+"""Accepted ``noise_sigma`` (px): a thousandth of a pixel (far below any real sensor, whose gates would
+fall under the float64 resolution of pixel coordinates near 1e-12 px) to a thousand pixels (noise as
+large as the image, beyond which the gates square into overflow)."""
+
+ESTIMATOR_OPTION_RULES: dict[str, Option] = {
+    "noise_sigma": Number(low=NOISE_SIGMA_RANGE_PX[0], high=NOISE_SIGMA_RANGE_PX[1], unit="px"),
+    "confidence": Number(low=0.0, high=1.0, low_open=True, high_open=True),
+    "max_iterations": Integer(low=1, high=MAX_COUNT),
+    "budget": Integer(low=1, high=MAX_COUNT, allow_none=True),
+    "batch_size": Integer(low=1, high=MAX_COUNT),
+    "first_batch_size": Integer(low=1, high=MAX_COUNT),
+    "threshold_px": Number(low=0.0, high=1e4, low_open=True, unit="px", allow_none=True),
+    "gate_probability": Number(low=0.0, high=1.0, low_open=True, high_open=True),
+    "refine_gate_probability": Number(low=0.0, high=1.0, low_open=True, high_open=True),
+    "rigidity_gate_probability": Number(low=0.0, high=1.0, low_open=True, high_open=True, allow_none=True),
+    "polish_iterations": Integer(low=0, high=1000),
+    "refine": Boolean(),
+    "refine_iterations": Integer(low=0, high=1000),
+    "refine_rounds": Integer(low=1, high=1000),
+    "local_refit": Boolean(),
+    "least_squares_refit": Boolean(),
+    "min_inliers": Integer(low=SAMPLE_SIZE, high=MAX_COUNT),
+}
+"""The declaration of every :class:`EstimatorOptions` field (:mod:`stereovo.options`), by name."""
+
+
 @dataclass(frozen=True)
 class EstimatorOptions:
-    """Options shared by every method, validated on construction (COLMAP's ``Check()`` habit).
+    """Options shared by every method, validated on construction (COLMAP's ``Check()`` habit)
+    against :data:`ESTIMATOR_OPTION_RULES`: counts are integers (not bools, not floats), switches are
+    bools, numbers are finite and in range; an error names the option and the value.
 
     Attributes:
-        noise_sigma: pixel noise standard deviation of the measurements (px).
+        noise_sigma: pixel noise standard deviation of the measurements (px), in [1e-3, 1e3]
+            (:data:`NOISE_SIGMA_RANGE_PX`).
         confidence: probability of drawing at least one all-inlier sample (adaptive stop).
         max_iterations: hard cap on hypotheses drawn.
         budget: if set, draw exactly this many hypotheses (fixed budget) instead of stopping adaptively.
@@ -107,35 +141,10 @@ class EstimatorOptions:
     min_inliers: int = 6
 
     def __post_init__(self) -> None:
-        def fail(name: str, rule: str) -> None:
-            raise ValueError(f"option {name} must be {rule}, got {getattr(self, name)!r}")
-
-        if not (np.isfinite(self.noise_sigma) and self.noise_sigma > 0):
-            fail("noise_sigma", "a positive pixel noise")
-        if not 0 < self.confidence < 1:
-            fail("confidence", "in (0, 1)")
-        if int(self.max_iterations) != self.max_iterations or self.max_iterations < 1:
-            fail("max_iterations", "an integer >= 1")
-        if self.budget is not None and (int(self.budget) != self.budget or self.budget < 1):
-            fail("budget", "None or an integer >= 1")
-        if self.batch_size < 1:
-            fail("batch_size", ">= 1")
-        if int(self.first_batch_size) != self.first_batch_size or self.first_batch_size < 1:
-            fail("first_batch_size", "an integer >= 1")
-        if self.threshold_px is not None and not (np.isfinite(self.threshold_px) and self.threshold_px > 0):
-            fail("threshold_px", "None or a positive number of pixels")
-        if not 0 < self.gate_probability < 1:
-            fail("gate_probability", "in (0, 1)")
-        if not 0 < self.refine_gate_probability < 1:
-            fail("refine_gate_probability", "in (0, 1)")
-        if self.rigidity_gate_probability is not None and not 0 < self.rigidity_gate_probability < 1:
-            fail("rigidity_gate_probability", "None or in (0, 1)")
-        if self.polish_iterations < 0 or self.refine_iterations < 0:
-            fail("polish_iterations" if self.polish_iterations < 0 else "refine_iterations", ">= 0")
-        if int(self.refine_rounds) != self.refine_rounds or self.refine_rounds < 1:
-            fail("refine_rounds", "an integer >= 1")
-        if self.min_inliers < SAMPLE_SIZE:
-            fail("min_inliers", f">= {SAMPLE_SIZE}")
+        # One contract (stereovo.options): integers only, bools only, finite numbers in range;
+        # values are normalised to plain Python types, never changed numerically.
+        for name, rule in ESTIMATOR_OPTION_RULES.items():
+            object.__setattr__(self, name, rule.check(name, getattr(self, name)))
 
     @property
     def reprojection_threshold_sq(self) -> float:
@@ -181,9 +190,46 @@ class MethodSpec:
     build: MethodBuilder | None
     extra_options: tuple[str, ...] = ()  # method-specific keyword options besides EstimatorOptions
     runner: MethodRunner | None = None
+    # Declarations (stereovo.options) of the extra options that have one; a given value is checked
+    # before the method runs, so that validity never depends on the frame (nor on a probe frame).
+    option_rules: Mapping[str, Option] = dataclasses.field(default_factory=dict)
     # The method's own defaults for EstimatorOptions fields (e.g. probabilistic's tuned recipe, a
     # variant's enhancements): plain values, applied unless the caller gives the option.
     defaults: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    inputs: str = "any"  # what the sampler takes: "any" (priors=, order= or neither), "priors", "order", "none"
+
+    def check_options(self, extra: Mapping[str, Any]) -> dict[str, Any]:
+        """The given method options, validated against :attr:`option_rules` and normalised.
+
+        Raises:
+            ValueError: an option that is not the method's, or a value its declaration refuses.
+        """
+        unknown = set(extra) - set(self.extra_options)
+        if unknown:
+            allowed = sorted(_SHARED_OPTIONS | set(self.extra_options))
+            raise ValueError(f"unknown option(s) {sorted(unknown)} for method {self.name!r}; known options: {allowed}")
+        return {k: rule.check(k, v) if (rule := self.option_rule(k)) is not None else v for k, v in extra.items()}
+
+    def option_rule(self, name: str) -> Option | None:
+        """The declaration of the method option ``name``: the method's own, else the shared one
+        (:func:`declare_options`); None if it has none (its recipe then checks it when building)."""
+        return self.option_rules.get(name) or _DECLARED_OPTIONS.get(name)
+
+    def check_inputs(self, priors: bool, order: bool) -> None:
+        """Whether the method can run with (``True``) or without priors= and order=; ValueError says why not."""
+        if priors and order:
+            raise ValueError("give either priors (guided sampling) or order (PROSAC), not both")
+        if self.inputs == "order" and not order:
+            raise ValueError(f"method {self.name!r} needs order=: a permutation of range(N), best correspondence first")
+        if self.inputs == "priors" and not priors:
+            raise ValueError(
+                f"method {self.name!r} needs priors=: one inlier probability gamma_i per correspondence "
+                "(e.g. calibrated match scores; clipped to (0, 1))"
+            )
+        if self.inputs == "none" and (priors or order):
+            raise ValueError(
+                f"method {self.name!r} does not sample hypotheses: priors= and order= have no role in it; pass neither"
+            )
 
     def run(
         self,
@@ -201,6 +247,26 @@ class MethodSpec:
 
 
 _METHODS: dict[str, MethodSpec] = {}
+_DECLARED_OPTIONS: dict[str, Option] = {}
+
+
+def declare_options(rules: Mapping[str, Option]) -> None:
+    """Declare method options by name, for every method that lists them in ``extra_options``
+    (e.g. the ``sprt_*`` options of ``waldsac`` and ``usac``): each given value is then checked
+    by its declaration before any method runs.
+
+    Raises:
+        ValueError: a name declared before with another rule.
+    """
+    for name, rule in rules.items():
+        if _DECLARED_OPTIONS.get(name, rule) != rule:
+            raise ValueError(f"option {name!r} is already declared as {_DECLARED_OPTIONS[name]!r}")
+        _DECLARED_OPTIONS[name] = rule
+
+
+def declared_option(name: str) -> Option | None:
+    """The shared declaration of a method option (None if undeclared)."""
+    return _DECLARED_OPTIONS.get(name)
 
 
 def _register(spec: MethodSpec) -> None:
@@ -213,15 +279,26 @@ def _register(spec: MethodSpec) -> None:
     _METHODS[spec.name] = spec
 
 
+def _option_names_and_rules(extra_options) -> tuple[tuple[str, ...], dict[str, Option]]:
+    if isinstance(extra_options, Mapping):
+        return tuple(extra_options), dict(extra_options)
+    return tuple(extra_options), {}
+
+
 def register_method(
-    name: str, description: str, reference: str, extra_options: tuple[str, ...] = (),
-    defaults: Mapping[str, Any] | None = None,
+    name: str, description: str, reference: str, extra_options: tuple[str, ...] | Mapping[str, Option] = (),
+    inputs: str = "any", defaults: Mapping[str, Any] | None = None,
 ) -> Callable[[MethodBuilder], MethodBuilder]:
-    """Decorator registering ``build(problem, options, priors, order, extra) -> RansacComponents``;
-    ``defaults``: :attr:`MethodSpec.defaults`."""
+    """Decorator registering ``build(problem, options, priors, order, extra) -> RansacComponents``.
+
+    ``extra_options``: the method's own option names, or a mapping of them to their declarations
+    (:mod:`stereovo.options`), which are then checked before the method runs. ``inputs``: see
+    :meth:`MethodSpec.check_inputs`. ``defaults``: :attr:`MethodSpec.defaults`.
+    """
 
     def decorator(build: MethodBuilder) -> MethodBuilder:
-        _register(MethodSpec(name, description, reference, build, tuple(extra_options),
+        names, rules = _option_names_and_rules(extra_options)
+        _register(MethodSpec(name, description, reference, build, names, option_rules=rules, inputs=inputs,
                              defaults=dict(defaults or {})))
         return build
 
@@ -229,16 +306,20 @@ def register_method(
 
 
 def register_estimator(
-    name: str, description: str, reference: str, extra_options: tuple[str, ...] = ()
+    name: str, description: str, reference: str, extra_options: tuple[str, ...] | Mapping[str, Option] = (),
+    inputs: str = "none",
 ) -> Callable[[MethodRunner], MethodRunner]:
     """Decorator registering a method that is not a sampling loop.
 
     The runner ``run(problem, options, priors, order, extra, rng) -> RansacReport`` reuses the
     core's fit, refinement and scoring; :func:`estimate_motion` wraps its report like the loop's.
+    ``extra_options`` and ``inputs`` as :func:`register_method`'s (a direct runner samples nothing:
+    ``inputs="none"`` by default).
     """
 
     def decorator(runner: MethodRunner) -> MethodRunner:
-        _register(MethodSpec(name, description, reference, None, tuple(extra_options), runner))
+        names, rules = _option_names_and_rules(extra_options)
+        _register(MethodSpec(name, description, reference, None, names, runner, option_rules=rules, inputs=inputs))
         return runner
 
     return decorator
@@ -531,12 +612,29 @@ _SHARED_OPTIONS = frozenset(f.name for f in dataclasses.fields(EstimatorOptions)
 
 def _split_options(spec: MethodSpec, options: dict) -> tuple[EstimatorOptions, dict]:
     known = _SHARED_OPTIONS
-    unknown = set(options) - known - set(spec.extra_options)
-    if unknown:
-        allowed = sorted(known | set(spec.extra_options))
-        raise ValueError(f"unknown option(s) {sorted(unknown)} for method {spec.name!r}; known options: {allowed}")
+    extra = spec.check_options({k: v for k, v in options.items() if k not in known})
     shared = EstimatorOptions(**{**spec.defaults, **{k: v for k, v in options.items() if k in known}})
-    extra = {k: v for k, v in options.items() if k not in known}
+    return shared, extra
+
+
+def validate_options(
+    method: str, options: Mapping[str, Any], priors: bool | None = None, order: bool | None = None
+) -> tuple[EstimatorOptions, dict[str, Any]]:
+    """Check a method call's settings without running it: the shared options, the method's own
+    options and, when ``priors`` or ``order`` is given (whether priors= / order= will be passed),
+    whether the method runs with that sampling input. What :func:`estimate_motion` accepts, this accepts.
+
+    Returns:
+        The :class:`EstimatorOptions` and the method's own options (validated, normalised).
+
+    Raises:
+        ValueError: an unknown method or option, a value its declaration refuses (naming both),
+            or sampling inputs the method cannot use.
+    """
+    spec = method_spec(method)
+    shared, extra = _split_options(spec, dict(options))
+    if priors is not None or order is not None:
+        spec.check_inputs(bool(priors), bool(order))
     return shared, extra
 
 
@@ -625,8 +723,7 @@ def _estimate(
     """Validate priors/order, run the method on ``problem``'s usable rows and scatter the result
     back to all N rows; ``start`` is the caller's perf_counter."""
     method = spec.name
-    if priors is not None and order is not None:
-        raise ValueError("give either priors (guided sampling) or order (PROSAC), not both")
+    spec.check_inputs(priors is not None, order is not None)
     for name, value in (("priors", priors), ("order", order)):
         if value is not None and np.shape(value) != (problem.n,):
             raise ValueError(f"{name} must have shape ({problem.n},), one entry per correspondence, got {np.shape(value)}")
