@@ -547,20 +547,30 @@ def mahalanobis_sq(R, t, X, Y, cam, sigma_sq, cap):
     the depth term is the disparity difference, which is linear in the pixels.
 
     ``inf`` where the moved point is behind the camera. With ``cap > 0`` a distance at or above
-    ``cap`` may come back as any value >= cap: a point whose ``|r|^2 / (tr S_X + tr S_Y)`` already
-    reaches ``cap`` gets that lower bound (the trace bounds C's largest eigenvalue, and is the
-    same for every rotation) and skips the 3x3 solve.
+    ``cap`` may come back as any value >= cap: a point whose ``|r|^2 / tr C`` already reaches
+    ``cap`` gets that lower bound (the trace bounds C's largest eigenvalue) and skips the 3x3
+    solve. Most points of a bad hypothesis are settled before the fused point is even built, by
+    a bound on the trace from norms alone: ``tr S(p) <= sigma^2 (c |p|^2 + 3 |p|^4 / (fx b)^2)``
+    with ``c = 2 / fx^2 + v_variance / fy^2``, and the fused point, a convex combination of
+    ``P`` and ``Y``, is no farther than ``max(|X| + |t|, |Y|)`` (``R^T (Q - t)``: plus ``|t|``).
     """
     fx, fy, bl = cam[0], cam[1], cam[4]
     inv_fx, inv_fy, inv_fb = 1.0 / fx, 1.0 / fy, 1.0 / (fx * bl)
     v_variance = 1.0 / cam[5]
     H, N = R.shape[0], X.shape[0]
     out = np.empty((H, N))
+    c_lateral = 2.0 * inv_fx * inv_fx + v_variance * inv_fy * inv_fy
+    c_depth = 3.0 * inv_fb * inv_fb
     inv_depth = np.empty(N)
+    norm_x = np.empty(N)
+    norm_y = np.empty(N)
     for n in range(N):
         inv_depth[n] = 1.0 / Y[n, 2]
+        norm_x[n] = np.sqrt(X[n, 0] ** 2 + X[n, 1] ** 2 + X[n, 2] ** 2)
+        norm_y[n] = np.sqrt(Y[n, 0] ** 2 + Y[n, 1] ** 2 + Y[n, 2] ** 2)
     for h in range(H):
         r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2 = _motion_entries(R, t, h)
+        norm_t = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
         for n in range(N):
             x0, x1, x2 = X[n, 0], X[n, 1], X[n, 2]
             p0 = r00 * x0 + r01 * x1 + r02 * x2 + t0
@@ -569,6 +579,15 @@ def mahalanobis_sq(R, t, X, Y, cam, sigma_sq, cap):
             y0, y1, y2 = Y[n, 0], Y[n, 1], Y[n, 2]
             x, y, z = y0 - p0, y1 - p1, y2 - p2
             behind = p2 <= MIN_DEPTH  # a select, not a branch: the loop stays vectorisable
+            if cap > 0.0 and not behind:
+                r2 = x * x + y * y + z * z
+                far = max(norm_x[n] + norm_t, norm_y[n])  # bounds |Q|; |R^T (Q - t)| <= far + |t|
+                far2 = far * far
+                near2 = (far + norm_t) * (far + norm_t)
+                bound_trace = sigma_sq * (c_lateral * (far2 + near2) + c_depth * (far2 * far2 + near2 * near2))
+                if r2 >= cap * bound_trace:
+                    out[h, n] = r2 / max(bound_trace, 1e-300)
+                    continue
             ip, iy = 1.0 / (MIN_DEPTH if behind else p2), inv_depth[n]
             iq = 1.0 / (ip + iy)
             q0, q1, q2 = (p0 * ip + y0 * iy) * iq, (p1 * ip + y1 * iy) * iq, 2.0 * iq
