@@ -146,3 +146,16 @@ def test_baselines_writes_its_figures_in_the_chosen_format(tmp_path, capsys):
     assert "error_cdf.svg" in capsys.readouterr().out
     assert main(["baselines", "--report-only", str(out), "--format", "pdf"]) == 0
     assert all((out / name).read_bytes()[:5] == b"%PDF-" for name in bm.plot_files("pdf"))
+
+
+def test_evaluate_writes_its_figures_in_the_chosen_format(tmp_path):
+    pytest.importorskip("torch")
+    from agents.evaluation import PLOT_NAMES
+    from vo_gym.cli import main
+
+    out = tmp_path / "eval"
+    assert main(["evaluate", "--agent", "uniform", "--episodes", "1", "--frames-per-episode", "2", "--epsilons", "0.8",
+                 "--budgets", "4", "--budget", "4", "--sweep-epsilon", "0.8", "--n", "80", "--methods", "ransac", "--max-iterations", "50",
+                 "--no-progress", "--format", "pdf", "--out", str(out)]) == 0
+    assert all((out / f"{name}.pdf").read_bytes()[:5] == b"%PDF-" for name in PLOT_NAMES)
+    assert not any((out / f"{name}.png").exists() for name in PLOT_NAMES)

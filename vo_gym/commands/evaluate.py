@@ -27,7 +27,7 @@ import json
 import sys
 from pathlib import Path
 
-from vo_gym.commands.baselines import add_backend_options, backend_from_args, open_run_folder
+from vo_gym.commands.baselines import PLOT_FORMATS, add_backend_options, backend_from_args, open_run_folder
 from vo_gym.commands.common import EXIT_INTERRUPTED, EXIT_USAGE, UsageError
 from vo_gym.commands.common import csv_list as _csv_list
 from vo_gym.commands.common import positive_int as _positive_int
@@ -74,7 +74,9 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("runs/evaluate"),
                         help="output folder (default: runs/evaluate)")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON instead of the tables")
-    parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    parser.add_argument("--no-plots", action="store_true", help="skip the figures")
+    parser.add_argument("--format", choices=PLOT_FORMATS, default="png", dest="plot_format",
+                        help="file format of the figures (default: png)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument("--adaptive", action="store_true",
                         help="run the in-frame adaptive comparison instead (agents.adaptive_evaluation): the learned"
@@ -208,7 +210,7 @@ def _run(args: argparse.Namespace) -> int:
     rows = [row for i in range(len(units)) for row in stored[i]]
     result = EvaluationResult(config, list(agents), rows,
                               summarize_evaluation(rows, config, [a.label for a in agents]), result.wall_s)
-    paths = write_evaluation(result, out, plots=not args.no_plots)
+    paths = write_evaluation(result, out, plots=not args.no_plots, plot_format=args.plot_format)
     if args.json:
         print(json.dumps(json.loads((out / "summary.json").read_text()), indent=2))
         return 0
