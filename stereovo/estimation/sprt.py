@@ -327,8 +327,9 @@ class SprtTermination:
         self.probability = SampleProbability(self.sampler)
         self._last_drawn = 0
         self._test_index = 0
-        self._alpha_inliers = -1  # alpha_i depends on the tests and on I_best only: cache them
-        self._alphas: list[float] = []
+        # alpha_i depends on the tests and on I_best only: cached per inlier count (the loop asks with
+        # the count before and after a new best's local optimisation, so one entry would thrash)
+        self._alphas_by_count: dict[int, list[float]] = {}
 
     def on_new_best(self, inliers: np.ndarray, state: LoopState) -> None:
         """The sampler's all-inlier chance for the new best (the verifier redesigns the test)."""
@@ -341,13 +342,15 @@ class SprtTermination:
 
     def _good_model_rejection(self, n_inliers: int, n: int, history: list[SprtTest]) -> list[float]:
         """``alpha_i = A_i^-h_i`` of every test for a good model of inlier ratio ``I / N`` (0 if the test is off)."""
-        if n_inliers != self._alpha_inliers:
-            self._alpha_inliers, self._alphas = n_inliers, []
+        alphas = self._alphas_by_count.setdefault(n_inliers, [])
+        if len(self._alphas_by_count) > 16:  # counts from long-gone bests
+            for count in list(self._alphas_by_count)[:-16]:
+                del self._alphas_by_count[count]
         epsilon = n_inliers / n
-        for test in history[len(self._alphas) :]:
+        for test in history[len(alphas) :]:
             h = good_model_exponent(epsilon, test.epsilon, test.delta) if test.active else 0.0
-            self._alphas.append(rejection_probability(test.A, h) if test.active else 0.0)
-        return self._alphas
+            alphas.append(rejection_probability(test.A, h) if test.active else 0.0)
+        return alphas
 
     def required(self, n_inliers: int, n: int) -> int:
         p_good = self.probability.of(n_inliers, n)
