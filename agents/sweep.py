@@ -399,7 +399,7 @@ def run_sweep(spec: SweepSpec, out: str | os.PathLike, workers: int | None = Non
     experiment = out / "tune"
     started = False
     if not ray.is_initialized():
-        kwargs: dict[str, Any] = dict(include_dashboard=False, logging_level="ERROR")
+        kwargs: dict[str, Any] = dict(include_dashboard=False, logging_level="ERROR", log_to_driver=verbose > 0)
         if address is None:
             kwargs["num_cpus"] = int(workers or os.cpu_count() or 1)
         else:
@@ -446,12 +446,26 @@ def run_sweep(spec: SweepSpec, out: str | os.PathLike, workers: int | None = Non
                 "best_success": None if best is None else float(best[1].get(METRIC)),
             })
             errors += result.error is not None
-        # A trial ASHA stopped early is TERMINATED too; one cut short by an interrupt is not.
-        complete = grid.num_terminated + grid.num_errors == len(grid)
+        complete = _experiment_complete(experiment)
         return SweepOutcome(trials, complete, experiment, errors)
     finally:
         if started:
             ray.shutdown()
+
+
+def _experiment_complete(experiment: Path) -> bool:
+    """Whether Tune's saved experiment has every trial TERMINATED (finished, or stopped by ASHA) or ERROR.
+
+    Read from the saved state, not from ``fit()``'s answer: after a Ctrl-C, ``fit()`` returns
+    normally with trials that are still PENDING or RUNNING in the saved state.
+    """
+    from ray.tune import ExperimentAnalysis
+
+    try:
+        trials = ExperimentAnalysis(str(experiment)).trials
+    except Exception:  # noqa: BLE001 - no readable state: not complete
+        return False
+    return bool(trials) and all(t.status in ("TERMINATED", "ERROR") for t in trials)
 
 
 def write_sweep_outputs(spec: SweepSpec, outcome: SweepOutcome, out: str | os.PathLike) -> list[Path]:
@@ -474,7 +488,8 @@ def write_sweep_outputs(spec: SweepSpec, outcome: SweepOutcome, out: str | os.Pa
             "reports": len(hist), "steps": hist[-1]["step"] if hist else 0,
             "last_success": hist[-1][METRIC] if hist else math.nan,
             "best_success": max((h[METRIC] for h in hist), default=math.nan),
-            "status": "error" if t["error"] else ("finished" if hist and hist[-1]["step"] >= spec.total_steps
+            "status": "error" if t["error"] else ("not started" if not hist else
+                                                  "finished" if hist[-1]["step"] >= spec.total_steps
                                                   else "stopped early"),
         })
     rows.sort(key=lambda r: (-(r["best_success"] if r["best_success"] == r["best_success"] else -1), r["trial"]))
@@ -525,7 +540,7 @@ def write_sweep_outputs(spec: SweepSpec, outcome: SweepOutcome, out: str | os.Pa
     ax.set_ylim(-2, 102)
     ax.set_title(f"{spec.name}: {spec.metric.describe()}", fontsize="small")
     ax.grid(True, alpha=0.3)
-    if outcome.trials:
+    if any(t["history"] for t in outcome.trials):
         ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="x-small")
     fig.savefig(out / "metric_over_training.png", dpi=110)
     paths.append(out / "metric_over_training.png")
