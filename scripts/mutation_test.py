@@ -95,6 +95,9 @@ STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests"
 # function's code changes: rerun and recheck).
 _T = "stereovo.estimation.termination."
 _D = "stereovo.estimation.tdd."
+_P = "stereovo.estimation.prosac."
+_INT = ("integer counts stay integers until a float operation (the binomial, the products with beta, the "
+        "division) makes the result float64 all the same.")
 _AXIS = "drops axis=1: the default axis -1 is axis 1 of these 2-D arrays."
 EQUIVALENT: dict[str, str] = {
     "vo_gym.rewards.x_pose_error_ratio__mutmut_12":
@@ -115,6 +118,14 @@ EQUIVALENT: dict[str, str] = {
     _D + "x_random_points_excluding__mutmut_22": "take_along_axis " + _AXIS,
     _D + "x_random_points_excluding__mutmut_26": "argsort " + _AXIS,
     _D + "x_random_points_excluding__mutmut_32": "the inner take_along_axis " + _AXIS,
+    _P + "x_non_random_minimum__mutmut_8": "asarray(n, dtype=None): " + _INT,
+    _P + "x_non_random_minimum__mutmut_10": "asarray(n) without dtype: " + _INT,
+    _P + "x_prefix_draws__mutmut_3": "asarray(support, dtype=None): " + _INT,
+    _P + "x_prefix_draws__mutmut_5": "asarray(support) without dtype: " + _INT,
+    _P + "x_prefix_draws__mutmut_8": "asarray(n, dtype=None): " + _INT,
+    _P + "x_prefix_draws__mutmut_10": "asarray(n) without dtype: " + _INT,
+    _P + "x_prefix_draws__mutmut_47":
+        "min(q, 2.0) instead of min(q, 1.0): q <= 1 whenever the support I_n <= n, which a prefix's support is.",
     _T + "xǁAdaptiveTerminationǁon_new_best__mutmut_2":
         "passes None for the loop state: SampleProbability.on_new_best never reads the state.",
 }

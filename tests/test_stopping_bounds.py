@@ -14,7 +14,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from stereovo.estimation.prosac import ProsacTermination
+from stereovo.estimation.prosac import ProsacTermination, non_random_minimum, prefix_draws
 from stereovo.estimation.samplers import ProsacSampler, prosac_growth
 from stereovo.estimation.sprt import SprtTermination, SprtTest, SprtVerification
 from stereovo.estimation.tdd import TddTermination, random_points_excluding
@@ -277,7 +277,71 @@ def test_prosac_counters_and_validation():
     inliers[:40] = True
     stop.on_new_best(inliers, None)
     assert stop.counters() == {"prosac_n_star": 40, "prosac_k_stop": 1.0, "prosac_updates": 1}
-    for name, value in (("beta", 0.0), ("beta", 1.0), ("psi", 0.0), ("psi", 1.5), ("min_n", 3), ("min_n", 20.5)):
+    stop.on_new_best(inliers, None)
+    assert stop.counters()["prosac_updates"] == 2
+    for name, value in (("beta", 0.0), ("beta", 1.0), ("psi", 0.0), ("psi", 1.0), ("min_n", 3), ("min_n", 20.5)):
         with pytest.raises(ValueError, match=rf"^option prosac_{name} has an invalid value {value!r}$"):
             ProsacTermination(ProsacSampler(np.arange(100)), **{name: value})
     ProsacTermination(ProsacSampler(np.arange(100)), min_n=4)  # the smallest allowed prefix, 3 + 1
+
+
+def binomial_cdf(x: int, trials: int, beta: float) -> float:
+    return sum(math.comb(trials, i) * beta**i * (1 - beta) ** (trials - i) for i in range(x + 1))
+
+
+def test_prosac_non_random_minimum_exact_and_normal():
+    # I_min = m + x + 1 with x the smallest count whose binomial cdf exceeds 1 - psi (chance agreements
+    # of the n - 3 points outside the sample). Bin(17, 0.05): cdf(2) = 0.9497, cdf(3) = 0.9912 -> x = 3, I_min 7;
+    # Bin(20, 0.05): cdf(2) = 0.9245, cdf(3) = 0.9841 -> 7; Bin(97, 0.05) -> x = 9, 13; Bin(497, 0.05) -> 33, 37.
+    assert binomial_cdf(2, 17, 0.05) < 0.95 < binomial_cdf(3, 17, 0.05)
+    assert binomial_cdf(8, 97, 0.05) < 0.95 < binomial_cdf(9, 97, 0.05)
+    np.testing.assert_array_equal(non_random_minimum(np.array([20, 23, 100, 500]), 0.05, 0.05), [7, 7, 13, 37])
+    # beta 0.1, psi 0.01: x = 6, 17, 66 for 20, 97, 497 trials.
+    assert binomial_cdf(5, 20, 0.1) <= 0.99 < binomial_cdf(6, 20, 0.1)
+    np.testing.assert_array_equal(non_random_minimum(np.array([23, 100, 500]), 0.1, 0.01), [10, 21, 70])
+    # Edges: one trial, P(X <= 0) = 0.95 is not above 0.95, so x = 1 and I_min = 5; below a sample, n is m.
+    np.testing.assert_array_equal(non_random_minimum(np.array([4, 2]), 0.05, 0.05), [5, 4])
+    # The normal approximation: 3 + 97 * 0.05 + z_0.95 sqrt(97 * 0.05 * 0.95), z_0.95 = 1.6448536.
+    normal = non_random_minimum(np.array([100, 500]), 0.05, 0.05, exact=False)
+    np.testing.assert_allclose(normal, [3 + 97 * 0.05 + 1.6448536 * math.sqrt(97 * 0.0475),
+                                        3 + 497 * 0.05 + 1.6448536 * math.sqrt(497 * 0.0475)], rtol=1e-7)
+    assert non_random_minimum(np.array([100]), 0.1, 0.01, exact=False)[0] == pytest.approx(
+        3 + 9.7 + 2.3263479 * math.sqrt(97 * 0.09), rel=1e-7)
+
+
+def test_prosac_prefix_draws_by_hand_and_silently():
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # log(0) and 0/0 at the edges are handled, not warned about
+        k = prefix_draws(np.array([3, 2, 30, 0]), np.array([3, 20, 100, 50]), 0.01)
+    assert k.dtype == np.float64
+    # (3, 3): q = (3/3)(2/2)(1/1) = 1, one draw; (2, 20) and (0, 50): q = 0, never certain.
+    assert k[0] == 1.0 and k[1] == np.inf and k[3] == np.inf
+    # (30, 100): q = 30 * 29 * 28 / (100 * 99 * 98) = 0.025108, k = log(0.01) / log(1 - q) = 181.1.
+    q = 30 * 29 * 28 / (100 * 99 * 98)
+    assert k[2] == pytest.approx(math.log(0.01) / math.log(1 - q), rel=1e-12)
+    assert 181 < k[2] < 182
+
+
+def test_prosac_n_star_needs_a_non_random_prefix_of_at_least_min_n():
+    N = 100
+    # Six top-ranked inliers only: I_n = 6 < I_min(n) >= 7 for every n >= 20, so no prefix is trusted.
+    inliers = np.zeros(N, dtype=bool)
+    inliers[:6] = True
+    stop = ProsacTermination(ProsacSampler(np.arange(N)), confidence=0.99, max_iterations=999)
+    stop.on_new_best(inliers, None)
+    assert stop.n_star is None and stop.required(6, N) == 999
+    # Seven: I_20 = 7 = I_min(20) is non-random (>=), and n = 20 has the largest q:
+    # k = log(0.01) / log(1 - 7 * 6 * 5 / (20 * 19 * 18)) = 147.7, n* = 20.
+    inliers[6] = True
+    stop.on_new_best(inliers, None)
+    assert stop.n_star == 20
+    assert stop.k_stop == pytest.approx(math.log(0.01) / math.log(1 - 210 / 6840), rel=1e-12)
+    assert stop.required(7, N) == 148
+    # The top 20 all inliers, the rest outliers: n = 20 itself is the (unique) one-draw prefix.
+    inliers = np.zeros(N, dtype=bool)
+    inliers[:20] = True
+    stop = ProsacTermination(ProsacSampler(np.arange(N)), confidence=0.99)
+    stop.on_new_best(inliers, None)
+    assert stop.n_star == 20 and stop.k_stop == 1.0
