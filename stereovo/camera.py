@@ -87,10 +87,8 @@ def _triangulate_rows(meas, fx, fy, cx, cy, baseline, min_disparity, sigma, v_va
                     C[m, 1, 1] = s2 * 2 * (y_d * y_d + h2 * h2)
                 C[m, 1, 2] = C[m, 2, 1] = s2 * 2 * y_d * z_d
                 C[m, 2, 2] = s2 * 2 * z_d * z_d
-                for i in range(3):
-                    for j in range(3):
-                        if not np.isfinite(C[m, i, j]):
-                            ok = False
+                # one test for all six entries: an inf or NaN among them makes the sum inf or NaN
+                ok = np.isfinite(C[m, 0, 0] + C[m, 0, 1] + C[m, 0, 2] + C[m, 1, 1] + C[m, 1, 2] + C[m, 2, 2])
         if not ok:
             n_bad += 1
             X[m, :] = np.nan

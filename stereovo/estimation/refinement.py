@@ -206,10 +206,10 @@ def _triangulation_columns(meas, i, fx, fy, cx, cy, b, shared, T):
 
 
 @njit(cache=True, nogil=True)
-def _add_lifted(A, M, c0, c1, c2, sign):
-    """``A += G^T M G`` for ``G = sign [I | -c^] (3, 6)``, ``G^T w = sign (w, c x w)``."""
+def _add_lifted(A, M, c0, c1, c2, MG):
+    """``A += G^T M G`` for ``G = +-[I | -c^] (3, 6)``, ``G^T w = +-(w, c x w)`` (the sign cancels);
+    ``MG (3, 6)`` is scratch space."""
     # columns of M G: M e_j (j < 3), and M (e_j x c) for the rotation part (-c^ e_j = e_j x c)
-    MG = np.empty((3, 6))
     for r in range(3):
         MG[r, 0], MG[r, 1], MG[r, 2] = M[r, 0], M[r, 1], M[r, 2]
         MG[r, 3] = M[r, 2] * c1 - M[r, 1] * c2  # M (e_x x c), e_x x c = (0, -c2, c1)
@@ -242,6 +242,8 @@ def _pose_normal_equations(R, t, X, Y, mp, mc, cam, rows, min_depth):
     Mp, Mq, N = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
     JEp, JEq, T = np.empty((3, k)), np.empty((3, k)), np.empty((3, k))
     W = np.empty((3, 2 * k, 2))  # per measured pixel: the 3-vectors lifted by G_f^T and by G_b^T
+    MG = np.empty((3, 6))
+    RM = np.empty((3, 3))
     used = 0
     for i in rows:
         x0, x1, x2 = X[i, 0], X[i, 1], X[i, 2]
@@ -261,13 +263,12 @@ def _pose_normal_equations(R, t, X, Y, mp, mc, cam, rows, min_depth):
         # N = R M_Q R^T: the backward block's 3x3 term in frame k
         for r in range(3):
             for c in range(3):
-                acc = 0.0
-                for u in range(3):
-                    for v in range(3):
-                        acc += R[r, u] * Mq[u, v] * R[c, v]
-                N[r, c] = acc
-        _add_lifted(A, Mp, p0, p1, p2, 1.0)
-        _add_lifted(A, N, y0, y1, y2, -1.0)
+                RM[r, c] = R[r, 0] * Mq[0, c] + R[r, 1] * Mq[1, c] + R[r, 2] * Mq[2, c]
+        for r in range(3):
+            for c in range(3):
+                N[r, c] = RM[r, 0] * R[c, 0] + RM[r, 1] * R[c, 1] + RM[r, 2] * R[c, 2]
+        _add_lifted(A, Mp, p0, p1, p2, MG)
+        _add_lifted(A, N, y0, y1, y2, MG)
         # k-1 pixels: forward part M_P R T_prev (lifted by G_f), backward part R J_Q^T E (by G_b, sign -1)
         _triangulation_columns(mp, i, fx, fy, cx, cy, b, shared, T)
         for c in range(k):
