@@ -90,6 +90,7 @@ KIND_AGENT = "agent"
 KIND_ORACLE = "upper bound"
 KIND_FIXED = "classical, fixed budget"
 KIND_ADAPTIVE = "classical, adaptive"
+KIND_AGENT_ADAPTIVE = "agent, adaptive"  # the agent's priors with the prior-aware adaptive stop
 
 ROW_COLUMNS: tuple[str, ...] = (
     "epsilon", "budget", "n", "score_auc", "episode", "seed", "frame", "method", "kind", "success",
@@ -234,6 +235,10 @@ class EvalConfig:
         max_iterations: hypothesis cap of the adaptive classical runs.
         env_kwargs: further keyword arguments of the environment (e.g. ``noise_sigma``).
         success_target: the success rate of "hypotheses needed" (0.99).
+        adaptive_agents: also run every agent at the fixed-budget settings with no budget: its
+            priors and the estimator's prior-aware adaptive stop (q of the agent's weighted draw,
+            capped at ``max_iterations``), rows ``"<agent> (adaptive)"`` beside the classical
+            adaptive ones (PROSAC's own stop among them).
     """
 
     env_id: str = "vo_gym/StereoVO-v0"
@@ -250,6 +255,7 @@ class EvalConfig:
     max_iterations: int = 2000
     env_kwargs: Mapping[str, Any] = field(default_factory=dict)
     success_target: float = 0.99
+    adaptive_agents: bool = False
 
     def __post_init__(self) -> None:
         def positive(name: str, value: Any) -> int:
@@ -257,6 +263,8 @@ class EvalConfig:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
             return int(value)
 
+        if not isinstance(self.adaptive_agents, bool):
+            raise ValueError(f"adaptive_agents must be True or False, got {self.adaptive_agents!r}")
         for name in ("episodes", "frames_per_episode", "budget", "n", "max_iterations"):
             object.__setattr__(self, name, positive(name, getattr(self, name)))
         if isinstance(self.seed, bool) or int(self.seed) != self.seed or self.seed < 0:
@@ -341,15 +349,20 @@ def _setting_columns(epsilon: float, budget: int, env) -> dict[str, Any]:
 
 def run_agent_episode(
     agent: AgentSpec | Policy, env_id: str, env_kwargs: Mapping[str, Any], seed: int, episode: int = 0,
-    label: str | None = None,
+    label: str | None = None, kind: str | None = None, budget_column: int | None = None,
 ) -> list[dict[str, Any]]:
-    """One episode of ``agent`` (a spec or any policy with ``act``) from ``seed``: one row per frame."""
+    """One episode of ``agent`` (a spec or any policy with ``act``) from ``seed``: one row per frame.
+
+    ``kind`` overrides the rows' kind; ``budget_column`` their budget (an adaptive run, ``budget=None``
+    in ``env_kwargs``, is filed under the fixed-budget setting it sits beside)."""
     env = make_env(env_id, **env_kwargs)
     try:
         policy = agent.build(env) if isinstance(agent, AgentSpec) else agent
         name = label or (agent.label if isinstance(agent, AgentSpec) else getattr(agent, "name", "agent"))
-        kind = agent.row_kind if isinstance(agent, AgentSpec) else KIND_AGENT
-        common = _setting_columns(env_kwargs["outlier_ratio"], env_kwargs["budget"], env)
+        if kind is None:
+            kind = agent.row_kind if isinstance(agent, AgentSpec) else KIND_AGENT
+        budget = env_kwargs["budget"] if budget_column is None else budget_column
+        common = _setting_columns(env_kwargs["outlier_ratio"], budget, env)
         obs, _ = env.reset(seed=seed)
         rows, done = [], False
         while not done:
@@ -438,10 +451,16 @@ class _Unit:
     seed: int
     agent: AgentSpec | None  # None: the classical methods
     weight: int  # frames x estimators, for the progress bar
+    adaptive: bool = False  # an agent with no budget: its priors and the prior-aware stop
 
 
 def _run_unit(unit: _Unit, config: EvalConfig) -> list[dict[str, Any]]:
     kwargs = config.env_kwargs_for(unit.epsilon, unit.budget)
+    if unit.agent is not None and unit.adaptive:
+        kwargs = {**kwargs, "budget": None, "max_iterations": config.max_iterations}
+        return run_agent_episode(unit.agent, config.env_id, kwargs, unit.seed, unit.episode,
+                                 label=f"{unit.agent.label} (adaptive)", kind=KIND_AGENT_ADAPTIVE,
+                                 budget_column=unit.budget)
     if unit.agent is not None:
         return run_agent_episode(unit.agent, config.env_id, kwargs, unit.seed, unit.episode)
     adaptive = unit.budget == config.budget
@@ -476,6 +495,10 @@ def evaluation_units(config: EvalConfig, agents: Sequence[AgentSpec]) -> list[_U
         for episode, seed in enumerate(config.episode_seeds()):
             for agent in agents:
                 units.append(_Unit(epsilon, budget, episode, seed, agent, config.frames_per_episode))
+            if config.adaptive_agents and budget == config.budget:
+                for agent in agents:
+                    if agent.kind != "oracle":
+                        units.append(_Unit(epsilon, budget, episode, seed, agent, config.frames_per_episode, True))
             if config.methods:
                 n_est = n_fixed * (2 if budget == config.budget else 1)
                 units.append(_Unit(epsilon, budget, episode, seed, None, config.frames_per_episode * n_est))
@@ -585,7 +608,7 @@ def summarize_evaluation(
     Keys of the per-value dicts are strings (``"0.8"``, ``"16"``) so the summary survives JSON.
     """
     kinds = {r["method"]: r["kind"] for r in rows}
-    rank = {KIND_AGENT: 0, KIND_ORACLE: 1, KIND_FIXED: 2, KIND_ADAPTIVE: 3}
+    rank = {KIND_AGENT: 0, KIND_ORACLE: 1, KIND_FIXED: 2, KIND_ADAPTIVE: 3, KIND_AGENT_ADAPTIVE: 4}
     first_seen = list(dict.fromkeys(r["method"] for r in rows))
     agent_pos = {name: i for i, name in enumerate(agent_order)}
     methods = sorted(first_seen, key=lambda m: (rank[kinds[m]], agent_pos.get(m, 0), first_seen.index(m)))
@@ -601,13 +624,13 @@ def summarize_evaluation(
     eps_sweep = {
         m: {f"{e:g}": s for e in config.epsilons if (s := stats(m, e, config.budget)) is not None} for m in methods
     }
-    budget_methods = [m for m in methods if kinds[m] != KIND_ADAPTIVE]
+    budget_methods = [m for m in methods if kinds[m] not in (KIND_ADAPTIVE, KIND_AGENT_ADAPTIVE)]
     budget_sweep = {
         m: {str(b): s for b in config.budgets if (s := stats(m, config.sweep_epsilon, b)) is not None}
         for m in budget_methods
     }
     adaptive = {
-        m: s for m in methods if kinds[m] == KIND_ADAPTIVE
+        m: s for m in methods if kinds[m] in (KIND_ADAPTIVE, KIND_AGENT_ADAPTIVE)
         if (s := stats(m, config.sweep_epsilon, config.budget)) is not None
     }
     needed: dict[str, int | None] = {}
@@ -691,7 +714,8 @@ def evaluation_markdown(summary: Mapping[str, Any], wall_s: float | None = None)
         body = [[f"`{m}`", format_percent(s["success_rate"]), format_number(s["mean_hypotheses"], ".0f"),
                  format_number(s["median_hypotheses"], ".0f"), format_number(s["median_time_ms"], ".1f")]
                 for m, s in bud["adaptive"].items()]
-        lines += [f"## (b) Adaptive classical methods at eps {bud['epsilon']:g} (their own stopping rule)", "",
+        lines += [f"## (b) Adaptive runs at eps {bud['epsilon']:g} (classical methods: their own stopping rule;"
+                  f" `<agent> (adaptive)`: the agent's priors with the prior-aware stop)", "",
                   markdown_table(["method", "success", "hypotheses mean", "hypotheses med", "time med [ms]"], body),
                   ""]
     body = [[f"`{m}`", kinds[m], hypotheses_label(summary, m)] for m in hyp["methods"]]
@@ -709,7 +733,8 @@ PLOT_FILES = tuple(f"{name}.png" for name in PLOT_NAMES)
 
 def _line_style(i: int, kind: str) -> dict[str, Any]:
     style = line_style(i)
-    style["linestyle"] = {KIND_AGENT: "-", KIND_ORACLE: ":", KIND_FIXED: "--", KIND_ADAPTIVE: "-."}[kind]
+    style["linestyle"] = {KIND_AGENT: "-", KIND_ORACLE: ":", KIND_FIXED: "--", KIND_ADAPTIVE: "-.",
+                          KIND_AGENT_ADAPTIVE: "-."}[kind]
     return style
 
 

@@ -48,7 +48,7 @@ from stereovo.estimation.methods import (
 from stereovo.estimation.mlesac import GuidedMlesacQuality, MlesacQuality
 from stereovo.estimation.preemptive import PreemptiveVerification
 from stereovo.estimation.prosac import ProsacTermination
-from stereovo.estimation.samplers import SAMPLE_SIZE, ProsacSampler, WeightedSampler
+from stereovo.estimation.samplers import SAMPLE_SIZE, ProsacSampler
 from stereovo.estimation.scoring import InlierCount, MahalanobisResidual, ReprojectionResidual, TruncatedQuadratic
 from stereovo.estimation.sprt import SprtTermination, SprtVerification
 from stereovo.estimation.tdd import TddTermination, TddVerification
@@ -149,6 +149,13 @@ class EarliestTermination:
     def required(self, n_inliers: int, n: int) -> int:
         return min(rule.required(n_inliers, n) for rule in self.rules)
 
+    def counters(self) -> dict[str, int | float]:
+        """The rules' own counters, merged."""
+        merged: dict[str, int | float] = {}
+        for rule in self.rules:
+            if callable(getattr(rule, "counters", None)):
+                merged.update(rule.counters())
+        return merged
 
 
 _PROSAC_OPTIONS = ("prosac_beta", "prosac_psi", "prosac_min_n", "prosac_t_n")
@@ -188,8 +195,8 @@ def _build_guided_mlesac(problem, options, priors, order, extra) -> RansacCompon
         )
     quality = GuidedMlesacQuality.for_problem(problem, priors)
     threshold = options.mahalanobis_threshold_sq
-    components = base_components(problem, options, None, None, MahalanobisResidual(threshold), quality, threshold)
-    components.sampler = WeightedSampler(quality.gamma)  # P(i) proportional to the clipped gamma_i
+    # P(i) proportional to the clipped gamma_i; the adaptive stop uses this sampler's all-inlier chance
+    components = base_components(problem, options, quality.gamma, None, MahalanobisResidual(threshold), quality, threshold)
     return components
 
 
@@ -222,10 +229,21 @@ def _build_prosac(problem, options, priors, order, extra) -> RansacComponents:
 def _build_r_ransac(problem, options, priors, order, extra) -> RansacComponents:
     d = _number(extra, "tdd_d", 1, integer=True, low=1)
     components = base_components(problem, options, priors, order, *_reprojection_judge(options, InlierCount()))
-    components.verifier = TddVerification(d)
+    verifier = TddVerification(d)
+    components.verifier = verifier
+    components.listeners.append(verifier)  # the best model's inliers decide which hypotheses are good
     if options.budget is None:
-        components.termination = TddTermination(options.confidence, int(options.max_iterations), d)
+        stop = TddTermination(options.confidence, int(options.max_iterations), d, verifier, components.sampler)
+        _replace_termination(components, stop)
     return components
+
+
+def _replace_termination(components: RansacComponents, stop) -> None:
+    """Make ``stop`` the recipe's termination, also in place of the old one among the listeners
+    (an adaptive bound listens for the sampler's all-inlier chance)."""
+    listeners = [listener for listener in components.listeners if listener is not components.termination]
+    components.termination = stop
+    components.listeners = listeners + ([stop] if hasattr(stop, "on_new_best") else [])
 
 
 @register_method(
@@ -240,9 +258,9 @@ def _build_waldsac(problem, options, priors, order, extra) -> RansacComponents:
     components.verifier = verifier
     components.listeners.append(verifier)
     if options.budget is None:
-        stop = SprtTermination(verifier, options.confidence, int(options.max_iterations))
-        components.termination = stop
-        components.listeners.append(stop)
+        _replace_termination(
+            components, SprtTermination(verifier, options.confidence, int(options.max_iterations), components.sampler)
+        )
     return components
 
 
@@ -291,7 +309,7 @@ def _build_usac(problem, options, priors, order, extra) -> RansacComponents:
     components.listeners.append(verifier)
     rules = []
     if options.budget is None:
-        sprt_stop = SprtTermination(verifier, options.confidence, int(options.max_iterations))
+        sprt_stop = SprtTermination(verifier, options.confidence, int(options.max_iterations), components.sampler)
         components.listeners.append(sprt_stop)
         rules.append(sprt_stop)
     if order is not None:
@@ -301,7 +319,9 @@ def _build_usac(problem, options, priors, order, extra) -> RansacComponents:
         components.listeners.append(prosac_stop)
         rules.append(prosac_stop)
     if options.budget is None:
-        components.termination = EarliestTermination(tuple(rules)) if len(rules) > 1 else rules[0]
+        stop = EarliestTermination(tuple(rules)) if len(rules) > 1 else rules[0]
+        components.listeners = [listener for listener in components.listeners if listener is not components.termination]
+        components.termination = stop  # its rules listen already
     return components
 
 

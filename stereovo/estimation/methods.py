@@ -349,10 +349,11 @@ def default_sampler(problem: StereoProblem, priors: np.ndarray | None, order: np
     return UniformSampler(problem.n)
 
 
-def default_termination(options: EstimatorOptions):
+def default_termination(options: EstimatorOptions, sampler=None):
+    """A fixed budget, or the adaptive bound with the ``sampler``'s all-inlier chance (prior-aware)."""
     if options.budget is not None:
         return FixedBudget(int(options.budget))
-    return AdaptiveTermination(options.confidence, int(options.max_iterations))
+    return AdaptiveTermination(options.confidence, int(options.max_iterations), sampler=sampler)
 
 
 ENHANCEMENTS: dict[str, tuple[str, dict[str, Any]]] = {
@@ -437,12 +438,16 @@ def base_components(
     threshold_sq: float,
 ) -> RansacComponents:
     """The plain loop with the given judge; named methods replace roles of this."""
+    sampler = default_sampler(problem, priors, order)
+    termination = default_termination(options, sampler)
     return RansacComponents(
-        sampler=default_sampler(problem, priors, order),
+        sampler=sampler,
         residual_model=residual_model,
         quality=quality,
         threshold_sq=threshold_sq,
-        termination=default_termination(options),
+        termination=termination,
+        # the adaptive bound reads each new best's inlier mask for a guided sampler's q
+        listeners=[termination] if isinstance(termination, AdaptiveTermination) else [],
         local_optimizer=ConsensusRefit() if options.local_refit else None,
         refiner=final_refiner(options),
         batch_size=int(options.batch_size),

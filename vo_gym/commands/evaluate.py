@@ -83,6 +83,10 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                              " in-frame sampler, BANSAC, ARS, one-shot samplers, uniform and PROSAC by score on"
                              " identical held-out frames at eps 0.9 and on the hard id at eps 0.8; uses --episodes,"
                              " --frames-per-episode, --seed, --n and --out")
+    parser.add_argument("--adaptive-agents", action="store_true",
+                        help="also run each agent without a budget: its priors with the prior-aware adaptive stop"
+                             " (capped at --max-iterations), reported beside the adaptive classical methods"
+                             " (PROSAC's own stop among them)")
     add_backend_options(parser, "episodes")
 
 
@@ -158,7 +162,7 @@ def _run(args: argparse.Namespace) -> int:
             env_id=args.env_id, episodes=args.episodes, frames_per_episode=args.frames_per_episode, seed=args.seed,
             budget=args.budget, epsilons=tuple(args.epsilons), budgets=tuple(args.budgets),
             sweep_epsilon=args.sweep_epsilon, n=args.n, score_auc=args.auc, methods=methods,
-            max_iterations=args.max_iterations, env_kwargs=env_kwargs,
+            max_iterations=args.max_iterations, env_kwargs=env_kwargs, adaptive_agents=args.adaptive_agents,
         )
     except ValueError as err:
         return _error(str(err))
