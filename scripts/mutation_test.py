@@ -126,6 +126,11 @@ EQUIVALENT: dict[str, str] = {
     _P + "x_prefix_draws__mutmut_10": "asarray(n) without dtype: " + _INT,
     _P + "x_prefix_draws__mutmut_47":
         "min(q, 2.0) instead of min(q, 1.0): q <= 1 whenever the support I_n <= n, which a prefix's support is.",
+    "stereovo.estimation.mlesac.xǁGuidedMlesacQualityǁfor_problem__mutmut_9":
+        "asarray(gamma, dtype=None): np.clip with the float bounds returns float64 for integer or bool priors too.",
+    "stereovo.estimation.mlesac.xǁGuidedMlesacQualityǁfor_problem__mutmut_11": "the same without the dtype argument.",
+    "stereovo.estimation.mlesac.xǁGuidedMlesacQualityǁscore__mutmut_19":
+        "sum over axis=+1 instead of -1: the same axis of the (H, N) squared distances score is documented to take.",
     _T + "xǁAdaptiveTerminationǁon_new_best__mutmut_2":
         "passes None for the loop state: SampleProbability.on_new_best never reads the state.",
 }

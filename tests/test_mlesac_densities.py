@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from stereovo.camera import StereoCamera
-from stereovo.estimation.mlesac import MlesacQuality, inlier_log_normaliser, outlier_log_density
+from stereovo.estimation.mlesac import GuidedMlesacQuality, MlesacQuality, inlier_log_normaliser, outlier_log_density
 from stereovo.estimation.problem import StereoProblem
 
 # fx != fy, a short baseline and a VGA image: every camera constant enters the density differently.
@@ -91,3 +91,33 @@ def test_mlesac_quality_uses_both_densities():
     # The inlier density at squared Mahalanobis distance d^2 is the normaliser times exp(-d^2 / 2).
     d2 = np.array([[0.0, 2.0, 8.0]])
     np.testing.assert_allclose(quality.log_p_in(d2), (inlier_log_normaliser(problem) - np.array([0.0, 1.0, 4.0]))[None])
+
+
+def test_em_tolerance_and_iterations_reach_the_quality():
+    # Unit densities: p_in = exp(-d^2 / 2), p_out = 0.5. Two residuals at 0 and two at d^2 = 20.
+    # One EM step from gamma 0.5: z = (0.5 * 1) / (0.5 * 1 + 0.5 * 0.5) = 2/3 for the small ones and
+    # 0.5 e^-10 / (0.5 e^-10 + 0.25) = 9.08e-5 for the others: gamma_1 = (2 * 2/3 + 2 * 9.08e-5) / 4 = 0.33338.
+    # The change 0.1666 is below a tolerance of 0.5: EM stops there, 50 iterations allowed or not.
+    z_far = 0.5 * math.exp(-10) / (0.5 * math.exp(-10) + 0.25)
+    gamma_1 = (2 * (2 / 3) + 2 * z_far) / 4
+    d2 = np.array([[0.0, 0.0, 20.0, 20.0]])
+    coarse = MlesacQuality(np.zeros(4), np.full(4, math.log(0.5)), em_iterations=50, em_tolerance=0.5)
+    assert coarse.gamma(d2)[0] == pytest.approx(gamma_1, rel=1e-12)
+    # L at gamma_1: sum_i log(gamma_1 p_in,i + (1 - gamma_1) 0.5).
+    L = 2 * math.log(gamma_1 + (1 - gamma_1) * 0.5) + 2 * math.log(gamma_1 * math.exp(-10) + (1 - gamma_1) * 0.5)
+    assert coarse.score(d2, 9.0)[0] == pytest.approx(L, rel=1e-12)
+    # A tight tolerance runs on to the fixed point gamma ~ 1/2 - ..., far from one step.
+    fine = MlesacQuality(np.zeros(4), np.full(4, math.log(0.5)), em_iterations=50, em_tolerance=1e-9)
+    assert abs(fine.gamma(d2)[0] - gamma_1) > 0.05
+
+
+def test_guided_mlesac_clips_the_priors_away_from_0_and_1():
+    problem = problem_at_depths()
+    quality = GuidedMlesacQuality.for_problem(problem, np.array([0.0, 1.0, 0.25]))
+    np.testing.assert_array_equal(quality.gamma, [1e-6, 1 - 1e-6, 0.25])
+    scores = quality.score(np.zeros((1, 3)), 9.0)
+    assert np.all(np.isfinite(scores))
+    # Residuals 0: each term log(g p_in + (1 - g) p_out) with p_in the normaliser's density.
+    p_in, p_out = np.exp(inlier_log_normaliser(problem)), np.exp(outlier_log_density(problem))
+    g = np.array([1e-6, 1 - 1e-6, 0.25])
+    assert scores[0] == pytest.approx(float(np.sum(np.log(g * p_in + (1 - g) * p_out))), rel=1e-9)
