@@ -402,6 +402,16 @@ class StereoVOEnv(gym.Env):
         """
         return self._sequence
 
+    @property
+    def estimator_kwargs(self) -> dict[str, Any]:
+        """What each step passes to the estimator besides the frame, ``method``, the action and the generator.
+
+        The validated :class:`~stereovo.estimation.EstimatorOptions` fields and the method's own options,
+        as keyword arguments of :func:`stereovo.estimation.estimate_motion`. A copy: editing it changes
+        nothing in the environment.
+        """
+        return dict(self._estimator_kwargs)
+
     # ------------------------------------------------------------------ gymnasium API
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
