@@ -131,6 +131,16 @@ EQUIVALENT: dict[str, str] = {
     "stereovo.estimation.mlesac.xǁGuidedMlesacQualityǁfor_problem__mutmut_11": "the same without the dtype argument.",
     "stereovo.estimation.mlesac.xǁGuidedMlesacQualityǁscore__mutmut_19":
         "sum over axis=+1 instead of -1: the same axis of the (H, N) squared distances score is documented to take.",
+    _P + "x_prefix_draws__mutmut_18":
+        "clip(I - j, None, None): for an integer support I < 3 the product has the factor I - I = 0 anyway.",
+    _P + "x_prefix_draws__mutmut_31":
+        "errstate(invalid=None): no invalid operation occurs (log(eta0) is finite, 1 - q is in [0, 1]).",
+    _P + "x_prefix_draws__mutmut_33": "the same, errstate without invalid=.",
+    _P + "x_prefix_draws__mutmut_48":
+        "np.where(None, inf, ...): at q = 0 the inner value is already +inf, log(eta0) / log1p(-0.0) = -4.6 / -0.0.",
+    _P + "x_prefix_draws__mutmut_54": "q < 0 instead of q <= 0: q is never negative, and q = 0 gives +inf as above.",
+    _P + "xǁProsacTerminationǁrequired__mutmut_3":
+        "clip(ceil(k), None, max): k_stop > 0 always (prefix_draws or max_iterations), so ceil(k) >= 1 already.",
     _T + "xǁAdaptiveTerminationǁon_new_best__mutmut_2":
         "passes None for the loop state: SampleProbability.on_new_best never reads the state.",
 }

@@ -339,6 +339,9 @@ def test_prosac_n_star_needs_a_non_random_prefix_of_at_least_min_n():
     assert stop.n_star == 20
     assert stop.k_stop == pytest.approx(math.log(0.01) / math.log(1 - 210 / 6840), rel=1e-12)
     assert stop.required(7, N) == 148
+    capped = ProsacTermination(ProsacSampler(np.arange(N)), confidence=0.99, max_iterations=100)
+    capped.on_new_best(inliers, None)
+    assert capped.n_star == 20 and capped.required(7, N) == 100  # the bound 148 is capped at max_iterations
     # The top 20 all inliers, the rest outliers: n = 20 itself is the (unique) one-draw prefix.
     inliers = np.zeros(N, dtype=bool)
     inliers[:20] = True
