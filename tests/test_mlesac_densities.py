@@ -13,7 +13,14 @@ import numpy as np
 import pytest
 
 from stereovo.camera import StereoCamera
-from stereovo.estimation.mlesac import GuidedMlesacQuality, MlesacQuality, inlier_log_normaliser, outlier_log_density
+from stereovo.estimation.mlesac import (
+    GuidedMlesacQuality,
+    MlesacQuality,
+    inlier_log_normaliser,
+    mixture_log_likelihood,
+    mlesac_em,
+    outlier_log_density,
+)
 from stereovo.estimation.problem import StereoProblem
 
 # fx != fy, a short baseline and a VGA image: every camera constant enters the density differently.
@@ -121,3 +128,31 @@ def test_guided_mlesac_clips_the_priors_away_from_0_and_1():
     p_in, p_out = np.exp(inlier_log_normaliser(problem)), np.exp(outlier_log_density(problem))
     g = np.array([1e-6, 1 - 1e-6, 0.25])
     assert scores[0] == pytest.approx(float(np.sum(np.log(g * p_in + (1 - g) * p_out))), rel=1e-9)
+
+
+def test_em_defaults_and_the_gamma_clip():
+    # p_in = 1 for two residuals, ~0 for two, p_out = 0.5: the EM map is g -> g / (1 + g) (up to e^-10 terms),
+    # so from 0.5 it runs 1/3, 1/4, ... and after the default five iterations gamma = 1/7 (changes > 1e-4).
+    log_p_in = np.array([[0.0, 0.0, -10.0, -10.0]])
+    result = mlesac_em(log_p_in, math.log(0.5))
+    assert len(result) == 2  # (gamma, L) unless return_history
+    assert result[0][0] == pytest.approx(1 / 7, abs=2e-4)
+    assert mlesac_em(log_p_in, math.log(0.5), iterations=0)[0][0] == 0.5  # gamma0 is 0.5
+    # A model claiming every point (gamma = 1) is clipped to 1 - 1e-6: L = log((1 - 1e-6) e^0 + 1e-6 * 1e6) = log 2 - ...
+    L = mixture_log_likelihood(np.array([1.0]), np.array([[0.0]]), math.log(1e6))
+    assert L[0] == pytest.approx(math.log((1 - 1e-6) + 1e-6 * 1e6), rel=1e-9)  # unclipped: log 1 = 0
+    # EM from gamma0 = 1 is not stuck there: z = (1 - 1e-6) e^-50 / ((1 - 1e-6) e^-50 + 1e-6) ~ 2e-16.
+    gamma = mlesac_em(np.array([[-50.0, -50.0]]), 0.0, iterations=1, gamma0=1.0)[0]
+    assert gamma[0] == pytest.approx(math.exp(-50) / 1e-6, rel=1e-5)
+
+
+def test_mlesac_quality_settings_and_unusable_distances():
+    problem = problem_at_depths()
+    default = MlesacQuality.for_problem(problem)
+    assert (default.em_iterations, default.em_tolerance) == (5, 1e-4)
+    custom = MlesacQuality.for_problem(problem, em_iterations=9, em_tolerance=0.5)
+    assert (custom.em_iterations, custom.em_tolerance) == (9, 0.5)
+    # A NaN squared distance (a singular covariance's solve) counts as an outlier, like inf; a negative one as 0.
+    nan, inf, zero = (default.score(np.array([[x, 0.0, 0.0]]), 9.0)[0] for x in (np.nan, np.inf, 0.0))
+    assert nan == inf and nan < zero
+    assert default.score(np.array([[-1e-9, 0.0, 0.0]]), 9.0)[0] == zero
