@@ -7,7 +7,7 @@ identical for all (they depend on the seed only):
 - ``learned``: the in-frame sampler of :mod:`agents.adaptive`, its own stop at several confidences;
 - ``bansac`` / ``ars``: the samplers of :mod:`stereovo.estimation.bansac` / ``ars`` fed by the env's
   per-hypothesis verdicts, with the match scores or the first one-shot network's weights as priors
-  (ARS-MAGSAC's neural guidance), BANSAC's own stop at several confidences,
+  (ARS-MAGSAC's neural guidance), BANSAC's own stop at tau 0.01 (BANSAC) and 0.1 (P-BANSAC),
   ARS's adaptive bound (ARS's deterministic "most probable sample" becomes guided sampling on
   ``p ** 20``, nearly always the most probable points: the env samples, it takes no indices);
 - ``ngransac`` / ``ppo`` (one-shot): the shipped samplers' logits on the frame features, fixed budgets
@@ -32,7 +32,7 @@ import numpy as np
 
 from stereovo.estimation import estimate_problem
 from stereovo.estimation.ars import baysac_failure_update
-from stereovo.estimation.bansac import BansacSampler, initial_beliefs
+from stereovo.estimation.bansac import BANSAC_THRESHOLD, P_BANSAC_THRESHOLD, BansacSampler, initial_beliefs
 from stereovo.estimation.loop import LoopState
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.termination import required_iterations
@@ -100,24 +100,32 @@ def _priors(obs: dict, n: int, logits_fn: Callable[[dict], np.ndarray] | None) -
 
 
 class BansacPolicy:
-    """BANSAC's beliefs (priors: the match scores, or a network's weights) updated from each step's
-    verdicts; its own stop."""
+    """BANSAC (the paper's update, :class:`stereovo.estimation.bansac.BansacSampler`; priors: the
+    match scores, or a network's weights) updated from each step's verdicts in the order drawn;
+    sampling weights ``ceil(100 p)``; its own stop (``#(p < threshold)`` reaches the best consensus'
+    outliers, ``threshold`` 0.01 BANSAC, 0.1 P-BANSAC) or the uniform adaptive bound at
+    ``confidence``, which the paper's code keeps beside it."""
 
-    def __init__(self, confidence: float, name: str = "bansac", logits_fn: Callable[[dict], np.ndarray] | None = None) -> None:
-        self.name, self.confidence, self.logits_fn = name, float(confidence), logits_fn
+    def __init__(self, confidence: float = 0.99, name: str = "bansac",
+                 logits_fn: Callable[[dict], np.ndarray] | None = None, threshold: float = BANSAC_THRESHOLD) -> None:
+        self.name, self.confidence, self.logits_fn, self.threshold = name, float(confidence), logits_fn, float(threshold)
         self._sampler: BansacSampler | None = None
 
     def act(self, obs: dict, step: dict) -> np.ndarray:
         mask = np.asarray(obs["mask"], bool)
         n = int(mask.sum())
+        in_best = np.asarray(obs["features"][:n, IN_BEST]) > 0.5
         if step["new_frame"] or self._sampler is None:
-            self._sampler = BansacSampler(n, _priors(obs, n, self.logits_fn))
+            self._sampler = BansacSampler(n, _priors(obs, n, self.logits_fn), threshold=self.threshold)
         elif step["batch_samples"].shape[0]:
             self._sampler.on_hypotheses(None, None, step["batch_inliers"], None,
-                                        LoopState(step["frame_hypotheses"], 0.0, samples=step["batch_samples"]))
-        stop = step["frame_hypotheses"] > 0 and self._sampler.stop_confidence() >= self.confidence
+                                        LoopState(step["frame_hypotheses"], 0.0, samples=step["batch_samples"],
+                                                  best_inliers=in_best))
+        drawn, n_best = step["frame_hypotheses"], int(np.count_nonzero(in_best))
+        stop = drawn > 0 and (self._sampler.stop_rule_met(n_best)
+                              or drawn >= required_iterations(n_best, n, self.confidence, 10_000))
         logits = np.zeros(mask.shape[0])
-        logits[:n] = np.log(self._sampler.beliefs)
+        logits[:n] = np.log(self._sampler.sampling_weights)
         return _action(logits, mask, stop)
 
 
@@ -212,7 +220,7 @@ class AdaptiveComparison:
 
     learned: str = "adaptive-pg"
     confidences: tuple[float, ...] = (0.5, 0.8, 0.9, 0.95, 0.98)
-    bansac_confidences: tuple[float, ...] = (0.9, 0.99, 0.999)
+    bansac_thresholds: tuple[float, ...] = (BANSAC_THRESHOLD, P_BANSAC_THRESHOLD)  # BANSAC, P-BANSAC
     budgets: tuple[int, ...] = (4, 8, 16, 32, 64)
     prior_aware_confidences: tuple[float, ...] = (0.9, 0.99)
     one_shot: tuple[str, ...] = ("ngransac-supervised", "ppo")
@@ -242,9 +250,9 @@ def policies(config: AdaptiveComparison) -> list[tuple[str, Any, Any]]:
     for c in config.confidences:
         out.append(("learned (own stop)", c, LearnedAdaptivePolicy(AdaptiveSamplerPolicy(net, c), "learned")))
     guide = one_shot_logits(load_sampler(config.one_shot[0]))
-    for c in config.bansac_confidences:
-        out.append(("bansac, score priors (own stop)", c, BansacPolicy(c)))
-        out.append((f"bansac, {config.one_shot[0]} priors (own stop)", c, BansacPolicy(c, logits_fn=guide)))
+    for tau in config.bansac_thresholds:
+        out.append(("bansac, score priors (own stop)", tau, BansacPolicy(threshold=tau)))
+        out.append((f"bansac, {config.one_shot[0]} priors (own stop)", tau, BansacPolicy(threshold=tau, logits_fn=guide)))
     out.append(("ars, score priors (adaptive bound)", 0.99, ArsPolicy(0.99)))
     out.append((f"ars, {config.one_shot[0]} priors (adaptive bound)", 0.99, ArsPolicy(0.99, logits_fn=guide)))
     for name in config.one_shot:

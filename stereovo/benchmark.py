@@ -1222,7 +1222,7 @@ REFERENCE_METHOD = "ransac"
 METHOD_FAMILIES: dict[str, str] = {
     "ransac": "scoring", "msac": "scoring", "mlesac": "scoring", "probabilistic": "scoring",
     "r-ransac": "verification", "waldsac": "verification", "preemptive": "verification",
-    "guided-mlesac": "sampling", "prosac": "sampling", "bansac": "sampling", "ars": "sampling",
+    "guided-mlesac": "sampling", "prosac": "sampling", "bansac": "sampling", "p-bansac": "sampling", "ars": "sampling",
     "lo-ransac": "frameworks", "usac": "frameworks", "inlier-detection": "frameworks",
 }
 """The figure panel of each registered method; a guided variant goes with ``sampling``, another

@@ -1,34 +1,63 @@
 """BANSAC (Piedade & Miraldo, "BANSAC: A dynamic BAyesian Network for adaptive SAmple Consensus",
 ICCV 2023): per-correspondence inlier beliefs updated after every hypothesis, sampled from, and a
-stopping rule built from them. A sampler and a termination of the shared loop, method ``bansac``.
+stopping rule built from them. Methods ``bansac`` and ``p-bansac`` (the paper's two variants), as a
+sampler and a termination of the shared loop.
 
-The update, per hypothesis t with minimal sample ``S_t``, inlier verdicts ``c_i^t`` (residual under
-the gate) and support fraction ``r_t`` (inliers / N), on the beliefs ``p_i = P(i is an inlier)``:
+**The paper's update** (as the authors' released OpenCV implementation computes it). Every point i
+carries two unnormalised state weights, ``phi_in`` and ``phi_out`` (initially ``prior_i`` and
+``1 - prior_i``; ``prior_i = 0.5`` without priors). After iteration t, take that iteration's best
+hypothesis (one per minimal sample here: the 3-point fit has one solution) with inlier ratio
+``r = inliers / N`` and set the classification-table parameter
 
-- the hypothesis is correct (its sample all-inlier) with the belief ``delta_t = prod_{j in S_t} p_j``;
-- if correct, it calls an outlier an outlier and finds an inlier with chance ``rho`` (``recall``: a
-  hypothesis from a minimal sample of noisy stereo points misses many inliers); if not, it calls any
-  point an inlier with chance ``r_t``, whatever the point is. So the verdict's likelihoods are
-  ``P(c = in | inlier) = delta rho + (1 - delta) r``, ``P(c = in | outlier) = (1 - delta) r``, and
-  the complements for ``c = out``;
-- the first-order dynamic Bayesian network's step is Bayes' rule with these:
-  ``p_i <- p_i L_in / (p_i L_in + (1 - p_i) L_out)`` for the verdict observed;
-- the sample's own three points are left out (a hypothesis always fits its own sample: its verdict
-  on them carries no information), and beliefs are clipped to ``[1e-4, 1 - 1e-4]``.
+    c = 0.62 r + 0.5      if r < 0.7143,
+    c = 0.2 r + 0.8       otherwise;
 
-Hypotheses of one batch are applied one after another, in the order drawn. Sampling: three distinct
-points, P(i) proportional to ``p_i`` (guided sampling on the current beliefs).
+then, for every point (the sample's own points included: the paper treats them like any other),
 
-Stopping rule: under the current beliefs, the chance that at least one sample drawn so far was
-all-inlier, ``1 - prod_t (1 - prod_{j in S_t} p_j)``; stop once it reaches ``confidence``. Beliefs
-move after each batch, so this is recomputed over every sample drawn (O(hypotheses) per batch).
+    residual under the gate:  phi_in <- c phi_in + 0.2 (1 - c) phi_out,   phi_out <- 0.8 (1 - c) phi_out
+    otherwise:                phi_in <- (1 - c) phi_in,                   phi_out <- c phi_out
 
-Initial beliefs: ``initial_probability`` for every point (no priors), or priors scaled so that the
-largest is ``prior_ceiling`` (priors are sampling weights, whose scale is arbitrary).
+and the belief is ``p_i = phi_in / (phi_in + phi_out)``. Hypotheses that are never scored (a
+degenerate sample, one the rigidity check drops) update nothing, as an iteration without a model
+updates nothing in the paper. The update is linear in ``(phi_in, phi_out)``, so rescaling a point's
+pair leaves every later belief unchanged; this module keeps the pair normalised, as the log-odds
+``log(phi_in / phi_out)``, so no run is long enough to underflow (the released code keeps raw
+single-precision products, which reach zero after a few hundred iterations).
+
+**Sampling**: weights ``ceil(100 p_i)`` (the released code's discretisation: a sure inlier has 100
+times the weight of a point the beliefs have all but ruled out, which keeps weight 1); three
+distinct points per sample, drawn one after another in proportion to the weights (the released
+code draws from a pool of copies and can draw a point twice, which gives a degenerate sample).
+
+**Stopping rule**: count the points with ``p_i < tau`` (``tau`` 0.01 for BANSAC, 0.1 for
+P-BANSAC); stop once that count reaches ``N (1 - best inlier ratio so far)``, the outliers the best
+model implies. As in the released code the usual adaptive RANSAC bound also applies (for uniform
+sampling, from the best support: the paper's code keeps OpenCV's SPRT-based bound), and so does the
+``max_iterations`` cap.
+
+**Hypotheses per batch.** The paper draws, fits and updates one hypothesis at a time, which is the
+methods' default (``bansac_batch`` 1). With larger batches each hypothesis' update is applied in the
+order drawn, the next batch is drawn from the updated beliefs and the stop is checked per batch.
+
+**Priors** are the initial beliefs when they lie in [0, 1] (the paper's input); larger weights are
+first divided by their maximum (the project's priors are weights of any scale). Either way they are
+clipped into ``[1e-4, 1 - 1e-4]``: a prior of exactly 1 would make a point an inlier for good.
+``prior_ceiling`` (the project's option) instead scales them so the largest is that belief.
+
+**The project's variant** ``bansac_update="verdict-likelihood"`` (not the paper): a Bayesian reading
+of a hypothesis' verdicts. The hypothesis is correct with ``delta = prod_{j in S} p_j``; if correct
+it calls an outlier an outlier and finds an inlier with chance ``rho`` (``bansac_recall``), if not it
+calls any point an inlier with chance ``r``. Bayes' rule with ``P(in | inlier) = delta rho + (1 -
+delta) r`` and ``P(in | outlier) = (1 - delta) r`` (complements for "out") updates every point but
+the sample's own three; beliefs are clipped to ``[1e-4, 1 - 1e-4]``; sampling is proportional to the
+beliefs, in batches of 4; the stop is reached once, under the current beliefs, an all-inlier sample
+was drawn with ``confidence``: ``1 - prod_t (1 - prod_{j in S_t} p_j) >= confidence``. Priors are
+scaled so the largest is ``prior_ceiling`` (0.6).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -36,24 +65,196 @@ import numpy as np
 from stereovo.estimation.local_optimization import ConsensusRefit
 from stereovo.estimation.loop import LoopState
 from stereovo.estimation.samplers import SAMPLE_SIZE, WeightedSampler
+from stereovo.estimation.termination import AdaptiveTermination
 
 BELIEF_FLOOR = 1e-4
+BANSAC_THRESHOLD = 0.01  # tau of BANSAC's stop
+P_BANSAC_THRESHOLD = 0.1  # tau of P-BANSAC's stop
+TABLE_KNEE = 0.7143  # the inlier ratio where the classification table's parameter changes slope
+WEIGHT_LEVELS = 100  # sampling weights ceil(100 p): the released code's discretisation
+PAPER_BATCH = 1  # hypotheses per batch of the paper's methods: one update per hypothesis
+# c = 1 (every point an inlier, r = 1) would send every log-odds to +inf; one part in 1e12 below keeps them finite.
+C_MAX = 1.0 - 1e-12
+
 DEFAULT_RECALL = 0.5
-PRIOR_CEILING = 0.6  # the largest prior's belief: at 0.95 the beliefs lock onto the first consensus (eps 0.5, 20 frames: 85 % success; 0.6: 95 %)
-FEEDBACK_BATCH = 4  # hypotheses per batch of the ``bansac`` method: the beliefs move between batches
+PRIOR_CEILING = 0.6  # the largest prior's belief: at 0.95 the verdict-likelihood beliefs lock onto the first consensus (eps 0.5, 20 frames: 85 % success; 0.6: 95 %)
+FEEDBACK_BATCH = 4  # hypotheses per batch of the verdict-likelihood variant: the beliefs move between batches
+
+
+# ----------------------------------------------------------------------------- the paper's update
+
+
+def classification_parameter(inlier_ratio: float) -> float:
+    """The paper's classification-table parameter ``c`` for a hypothesis of inlier ratio ``r`` in [0, 1]."""
+    r = float(inlier_ratio)
+    return 0.62 * r + 0.5 if r < TABLE_KNEE else 0.2 * r + 0.8
+
+
+def phi_update(phi_in: np.ndarray, phi_out: np.ndarray, verdicts: np.ndarray, inlier_ratio: float
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """One iteration's update of the unnormalised state weights (module docstring), as written.
+
+    Args:
+        phi_in, phi_out: ``(N,)`` state weights of "inlier" and "outlier".
+        verdicts: ``(N,)`` bool, residual under the gate for the iteration's best hypothesis.
+        inlier_ratio: that hypothesis' inliers / N.
+    Returns:
+        the new ``(phi_in, phi_out)``; the beliefs are ``phi_in / (phi_in + phi_out)``.
+    """
+    c = classification_parameter(inlier_ratio)
+    phi_in, phi_out = np.asarray(phi_in, float), np.asarray(phi_out, float)
+    new_in = np.where(verdicts, c * phi_in + 0.2 * (1 - c) * phi_out, (1 - c) * phi_in)
+    new_out = np.where(verdicts, 0.8 * (1 - c) * phi_out, c * phi_out)
+    return new_in, new_out
+
+
+def log_odds_update(log_odds: np.ndarray, verdicts: np.ndarray, inlier_ratio: float) -> np.ndarray:
+    """:func:`phi_update` on ``log(phi_in / phi_out) (N,)``: the same beliefs, never underflowing."""
+    c = min(classification_parameter(inlier_ratio), C_MAX)
+    log_c, log_1mc = math.log(c), math.log1p(-c)
+    gated_in = np.logaddexp(log_c + log_odds, math.log(0.2) + log_1mc) - (math.log(0.8) + log_1mc)
+    return np.where(verdicts, gated_in, log_odds + (log_1mc - log_c))
+
+
+def prior_beliefs(n: int, priors: np.ndarray | None, initial_probability: float,
+                  prior_ceiling: float | None) -> np.ndarray:
+    """``(n,)`` initial beliefs: the constant without priors; priors as probabilities (divided by
+    their maximum if it exceeds 1), or scaled to a maximum of ``prior_ceiling`` if given; clipped
+    into ``[BELIEF_FLOOR, 1 - BELIEF_FLOOR]``."""
+    if priors is None:
+        return np.full(n, float(initial_probability))
+    w = np.asarray(priors, dtype=float)
+    top = float(w.max())
+    if prior_ceiling is not None:
+        w = prior_ceiling * w / top
+    elif top > 1:
+        w = w / top
+    return np.clip(w, BELIEF_FLOOR, 1 - BELIEF_FLOOR)
+
+
+class BansacSampler:
+    """The paper's beliefs, sampling weights and stop count (module docstring).
+
+    Attributes:
+        log_odds: ``(N,)`` ``log(phi_in / phi_out)`` per point.
+        threshold: ``tau`` of the stopping rule.
+        updates: hypotheses applied so far.
+        best_inliers_seen: the largest inlier count of any hypothesis applied (the stop's best
+            support when the caller's loop state carries no best consensus).
+    """
+
+    def __init__(self, n: int, priors: np.ndarray | None = None, threshold: float = BANSAC_THRESHOLD,
+                 initial_probability: float = 0.5, prior_ceiling: float | None = None) -> None:
+        if n < SAMPLE_SIZE:
+            raise ValueError(f"need at least {SAMPLE_SIZE} correspondences to sample, got {n}")
+        for name, value in (("threshold", threshold), ("initial_probability", initial_probability),
+                            ("prior_ceiling", 0.5 if prior_ceiling is None else prior_ceiling)):
+            if not 0 < value < 1:
+                raise ValueError(f"BansacSampler: {name} must be in (0, 1), got {value!r}")
+        self.n, self.threshold = n, float(threshold)
+        p = prior_beliefs(n, priors, initial_probability, prior_ceiling)
+        self.log_odds = np.log(p) - np.log1p(-p)
+        self.updates = self.best_inliers_seen = 0
+        self.best_support = 0  # the best consensus' size at the latest update
+        self._sampler: WeightedSampler | None = None
+
+    @property
+    def beliefs(self) -> np.ndarray:
+        """``(N,)`` inlier beliefs ``phi_in / (phi_in + phi_out)``."""
+        return np.exp(-np.logaddexp(0.0, -self.log_odds))  # the logistic, without overflow at large |log-odds|
+
+    @property
+    def sampling_weights(self) -> np.ndarray:
+        """``(N,)`` ``ceil(100 p)``, at least 1."""
+        return np.maximum(np.ceil(WEIGHT_LEVELS * self.beliefs), 1.0)
+
+    def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
+        if self._sampler is None:
+            self._sampler = WeightedSampler(self.sampling_weights)
+        return self._sampler.draw(batch, rng)
+
+    def apply(self, verdicts: np.ndarray) -> None:
+        """One hypothesis' update from its ``(N,)`` bool inlier mask."""
+        k = int(np.count_nonzero(verdicts))
+        self.log_odds = log_odds_update(self.log_odds, verdicts, k / self.n)
+        self.best_inliers_seen = max(self.best_inliers_seen, k)
+        self.updates += 1
+        self._sampler = None
+
+    def on_hypotheses(self, R, t, inlier_masks: np.ndarray, residual_sq, state: LoopState) -> None:
+        for verdicts in inlier_masks:
+            self.apply(verdicts)
+        best = state.best_inliers
+        self.best_support = self.best_inliers_seen if best is None else int(np.count_nonzero(best))
+
+    def outlier_count(self) -> int:
+        """Points whose belief is under ``tau``."""
+        # p < tau  <=>  log-odds < log(tau / (1 - tau))
+        return int(np.count_nonzero(self.log_odds < math.log(self.threshold) - math.log1p(-self.threshold)))
+
+    def stop_rule_met(self, n_best_inliers: int) -> bool:
+        """BANSAC's stop: after at least one update, ``#(p < tau) >= N - n_best_inliers``."""
+        return self.updates > 0 and self.outlier_count() >= self.n - int(n_best_inliers)
+
+    def all_inlier_probability(self, inliers: np.ndarray) -> float:
+        """Chance that one draw from the current weights is three points of ``inliers (N,)`` bool
+        (sequential draws without replacement, with the inliers' mean weight removed per draw)."""
+        return sequential_all_inlier_probability(self.sampling_weights, inliers)
+
+    def counters(self) -> dict[str, int]:
+        return {"bansac_updates": self.updates, "bansac_outlier_beliefs": self.outlier_count()}
+
+
+def sequential_all_inlier_probability(w: np.ndarray, inliers: np.ndarray) -> float:
+    """Chance that three weighted draws without replacement from ``w (N,)`` all fall in ``inliers``
+    (each draw removes the inliers' mean weight)."""
+    total, inside = float(w.sum()), float(w[inliers].sum())
+    k = int(np.count_nonzero(inliers))
+    if k < SAMPLE_SIZE:
+        return 0.0
+    mean = inside / k
+    q = 1.0
+    for j in range(SAMPLE_SIZE):
+        q *= (inside - j * mean) / (total - j * mean)
+    return q
+
+
+@dataclass
+class BansacTermination:
+    """BANSAC's stop with the adaptive bound kept (module docstring).
+
+    ``required`` answers 0 once the beliefs' rule is met (the loop then stops), else the bound's
+    count; ``max_iterations`` is the bound's cap.
+    """
+
+    sampler: BansacSampler
+    bound: AdaptiveTermination
+    stopped_by_rule: bool = field(default=False, init=False)
+
+    @property
+    def max_iterations(self) -> int:
+        return self.bound.max_iterations
+
+    def required(self, n_inliers: int, n: int) -> int:
+        self.stopped_by_rule = self.sampler.stop_rule_met(n_inliers)
+        return 0 if self.stopped_by_rule else self.bound.required(n_inliers, n)
+
+    def counters(self) -> dict[str, int | float]:
+        return {**self.bound.counters(), "bansac_stopped_by_rule": int(self.stopped_by_rule)}
+
+
+# ----------------------------------------------------------------------------- the project's variant
 
 
 def initial_beliefs(n: int, priors: np.ndarray | None, initial_probability: float, prior_ceiling: float) -> np.ndarray:
     """``(n,)`` inlier beliefs: the constant without priors, else priors scaled to a maximum of
-    ``prior_ceiling`` (floored at :data:`BELIEF_FLOOR`)."""
-    if priors is None:
-        return np.full(n, float(initial_probability))
-    w = np.asarray(priors, dtype=float)
-    return np.clip(prior_ceiling * w / w.max(), BELIEF_FLOOR, 1 - BELIEF_FLOOR)
+    ``prior_ceiling`` (floored at :data:`BELIEF_FLOOR`); the verdict-likelihood variant's and ARS's."""
+    return prior_beliefs(n, priors, initial_probability, prior_ceiling)
 
 
-def bansac_update(p: np.ndarray, sample: np.ndarray, verdicts: np.ndarray, recall: float = DEFAULT_RECALL) -> np.ndarray:
-    """One hypothesis' update of the beliefs ``p (N,)`` (module docstring), returned as a new array.
+def verdict_likelihood_update(p: np.ndarray, sample: np.ndarray, verdicts: np.ndarray,
+                              recall: float = DEFAULT_RECALL) -> np.ndarray:
+    """The verdict-likelihood variant's update of the beliefs ``p (N,)`` (module docstring), a new array.
 
     Args:
         p: current beliefs in (0, 1).
@@ -71,8 +272,9 @@ def bansac_update(p: np.ndarray, sample: np.ndarray, verdicts: np.ndarray, recal
     return np.clip(posterior, BELIEF_FLOOR, 1 - BELIEF_FLOOR)
 
 
-class BansacSampler:
-    """Guided sampling on beliefs that every verified hypothesis updates (module docstring).
+class VerdictBeliefSampler:
+    """The verdict-likelihood variant: guided sampling on beliefs that every verified hypothesis
+    updates by :func:`verdict_likelihood_update` (module docstring).
 
     Attributes:
         beliefs: ``(N,)`` current inlier beliefs.
@@ -86,7 +288,7 @@ class BansacSampler:
         for name, value in (("initial_probability", initial_probability), ("prior_ceiling", prior_ceiling),
                             ("recall", recall)):
             if not 0 < value <= 1:
-                raise ValueError(f"BansacSampler: {name} must be in (0, 1), got {value!r}")
+                raise ValueError(f"VerdictBeliefSampler: {name} must be in (0, 1), got {value!r}")
         self.n, self.recall = n, float(recall)
         self.beliefs = initial_beliefs(n, priors, initial_probability, prior_ceiling)
         self._history: list[np.ndarray] = []
@@ -102,7 +304,7 @@ class BansacSampler:
     def on_hypotheses(self, R, t, inlier_masks: np.ndarray, residual_sq: np.ndarray, state: LoopState) -> None:
         p = self.beliefs
         for sample, verdicts in zip(state.samples, inlier_masks):
-            p = bansac_update(p, sample, verdicts, self.recall)
+            p = verdict_likelihood_update(p, sample, verdicts, self.recall)
         self.beliefs = p
         self.updates += len(inlier_masks)
         self._history.append(np.asarray(state.samples, dtype=np.int64))
@@ -116,32 +318,19 @@ class BansacSampler:
         return float(-np.expm1(np.sum(np.log1p(-np.minimum(all_inlier, 1 - 1e-12)))))
 
     def all_inlier_probability(self, inliers: np.ndarray) -> float:
-        """Chance that one draw from the current beliefs is three points of ``inliers (N,)`` bool
-        (sequential draws without replacement, with the inliers' mean weight removed per draw)."""
-        w = self.beliefs
-        total, inside = float(w.sum()), float(w[inliers].sum())
-        k = int(np.count_nonzero(inliers))
-        if k < SAMPLE_SIZE:
-            return 0.0
-        mean = inside / k
-        q = 1.0
-        for j in range(SAMPLE_SIZE):
-            q *= (inside - j * mean) / (total - j * mean)
-        return q
+        """As :meth:`BansacSampler.all_inlier_probability`, on the beliefs."""
+        return sequential_all_inlier_probability(self.beliefs, inliers)
 
     def counters(self) -> dict[str, float]:
         return {"bansac_updates": self.updates, "bansac_stop_confidence": self.stop_confidence()}
 
 
 @dataclass
-class BansacTermination:
-    """BANSAC's stop: once the beliefs say an all-inlier sample was drawn with ``confidence``.
+class VerdictConfidenceTermination:
+    """The verdict-likelihood variant's stop: once the beliefs say an all-inlier sample was drawn
+    with ``confidence``; ``max_iterations`` caps the search, ``min_iterations`` floors it."""
 
-    ``required`` answers the hypotheses drawn so far when the rule is met (the loop then stops),
-    else one more batch's worth; ``max_iterations`` caps the search, ``min_iterations`` floors it.
-    """
-
-    sampler: BansacSampler
+    sampler: VerdictBeliefSampler
     confidence: float = 0.99
     max_iterations: int = 10_000
     min_iterations: int = 1
@@ -149,10 +338,10 @@ class BansacTermination:
 
     def __post_init__(self) -> None:
         if not 0 < self.confidence < 1:
-            raise ValueError(f"BansacTermination: confidence must be in (0, 1), got {self.confidence!r}")
+            raise ValueError(f"VerdictConfidenceTermination: confidence must be in (0, 1), got {self.confidence!r}")
         if not 1 <= self.min_iterations <= self.max_iterations:
             raise ValueError(
-                f"BansacTermination: need 1 <= min_iterations <= max_iterations, got "
+                f"VerdictConfidenceTermination: need 1 <= min_iterations <= max_iterations, got "
                 f"{self.min_iterations} and {self.max_iterations}"
             )
 
@@ -165,29 +354,38 @@ class BansacTermination:
         return {"bansac_stopped_by_rule": int(self.stopped_by_rule)}
 
 
-# ----------------------------------------------------------------------------- the method
+# ----------------------------------------------------------------------------- the methods
 
-from stereovo.estimation.methods import (  # noqa: E402  (the method needs the sampler above)
+from stereovo.estimation.methods import (  # noqa: E402  (the methods need the samplers above)
     EstimatorOptions,
     declare_options,
     declared_option,
     method_spec,
     register_method,
 )
-from stereovo.options import Number  # noqa: E402
+from stereovo.options import Choice, Integer, Number  # noqa: E402
 
 BELIEF_OPTIONS = ("initial_probability", "prior_ceiling")
+UPDATES = ("paper", "verdict-likelihood")
 declare_options({
     "initial_probability": Number(low=0.0, high=1.0, low_open=True, high_open=True),
     "prior_ceiling": Number(low=0.0, high=1.0, low_open=True, high_open=True),
     "bansac_recall": Number(low=0.0, high=1.0, low_open=True),
+    "bansac_update": Choice(choices=UPDATES),
+    "bansac_threshold": Number(low=0.0, high=1.0, low_open=True, high_open=True),
+    "bansac_batch": Integer(low=1),
 })
+BANSAC_OPTIONS = BELIEF_OPTIONS + ("bansac_update", "bansac_threshold", "bansac_batch", "bansac_recall")
+
+
+def _checked(extra: dict, name: str, default):
+    return declared_option(name).check(name, extra.get(name, default))
 
 
 def belief_options(extra: dict) -> dict[str, float]:
-    """The belief options of ``bansac`` / ``ars`` from a method's ``extra`` options, checked."""
+    """The belief options of ``ars`` and the verdict-likelihood variant from ``extra``, checked."""
     defaults = {"initial_probability": 0.5, "prior_ceiling": PRIOR_CEILING}
-    return {name: float(declared_option(name).check(name, extra.get(name, defaults[name]))) for name in BELIEF_OPTIONS}
+    return {name: float(_checked(extra, name, defaults[name])) for name in BELIEF_OPTIONS}
 
 
 def judged_components(problem, options: EstimatorOptions, priors, order, sampler):
@@ -199,26 +397,61 @@ def judged_components(problem, options: EstimatorOptions, priors, order, sampler
     components.sampler = sampler
     # Belief-driven samplers draw from the first consensus found, and a minimal stereo fit finds
     # only part of its inliers: refitting each new best on its consensus gives it its full support
-    # (eps 0.7, informative priors, 20 frames: bansac 45 -> 80 % success, ars 90 -> 100 %).
+    # (eps 0.7, informative priors, 20 frames: verdict-likelihood bansac 45 -> 80 % success, ars 90 -> 100 %).
     components.local_optimizer = components.local_optimizer or ConsensusRefit()
+    return components
+
+
+def _build(problem, options, priors, order, extra, threshold_default: float):
+    update = _checked(extra, "bansac_update", "paper")
+    if update == "verdict-likelihood":
+        return _build_verdict_variant(problem, options, priors, order, extra)
+    ceiling = extra.get("prior_ceiling")
+    sampler = BansacSampler(
+        problem.n, priors, threshold=float(_checked(extra, "bansac_threshold", threshold_default)),
+        initial_probability=float(_checked(extra, "initial_probability", 0.5)),
+        prior_ceiling=None if ceiling is None else float(_checked(extra, "prior_ceiling", ceiling)),
+    )
+    components = judged_components(problem, options, priors, order, sampler)
+    components.batch_size, components.first_batch_size = int(_checked(extra, "bansac_batch", PAPER_BATCH)), None
+    if options.budget is None:
+        # the released code keeps the uniform adaptive bound beside the beliefs' stop
+        bound = AdaptiveTermination(options.confidence, int(options.max_iterations))
+        components.listeners = [x for x in components.listeners if x is not components.termination]
+        components.termination = BansacTermination(sampler, bound)
+    return components
+
+
+def _build_verdict_variant(problem, options, priors, order, extra):
+    recall = float(_checked(extra, "bansac_recall", DEFAULT_RECALL))
+    sampler = VerdictBeliefSampler(problem.n, priors, recall=recall, **belief_options(extra))
+    components = judged_components(problem, options, priors, order, sampler)
+    batch = int(_checked(extra, "bansac_batch", FEEDBACK_BATCH))
+    components.batch_size, components.first_batch_size = min(int(options.batch_size), batch), None
+    if options.budget is None:
+        adaptive = components.termination
+        components.termination = VerdictConfidenceTermination(sampler, options.confidence, int(options.max_iterations))
+        components.listeners = [listener for listener in components.listeners if listener is not adaptive]
     return components
 
 
 @register_method(
     "bansac",
-    "guided sampling on per-point inlier beliefs updated after every hypothesis by a dynamic Bayesian "
-    "network, stopped when the beliefs say an all-inlier sample was drawn; the probabilistic method's judge",
+    "BANSAC: sampling weights from per-point inlier beliefs that a dynamic Bayesian network updates "
+    "after every hypothesis; stops when the beliefs rule out as many points (p < 0.01) as the best "
+    "model's outliers, or at the adaptive bound; the probabilistic method's judge",
     "Piedade & Miraldo, ICCV 2023",
-    extra_options=BELIEF_OPTIONS + ("bansac_recall",),
+    extra_options=BANSAC_OPTIONS,
 )
 def _build_bansac(problem, options, priors, order, extra):
-    recall = float(declared_option("bansac_recall").check("bansac_recall", extra.get("bansac_recall", DEFAULT_RECALL)))
-    sampler = BansacSampler(problem.n, priors, recall=recall, **belief_options(extra))
-    components = judged_components(problem, options, priors, order, sampler)
-    # the beliefs learn between batches: small ones (the paper updates after every hypothesis)
-    components.batch_size, components.first_batch_size = min(int(options.batch_size), FEEDBACK_BATCH), None
-    if options.budget is None:
-        adaptive = components.termination
-        components.termination = BansacTermination(sampler, options.confidence, int(options.max_iterations))
-        components.listeners = [listener for listener in components.listeners if listener is not adaptive]
-    return components
+    return _build(problem, options, priors, order, extra, BANSAC_THRESHOLD)
+
+
+@register_method(
+    "p-bansac",
+    "P-BANSAC: BANSAC with the looser stop (beliefs under 0.1 count as ruled out)",
+    "Piedade & Miraldo, ICCV 2023",
+    extra_options=BANSAC_OPTIONS,
+)
+def _build_p_bansac(problem, options, priors, order, extra):
+    return _build(problem, options, priors, order, extra, P_BANSAC_THRESHOLD)
