@@ -104,11 +104,14 @@ class BansacPolicy:
     match scores, or a network's weights) updated from each step's verdicts in the order drawn;
     sampling weights ``ceil(100 p)``; its own stop (``#(p < threshold)`` reaches the best consensus'
     outliers, ``threshold`` 0.01 BANSAC, 0.1 P-BANSAC) or the uniform adaptive bound at
-    ``confidence``, which the paper's code keeps beside it."""
+    ``confidence``, which the paper's code keeps beside it. ``weights="belief"``: the project's option
+    of sampling by ``p`` itself."""
 
     def __init__(self, confidence: float = 0.99, name: str = "bansac",
-                 logits_fn: Callable[[dict], np.ndarray] | None = None, threshold: float = BANSAC_THRESHOLD) -> None:
+                 logits_fn: Callable[[dict], np.ndarray] | None = None, threshold: float = BANSAC_THRESHOLD,
+                 weights: str = "discretised") -> None:
         self.name, self.confidence, self.logits_fn, self.threshold = name, float(confidence), logits_fn, float(threshold)
+        self.weights = weights
         self._sampler: BansacSampler | None = None
 
     def act(self, obs: dict, step: dict) -> np.ndarray:
@@ -116,7 +119,8 @@ class BansacPolicy:
         n = int(mask.sum())
         in_best = np.asarray(obs["features"][:n, IN_BEST]) > 0.5
         if step["new_frame"] or self._sampler is None:
-            self._sampler = BansacSampler(n, _priors(obs, n, self.logits_fn), threshold=self.threshold)
+            self._sampler = BansacSampler(n, _priors(obs, n, self.logits_fn), threshold=self.threshold,
+                                          weights=self.weights)
         elif step["batch_samples"].shape[0]:
             self._sampler.on_hypotheses(None, None, step["batch_inliers"], None,
                                         LoopState(step["frame_hypotheses"], 0.0, samples=step["batch_samples"],

@@ -106,6 +106,12 @@ def test_bansac_methods_update_once_per_hypothesis_with_the_papers_stop():
     assert isinstance(variant.sampler, VerdictBeliefSampler) and variant.batch_size == 4
     with pytest.raises(ValueError, match="bansac_update"):
         estimate_motion(frame.prev, frame.curr, frame.camera, method="bansac", bansac_update="bayes")
+    # the project's option: sampling by the beliefs themselves, not ceil(100 p)
+    by_belief = method_spec("bansac").build(problem, EstimatorOptions(), None, None, {"bansac_weights": "belief"})
+    by_belief.sampler.apply(np.arange(problem.n) < problem.n // 2)
+    np.testing.assert_array_equal(by_belief.sampler.sampling_weights, by_belief.sampler.beliefs)
+    with pytest.raises(ValueError, match="bansac_weights"):
+        estimate_motion(frame.prev, frame.curr, frame.camera, method="bansac", bansac_weights="p")
 
 
 def test_verdict_likelihood_update_matches_hand_computed_toy():

@@ -28,6 +28,8 @@ single-precision products, which reach zero after a few hundred iterations).
 times the weight of a point the beliefs have all but ruled out, which keeps weight 1); three
 distinct points per sample, drawn one after another in proportion to the weights (the released
 code draws from a pool of copies and can draw a point twice, which gives a degenerate sample).
+The project's option ``bansac_weights="belief"`` samples in proportion to ``p`` itself instead (no
+1/100 floor for the points the beliefs have ruled out); not the paper.
 
 **Stopping rule**: count the points with ``p_i < tau`` (``tau`` 0.01 for BANSAC, 0.1 for
 P-BANSAC); stop once that count reaches ``N (1 - best inlier ratio so far)``, the outliers the best
@@ -73,6 +75,8 @@ P_BANSAC_THRESHOLD = 0.1  # tau of P-BANSAC's stop
 TABLE_KNEE = 0.7143  # the inlier ratio where the classification table's parameter changes slope
 WEIGHT_LEVELS = 100  # sampling weights ceil(100 p): the released code's discretisation
 PAPER_BATCH = 1  # hypotheses per batch of the paper's methods: one update per hypothesis
+WEIGHTINGS = ("discretised", "belief")  # sampling weights ceil(100 p) (the paper's), or p (the project's option)
+WEIGHT_FLOOR = 1e-12  # "belief" weights: a belief that underflowed to 0 can still be drawn
 # c = 1 (every point an inlier, r = 1) would send every log-odds to +inf; one part in 1e12 below keeps them finite.
 C_MAX = 1.0 - 1e-12
 
@@ -144,14 +148,17 @@ class BansacSampler:
     """
 
     def __init__(self, n: int, priors: np.ndarray | None = None, threshold: float = BANSAC_THRESHOLD,
-                 initial_probability: float = 0.5, prior_ceiling: float | None = None) -> None:
+                 initial_probability: float = 0.5, prior_ceiling: float | None = None,
+                 weights: str = "discretised") -> None:
         if n < SAMPLE_SIZE:
             raise ValueError(f"need at least {SAMPLE_SIZE} correspondences to sample, got {n}")
         for name, value in (("threshold", threshold), ("initial_probability", initial_probability),
                             ("prior_ceiling", 0.5 if prior_ceiling is None else prior_ceiling)):
             if not 0 < value < 1:
                 raise ValueError(f"BansacSampler: {name} must be in (0, 1), got {value!r}")
-        self.n, self.threshold = n, float(threshold)
+        if weights not in WEIGHTINGS:
+            raise ValueError(f"BansacSampler: weights must be one of {WEIGHTINGS}, got {weights!r}")
+        self.n, self.threshold, self.weighting = n, float(threshold), weights
         p = prior_beliefs(n, priors, initial_probability, prior_ceiling)
         self.log_odds = np.log(p) - np.log1p(-p)
         self.updates = self.best_inliers_seen = 0
@@ -165,7 +172,9 @@ class BansacSampler:
 
     @property
     def sampling_weights(self) -> np.ndarray:
-        """``(N,)`` ``ceil(100 p)``, at least 1."""
+        """``(N,)`` ``ceil(100 p)``, at least 1 (the paper's); ``p`` with ``weights="belief"``."""
+        if self.weighting == "belief":
+            return np.maximum(self.beliefs, WEIGHT_FLOOR)
         return np.maximum(np.ceil(WEIGHT_LEVELS * self.beliefs), 1.0)
 
     def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
@@ -374,8 +383,9 @@ declare_options({
     "bansac_update": Choice(choices=UPDATES),
     "bansac_threshold": Number(low=0.0, high=1.0, low_open=True, high_open=True),
     "bansac_batch": Integer(low=1),
+    "bansac_weights": Choice(choices=WEIGHTINGS),
 })
-BANSAC_OPTIONS = BELIEF_OPTIONS + ("bansac_update", "bansac_threshold", "bansac_batch", "bansac_recall")
+BANSAC_OPTIONS = BELIEF_OPTIONS + ("bansac_update", "bansac_threshold", "bansac_batch", "bansac_weights", "bansac_recall")
 
 
 def _checked(extra: dict, name: str, default):
@@ -411,6 +421,7 @@ def _build(problem, options, priors, order, extra, threshold_default: float):
         problem.n, priors, threshold=float(_checked(extra, "bansac_threshold", threshold_default)),
         initial_probability=float(_checked(extra, "initial_probability", 0.5)),
         prior_ceiling=None if ceiling is None else float(_checked(extra, "prior_ceiling", ceiling)),
+        weights=_checked(extra, "bansac_weights", "discretised"),
     )
     components = judged_components(problem, options, priors, order, sampler)
     components.batch_size, components.first_batch_size = int(_checked(extra, "bansac_batch", PAPER_BATCH)), None
