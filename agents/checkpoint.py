@@ -97,7 +97,7 @@ def _torch_load(path: Path) -> Any:
             if zipfile.is_zipfile(path):  # a whole archive, but not torch's layout
                 raise _fail(path, "is a zip archive but not a torch checkpoint") from None
             raise _fail(path, "is truncated or corrupt (its zip archive is incomplete)") from None
-        raise _fail(path, f"is not a readable torch checkpoint ({type(err).__name__}: {first[:160]})") from None
+        raise _fail(path, f"is not a torch checkpoint torch can read ({type(err).__name__}: {first[:160]})") from None
 
 
 def _check_payload(path: Path, payload: Any) -> None:

@@ -12,7 +12,8 @@ to TensorBoard, next to the uniform policy's on the same seeds) and SB3's
 Outputs under ``out``:
 
 - ``ppo.zip``: the SB3 model (what ``--resume`` loads); its ``policy_kwargs``
-  carry the :class:`PPOConfig` (``train_config``);
+  carry the :class:`PPOConfig` (``train_config``). :func:`load_ppo` reads it
+  without SB3's loader, which unpickles parts of the zip: nothing in a zip runs;
 - ``ppo.pt``: the actor exported with :func:`agents.checkpoint.save_checkpoint`
   (config ``{"algo": "ppo", ...}``, the feature layout), readable by
   :meth:`agents.checkpoint.LearnedPolicy.from_checkpoint` and ``vo-gym evaluate
@@ -28,9 +29,13 @@ for the exported actor.
 from __future__ import annotations
 
 import dataclasses
+import io
 import json
 import math
+import pickle
 import time
+import warnings
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -39,7 +44,7 @@ import numpy as np
 import torch
 from stable_baselines3.common.callbacks import BaseCallback
 
-from agents.checkpoint import LearnedPolicy, save_checkpoint
+from agents.checkpoint import CheckpointError, LearnedPolicy, save_checkpoint
 from agents.network import CorrespondenceNet
 from agents.rollout import success_rate
 from vo_gym.features import FEATURE_LAYOUT_VERSION, FEATURE_NAMES, check_feature_layout
@@ -208,8 +213,12 @@ def policy_kwargs(config: PPOConfig) -> dict[str, Any]:
     }
 
 
-def build_model(config: PPOConfig, env, tensorboard_log: str | None = None, verbose: int = 0):
-    """A fresh SB3 ``PPO`` with :class:`agents.sb3_policy.EquivariantActorCriticPolicy`."""
+def build_model(config: PPOConfig, env, tensorboard_log: str | None = None, verbose: int = 0, setup: bool = True):
+    """A fresh SB3 ``PPO`` with :class:`agents.sb3_policy.EquivariantActorCriticPolicy`.
+
+    ``setup=False``: the object without its policy and buffers yet (SB3's ``_init_setup_model``), for
+    :func:`load_ppo` to set the spaces first when there is no ``env``.
+    """
     from stable_baselines3 import PPO
 
     from agents.sb3_policy import EquivariantActorCriticPolicy
@@ -220,49 +229,206 @@ def build_model(config: PPOConfig, env, tensorboard_log: str | None = None, verb
         clip_range=config.clip_range, ent_coef=config.ent_coef, vf_coef=config.vf_coef,
         max_grad_norm=config.max_grad_norm, target_kl=config.target_kl, tensorboard_log=tensorboard_log,
         policy_kwargs=policy_kwargs(config), seed=config.seed, device="cpu", verbose=verbose,
+        _init_setup_model=setup,
     )
 
 
-def _stored_config(path: str | Path) -> dict[str, Any]:
-    from stable_baselines3.common.save_util import load_from_zip_file
+# --------------------------------------------------------------------------- loading a PPO zip
+#
+# An SB3 zip's ``data`` entry is JSON, but SB3 stores what JSON cannot hold (the policy class,
+# the spaces, the schedules, the rollout buffer class, the episode buffers) as base64 cloudpickle
+# under ":serialized:", and ``PPO.load`` unpickles them: a crafted zip would run code. So nothing
+# here goes through SB3's loader. The zip is opened with :mod:`zipfile`, ``data`` is read with
+# ``json.loads`` only, and the model is rebuilt from this module's own code and the plain
+# ``train_config`` it stores (class, spaces from the environment, constant schedules); no
+# ":serialized:" entry is ever decoded. The weights (``policy.pth``, ``policy.optimizer.pth``)
+# are read with ``torch.load(weights_only=True)``: tensors and plain data only.
 
+ZIP_DATA = "data"
+ZIP_POLICY = "policy.pth"
+ZIP_OPTIMIZER = "policy.optimizer.pth"
+MAX_ZIP_MEMBER_BYTES = 1 << 30  # a larger member is not something this module wrote (refuse, do not inflate)
+# Plain counters of ``data`` restored on load (everything else is rebuilt from the config).
+ZIP_COUNTERS = ("num_timesteps", "_n_updates", "_episode_num")
+
+
+def _zip_fail(path: Path, what: str) -> CheckpointError:
+    return CheckpointError(f"PPO model {path}: {what}")
+
+
+def _first_line(err: BaseException) -> str:
+    return (str(err).strip().splitlines() or [type(err).__name__])[0][:160]
+
+
+def _read_zip(path: str | Path, need_optimizer: bool) -> tuple[Path, dict[str, Any], dict[str, bytes]]:
+    """``(path, data, members)``: the JSON ``data`` (plain values; serialized entries left as they are)
+    and the raw bytes of the weight members (the optimizer's where present; required with ``need_optimizer``)."""
     path = Path(path)
     if not path.is_file():
+        if path.exists():
+            raise _zip_fail(path, "is not a file")
         raise FileNotFoundError(f"no PPO model at {path}")
     try:
-        data, _, _ = load_from_zip_file(path, load_data=True, device="cpu")
-    except Exception as err:  # noqa: BLE001 - any unreadable archive gets one clear message
-        raise ValueError(f"{path} is not a stable-baselines3 model zip: {err}") from None
-    stored = (data or {}).get("policy_kwargs", {}).get("train_config")
-    if not stored:
-        raise ValueError(f"{path} is an SB3 model but not a vo-gym PPO one (no train_config in its policy_kwargs)")
+        if path.stat().st_size == 0:
+            raise _zip_fail(path, "is empty")
+        with zipfile.ZipFile(path) as archive:
+            infos = {info.filename: info for info in archive.infolist()}
+            if ZIP_DATA not in infos:
+                raise _zip_fail(path, f"is a zip archive but not a stable-baselines3 model (no {ZIP_DATA!r} entry)")
+            wanted = [ZIP_DATA, ZIP_POLICY] + ([ZIP_OPTIMIZER] if need_optimizer or ZIP_OPTIMIZER in infos else [])
+            for name in wanted[1:]:
+                if name not in infos:
+                    raise _zip_fail(path, f"holds no {name!r} entry (the {'policy weights' if name == ZIP_POLICY else 'optimizer state'})")
+            for name in wanted:
+                if infos[name].file_size > MAX_ZIP_MEMBER_BYTES:
+                    raise _zip_fail(path, f"its {name!r} entry is {infos[name].file_size} bytes, more than a model holds")
+            members = {name: archive.read(name) for name in wanted}
+    except CheckpointError:
+        raise
+    except zipfile.BadZipFile as err:
+        text = str(err)
+        if "File is not a zip file" in text or not zipfile.is_zipfile(path):
+            raise _zip_fail(path, "is not a zip archive (not a stable-baselines3 model, or truncated)") from None
+        raise _zip_fail(path, f"is a corrupt zip archive ({_first_line(err)})") from None
+    except (OSError, EOFError, ValueError, NotImplementedError, RuntimeError) as err:  # unreadable, truncated, bad compression
+        raise _zip_fail(path, f"cannot be read as a zip archive ({type(err).__name__}: {_first_line(err)})") from None
+    try:
+        data = json.loads(members.pop(ZIP_DATA).decode("utf-8"))
+    except (ValueError, RecursionError) as err:  # JSONDecodeError and UnicodeDecodeError are ValueErrors
+        raise _zip_fail(path, f"its {ZIP_DATA!r} entry is not JSON ({_first_line(err)})") from None
+    if not isinstance(data, dict):
+        raise _zip_fail(path, f"its {ZIP_DATA!r} entry must be a JSON object, got {type(data).__name__}")
+    return path, data, members
+
+
+def _zip_config(path: Path, data: dict[str, Any]) -> tuple[PPOConfig, dict[str, Any]]:
+    """The :class:`PPOConfig` and the stored ``train_config`` of a zip's ``data`` (plain JSON only)."""
+    kwargs = data.get("policy_kwargs")
+    stored = kwargs.get("train_config") if isinstance(kwargs, dict) else None
+    if not isinstance(stored, dict) or not stored or ":serialized:" in stored:
+        raise _zip_fail(path, "is an SB3 model but not a vo-gym PPO one (no plain train_config in its policy_kwargs)")
     try:
         check_feature_layout(stored.get("feature_names", ()), stored.get("feature_layout_version", -1))
-    except ValueError as err:
-        raise ValueError(f"PPO model {path} was trained on another feature layout: {err}") from None
-    return stored
+    except (ValueError, TypeError) as err:
+        raise CheckpointError(f"PPO model {path} was trained on another feature layout: {_first_line(err)}") from None
+    try:
+        config = PPOConfig.from_dict(stored)
+    except (ValueError, TypeError, KeyError) as err:
+        raise _zip_fail(path, f"its train_config is not a valid PPO config ({_first_line(err)})") from None
+    _check_stored_env_id(path, config.env_id)
+    return config, stored
+
+
+def _check_stored_env_id(path: Path, env_id: Any) -> None:
+    """Only an id already registered: gymnasium imports the module of a ``"module:Env"`` id, which
+    would let a file choose code to import."""
+    import gymnasium as gym
+
+    import vo_gym  # noqa: F401  (registers the ids)
+
+    if not isinstance(env_id, str) or ":" in env_id or env_id not in gym.registry:
+        raise _zip_fail(path, f"its train_config names env_id {env_id!r}, not a registered environment")
+
+
+def _zip_tensors(path: Path, name: str, raw: bytes) -> Any:
+    """``torch.load(weights_only=True)`` of one member: tensors and plain data, nothing run."""
+    try:
+        with warnings.catch_warnings():  # torch warns about odd pickle protocols: the error below says it in one line
+            warnings.simplefilter("ignore")
+            return torch.load(io.BytesIO(raw), map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError as err:
+        if "global" in str(err).lower() or "Unsupported class" in str(err):
+            raise _zip_fail(path, f"its {name!r} entry refused: it holds Python objects other than tensors and "
+                                  "plain data, which could run code when unpickled (nothing was run)") from None
+        detail = "pickle opcodes outside torch's weights-only subset" if "Unsupported operand" in str(err) \
+            else _first_line(err)
+        raise _zip_fail(path, f"its {name!r} entry is not a torch file the weights-only loader reads ({detail}; "
+                              "nothing was run)") from None
+    except Exception as err:  # noqa: BLE001 - weights_only parsing of untrusted bytes: any failure is one line
+        raise _zip_fail(path, f"its {name!r} entry is not a readable torch file "
+                              f"({type(err).__name__}: {_first_line(err)})") from None
+
+
+def _plain_count(path: Path, data: dict[str, Any], key: str) -> int:
+    value = data.get(key, 0)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise _zip_fail(path, f"its {key!r} must be an integer >= 0, got {value!r}")
+    return value
 
 
 def read_ppo_config(path: str | Path) -> PPOConfig:
-    """The :class:`PPOConfig` stored in a PPO zip written here.
+    """The :class:`PPOConfig` stored in a PPO zip written here (read as JSON: nothing in it is run).
 
     Raises:
         FileNotFoundError: no such file.
-        ValueError: not an SB3 zip, not one trained by this module, or another feature layout.
+        CheckpointError: (a ``ValueError``) not an SB3 zip, not one trained by this module, or another
+            feature layout; one line naming the file and what is wrong.
     """
-    return PPOConfig.from_dict(_stored_config(path))
+    path, data, _ = _read_zip(path, need_optimizer=False)
+    return _zip_config(path, data)[0]
 
 
 def load_ppo(path: str | Path, env=None):
-    """Load a PPO zip (``env``: a VecEnv to continue training on, or None to only predict)."""
-    from stable_baselines3 import PPO
+    """Load a PPO zip written here (``env``: a VecEnv to continue training on, or None to only predict).
 
-    _stored_config(path)  # clear errors first
-    return PPO.load(str(path), env=env, device="cpu")
+    Nothing in the file runs: the model is built by :func:`build_model` from the zip's plain
+    ``train_config`` (its spaces from ``env``, or from the configured environment), then the
+    policy weights, the optimizer state (required with ``env``) and the counters
+    (``num_timesteps``, ``_n_updates``, ``_episode_num``) and the seed are put back. The cloudpickled
+    entries SB3 writes (episode buffers, last observation) are not restored: continuing training
+    resets the environment, as ``PPO.load(..., env=env)`` does.
+
+    Raises:
+        FileNotFoundError: no such file.
+        CheckpointError: (a ``ValueError``) any unusable file, one line naming it and what is wrong.
+    """
+    path, data, members = _read_zip(path, need_optimizer=env is not None)
+    config, _ = _zip_config(path, data)
+    seed = data.get("seed", config.seed)
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
+        raise _zip_fail(path, f"its 'seed' must be an integer or null, got {seed!r}")
+    counters = {key: _plain_count(path, data, key) for key in ZIP_COUNTERS}
+    policy_state = _zip_tensors(path, ZIP_POLICY, members[ZIP_POLICY])
+    if not isinstance(policy_state, dict) or not all(
+            isinstance(k, str) and isinstance(v, torch.Tensor) for k, v in policy_state.items()):
+        raise _zip_fail(path, f"its {ZIP_POLICY!r} entry must map parameter names to tensors")
+    optimizer_state = None
+    if ZIP_OPTIMIZER in members:
+        optimizer_state = _zip_tensors(path, ZIP_OPTIMIZER, members[ZIP_OPTIMIZER])
+        if not isinstance(optimizer_state, dict):
+            raise _zip_fail(path, f"its {ZIP_OPTIMIZER!r} entry must be an optimizer state dict")
+
+    model = build_model(dataclasses.replace(config, seed=seed), env, setup=False)
+    if env is None:  # predicting only: the spaces of the environment the model was trained on
+        import gymnasium as gym
+
+        try:
+            probe = gym.make(config.env_id, **config.train_env_kwargs())
+        except (ValueError, TypeError) as err:
+            raise _zip_fail(path, f"its train_config does not build the environment ({_first_line(err)})") from None
+        model.observation_space, model.action_space, model.n_envs = probe.observation_space, probe.action_space, 1
+        probe.close()
+    # What SB3's own loader does after building the object without a model (``_init_setup_model=False``).
+    model._setup_model()
+    try:
+        model.policy.load_state_dict(policy_state)
+    except RuntimeError as err:
+        lines = [ln.strip() for ln in str(err).splitlines() if ln.strip()]
+        detail = lines[1] if len(lines) > 1 else (lines[0] if lines else "")
+        raise _zip_fail(path, f"its policy weights do not fit the policy its train_config declares ({detail[:200]})") from None
+    if optimizer_state is not None:
+        try:
+            model.policy.optimizer.load_state_dict(optimizer_state)
+        except (ValueError, KeyError, TypeError, RuntimeError, IndexError) as err:
+            raise _zip_fail(path, f"its optimizer state does not fit the policy ({type(err).__name__}: "
+                                  f"{_first_line(err)})") from None
+    for key, value in counters.items():
+        setattr(model, key, value)
+    return model
 
 
 def load_ppo_actor(path: str | Path) -> CorrespondenceNet:
-    """The actor net of a PPO zip (eval mode), after checking its feature layout."""
+    """The actor net of a PPO zip (eval mode), after checking its feature layout; nothing in the file runs."""
     return load_ppo(path).policy.action_net.eval()
 
 
@@ -427,7 +593,13 @@ def train_ppo(config: PPOConfig, out: str | Path, resume: str | Path | None = No
                     baseline = {"success": data["uniform_success"], "mean_reward": data.get("uniform_mean_reward")}
             except (ValueError, OSError):
                 history = []
-    env = make_training_env(config)
+    try:
+        env = make_training_env(config)
+    except (ValueError, TypeError) as err:
+        if resume is None:
+            raise
+        # the resumed zip's stored environment settings (env_kwargs) do not fit this version's environment
+        raise _zip_fail(Path(resume), f"its train_config does not build the environment ({_first_line(err)})") from None
     try:
         if resume is not None:
             model = load_ppo(resume, env=env)

@@ -234,6 +234,8 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--resume: no checkpoint at {args.resume}")
     if args.algo == "ppo":
         _check_env_id(args.env_id)
+    elif args.resume is not None and Path(args.resume).suffix == ".zip":
+        raise UsageError(f"--resume {args.resume}: a .zip is a stable-baselines3 PPO model; resume it with --algo ppo")
     if args.algo == "ngransac":
         return _train_ngransac(args, out)
     return _train_ppo(args, out)
