@@ -11,6 +11,7 @@ import sys
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 torch = pytest.importorskip("torch")
@@ -89,7 +90,7 @@ def _zip(path: Path) -> Path:
 
 
 MALFORMED = {
-    "random bytes": (lambda d: _write(d / "random.pt", os.urandom(4096)), "not a torch checkpoint"),
+    "random bytes": (lambda d: _write(d / "random.pt", np.random.default_rng(1).bytes(4096)), "not a torch checkpoint"),
     "truncated": (lambda d: _write(d / "trunc.pt", _half(_good(d).read_bytes())), "truncated or corrupt"),
     "empty": (lambda d: _write(d / "empty.pt", b""), "is empty"),
     "json renamed": (lambda d: _write(d / "json.pt", json.dumps({"network": {}}).encode()), "not a torch checkpoint"),
