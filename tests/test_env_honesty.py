@@ -193,3 +193,42 @@ def test_observation_carries_the_match_scores_and_their_ranks():
     np.testing.assert_allclose(features[:, feature_index("score_rank")], rank / 119, atol=1e-7)
     assert features[np.argmax(scores), feature_index("score_rank")] == 0.0
     assert features[np.argmin(scores), feature_index("score_rank")] == 1.0
+
+
+@pytest.mark.parametrize("sampling", ["guided", "prosac"])
+def test_the_estimator_receives_the_agents_weights_or_order(monkeypatch, sampling):
+    calls = stub_estimator(monkeypatch)
+    received = []
+    real = env_module.estimate_problem
+
+    def spy(problem, **kwargs):
+        received.append((kwargs.get("priors"), kwargs.get("order")))
+        return real(problem, **kwargs)
+
+    monkeypatch.setattr(env_module, "estimate_problem", spy)
+    env = StereoVOEnv(**{**KWARGS, "sampling": sampling, "logit_scale": 0.5, "action_bound": 10.0})
+    env.reset(seed=1)
+    action = np.random.default_rng(0).uniform(-6, 6, 120)
+    action[[3, 4]] = 2.0  # a tie: the stable order keeps 3 before 4
+    env.step(action)
+    priors, order = received[0]
+    assert len(calls) == 1
+    if sampling == "guided":
+        assert order is None
+        # softmax(logit_scale * a): the ratio of two priors is exp(0.5 (a_i - a_j)).
+        np.testing.assert_allclose(priors / priors[0], np.exp(0.5 * (action - action[0])), rtol=1e-9)
+        assert np.max(priors) == pytest.approx(1.0)  # shifted by the largest logit, no overflow
+    else:
+        assert priors is None
+        np.testing.assert_array_equal(order, np.argsort(-action, kind="stable"))
+        assert list(order).index(3) < list(order).index(4) and action[order[0]] == np.max(action)
+
+
+def test_stepping_out_of_turn_names_the_fix():
+    env = StereoVOEnv(**{**KWARGS, "n_frames": 1})
+    with pytest.raises(RuntimeError, match=r"^StereoVOEnv: call reset\(\) before step\(\)$"):
+        env.step(np.zeros(120))
+    env.reset(seed=0)
+    env.step(np.zeros(120))
+    with pytest.raises(RuntimeError, match=r"^StereoVOEnv: the episode is over \(truncated\); call reset\(\)$"):
+        env.step(np.zeros(120))
