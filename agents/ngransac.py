@@ -1,6 +1,6 @@
 """NG-RANSAC-style policy-gradient training of the per-correspondence sampler.
 
-Brachmann & Rother 2019 (ALGORITHMS.md section 9): the network gives a
+Brachmann & Rother, "Neural-guided RANSAC", ICCV 2019 (docs/algorithms.md, "Learned samplers"): the network gives a
 distribution p over correspondences; a pool of M minimal samples drawn from p
 goes through the shared RANSAC core under the same fixed budget as the
 environment, and the expected task loss is minimised with the score-function

@@ -1,4 +1,4 @@
-"""A permutation-equivariant actor-critic policy for stable-baselines3 (DESIGN.md section 7).
+"""A permutation-equivariant actor-critic policy for stable-baselines3 (docs/algorithms.md, "Learned samplers").
 
 SB3's :class:`~stable_baselines3.common.policies.ActorCriticPolicy` flattens
 the observation and puts a dense layer over all action dimensions: that mixes

@@ -104,7 +104,7 @@ V_MEASUREMENTS: tuple[str, ...] = ("shared", "independent")
 
 @dataclass(frozen=True)
 class StereoCamera:
-    """A rectified stereo pair; the defaults are the KITTI-like rig of DESIGN.md.
+    """A rectified stereo pair; the defaults are a KITTI-like rig (Geiger, Lenz & Urtasun, CVPR 2012).
 
     Args:
         fx, fy: focal lengths in pixels.

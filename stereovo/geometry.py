@@ -1,6 +1,6 @@
 """SO(3) / SE(3) helpers and the one place that fixes the transform convention.
 
-Convention (DESIGN.md section 2): the motion between frames k-1 and k is the
+Convention: the motion between frames k-1 and k is the
 point transform ``x_k = R @ x_{k-1} + t``; it maps a landmark from camera frame
 k-1 into camera frame k. Poses are camera-to-world 4x4 matrices ``P_k`` and
 the pose update is ``P_k = P_{k-1} @ inv(T)`` with ``T = [[R, t], [0, 1]]``.

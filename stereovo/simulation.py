@@ -4,7 +4,7 @@ A :class:`Frame` is one frame pair ``(k-1, k)``: ``N`` putative stereo matches
 ``prev[i] <-> curr[i]`` (each row ``(uL, vL, uR, vR)`` in pixels), a match score
 per row, and a :class:`FrameTruth` that only benchmarks may read.
 
-How a frame is made (DESIGN.md section 4):
+How a frame is made:
 
 1. Motion. Body-frame linear and angular velocities (a twist ``(v, w)`` in
    m/frame and rad/frame) follow a mean-reverting AR(1) process, the exact

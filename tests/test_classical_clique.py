@@ -1,4 +1,4 @@
-"""Inlier detection by maximum clique (ALGORITHMS.md section 8)."""
+"""Inlier detection by maximum clique (docs/algorithms.md, `inlier-detection`)."""
 
 from __future__ import annotations
 

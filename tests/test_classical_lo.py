@@ -1,4 +1,4 @@
-"""LO-RANSAC's local optimisation (ALGORITHMS.md section 6)."""
+"""LO-RANSAC's local optimisation (docs/algorithms.md, `lo-ransac`)."""
 
 from __future__ import annotations
 

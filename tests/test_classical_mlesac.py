@@ -1,4 +1,4 @@
-"""MLESAC and Guided-MLESAC (ALGORITHMS.md section 2): EM, units, priors."""
+"""MLESAC and Guided-MLESAC (docs/algorithms.md, `mlesac` and `guided-mlesac`): EM, units, priors."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""PROSAC's termination (ALGORITHMS.md section 3): non-randomness, maximality, n* and the guards."""
+"""PROSAC's termination (Chum & Matas, "Matching with PROSAC", CVPR 2005): non-randomness, maximality, n* and the guards."""
 
 from __future__ import annotations
 

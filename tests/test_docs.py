@@ -175,3 +175,18 @@ def test_documents_do_not_point_outside_the_repository():
         for name in ("ALGORITHMS.md", "DESIGN.md"):
             assert name not in text, f"{path.name} cites {name}, which is not part of the repository"
     assert os.path.exists(ROOT / "LICENSE")
+
+
+def test_no_file_cites_references_outside_the_repository():
+    # Code, tests, scripts and configs cite papers or docs/, never the design notes kept outside the clone;
+    # this file is the one that may name them, to check that they are absent.
+    suffixes = {".py", ".md", ".sh", ".toml", ".yml", ".yaml", ".cfg", ".txt"}
+    files = [path for path in ROOT.iterdir() if path.is_file() and path.suffix in suffixes]
+    for folder in ("stereovo", "vo_gym", "agents", "tests", "scripts", "docs", "configs"):
+        files += [path for path in (ROOT / folder).rglob("*") if path.is_file() and path.suffix in suffixes]
+    offenders = [
+        str(path.relative_to(ROOT))
+        for path in files
+        if path != Path(__file__).resolve() and any(name in path.read_text(errors="replace") for name in ("ALGORITHMS.md", "DESIGN.md"))
+    ]
+    assert not offenders, f"these files cite ALGORITHMS.md / DESIGN.md, which are not part of the repository: {offenders}"

@@ -191,7 +191,7 @@ def test_prosac_samples_respect_growth():
 
 
 def test_required_iterations_without_replacement():
-    # ALGORITHMS.md section 1: N = 20, I = 6, p = 0.99 gives 261 (the w^3 bound would give 169).
+    # docs/algorithms.md, `ransac`: N = 20, I = 6, p = 0.99 gives 261 (the w^3 bound would give 169).
     assert required_iterations(6, 20, 0.99) == 261
     assert required_iterations(2, 20, 0.99, max_iterations=10_000) == 10_000
     assert required_iterations(20, 20, 0.99) == 1

@@ -1,4 +1,4 @@
-"""``StereoVOEnv``: stereo visual odometry as a Gymnasium environment (DESIGN.md section 6).
+"""``StereoVOEnv``: stereo visual odometry as a Gymnasium environment.
 
 An agent watches the putative matches of each frame pair and answers with a
 value per match: logits of guided-sampling weights, or scores whose ranking is

@@ -1,7 +1,7 @@
 """Per-correspondence features: what a real stereo VO front end knows about each match.
 
 One module computes them, so the environment, the heuristic agents and the
-trainers all see the very same numbers (DESIGN.md section 6). Nothing here
+trainers all see the very same numbers. Nothing here
 reads a ground-truth label: the inputs are the two stereo measurements of each
 match, its match score, the camera, the sensor's pixel noise and, optionally,
 the motion estimated for the previous frame pair.

@@ -1,4 +1,4 @@
-"""The classical RANSAC family as short recipes over the shared loop (ALGORITHMS.md sections 2-8).
+"""The classical RANSAC family as short recipes over the shared loop (docs/algorithms.md, "Methods").
 
 Each method below is a composition of core roles registered by name; the
 role classes live in their own modules (:mod:`.mlesac`, :mod:`.prosac`,

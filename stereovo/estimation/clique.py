@@ -1,4 +1,4 @@
-"""Inlier detection by maximum clique (Hirschmueller et al. 2002; Howard 2008): ALGORITHMS.md section 8.
+"""Inlier detection by maximum clique (Hirschmueller et al. 2002; Howard 2008): docs/algorithms.md, `inlier-detection`.
 
 A rigid motion preserves distances, so two correct matches i, j satisfy
 ``||X_i - X_j|| = ||Y_i - Y_j||`` up to noise. The consistency graph W links

@@ -1,6 +1,6 @@
 """LO-RANSAC's local optimisation (Chum, Matas & Kittler 2003; Lebeda, Matas & Chum 2012, LO+).
 
-Run by the loop on every new best-so-far model (ALGORITHMS.md section 6):
+Run by the loop on every new best-so-far model (docs/algorithms.md, `lo-ransac`):
 
 1. ``I_k`` = inliers of the new best at the base gate theta (skip when ``|I_k| < 2 s``).
 2. Inner RANSAC: ``r`` non-minimal samples of size ``min(|I_k| / 2, 12)`` drawn from ``I_k``,
@@ -14,7 +14,7 @@ Run by the loop on every new best-so-far model (ALGORITHMS.md section 6):
 
 "Least squares" here is the stereo reprojection error of the chosen points
 (Kabsch start, then batched Gauss-Newton steps), the criterion in which pixel
-noise is isotropic (DESIGN.md section 5); candidates are scored with the
+noise is isotropic (docs/algorithms.md, the `polish` enhancement); candidates are scored with the
 loop's own quality (MSAC for the ``lo-ransac`` recipe, as in LO+). Every
 inner sample and every shrinking-gate branch is fitted in one batched call.
 """

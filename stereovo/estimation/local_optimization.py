@@ -2,7 +2,7 @@
 
 ``ConsensusRefit`` is the cheapest useful one: a few Levenberg-Marquardt steps
 of the symmetric reprojection error on the hypothesis' own consensus, kept
-only if it scores better. DESIGN.md section 5 explains why it matters here:
+only if it scores better. It matters here because
 minimal fits on triangulated points are poorly conditioned, so the consensus
 of a raw hypothesis understates the true inlier set and the adaptive bound
 would otherwise be fed too small an inlier count.

@@ -87,7 +87,7 @@ class RansacComponents:
     Hooks for cheaper verifiers and adaptive terminations:
         - a verifier with ``uses_samples = True`` gets ``samples=`` ``(H, 3)``, the minimal sample of
           each hypothesis it verifies, so its early checks can skip the sample's own points
-          (T(d,d), SPRT: ALGORITHMS.md Pitfalls);
+          (T(d,d), SPRT: both check points outside the sample, Matas & Chum 2002, 2005);
         - ``termination.required`` is asked again after every batch once a best model exists, so a
           rule whose bound moves between new bests (SPRT's delta estimate) takes effect at once.
     """

@@ -1,4 +1,4 @@
-"""MLESAC and Guided-MLESAC qualities: ALGORITHMS.md section 2.
+"""MLESAC and Guided-MLESAC qualities (Torr & Zisserman 2000; Tordoff & Murray 2005): docs/algorithms.md, `mlesac`.
 
 Torr & Zisserman 2000 score a hypothesis by the likelihood of its residuals
 under a mixture of a Gaussian (inliers) and a uniform density (outliers),

@@ -1,6 +1,6 @@
 """Preemptive RANSAC (Nister 2003, 2005): breadth-first scoring of a fixed hypothesis set.
 
-ALGORITHMS.md section 7. All M hypotheses are generated up front (the loop
+Nister, ICCV 2003; docs/algorithms.md, `preemptive`. All M hypotheses are generated up front (the loop
 hands them over in one batch: ``batch_size = M`` and a ``FixedBudget(M)``);
 observations are taken in one random order and after observation i only the
 best ``f(i) = floor(M 2^(-floor(i / B)))`` hypotheses are kept. The run ends

@@ -3,7 +3,7 @@
 A rigid motion preserves distances, so the three pairwise distances of an
 all-inlier triplet agree between frames k-1 and k up to triangulation noise;
 a triplet holding an outlier usually breaks two of them. The probabilistic
-RANSAC of Brink et al. (ALGORITHMS.md section 10) drops a 3-point fit whose
+RANSAC of Brink et al. (docs/algorithms.md, `probabilistic`) drops a 3-point fit whose
 similarity scale is far from 1 for this reason. :class:`RigidityCheck` is the
 covariance-aware form of that check: each distance's change is standardised
 by its first-order variance from the triangulation covariances, so far points

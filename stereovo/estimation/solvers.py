@@ -5,7 +5,7 @@ unit quaternion (1987): the same minimiser as Kabsch/Arun's SVD with the
 det(R) = +1 correction, always a proper rotation, compiled without a LAPACK
 call (a 3x3 SVD cost more than the rest of a minimal fit). The minimal solver handles a whole batch of hypotheses in one compiled pass
 (gather, degeneracy test, fit, polish). Because depth noise makes a 3-point fit on
-triangulated points badly conditioned (DESIGN.md section 5), the minimal
+triangulated points badly conditioned (docs/algorithms.md, the `polish` enhancement), the minimal
 solver can polish each hypothesis with a few batched Gauss-Newton steps on
 the stereo reprojection error of its own three points (as libviso2 does):
 the hypothesis stays minimal, but is judged where pixel noise is isotropic.
@@ -19,7 +19,7 @@ from stereovo.estimation import kernels
 from stereovo.estimation.problem import StereoProblem
 
 SAMPLE_SIZE = 3  # a rigid motion from three 3-D points: the one definition the core shares
-# Pitfalls (ALGORITHMS.md): a triplet whose triangle area is below this fraction of its
+# A triplet whose triangle area is below this fraction of its
 # squared longest side is near-collinear and leaves the rotation about its line free.
 DEGENERATE_AREA_RATIO = 1e-3
 

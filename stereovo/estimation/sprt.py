@@ -1,4 +1,4 @@
-"""R-RANSAC with the sequential probability ratio test (WaldSAC): ALGORITHMS.md section 5.
+"""R-RANSAC with the sequential probability ratio test (WaldSAC; Matas & Chum, ICCV 2005): docs/algorithms.md, `waldsac`.
 
 Matas & Chum 2005 ("Randomized RANSAC with sequential probability ratio
 test"), Chum & Matas 2008 ("Optimal randomized RANSAC"). Each hypothesis is
@@ -34,7 +34,7 @@ from stereovo.estimation.scoring import ReprojectionResidual
 from stereovo.estimation.termination import SampleProbability
 from stereovo.estimation.verification import ScoringContext
 
-DELTA_BOUNDS = (1e-3, 0.3)  # ALGORITHMS.md Pitfalls: clamp delta, never let it reach 0 (log 0) or epsilon
+DELTA_BOUNDS = (1e-3, 0.3)  # clamp delta: at 0 the test takes log 0 and rejects at once; it must stay below epsilon
 MIN_A = 2.0  # below this the test rejects almost anything: fall back to full verification
 
 
@@ -310,7 +310,7 @@ class SprtVerification:
 
 @dataclass
 class SprtTermination:
-    """Stop when ``eta = prod_i (1 - P_g (1 - alpha_i))^{k_i} < eta0``: ALGORITHMS.md section 5, step 5.
+    """Stop when ``eta = prod_i (1 - P_g (1 - alpha_i))^{k_i} < eta0`` (Chum & Matas, "Optimal randomized RANSAC", PAMI 2008).
 
     ``P_g`` is the all-inlier probability of one draw of ``sampler`` for the best model's inliers
     (the without-replacement count formula for uniform sampling), ``alpha_i = A_i^-h_i`` the chance that test i rejected a good model, ``k_i`` the draws
