@@ -150,9 +150,74 @@ def test_guided_priors_with_real_estimator(sequence):
     assert res.column("success").mean() >= 0.9
 
 
-def test_trajectory_metrics_match_result(result):
-    again = trajectory_metrics(result.poses, result.true_poses, kitti_lengths=SHORT_LENGTHS, kitti_step=5)
-    assert again == result.trajectory
+def _roll(theta: float) -> np.ndarray:
+    c, s = np.cos(theta), np.sin(theta)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def test_trajectory_metrics_of_a_biased_straight_run_match_hand_values():
+    # True run: 20 steps of 1 m along x, no rotation (21 poses, path 20 m). The estimate
+    # over-shoots every step by 0.1 m along x and rolls 0.5 deg about x per step (a roll
+    # about the direction of travel leaves the positions on the x axis): positions 1.1 k.
+    theta = np.deg2rad(0.5)
+    F = 21
+    true = np.tile(np.eye(4), (F, 1, 1))
+    est = np.tile(np.eye(4), (F, 1, 1))
+    for k in range(F):
+        true[k, 0, 3] = 1.0 * k
+        est[k, 0, 3] = 1.1 * k
+        est[k, :3, :3] = _roll(k * theta)
+    m = trajectory_metrics(est, true, kitti_lengths=(5.0, 10.0), kitti_step=5)
+    assert m.n_poses == 21 and m.path_length_m == pytest.approx(20.0)
+    # Raw ATE: errors 0.1 k, k = 0..20: 0.1 sqrt(sum k^2 / 21) = 0.1 sqrt(2870 / 21).
+    assert m.ate_raw_m == pytest.approx(0.1 * np.sqrt(2870 / 21), rel=1e-9)  # 1.16905 m
+    # Aligned: the best rigid shift removes the mean error, leaving 0.1 (k - 10):
+    # 0.1 sqrt((21^2 - 1) / 12) (a rotation cannot undo a scale).
+    assert m.ate_aligned_m == pytest.approx(0.1 * np.sqrt(440 / 12), rel=1e-6)  # 0.60553 m
+    # RPE per step: inv(true step) @ est step = (roll 0.5 deg, 0.1 m along x) for every pair.
+    assert m.rpe_trans_m == pytest.approx(0.1, rel=1e-9)
+    assert m.rpe_rot_deg == pytest.approx(0.5, rel=1e-9)
+    # KITTI segments: starts 0, 5, 10, 15 for 5 m and 0, 5, 10 for 10 m (the last must end by
+    # frame 20): 7 segments; each has an error of 0.1 L m over L m (10 %) and L x 0.5 deg over L m.
+    assert m.kitti_segments == 7
+    assert m.kitti_t_percent == pytest.approx(10.0, rel=1e-9)
+    assert m.kitti_r_deg_per_m == pytest.approx(0.5, rel=1e-9)
+
+
+def test_result_trajectory_scores_the_chained_estimate(monkeypatch, sequence):
+    # An estimator that returns the true rotation and 1.1 x the true translation of each frame:
+    # every relative-pose error is then a pure translation of 0.1 |t_k|, so the run's RPE is
+    # 0.1 sqrt(mean |t_k|^2) and its rotation RPE 0, numbers taken from the frames' truth only.
+    frames_by_prev = {}
+
+    def biased(prev, curr, camera, **kwargs):
+        frame = frames_by_prev[id(prev)]
+        truth = frame.truth
+        return MotionEstimate(
+            rotation=truth.rotation, translation=1.1 * truth.translation, inliers=truth.inlier.copy(),
+            status="ok", n_hypotheses=1, n_scored=1, n_point_checks=frame.n, time_s=0.0, method="biased")
+
+    class Recording:
+        def __init__(self, seq):
+            self.seq, self.true_poses = seq, seq.true_poses
+
+        def __len__(self):
+            return len(self.seq)
+
+        def __iter__(self):
+            for frame in self.seq:
+                frames_by_prev[id(frame.prev)] = frame
+                yield frame
+
+    monkeypatch.setattr(odometry, "estimate_motion", biased)
+    res = run_odometry(Recording(sequence), method="biased", kitti_lengths=SHORT_LENGTHS, kitti_step=5)
+    steps = np.array([np.linalg.norm(frame.truth.translation) for frame in sequence])
+    traj = res.trajectory
+    assert traj.n_poses == len(sequence) + 1
+    assert traj.path_length_m == pytest.approx(steps.sum(), rel=1e-9)
+    assert traj.rpe_trans_m == pytest.approx(0.1 * np.sqrt(np.mean(steps ** 2)), rel=1e-6)
+    assert traj.rpe_rot_deg == pytest.approx(0.0, abs=1e-6)
+    assert traj.ate_raw_m > 0.05 * steps.sum() / 2  # the 10 % over-shoot accumulates
 
 
 def test_plot_odometry_writes_png(result, tmp_path):
