@@ -1,0 +1,272 @@
+"""Tests written against the survivors of the mutmut runs (docs/mutation-testing.md): SPRT's design
+and bookkeeping, and the samplers' probabilities, validation and draws.
+
+Expected values are literals or arithmetic on literals from the papers' formulas (Matas & Chum,
+"Randomized RANSAC with sequential probability ratio test", ICCV 2005; Chum & Matas, "Optimal
+randomized RANSAC", PAMI 2008; Tordoff & Murray, "Guided sampling and consensus for motion
+estimation", ECCV 2002; Chum & Matas, "Matching with PROSAC", CVPR 2005), never a value asked of the
+code under test.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from stereovo.estimation.samplers import (
+    ProsacSampler,
+    ReplaySampler,
+    UniformSampler,
+    WeightedSampler,
+    normalised_weights,
+    prosac_growth,
+    validate_priors,
+)
+from stereovo.estimation.sprt import (
+    SprtTermination,
+    SprtVerification,
+    good_model_exponent,
+    rejection_probability,
+    sprt_design,
+)
+
+# ---------------------------------------------------------------------------- SPRT design
+
+
+def test_sprt_design_by_hand():
+    # epsilon 0.5, delta 0.05: C = 0.95 ln(0.95 / 0.5) + 0.05 ln(0.05 / 0.5) = 0.4946319;
+    # t_M = 10: K = 4.946319; A solves A = K + 1 + ln A: A = 8.029433 (8.0294 - ln 8.0294 = 5.9463).
+    C, K, A = sprt_design(0.5, 0.05, 10.0)
+    assert C == pytest.approx(0.95 * math.log(1.9) + 0.05 * math.log(0.1), rel=1e-12)
+    assert C == pytest.approx(0.4946319372, rel=1e-9)
+    assert K == pytest.approx(4.946319372, rel=1e-9)
+    assert A == pytest.approx(8.029433328, rel=1e-8)
+    assert A - math.log(A) == pytest.approx(K + 1.0, rel=1e-9)
+    # Two models per sample halve K.
+    _, K2, A2 = sprt_design(0.5, 0.05, 10.0, m_s=2.0)
+    assert K2 == pytest.approx(4.946319372 / 2, rel=1e-9)
+    assert A2 - math.log(A2) == pytest.approx(K2 + 1.0, rel=1e-9)
+    # The default initial design (0.1, 0.01) at t_M = 500: C = 0.0713312, K = 35.66561, A = 40.36354.
+    C, K, A = sprt_design(0.1, 0.01, 500.0)
+    assert (C, K, A) == pytest.approx((0.07133122708, 35.66561354, 40.36354045), rel=1e-8)
+
+
+def test_sprt_design_switches_the_test_off():
+    # t_M = 1 at (0.1, 0.01): K = 0.0713, A = 1.0713 + ln A has its fixed point near 1.5 < 2: off.
+    C, K, A = sprt_design(0.1, 0.01, 1.0)
+    assert C == pytest.approx(0.07133122708, rel=1e-8) and K == pytest.approx(0.07133122708, rel=1e-8)
+    assert A == math.inf
+    # delta >= epsilon: no test (K reported 0).
+    C, K, A = sprt_design(0.3, 0.3, 500.0)
+    assert (K, A) == (0.0, math.inf)
+    # Probabilities outside (0, 1): (0, 0, inf).
+    for epsilon, delta in ((0.0, 0.01), (1.0, 0.01), (0.5, 0.0), (0.5, 1.0)):
+        assert sprt_design(epsilon, delta, 500.0) == (0.0, 0.0, math.inf)
+    # A just above 2 is kept: t_M such that K + 1 + ln 2 = 2 gives A = 2; a little more stays finite.
+    C = 0.95 * math.log(1.9) + 0.05 * math.log(0.1)
+    t_m = (1.0 - math.log(2.0)) / C * 1.01
+    assert 2.0 < sprt_design(0.5, 0.05, t_m)[2] < 2.1
+
+
+def test_good_model_exponent_by_hand():
+    # 0.7 (0.1/0.5)^h + 0.3 (0.9/0.5)^h = 1 at h = 2 (0.028 + 0.972).
+    assert good_model_exponent(0.7, 0.5, 0.1) == pytest.approx(2.0, rel=1e-9)
+    # 0.6 (0.2)^h + 0.4 (1.8)^h = 1: h = 1 gives 0.12 + 0.72 = 0.84 < 1, so h > 1, and h = 2 gives
+    # 0.024 + 1.296 > 1, so 1 < h < 2.
+    h = good_model_exponent(0.6, 0.5, 0.1)
+    assert 1.0 < h < 2.0 and 0.6 * 0.2**h + 0.4 * 1.8**h == pytest.approx(1.0, abs=1e-9)
+    assert good_model_exponent(0.5, 0.5, 0.1) == 1.0  # the design's own epsilon
+    assert good_model_exponent(1.0, 0.5, 0.1) == math.inf  # every point consistent: never rejected
+    assert good_model_exponent(0.0, 0.5, 0.1) == 0.0
+    # A good model worse than the design drifts upwards (0.05 ln 0.2 + 0.95 ln 1.8 > 0): always rejected.
+    assert good_model_exponent(0.05, 0.5, 0.1) == 0.0
+    for eps_i, delta_i in ((0.0, 0.1), (1.0, 0.1), (0.5, 0.0), (0.5, 1.0)):
+        assert good_model_exponent(0.7, eps_i, delta_i) == 0.0
+
+
+def test_rejection_probability_is_a_to_the_minus_h():
+    assert rejection_probability(4.0, 1.0) == pytest.approx(0.25, rel=1e-12)
+    assert rejection_probability(9.0, 0.5) == pytest.approx(1 / 3, rel=1e-12)
+    assert rejection_probability(3.0, 2.0) == pytest.approx(1 / 9, rel=1e-12)
+    assert rejection_probability(math.inf, 1.0) == 0.0
+    assert rejection_probability(4.0, math.inf) == 0.0
+    assert rejection_probability(4.0, 0.0) == 1.0
+
+
+# ---------------------------------------------------------------------------- SPRT verifier bookkeeping
+
+
+@pytest.mark.parametrize(("option", "value"), [("t_m", 0.0), ("epsilon0", 1.0), ("epsilon0", 0.0), ("delta0", 0.0),
+                                               ("delta0", 1.0), ("chunk", 1.5), ("chunk", 0)])
+def test_sprt_options_are_validated_by_name(option, value):
+    with pytest.raises(ValueError, match=rf"option sprt_{option} has an invalid value {value!r}"):
+        SprtVerification(n=100, **{option: value})
+
+
+def test_sprt_verifier_initial_design_and_new_bests():
+    v = SprtVerification(n=100)
+    c = v.counters()
+    assert c["sprt_designs"] == 1 and c["sprt_epsilon"] == 0.1 and c["sprt_delta"] == 0.01
+    assert c["sprt_A"] == pytest.approx(40.36354045, rel=1e-8)
+    assert (c["sprt_tested"], c["sprt_rejected"], c["sprt_accepted"], c["sprt_full"]) == (0, 0, 0, 0)
+    assert isinstance(v.chunk, int)
+    # delta0 below the floor is clamped to 1e-3.
+    assert SprtVerification(n=100, delta0=1e-5).delta == 1e-3
+    assert SprtVerification(n=100, delta0=0.9).delta == 0.3
+    mask = np.zeros(100, bool)
+    mask[:30] = True
+    v.on_new_best(mask, None)
+    assert v.epsilon == 0.3 and len(v.history) == 2
+    assert (v.current.epsilon, v.current.delta) == (0.3, 0.01)
+    _, _, A = sprt_design(0.3, 0.01, 500.0)
+    assert v.current.A == A
+    v.on_new_best(mask, None)  # the same inlier ratio: no new test
+    assert len(v.history) == 2
+    v.on_new_best(np.ones(100, bool), None)  # epsilon = 1 is no design
+    v.on_new_best(np.zeros(100, bool), None)
+    assert len(v.history) == 2 and v.epsilon == 0.3
+
+
+def test_sprt_termination_charges_draws_to_the_test_in_force():
+    v = SprtVerification(n=100)
+    term = SprtTermination(v)
+    term.on_batch(SimpleNamespace(n_hypotheses=16))
+    assert [t.draws for t in v.history] == [16]
+    mask = np.zeros(100, bool)
+    mask[:50] = True
+    v.on_new_best(mask, None)  # a new test begins between batches
+    term.on_batch(SimpleNamespace(n_hypotheses=40))  # this batch began under test 1
+    assert [t.draws for t in v.history] == [40, 0]
+    term.on_batch(SimpleNamespace(n_hypotheses=50))
+    assert [t.draws for t in v.history] == [40, 10]
+
+
+# ---------------------------------------------------------------------------- samplers
+
+
+def test_uniform_sampler_needs_three_and_gives_the_count_formula():
+    with pytest.raises(ValueError, match="need at least 3 correspondences to sample, got 2"):
+        UniformSampler(2)
+    mask = np.zeros(10, bool)
+    mask[:5] = True
+    assert UniformSampler(10).all_inlier_probability(mask) == pytest.approx(5 * 4 * 3 / (10 * 9 * 8), rel=1e-12)
+    with pytest.raises(ValueError, match=r"inliers must be a bool mask of shape \(10,\), got int64 \(10,\)"):
+        UniformSampler(10).all_inlier_probability(mask.astype(np.int64))
+    with pytest.raises(ValueError, match=r"inliers must be a bool mask of shape \(10,\)"):
+        UniformSampler(10).all_inlier_probability(np.ones(9, bool))
+    draws = UniformSampler(5).draw(400, np.random.default_rng(0))
+    assert draws.shape == (400, 3) and draws.min() >= 0 and draws.max() <= 4
+    assert np.all((draws[:, 0] != draws[:, 1]) & (draws[:, 0] != draws[:, 2]) & (draws[:, 1] != draws[:, 2]))
+    assert set(np.unique(draws)) == {0, 1, 2, 3, 4}
+
+
+def test_validate_priors_names_each_defect():
+    with pytest.raises(ValueError, match="priors must be real weights, got complex dtype complex128"):
+        validate_priors(np.ones(5, complex), 5)
+    with pytest.raises(ValueError, match="priors must be an array of real weights, got dict"):
+        validate_priors({"a": 1}, 5)
+    with pytest.raises(ValueError, match=r"priors must have shape \(5,\), one weight per correspondence, got \(4,\)"):
+        validate_priors(np.ones(4), 5)
+    with pytest.raises(ValueError, match="priors contain NaN or inf"):
+        validate_priors(np.array([1.0, np.nan, 1, 1, 1]), 5)
+    with pytest.raises(ValueError, match="priors must be non-negative, got minimum -0.5"):
+        validate_priors(np.array([1.0, -0.5, 1, 1, 1]), 5)
+    with pytest.raises(ValueError, match="priors need at least 3 positive weights"):
+        validate_priors(np.array([1.0, 1, 0, 0, 0]), 5)
+    p = validate_priors([1, 2, 0, 3, 4], 5)
+    assert p.dtype == float and p.tolist() == [1.0, 2.0, 0.0, 3.0, 4.0]
+    with pytest.raises(ValueError, match=r"priors must be a 1-D array, one weight per correspondence, got shape \(2, 3\)"):
+        WeightedSampler(np.ones((2, 3)))
+
+
+def test_normalised_weights_direct_overflowing_and_tiny():
+    np.testing.assert_array_equal(normalised_weights(np.array([1.0, 1.0, 2.0])), [0.25, 0.25, 0.5])
+    np.testing.assert_allclose(normalised_weights(np.full(4, 1e308)), np.full(4, 0.25), rtol=1e-15)
+    # A subnormal weight would be lost (below the smallest normal number): it keeps tiny, stays drawable.
+    tiny = np.finfo(float).tiny
+    w = normalised_weights(np.array([1.0, 1.0, 1e-320]))
+    assert w[2] > 0 and w[2] == pytest.approx(tiny / 2, rel=1e-9)
+    np.testing.assert_allclose(w[:2], [0.5, 0.5], rtol=1e-15)
+    # All weights subnormal: the sum is below tiny, so they are divided by the largest first.
+    np.testing.assert_allclose(normalised_weights(np.array([1e-320, 1e-320, 2e-320])), [0.25, 0.25, 0.5], rtol=1e-3)
+
+
+def test_weighted_sampler_probabilities_by_hand():
+    s = WeightedSampler(np.array([1.0, 2.0, 3.0, 4.0]))
+    # Ordered draw (3, 2, 1): 4/10 * 3/(10 - 4) * 2/(10 - 7).
+    expected = math.log(0.4) + math.log(3 / 6) + math.log(2 / 3)
+    np.testing.assert_allclose(s.log_probability(np.array([[3, 2, 1], [0, 1, 2]])),
+                               [expected, math.log(0.1) + math.log(2 / 9) + math.log(3 / 7)], rtol=1e-12)
+    # q for the inliers {0, 1, 2}: the sum over their 6 orders of w_a/W w_b/(W - w_a) w_c/(W - w_a - w_b).
+    w = {0: 1.0, 1: 2.0, 2: 3.0}
+    q = sum(w[a] / 10 * w[b] / (10 - w[a]) * w[c] / (10 - w[a] - w[b]) for a, b, c in itertools.permutations(w))
+    assert s.all_inlier_probability(np.array([True, True, True, False])) == pytest.approx(q, rel=1e-12)
+    assert s.all_inlier_probability(np.array([True, True, False, False])) == pytest.approx(0.0, abs=1e-15)
+    assert s.all_inlier_probability(np.ones(4, bool)) == pytest.approx(1.0, rel=1e-12)
+    # Equal positive weights: the count formula over the positive ones (one zero weight of five).
+    e = WeightedSampler(np.array([1.0, 1.0, 0.0, 1.0, 1.0]))
+    mask = np.array([True, True, True, False, False])  # two inliers of positive weight
+    assert e.all_inlier_probability(mask) == 0.0
+    mask = np.array([True, True, True, True, False])  # three inliers among four positive
+    assert e.all_inlier_probability(mask) == pytest.approx(3 * 2 * 1 / (4 * 3 * 2), rel=1e-12)
+
+
+def test_weighted_sampler_draws_follow_the_weights():
+    s = WeightedSampler(np.array([0.0, 1.0, 1.0, 1.0, 6.0]))
+    draws = s.draw(20_000, np.random.default_rng(3))
+    assert draws.dtype == np.int64 and draws.shape == (20_000, 3)
+    assert not np.any(draws == 0)  # zero weight: never drawn
+    assert np.all((draws[:, 0] != draws[:, 1]) & (draws[:, 0] != draws[:, 2]) & (draws[:, 1] != draws[:, 2]))
+    # First pick: index 4 with probability 6/9 (binomial sd 0.0033 at n = 20000).
+    assert np.mean(draws[:, 0] == 4) == pytest.approx(6 / 9, abs=0.015)
+    # The exact fix-up path draws the same distribution: from u, by inverting explicit cumulative weights.
+    np.testing.assert_array_equal(s._draw_exactly(np.array([0.0, 0.0, 0.0])), [1, 2, 3])
+    np.testing.assert_array_equal(s._draw_exactly(np.array([0.99, 0.99, 0.99])), [4, 3, 2])
+
+
+def test_prosac_growth_and_sampler_start():
+    assert prosac_growth(2).tolist() == [0, 0, 0]
+    g = prosac_growth(5, 3, 100)
+    # T_3 = 100 * (3 * 2 * 1) / (5 * 4 * 3) = 10, T_4 = 10 * 4 / 1 = 40, T_5 = 40 * 5 / 2 = 100:
+    # T'_3 = 1, T'_4 = 1 + 30 = 31, T'_5 = 31 + 60 = 91.
+    assert g.tolist() == [0, 0, 0, 1, 31, 91]
+    order = np.array([4, 2, 0, 1, 3])
+    s = ProsacSampler(order, t_n=100)
+    mask = np.zeros(5, bool)
+    mask[[4, 2, 0]] = True  # the top three are inliers: the first draw (the top three) is all-inlier
+    assert s.all_inlier_probability(mask) == 1.0
+    first = s.draw(1, np.random.default_rng(0))
+    assert sorted(first[0].tolist()) == [0, 2, 4]
+    # Draw 2 uses n = g(2) = 4, anchored (2 <= T'_4 = 31): u_4 = order[3] = 1 plus two of the top three.
+    mask = np.zeros(5, bool)
+    mask[[4, 2, 1]] = True
+    assert s.all_inlier_probability(mask) == pytest.approx(2 * 1 / (3 * 2), rel=1e-12)
+    mask[1] = False
+    assert s.all_inlier_probability(mask) == 0.0  # the anchor u_4 is an outlier
+    second = s.draw(1, np.random.default_rng(1))[0]
+    assert second[2] == 1 and set(second[:2]) <= {4, 2, 0}
+    with pytest.raises(ValueError, match="need at least 3 correspondences to sample, got 2"):
+        ProsacSampler(np.array([1, 0]))
+    with pytest.raises(ValueError, match="order must be a permutation of range"):
+        ProsacSampler(np.array([0, 0, 1]))
+    with pytest.raises(ValueError, match=r"order must be an integer array of shape \(3,\), got float64"):
+        ProsacSampler(np.array([0.0, 1.0, 2.0]))
+
+
+def test_replay_sampler_hands_out_the_samples_in_order():
+    samples = np.array([[0, 1, 2], [3, 4, 5], [1, 3, 5]])
+    r = ReplaySampler(samples, 6)
+    np.testing.assert_array_equal(r.draw(2, None), samples[:2])
+    np.testing.assert_array_equal(r.draw(1, None), samples[2:])
+    with pytest.raises(ValueError, match="replay exhausted: 3 samples, asked for 4"):
+        r.draw(1, None)
+    with pytest.raises(ValueError, match=r"samples must have shape \(M, 3\), got \(2, 2\)"):
+        ReplaySampler(np.zeros((2, 2)), 6)
+    with pytest.raises(ValueError, match=r"sample indices must lie in \[0, 6\)"):
+        ReplaySampler(np.array([[0, 1, 6]]), 6)
+    with pytest.raises(ValueError, match=r"sample indices must lie in \[0, 6\)"):
+        ReplaySampler(np.array([[0, -1, 2]]), 6)
