@@ -137,6 +137,34 @@ def pose_update(pose_prev: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarr
     return np.asarray(pose_prev, dtype=float) @ invert_transform(make_transform(R, t))
 
 
+class PoseChain:
+    """Camera-to-world poses chained from frame-to-frame motions, with the constant-velocity fallback.
+
+    The one place that turns a sequence of estimates into a trajectory: the odometry runner and the
+    environments append each frame's estimate; a failed estimate (``ok=False``) reuses the last
+    successful motion, or the identity before any success.
+
+    Attributes:
+        poses: ``[(4, 4)]`` camera-to-world poses, ``poses[0]`` the start; one more per ``append``.
+        last_motion: ``(R (3, 3), t (3,) in m)`` of the last successful estimate, None before one.
+        fallbacks: one bool per ``append``, True where the fallback motion was used.
+    """
+
+    def __init__(self, first_pose: np.ndarray):
+        self.poses: list[np.ndarray] = [np.array(first_pose, dtype=float)]
+        self.last_motion: tuple[np.ndarray, np.ndarray] | None = None
+        self.fallbacks: list[bool] = []
+
+    def append(self, ok: bool, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """Chain the motion ``x_k = R x_{k-1} + t`` if ``ok``, else the fallback; return the new ``(4, 4)`` pose."""
+        if ok:
+            self.last_motion = (R, t)
+        R_used, t_used = self.last_motion if self.last_motion is not None else (np.eye(3), np.zeros(3))
+        self.poses.append(pose_update(self.poses[-1], R_used, t_used))
+        self.fallbacks.append(not ok)
+        return self.poses[-1]
+
+
 def relative_motion(pose_prev: np.ndarray, pose_curr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Motion ``(R, t)`` with ``x_k = R x_{k-1} + t`` between two camera-to-world poses.
 

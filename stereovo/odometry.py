@@ -2,7 +2,7 @@
 
 Each frame pair goes through the shared estimator core
 (:func:`stereovo.estimation.estimate_motion`); the motions are concatenated
-into camera-to-world poses with :func:`stereovo.geometry.pose_update` and
+into camera-to-world poses with :class:`stereovo.geometry.PoseChain` and
 scored against the simulator's truth.
 """
 
@@ -14,7 +14,7 @@ from typing import Any, Callable, Iterable, Sequence
 import numpy as np
 
 from stereovo.estimation import estimate_motion
-from stereovo.geometry import pose_update
+from stereovo.geometry import PoseChain
 from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, FrameMetrics, TrajectoryMetrics, frame_metrics, trajectory_metrics
 
 FrameFn = Callable[[Any], "np.ndarray | None"]
@@ -130,12 +130,10 @@ def run_odometry(
     noise_sigma = estimator_options.pop("noise_sigma", None)
     rng = np.random.default_rng(seed)
     true_poses = np.asarray(sequence.true_poses, dtype=float)
-    poses = [true_poses[0]]
+    chain = PoseChain(true_poses[0])
     metrics: list[FrameMetrics] = []
-    fallback: list[bool] = []
     indices: list[int] = []
     covariances: list[np.ndarray] = []
-    R_last, t_last = np.eye(3), np.zeros(3)
 
     for frame in _progress(sequence, progress, method):
         est = estimate_motion(
@@ -151,16 +149,13 @@ def run_odometry(
         )
         if on_estimate is not None:
             on_estimate(frame, est)
-        if est.ok:
-            R_last, t_last = est.rotation, est.translation
         # A failed frame keeps the last motion: constant-velocity fallback.
-        poses.append(pose_update(poses[-1], R_last, t_last))
+        chain.append(est.ok, est.rotation, est.translation)
         metrics.append(frame_metrics(est, frame.truth))
-        fallback.append(not est.ok)
         covariances.append(est.covariance if est.covariance is not None else np.full((6, 6), np.nan))
         indices.append(int(frame.index))
 
-    est_poses = np.stack(poses)
+    est_poses = np.stack(chain.poses)
     true_poses = true_poses[: len(est_poses)]
     return OdometryResult(
         method=method,
@@ -168,7 +163,7 @@ def run_odometry(
         poses=est_poses,
         true_poses=true_poses,
         frames=metrics,
-        fallback=np.array(fallback, dtype=bool),
+        fallback=np.array(chain.fallbacks, dtype=bool),
         trajectory=trajectory_metrics(est_poses, true_poses, kitti_lengths=kitti_lengths, kitti_step=kitti_step),
         frame_indices=np.array(indices, dtype=int),
         covariances=np.array(covariances, dtype=float).reshape(-1, 6, 6),

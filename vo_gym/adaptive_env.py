@@ -35,7 +35,7 @@ from stereovo.estimation.loop import LoopState, RansacSearch
 from stereovo.estimation.methods import MotionEstimate
 from stereovo.estimation.samplers import WeightedSampler
 from stereovo.estimation.termination import FixedBudget
-from stereovo.geometry import pose_update
+from stereovo.geometry import PoseChain
 from stereovo.metrics import frame_metrics
 from stereovo.options import Integer, Number
 from stereovo.simulation import Frame, Sequence, SimulationConfig
@@ -270,7 +270,7 @@ class StereoVOAdaptiveEnv(gym.Env):
 
     @property
     def estimated_poses(self) -> np.ndarray:
-        return np.array(self._poses)
+        return np.array(self._chain.poses)
 
     @property
     def scored_inliers(self) -> np.ndarray:
@@ -291,8 +291,7 @@ class StereoVOAdaptiveEnv(gym.Env):
         super().reset(seed=seed)
         self._sequence = Sequence(self._sequence_config, int(self.np_random.integers(0, 2**63 - 1)))
         self._rng = np.random.default_rng(int(self.np_random.integers(0, 2**63 - 1)))
-        self._poses = [np.array(self._sequence.true_poses[0])]
-        self._last_motion: tuple[np.ndarray, np.ndarray] | None = None
+        self._chain = PoseChain(self._sequence.true_poses[0])  # poses and the constant-velocity fallback
         self._successes: list[bool] = []
         self._k = 1
         self._start_frame()
@@ -351,7 +350,7 @@ class StereoVOAdaptiveEnv(gym.Env):
         self._search = RansacSearch(self._problem, components, self._rng)
         self._frame_features = compute_features(
             frame.prev, frame.curr, frame.scores, frame.camera, self.estimator_options.noise_sigma,
-            self._last_motion, problem=self._problem,
+            self._chain.last_motion, problem=self._problem,
         )
         self._best_residual = None
         self._weights = np.full(frame.n, 1.0 / frame.n)
@@ -366,10 +365,7 @@ class StereoVOAdaptiveEnv(gym.Env):
         report = search.finish()
         est = MotionEstimate.from_report(report, self.method, 0.0)
         metrics = frame_metrics(est, frame.truth)
-        if est.ok:
-            self._last_motion = (est.rotation, est.translation)
-        R, t = self._last_motion if self._last_motion is not None else (np.eye(3), np.zeros(3))
-        self._poses.append(pose_update(self._poses[-1], R, t))
+        self._chain.append(est.ok, est.rotation, est.translation)
         self._successes.append(metrics.success)
         info.update({k: v for k, v in metrics.as_dict().items() if k != "time_s"})
         info["pose_error_ratio"] = pose_error_ratio(metrics)
@@ -423,10 +419,10 @@ class StereoVOAdaptiveEnv(gym.Env):
         g[0] = search.drawn / self.max_hypotheses
         g[1] = np.count_nonzero(search.best_inliers) / n
         g[2] = float(scored > 0)
-        if self._last_motion is not None:
+        if self._chain.last_motion is not None:
             g[5] = 1.0
             if scored:
-                R_prev, t_prev = self._last_motion
+                R_prev, t_prev = self._chain.last_motion
                 cos = (np.trace(search.best_R @ R_prev.T) - 1) / 2
                 g[3] = math.log1p(math.degrees(math.acos(min(max(cos, -1.0), 1.0))) / 0.1)
                 g[4] = math.log1p(float(np.linalg.norm(search.best_t - t_prev)) / 0.05)

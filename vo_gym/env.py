@@ -20,7 +20,7 @@ from gymnasium import spaces
 from stereovo.camera import StereoCamera
 from stereovo.estimation import EstimatorOptions, StereoProblem, estimate_problem, method_spec, validate_options
 from stereovo.estimation.methods import ESTIMATOR_OPTION_RULES, MAX_COUNT
-from stereovo.geometry import pose_update
+from stereovo.geometry import PoseChain
 from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, frame_metrics, trajectory_metrics
 from stereovo.options import Choice, Integer, Number, Option, check_options
 from stereovo.simulation import Frame, Sequence, SimulationConfig
@@ -358,10 +358,8 @@ class StereoVOEnv(gym.Env):
         self._frame: Frame | None = None
         self._problem: StereoProblem | None = None  # the current frame's, built with its observation
         self._k = 0
-        self._poses: list[np.ndarray] = []
-        self._last_motion: tuple[np.ndarray, np.ndarray] | None = None
+        self._chain: PoseChain | None = None  # poses, last motion and fallbacks of the episode
         self._successes: list[bool] = []
-        self._fallbacks: list[bool] = []
         self._last_step: dict[str, Any] | None = None
 
     # ------------------------------------------------------------------ properties
@@ -383,14 +381,14 @@ class StereoVOEnv(gym.Env):
 
         The history is per episode: ``reset`` starts it afresh, so it holds at most ``n_frames + 1``
         poses (128 B each; ``scripts/soak.py`` checks the bound over 10,000 steps)."""
-        return np.array(self._poses)
+        return np.array(self._chain.poses if self._chain is not None else [])
 
     @property
     def true_poses(self) -> np.ndarray:
         """``(k, 4, 4)`` true camera-to-world poses of the frames seen so far."""
         if self._sequence is None:
             return np.zeros((0, 4, 4))
-        return np.array(self._sequence.true_poses[: len(self._poses)])
+        return np.array(self._sequence.true_poses[: len(self._chain.poses)])
 
     @property
     def sequence(self) -> Sequence | None:
@@ -422,9 +420,8 @@ class StereoVOEnv(gym.Env):
         self._ransac_rng = np.random.default_rng(ransac_seed)
         self._k = 1
         self._frame = self._sequence.frame(1)
-        self._poses = [np.array(self._sequence.true_poses[0])]
-        self._last_motion = None
-        self._successes, self._fallbacks = [], []
+        self._chain = PoseChain(self._sequence.true_poses[0])
+        self._successes = []
         self._last_step = None
         return self._observation(), {"frame": 1}
 
@@ -450,12 +447,8 @@ class StereoVOEnv(gym.Env):
             rng=self._ransac_rng, **self._estimator_kwargs,
         )
         metrics = frame_metrics(est, frame.truth)
-        if est.ok:
-            self._last_motion = (est.rotation, est.translation)
-        R, t = self._last_motion if self._last_motion is not None else (np.eye(3), np.zeros(3))
-        self._poses.append(pose_update(self._poses[-1], R, t))
+        self._chain.append(est.ok, est.rotation, est.translation)
         self._successes.append(metrics.success)
-        self._fallbacks.append(not est.ok)
 
         reward = self._reward(est, metrics, frame)
         info: dict[str, Any] = {"frame": int(frame.index)}
@@ -530,7 +523,7 @@ class StereoVOEnv(gym.Env):
         # Built once per frame: the features read its triangulated points, the step's estimate reuses it.
         self._problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, self.estimator_noise_sigma)
         feats = compute_features(
-            frame.prev, frame.curr, frame.scores, frame.camera, self.estimator_noise_sigma, self._last_motion,
+            frame.prev, frame.curr, frame.scores, frame.camera, self.estimator_noise_sigma, self._chain.last_motion,
             problem=self._problem,
         )
         M, n = self.max_correspondences, frame.n
@@ -554,10 +547,10 @@ class StereoVOEnv(gym.Env):
         )
 
     def _trajectory_summary(self) -> dict[str, Any]:
-        est = np.stack(self._poses)
+        est = np.stack(self._chain.poses)
         true = np.asarray(self._sequence.true_poses[: len(est)])
         summary = trajectory_metrics(est, true, kitti_lengths=self.kitti_lengths, kitti_step=KITTI_STEP).as_dict()
         summary = {k: _nan_to_none(v) for k, v in summary.items()}
         summary["success_rate"] = float(np.mean(self._successes))
-        summary["failed_frames"] = int(np.count_nonzero(self._fallbacks))
+        summary["failed_frames"] = int(np.count_nonzero(self._chain.fallbacks))
         return summary
