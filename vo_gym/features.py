@@ -68,6 +68,7 @@ from stereovo.camera import StereoCamera
 from stereovo.estimation.methods import ESTIMATOR_OPTION_RULES
 from stereovo.estimation.problem import StereoProblem, as_measurements
 from stereovo.estimation.reprojection import reprojection_sq
+from stereovo.estimation.rigidity import distance_change_sq_jit, rigid_distance_consistent_jit
 
 __all__ = [
     "FEATURE_NAMES",
@@ -182,10 +183,10 @@ def rigid_consistency_degree(
     else:
         order = np.argsort(-np.asarray(priority), kind="stable") if priority_order is None else priority_order
         anchors = np.sort(order[:MAX_ANCHORS])
-    s2 = np.square(np.asarray(spread, dtype=float)) * (gate * gate)
+    s2 = np.square(np.asarray(spread, dtype=float))
     count = _consistent_pairs(
         np.ascontiguousarray(points_prev, dtype=float), np.ascontiguousarray(points_curr, dtype=float),
-        s2, np.ascontiguousarray(anchors, dtype=np.int64),
+        s2, np.ascontiguousarray(anchors, dtype=np.int64), float(gate * gate),
     )
     is_anchor = np.zeros(n, dtype=bool)
     is_anchor[anchors] = True
@@ -194,8 +195,9 @@ def rigid_consistency_degree(
 
 
 @njit(cache=True, nogil=True)
-def _consistent_pairs(points_prev, points_curr, s2, anchors):
-    """``(N,)`` counts of anchors j with ``(|Q_i - Q_j| - |P_i - P_j|)^2 < s2_i + s2_j``.
+def _consistent_pairs(points_prev, points_curr, s2, anchors, gate_sq):
+    """``(N,)`` counts of anchors j that pass the rigid-distance test (:mod:`stereovo.estimation.rigidity`)
+    with ``var = s2_i + s2_j``: ``(|Q_i - Q_j| - |P_i - P_j|)^2 < gate_sq (s2_i + s2_j)``.
 
     One pass over the N x A pairs; the anchors' coordinates are gathered first so the
     inner loop reads contiguous memory.
@@ -211,9 +213,8 @@ def _consistent_pairs(points_prev, points_curr, s2, anchors):
         s2i = s2[i]
         c = 0
         for k in range(a):
-            dp = np.sqrt((px[k] - p0) ** 2 + (py[k] - p1) ** 2 + (pz[k] - p2) ** 2)
-            dq = np.sqrt((qx[k] - q0) ** 2 + (qy[k] - q1) ** 2 + (qz[k] - q2) ** 2)
-            c += (dq - dp) ** 2 < s2i + s2_anchor[k]
+            change_sq = distance_change_sq_jit(px[k] - p0, py[k] - p1, pz[k] - p2, qx[k] - q0, qy[k] - q1, qz[k] - q2)
+            c += rigid_distance_consistent_jit(change_sq, s2i + s2_anchor[k], gate_sq)
         counts[i] = c
     return counts
 

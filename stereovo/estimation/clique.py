@@ -55,6 +55,7 @@ from stereovo.estimation.loop import RansacComponents, RansacReport, run_ransac
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.refinement import ReprojectionRefiner
 from stereovo.estimation.reprojection import gauss_newton_steps
+from stereovo.estimation.rigidity import distance_change_sq, rigid_distance_consistent
 from stereovo.estimation.samplers import UniformSampler
 from stereovo.estimation.scoring import CHI2_3_95, InlierCount, MahalanobisResidual, ReprojectionResidual
 from stereovo.estimation.solvers import SAMPLE_SIZE
@@ -92,14 +93,16 @@ def consistency_matrix(problem: StereoProblem, c: float = 3.0) -> np.ndarray:
     frames = ((problem.points_prev, problem.cov_prev), (problem.points_curr, problem.cov_curr))
     for start in range(0, n, _ROW_BLOCK):
         rows = slice(start, min(start + _ROW_BLOCK, n))
-        length, var = [], 0.0
+        diffs, var = [], 0.0
         for P, S in frames:
             d = P[rows, None, :] - P[None, :, :]  # (b, N, 3)
             sq = np.einsum("bna,bna->bn", d, d)
             q = _quadratic_forms(d, S[rows, None]) + _quadratic_forms(d, S[None, :])
-            length.append(np.sqrt(sq))
+            diffs.append(d)
             var = var + q / np.maximum(sq, 1e-24)
-        W[rows] = np.abs(length[0] - length[1]) < c * np.sqrt(var)
+        (x, y) = diffs
+        change_sq = distance_change_sq(x[..., 0], x[..., 1], x[..., 2], y[..., 0], y[..., 1], y[..., 2])
+        W[rows] = rigid_distance_consistent(change_sq, var, c * c)
     np.fill_diagonal(W, False)
     return W
 

@@ -29,6 +29,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from stereovo.estimation.rigidity import distance_change_sq_jit, rigid_distance_consistent_jit
+
 MIN_DEPTH = 1e-3  # a transformed point this close to the camera plane cannot be projected
 BEHIND_CAMERA_RESIDUAL = 1e3  # its residual rows are set to this and its Jacobian zeroed
 _SMALL_ANGLE = 1e-4  # below it, Rodrigues coefficients use their Taylor series
@@ -1142,21 +1144,21 @@ def _summed_quadratic_form(cov, a, b, x0, x1, x2):
 
 
 @_inline_jit
-def _pair_rigidity_sq(X, Y, cov_prev, cov_curr, a, b):
-    """``(|Y_a - Y_b| - |X_a - X_b|)^2 / var``: the squared standardised change of the distance between
-    points ``a`` and ``b`` from k-1 to k; ``var`` carries both points' triangulation covariances in
-    both frames onto the direction between them (first order). inf for coincident points."""
+def _pair_is_rigid(X, Y, cov_prev, cov_curr, a, b, threshold_sq):
+    """The rigid-distance test (:mod:`stereovo.estimation.rigidity`) for points ``a`` and ``b``: their
+    distance changes from k-1 to k by less than ``sqrt(threshold_sq)`` standard deviations, ``var``
+    carrying both points' triangulation covariances in both frames onto the direction between them
+    (first order). False for coincident points."""
     x0, x1, x2 = X[a, 0] - X[b, 0], X[a, 1] - X[b, 1], X[a, 2] - X[b, 2]
     y0, y1, y2 = Y[a, 0] - Y[b, 0], Y[a, 1] - Y[b, 1], Y[a, 2] - Y[b, 2]
     lx_sq = x0 * x0 + x1 * x1 + x2 * x2
     ly_sq = y0 * y0 + y1 * y1 + y2 * y2
     if not (lx_sq > 0.0 and ly_sq > 0.0):
-        return np.inf
+        return False
     # u^T S u for the unit direction u: the quadratic forms of the difference vectors over their squared lengths
     var = _summed_quadratic_form(cov_prev, a, b, x0, x1, x2) / lx_sq
     var += _summed_quadratic_form(cov_curr, a, b, y0, y1, y2) / ly_sq
-    change = np.sqrt(ly_sq) - np.sqrt(lx_sq)
-    return change * change / max(var, 1e-300)
+    return rigid_distance_consistent_jit(distance_change_sq_jit(x0, x1, x2, y0, y1, y2), var, threshold_sq)
 
 
 @_jit
@@ -1168,8 +1170,8 @@ def rigid_triplets(samples, X, Y, cov_prev, cov_curr, threshold_sq):
     for h in range(H):
         i, j, k = samples[h, 0], samples[h, 1], samples[h, 2]
         keep[h] = (
-            _pair_rigidity_sq(X, Y, cov_prev, cov_curr, i, j) <= threshold_sq
-            and _pair_rigidity_sq(X, Y, cov_prev, cov_curr, i, k) <= threshold_sq
-            and _pair_rigidity_sq(X, Y, cov_prev, cov_curr, j, k) <= threshold_sq
+            _pair_is_rigid(X, Y, cov_prev, cov_curr, i, j, threshold_sq)
+            and _pair_is_rigid(X, Y, cov_prev, cov_curr, i, k, threshold_sq)
+            and _pair_is_rigid(X, Y, cov_prev, cov_curr, j, k, threshold_sq)
         )
     return keep
