@@ -380,11 +380,14 @@ def test_claims_preemptive():
 
 def test_claims_clique():
     def summary(clique_success, times):
+        # robustness is judged against the enhanced ransac row; textbook ransac fails at 0.8 here
         by_eps = {"inlier-detection": {0.2: _stats(), 0.8: _stats(success_rate=clique_success)},
-                  "ransac": {0.2: _stats(), 0.8: _stats(success_rate=0.7)}}
+                  "ransac+polish+refit+lm": {0.2: _stats(), 0.8: _stats(success_rate=0.7)},
+                  "ransac": {0.2: _stats(), 0.8: _stats(success_rate=0.1)}}
         by_n = {"inlier-detection": {n: _stats(median_time_ms=t) for n, t in times.items()},
                 "ransac": {100: _stats(median_time_ms=10.0), 1000: _stats(median_time_ms=100.0)}}
-        return _claims(_summary({"ransac": _stats(), "inlier-detection": _stats()}, by_eps, by_n))
+        return _claims(_summary({"ransac": _stats(), "inlier-detection": _stats(),
+                                 "ransac+polish+refit+lm": _stats()}, by_eps, by_n))
 
     c = summary(0.68, {100: 1.0, 1000: 100.0})
     assert c["clique-robust"].verdict == AGREES
@@ -392,6 +395,9 @@ def test_claims_clique():
     assert "ransac slope 1.00" in c["clique-quadratic"].numbers
     c = summary(0.5, {100: 10.0, 1000: 100.0})
     assert c["clique-robust"].verdict == DISAGREES and c["clique-quadratic"].verdict == DISAGREES
+    # 50 % beats the failing textbook ransac (10 %): that comparison is context, not the verdict
+    assert "ransac+polish+refit+lm 70.0 %" in c["clique-robust"].numbers
+    assert "ransac 10.0 %" in c["clique-robust"].context and "agrees" in c["clique-robust"].context
     c = summary(0.9, {500: 10.0})
     assert c["clique-quadratic"].verdict == NOT_MEASURED
 
@@ -401,3 +407,52 @@ def test_claims_markdown_lists_every_verdict():
     text = bm.claims_markdown(claims)
     assert "1 agree, 0 do not agree, 10 not measured" in text
     assert text.count("**not measured**") == 20 and "**agrees**" in text
+
+
+def test_claims_name_their_reference_frames_and_enhanced_pair():
+    overall = {"ransac": _stats(), "lo-ransac": _stats(median_time_ms=80.0, frames=30),
+               "ransac+polish+refit+lm": _stats(median_time_ms=40.0),
+               "lo-ransac+polish+lm": _stats(median_time_ms=40.0)}
+    c = _claims(_summary(overall))["lo-ransac-time"]
+    assert c.verdict == AGREES  # 80 vs 50 ms against textbook ransac
+    assert "30 frames" in c.measured_on and "textbook `ransac`" in c.reference
+    # with the additions on both sides the times are equal: the context says so, with its own verdict
+    assert "x1.00" in c.context and DISAGREES in c.context
+    text = bm.claims_markdown([c])
+    assert c.measured_on in text and c.context in text
+    # a claim that cannot be measured carries no frames and no diagnosis
+    absent = _claims(_summary({"ransac": _stats()}), )["waldsac-time"]
+    assert absent.verdict == NOT_MEASURED and absent.measured_on == "" and absent.diagnosis == ""
+
+
+def test_preemptive_miss_probability_and_its_diagnosis():
+    assert bm.preemptive_miss_probability(0.0, 1) == 0.0
+    assert bm.preemptive_miss_probability(0.8, 500) == pytest.approx((1 - 0.2 ** 3) ** 500)
+    assert bm.preemptive_miss_probability(0.9, 500) > 0.5 > bm.preemptive_miss_probability(0.8, 500)
+    by_eps = {"preemptive": {0.2: _stats(median_hypotheses=500.0),
+                             0.8: _stats(success_rate=0.0, median_hypotheses=500.0)}}
+    c = _claims(_summary({"preemptive": _stats()}, by_eps))["preemptive-unreliable"]
+    assert c.verdict == AGREES and "M = 500" in c.diagnosis and "1.8 %" in c.diagnosis
+
+
+def test_claim_diagnostics_measure_the_runs_frames():
+    rows = [{"trial": i, "cell": 0, "repeat": i, "epsilon": 0.8, "noise_sigma": 0.5, "score_auc": 0.9,
+             "n": 200, "outlier_kind": "mix"} for i in range(2)]
+    d = bm.claim_diagnostics(rows, seed=0, samples_per_frame=50)
+    assert set(d) == {"support", "r-ransac-time", "waldsac-time", "clique-robust"}
+    assert all("on 2 frames of the run at epsilon 0.8" in v for v in d.values())
+    assert d == bm.claim_diagnostics(rows, seed=0, samples_per_frame=50)  # same seed, same figures
+    c = _claims(_summary({"ransac": _stats(), "waldsac": _stats()}))
+    with_d = {k: v for k, v in ((x.key, x) for x in bm.check_claims(
+        _summary({"ransac": _stats(), "waldsac": _stats()}), d))}
+    assert c["waldsac-time"].diagnosis == "" and d["waldsac-time"] in with_d["waldsac-time"].diagnosis
+    assert d["support"] in with_d["waldsac-time"].diagnosis  # judged against textbook ransac
+    assert bm.claim_diagnostics([], seed=0) == {}
+
+
+def test_constant_time_diagnosis_reads_the_point_checks():
+    by_eps = {"preemptive": {0.2: _stats(median_time_ms=70.0, median_point_checks=8e4),
+                             0.8: _stats(median_time_ms=40.0, median_point_checks=8e4)}}
+    c = _claims(_summary({"preemptive": _stats()}, by_eps))["preemptive-constant-time"]
+    assert c.verdict == DISAGREES  # 70 / 40 ms spread
+    assert "(max/min x1.00)" in c.diagnosis  # the scoring itself did not change with epsilon
