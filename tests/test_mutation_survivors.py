@@ -28,6 +28,7 @@ from stereovo.estimation.samplers import (
 )
 from stereovo.estimation.sprt import (
     SprtTermination,
+    SprtTest,
     SprtVerification,
     good_model_exponent,
     rejection_probability,
@@ -270,3 +271,66 @@ def test_replay_sampler_hands_out_the_samples_in_order():
         ReplaySampler(np.array([[0, 1, 6]]), 6)
     with pytest.raises(ValueError, match=r"sample indices must lie in \[0, 6\)"):
         ReplaySampler(np.array([[0, -1, 2]]), 6)
+
+
+def _sprt_term(history, sampler=None):
+    verifier = SimpleNamespace(history=history)
+    return SprtTermination(verifier, confidence=0.99, max_iterations=10_000, sampler=sampler)
+
+
+def test_sprt_termination_gives_a_guided_samplers_q_the_best_inliers():
+    seen = []
+
+    def q_of(inliers):
+        seen.append(np.flatnonzero(inliers).tolist())
+        return 0.5
+
+    term = _sprt_term([SprtTest(epsilon=0.5, delta=0.05, A=math.inf)], SimpleNamespace(all_inlier_probability=q_of))
+    assert term.required(3, 10) == 10_000  # no best yet: q = 0
+    inliers = np.zeros(10, bool)
+    inliers[[1, 4, 7]] = True
+    term.on_new_best(inliers, None)
+    assert seen == [[1, 4, 7]]
+    # q = 0.5, the test off (alpha 0): ceil(log 0.01 / log 0.5) = ceil(6.64) = 7.
+    assert term.required(3, 10) == 7
+
+
+def test_sprt_alphas_are_per_inlier_count_and_survive_many_counts():
+    # A test for epsilon_i = 0.5, delta_i = 0.1, A = 3. At I = 50 of 100, h = 1 (the design's own epsilon):
+    # alpha = 1/3, P_g = 4/33, k = ceil(log 0.01 / log(1 - (4/33)(2/3))) = ceil(54.65) = 55.
+    # At I = 70, h = 2: alpha = 1/9, k = 13 (test_stopping_bounds). Asked one after the other, each count
+    # gets its own alpha (one shared cache entry would give 19 for I = 70).
+    assert math.ceil(math.log(0.01) / math.log(1 - (4 / 33) * (2 / 3))) == 55
+    term = _sprt_term([SprtTest(epsilon=0.5, delta=0.1, A=3.0)])
+    assert term.required(50, 100) == 55
+    assert term.required(70, 100) == 13
+    assert term.required(50, 100) == 55
+    # Many different counts (more than the 16 the cache keeps) still give the same bounds.
+    for count in range(40, 80):
+        term.required(count, 100)
+    assert term.required(70, 100) == 13 and term.required(50, 100) == 55
+
+
+def test_sprt_bound_sums_three_tests():
+    # N = 100, I = 50, P_g = 4/33; tests designed for epsilon 0.5 (h = 1): alpha = 1/A.
+    # Test 1 (A = 4) ran 10 draws, test 2 (A = 2) 5 draws, test 3 (A = 4) is current:
+    # log eta = 10 log(1 - (4/33)(3/4)) + 5 log(1 - (4/33)(1/2)) = 10 log(10/11) + 5 log(31/33);
+    # k_3 = (log 0.01 - log eta) / log(10/11) = 35.04, so 15 + 36 = 51 draws in all.
+    log_eta = 10 * math.log(10 / 11) + 5 * math.log(31 / 33)
+    expected = 15 + math.ceil((math.log(0.01) - log_eta) / math.log(10 / 11))
+    assert expected == 51
+    history = [SprtTest(0.5, 0.05, 4.0, draws=10), SprtTest(0.5, 0.05, 2.0, draws=5), SprtTest(0.5, 0.05, 4.0)]
+    assert _sprt_term(history).required(50, 100) == 51
+
+
+def test_sprt_bound_when_one_draw_surely_finds_the_model():
+    # A guided sampler whose q = 1 and the tests off (alpha = 0): P_find = 1, one more draw than done.
+    sure = SimpleNamespace(all_inlier_probability=lambda inliers: 1.0)
+    term = _sprt_term([SprtTest(0.5, 0.05, math.inf, draws=10), SprtTest(0.5, 0.05, math.inf)], sure)
+    term.on_new_best(np.ones(100, bool), None)
+    assert term.required(50, 100) == 11
+    # A past test with no draws and q = 1 contributes nothing (0 draws x a clipped log, not 0 x -inf):
+    # the current test (A = 4, alpha 1/4) needs ceil(log 0.01 / log(1/4)) = ceil(3.32) = 4.
+    term = _sprt_term([SprtTest(0.5, 0.05, math.inf, draws=0), SprtTest(0.5, 0.05, 4.0)], sure)
+    term.on_new_best(np.ones(100, bool), None)
+    assert term.required(50, 100) == 4
