@@ -334,3 +334,19 @@ def test_sprt_bound_when_one_draw_surely_finds_the_model():
     term = _sprt_term([SprtTest(0.5, 0.05, math.inf, draws=0), SprtTest(0.5, 0.05, 4.0)], sure)
     term.on_new_best(np.ones(100, bool), None)
     assert term.required(50, 100) == 4
+
+
+def test_sprt_bound_clips_to_one_and_the_cap_and_stops_after_enough_draws():
+    # Test 1 (off) ran 100 draws at P_g = 29/33's complement: log eta = 100 log(29/33) = -12.92 < log 0.01,
+    # so the confidence is already reached: no further draw, the bound is the 100 done.
+    history = [SprtTest(0.5, 0.05, math.inf, draws=100), SprtTest(0.5, 0.05, 4.0)]
+    assert 100 * math.log(29 / 33) < math.log(0.01)
+    assert _sprt_term(history).required(50, 100) == 100
+    # The cap: 49 draws needed (test_stopping_bounds), max_iterations 10.
+    term = SprtTermination(SimpleNamespace(history=[SprtTest(0.5, 0.05, 4.0)]), confidence=0.99, max_iterations=10)
+    assert term.required(50, 100) == 10
+    # q = 0.999 with the test off: ceil(log 0.01 / log 0.001) = ceil(0.67) = 1 draw.
+    almost = SimpleNamespace(all_inlier_probability=lambda inliers: 0.999)
+    term = _sprt_term([SprtTest(0.5, 0.05, math.inf)], almost)
+    term.on_new_best(np.ones(100, bool), None)
+    assert term.required(50, 100) == 1
