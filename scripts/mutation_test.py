@@ -349,7 +349,10 @@ def write_report(path: Path, store: Path) -> dict[str, dict]:
         "subset). *Not checked* mutants were not",
         "reached within the run's time cap. The numba kernels and decorated functions (`@njit`,",
         "properties, `lru_cache`) are not mutated by mutmut. Target: at least 90 % of the non-equivalent",
-        "mutants killed, each survivor fixed by a test or explained as equivalent.",
+        "mutants killed, each survivor fixed by a test or explained as equivalent. A survivor that a test",
+        "written after the run targets still counts as survived here until its module is rerun; runs",
+        "stopped at their time cap leave the rest of the module *not checked*, and their rate covers",
+        "only the mutants reached (mutmut goes function by function, so whole functions may be missing).",
         "",
         "## The bugs of issue 19 and the tests that catch them",
         "",
@@ -380,7 +383,7 @@ def write_report(path: Path, store: Path) -> dict[str, dict]:
                                                                    "not checked", "total")}
     decided = totals["killed"] + totals["timeout"] + totals["survived"]
     overall = f"{100 * (totals['killed'] + totals['timeout']) / decided:.1f} %" if decided else "-"
-    lines += ["", f"All modules run: {totals['total']} mutants, {decided} decided and not equivalent, "
+    lines += ["", f"Totals over the modules that ran: {totals['total']} mutants, {decided} decided and not equivalent, "
                   f"{totals['equivalent']} equivalent, {totals['not checked']} not checked; kill rate {overall}.", ""]
     lines += ["## Surviving mutants", ""]
     if not survivors:
