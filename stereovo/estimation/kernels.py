@@ -436,6 +436,27 @@ def gauss_newton(R, t, X, Y, mp, mc, cam, weights, huber, iterations, damping, t
     return R_out, t_out, cost_out
 
 
+@_inline_jit
+def point_reprojection_sq(r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2,
+                          x0, x1, x2, m0, m1, m2, m3, fx, fy, cx, cy, b):
+    """Squared forward reprojection error (px^2) of one point ``x`` under one motion ``(R, t)``
+    against its frame-k measurement ``m = (uL, vL, uR, vR)``; ``inf`` behind the camera.
+
+    The one definition of the per-point arithmetic that full scoring and the compiled early-
+    rejection tests share (scalars in, so a caller's loop over points still vectorises).
+    """
+    p2 = r20 * x0 + r21 * x1 + r22 * x2 + t2
+    ip = 1.0 / p2
+    p0 = r00 * x0 + r01 * x1 + r02 * x2 + t0
+    p1 = r10 * x0 + r11 * x1 + r12 * x2 + t1
+    uL = fx * p0 * ip + cx
+    v = fy * p1 * ip + cy
+    uR = uL - fx * b * ip
+    e0, e1, e2, e3 = uL - m0, v - m1, uR - m2, v - m3
+    sq = e0 * e0 + e2 * e2 + e1 * e1 + e3 * e3
+    return sq if p2 > MIN_DEPTH else np.inf
+
+
 @_jit
 def forward_reprojection_sq(R, t, X, mc, cam):
     """``(H, N)`` squared forward reprojection errors (px^2) of ``X (N, 3)`` in both images at k; inf behind.
@@ -456,17 +477,10 @@ def forward_reprojection_sq(R, t, X, mc, cam):
         t0, t1, t2 = t[h, 0], t[h, 1], t[h, 2]
         row = out[h]
         for n in range(N):
-            x0, x1, x2 = X0[n], X1[n], X2[n]
-            p2 = r20 * x0 + r21 * x1 + r22 * x2 + t2
-            ip = 1.0 / p2
-            p0 = r00 * x0 + r01 * x1 + r02 * x2 + t0
-            p1 = r10 * x0 + r11 * x1 + r12 * x2 + t1
-            uL = fx * p0 * ip + cx
-            v = fy * p1 * ip + cy
-            uR = uL - fx * b * ip
-            e0, e1, e2, e3 = uL - m0[n], v - m1[n], uR - m2[n], v - m3[n]
-            sq = e0 * e0 + e2 * e2 + e1 * e1 + e3 * e3
-            row[n] = sq if p2 > MIN_DEPTH else np.inf
+            row[n] = point_reprojection_sq(
+                r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2,
+                X0[n], X1[n], X2[n], m0[n], m1[n], m2[n], m3[n], fx, fy, cx, cy, b,
+            )
     return out
 
 

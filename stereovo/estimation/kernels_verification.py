@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from stereovo.estimation.kernels import MIN_DEPTH
+from stereovo.estimation.kernels import point_reprojection_sq
 
 _jit = njit(cache=True, nogil=True, error_model="numpy")
 _inline_jit = njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -29,17 +29,11 @@ _inline_jit = njit(cache=True, nogil=True, error_model="numpy", inline="always")
 @_inline_jit
 def _point_sq(R, t, h, X, mc, n, fx, fy, cx, cy, b):
     """Hypothesis ``h``'s squared forward reprojection error (px^2) of point ``n``; ``inf`` behind."""
-    x0, x1, x2 = X[n, 0], X[n, 1], X[n, 2]
-    p2 = R[h, 2, 0] * x0 + R[h, 2, 1] * x1 + R[h, 2, 2] * x2 + t[h, 2]
-    ip = 1.0 / p2
-    p0 = R[h, 0, 0] * x0 + R[h, 0, 1] * x1 + R[h, 0, 2] * x2 + t[h, 0]
-    p1 = R[h, 1, 0] * x0 + R[h, 1, 1] * x1 + R[h, 1, 2] * x2 + t[h, 1]
-    uL = fx * p0 * ip + cx
-    v = fy * p1 * ip + cy
-    uR = uL - fx * b * ip
-    e0, e1, e2, e3 = uL - mc[n, 0], v - mc[n, 1], uR - mc[n, 2], v - mc[n, 3]
-    sq = e0 * e0 + e2 * e2 + e1 * e1 + e3 * e3
-    return sq if p2 > MIN_DEPTH else np.inf
+    return point_reprojection_sq(
+        R[h, 0, 0], R[h, 0, 1], R[h, 0, 2], R[h, 1, 0], R[h, 1, 1], R[h, 1, 2],
+        R[h, 2, 0], R[h, 2, 1], R[h, 2, 2], t[h, 0], t[h, 1], t[h, 2],
+        X[n, 0], X[n, 1], X[n, 2], mc[n, 0], mc[n, 1], mc[n, 2], mc[n, 3], fx, fy, cx, cy, b,
+    )
 
 
 @_jit
@@ -148,18 +142,11 @@ def sprt_verify(R, t, X, mc, cam, threshold_sq, samples, perm, log_consistent, l
         block = 8
         while start < N and alive:
             stop = min(start + block, N)
-            for j in range(start, stop):  # same arithmetic as kernels.forward_reprojection_sq
-                x0, x1, x2 = X0[j], X1[j], X2[j]
-                p2 = r20 * x0 + r21 * x1 + r22 * x2 + t2
-                ip = 1.0 / p2
-                p0 = r00 * x0 + r01 * x1 + r02 * x2 + t0
-                p1 = r10 * x0 + r11 * x1 + r12 * x2 + t1
-                uL = fx * p0 * ip + cx
-                v = fy * p1 * ip + cy
-                uR = uL - fx * b * ip
-                e0, e1, e2, e3 = uL - M0[j], v - M1[j], uR - M2[j], v - M3[j]
-                sq = e0 * e0 + e2 * e2 + e1 * e1 + e3 * e3
-                buf[j] = sq if p2 > MIN_DEPTH else np.inf
+            for j in range(start, stop):
+                buf[j] = point_reprojection_sq(
+                    r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2,
+                    X0[j], X1[j], X2[j], M0[j], M1[j], M2[j], M3[j], fx, fy, cx, cy, b,
+                )
             for j in range(start, stop):
                 n = perm[j]
                 if n == s0 or n == s1 or n == s2:
