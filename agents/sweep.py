@@ -395,20 +395,11 @@ def run_sweep(spec: SweepSpec, out: str | os.PathLike, workers: int | None = Non
     from ray.tune.schedulers import ASHAScheduler, FIFOScheduler
     from ray.tune.search.basic_variant import BasicVariantGenerator
 
+    from stereovo.trials.backend import connect_ray
+
     out = Path(out).resolve()
     experiment = out / "tune"
-    started = False
-    if not ray.is_initialized():
-        kwargs: dict[str, Any] = dict(include_dashboard=False, logging_level="ERROR", log_to_driver=verbose > 0)
-        if address is None:
-            kwargs["num_cpus"] = int(workers or os.cpu_count() or 1)
-        else:
-            kwargs["address"] = address
-        try:
-            ray.init(**kwargs)
-        except ConnectionError as err:
-            raise ValueError(f"--address {address!r}: cannot join a Ray cluster ({err})") from None
-        started = True
+    started = connect_ray(workers, address, log_to_driver=verbose > 0)
     try:
         trainable = tune.with_resources(tune.with_parameters(sweep_trainable, spec=spec.as_dict()), {"cpu": 1})
         if resume and tune.Tuner.can_restore(str(experiment)):

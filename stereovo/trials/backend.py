@@ -179,6 +179,32 @@ class LocalBackend(Backend):
         pool.shutdown(wait=True)
 
 
+def connect_ray(workers: int | None, address: str | None, log_to_driver: bool = True) -> bool:
+    """Start a local Ray instance with ``workers`` CPUs (``address`` None) or join ``address``
+    (``"auto"`` or ``"HOST:PORT"``), unless Ray is already initialised.
+
+    Returns True if this call started or joined Ray (the caller then shuts it down).
+
+    Raises:
+        ValueError: naming ``--address`` when the cluster cannot be joined.
+    """
+    import ray
+
+    if ray.is_initialized():
+        return False
+    kwargs: dict[str, Any] = dict(include_dashboard=False, logging_level="ERROR", log_to_driver=log_to_driver,
+                                  configure_logging=True)
+    if address is None:
+        kwargs["num_cpus"] = int(workers or os.cpu_count() or 1)
+    else:
+        kwargs["address"] = address
+    try:
+        ray.init(**kwargs)
+    except ConnectionError as err:
+        raise ValueError(f"--address {address!r}: cannot join a Ray cluster ({err})") from None
+    return True
+
+
 class RayBackend(Backend):
     """Ray tasks, one per chunk (see the module doc).
 
@@ -203,18 +229,7 @@ class RayBackend(Backend):
         self.max_retries = int(max_retries)
         self._started = False
         self._pending: list = []
-        if not ray.is_initialized():
-            kwargs: dict[str, Any] = dict(include_dashboard=False, logging_level="ERROR", log_to_driver=True,
-                                          configure_logging=True)
-            if address is None:
-                kwargs["num_cpus"] = int(workers or os.cpu_count() or 1)
-            else:
-                kwargs["address"] = address
-            try:
-                ray.init(**kwargs)
-            except ConnectionError as err:
-                raise ValueError(f"--address {address!r}: cannot join a Ray cluster ({err})") from None
-            self._started = True
+        self._started = connect_ray(workers, address, log_to_driver=True)
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.workers = int(workers) if (workers is not None and address is None) else cpus
         self._remote = ray.remote(num_cpus=1, max_retries=self.max_retries, retry_exceptions=False)(_warm_chunk)
