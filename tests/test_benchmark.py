@@ -228,7 +228,7 @@ def test_missing_priors_or_order_is_supplied_on_retry(monkeypatch):
             raise ValueError("something else entirely")
         return "estimate"
 
-    monkeypatch.setattr(bm, "estimate_motion", fake)
+    monkeypatch.setattr(bm.runner, "estimate_motion", fake)  # where ClassicalEstimator looks it up
     frame = bm.simulate_trial(TINY.trials()[0], 0)
     assert ClassicalEstimator("needs-priors")(frame, np.random.default_rng(0)) == "estimate"
     assert calls[0][1:3] == (False, False) and calls[1][1:3] == (True, False)

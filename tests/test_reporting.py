@@ -88,7 +88,7 @@ def test_figures_have_a_legend_per_panel_and_its_own_bound(monkeypatch, tmp_path
     rows = _rows(methods)
     summary = bm.summarize(rows)
     saved = {}
-    monkeypatch.setattr(bm, "save_figure", lambda fig, path: saved.setdefault(path.name, fig) and path)
+    monkeypatch.setattr(bm.plots, "save_figure", lambda fig, path: saved.setdefault(path.name, fig) and path)
     bm.write_plots(rows, summary, tmp_path)
     panels = bm.plot_panels(summary.methods)
     success = saved["success_vs_epsilon.png"].axes
