@@ -254,7 +254,9 @@ def test_random_mismatches_are_far_from_where_the_landmark_went() -> None:
 def test_compiled_mismatches_equal_their_numpy_formulas(sigma: float) -> None:
     """The compiled outlier kernels draw what they always drew and compute it in the same order,
     so frames (and the checkpoints trained on them) do not change: checked against the formulas."""
-    from stereovo.simulation import _STEREO_FACTOR, _outlier_threshold, _random_mismatches, _stereo_mismatches
+    from stereovo.simulation.outliers import _STEREO_FACTOR, _outlier_threshold
+    from stereovo.simulation.outliers import random_mismatches as _random_mismatches
+    from stereovo.simulation.outliers import stereo_mismatches as _stereo_mismatches
 
     config = SimulationConfig(noise_sigma=sigma, camera=StereoCamera(width=200, height=120))
     cam, tau = config.camera, _outlier_threshold(sigma)
@@ -442,7 +444,7 @@ def test_longer_sequence_extends_a_shorter_one_with_the_same_seed() -> None:
 )
 def test_frame_streams_are_the_spawned_seed_sequences_of_the_entropy(entropy):
     """A frame's five streams are numpy's spawned children of its four entropy draws, small ints included."""
-    from stereovo.simulation import _stream_generators
+    from stereovo.simulation.pair import _stream_generators
 
     ours = _stream_generators(np.array(entropy, dtype=np.int64), 5)
     reference = [np.random.default_rng(s) for s in np.random.SeedSequence(list(entropy)).spawn(5)]
@@ -480,7 +482,8 @@ def test_seeded_generators_leave_other_entropy_to_numpy():
 
 def test_sequence_frames_use_the_documented_child_seed_sequence():
     """Frame k's generator is SeedSequence(root entropy, spawn_key=(..., namespace, k)), numpy's hashing."""
-    from stereovo.simulation import _SEQUENCE_NAMESPACE, _simulate_pair
+    from stereovo.simulation.pair import simulate_pair as _simulate_pair
+    from stereovo.simulation.sequence import _SEQUENCE_NAMESPACE
 
     config = SimulationConfig(n_correspondences=60, n_frames=3)
     seq = Sequence(config, seed=2**90 + 17)
@@ -490,7 +493,7 @@ def test_sequence_frames_use_the_documented_child_seed_sequence():
 
 
 def test_validity_mask_is_in_image_and_has_depth():
-    from stereovo.simulation import _valid
+    from stereovo.simulation.pair import _valid
 
     cam = StereoCamera()
     rng = np.random.default_rng(0)

@@ -1,0 +1,182 @@
+"""One frame pair from two camera poses: matches, pixel noise, scores and row order.
+
+:func:`simulate_pair` splits the frame's generator into independent streams
+(landmarks, outliers, noise, scores, row order), takes inliers from the world
+(:mod:`stereovo.simulation.world`) and outliers from :mod:`stereovo.simulation.outliers`,
+adds Gaussian pixel noise (one ``v`` draw shared by both images, redrawn where a row
+would leave the image), draws the scores and shuffles the rows.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+from numba import njit
+from scipy.special import ndtr, ndtri
+
+from stereovo.camera import StereoCamera
+from stereovo.geometry import invert_transform
+from stereovo.seeding import seeded_generators
+from stereovo.simulation.config import SimulationConfig
+from stereovo.simulation.frame import Frame, FrameTruth, OutlierKind
+from stereovo.simulation.outliers import MAX_REDRAWS, moving_object, random_mismatches, stereo_mismatches
+from stereovo.simulation.world import visible_landmarks
+
+_STREAMS = 5  # landmarks, outliers, noise, scores, row order
+
+
+@functools.lru_cache(maxsize=256)
+def _apportion(total: int, weights: tuple[float, ...]) -> tuple[int, ...]:
+    """Split ``total`` into integer counts proportional to ``weights`` (largest remainder).
+
+    Cached: a sequence asks for the same split every frame, and the dozen small numpy
+    calls cost as much as drawing a frame's scores.
+    """
+    w = np.asarray(weights, dtype=float)
+    raw = total * w / w.sum()
+    counts = np.floor(raw).astype(int)
+    order = np.argsort(-(raw - counts), kind="stable")
+    counts[order[: total - counts.sum()]] += 1
+    return tuple(int(c) for c in counts)
+
+
+def _stream_generators(entropy: np.ndarray, n_streams: int) -> list[np.random.Generator]:
+    """Generators of ``np.random.SeedSequence(entropy.tolist()).spawn(n_streams)``, ``entropy``
+    four non-negative int64 draws (numpy's seeding, computed by :mod:`stereovo.seeding`)."""
+    return seeded_generators(entropy.tolist(), [(i,) for i in range(n_streams)])
+
+
+def _valid(meas: np.ndarray, cam: StereoCamera) -> np.ndarray:
+    """Mask ``(N,)`` of measurements ``(N, 4)`` inside both images with a disparity above
+    ``min_disparity`` (``cam.in_image & cam.has_depth`` in one compiled pass)."""
+    return _valid_rows(np.ascontiguousarray(meas, dtype=float), float(cam.width - 1), float(cam.height - 1),
+                       float(cam.min_disparity))
+
+
+@njit(cache=True, nogil=True)
+def _valid_rows(meas, u_max, v_max, min_disparity):
+    n = meas.shape[0]
+    ok = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        uL, vL, uR, vR = meas[i, 0], meas[i, 1], meas[i, 2], meas[i, 3]
+        ok[i] = (0.0 <= uL <= u_max and 0.0 <= uR <= u_max and 0.0 <= vL <= v_max and 0.0 <= vR <= v_max
+                 and uL - uR > min_disparity)
+    return ok
+
+
+@njit(cache=True, nogil=True)
+def _noisy_rows(meas, z, sigma, out):
+    """``out (N, 4) = meas + sigma * z[:, (0, 1, 2, 1)]``: the ``v`` noise shared by both images.
+    (``out`` comes from numpy: see :func:`stereovo.camera._project_rows`.)"""
+    n = meas.shape[0]
+    for i in range(n):
+        out[i, 0] = meas[i, 0] + sigma * z[i, 0]
+        out[i, 1] = meas[i, 1] + sigma * z[i, 1]
+        out[i, 2] = meas[i, 2] + sigma * z[i, 2]
+        out[i, 3] = meas[i, 3] + sigma * z[i, 1]
+
+
+def _add_noise(
+    meas: np.ndarray, normal: np.ndarray, config: SimulationConfig, rng: np.random.Generator
+) -> np.ndarray:
+    """Noisy copies of valid noise-free measurements ``(N, 4)``.
+
+    ``normal`` ``(N, 3)`` are standard-normal draws for ``(uL, v, uR)``; the
+    ``v`` draw is shared by both images (rectified pair). Rows that leave the
+    image or lose their disparity are redrawn (a truncated Gaussian), so every
+    measurement stays usable.
+    """
+    sigma, cam = config.noise_sigma, config.camera
+
+    def noisy(rows: np.ndarray, z: np.ndarray) -> np.ndarray:
+        out = np.empty((rows.shape[0], 4))
+        _noisy_rows(np.ascontiguousarray(rows, dtype=float), np.ascontiguousarray(z, dtype=float), float(sigma), out)
+        return out
+
+    out = noisy(meas, normal)
+    for _ in range(MAX_REDRAWS):
+        bad = np.flatnonzero(~_valid(out, cam))
+        if bad.size == 0:
+            return out
+        out[bad] = noisy(meas[bad], rng.standard_normal((bad.size, 3)))
+    bad = ~_valid(out, cam)
+    if not _valid(meas[bad], cam).all():
+        raise RuntimeError("simulator bug: a noise-free measurement left the image or lost its disparity")
+    out[bad] = meas[bad]  # vanishingly rare: keep the valid noise-free row
+    return out
+
+
+def simulate_pair(
+    config: SimulationConfig, pose_prev: np.ndarray, pose_curr: np.ndarray, index: int, rng: np.random.Generator
+) -> Frame:
+    """Correspondences between two given camera-to-world poses."""
+    cam, N = config.camera, config.n_correspondences
+    landmark_rng, outlier_rng, noise_rng, score_rng, order_rng = _stream_generators(
+        rng.integers(0, 2**63, size=4), _STREAMS
+    )
+
+    low, high = config.epsilon_range
+    epsilon = low if low == high else float(rng.uniform(low, high))
+    n_out = int(round(epsilon * N))
+    n_in = N - n_out
+    n_random, n_stereo, n_moving = _apportion(n_out, config.outlier_mix)
+
+    # World-to-camera @ camera-k-1-to-world: how cameras k-1 and k see points given in camera k-1's
+    # frame. The second is the relative motion itself (geometry.relative_motion's product).
+    to_prev = invert_transform(pose_prev) @ pose_prev
+    to_curr = invert_transform(pose_curr) @ pose_prev
+    rotation, translation = to_curr[:3, :3].copy(), to_curr[:3, 3].copy()
+
+    # Two spare landmarks guarantee that a random mismatch always has another landmark to borrow.
+    n_pool = n_in + n_random + n_stereo
+    X_prev, X_curr = visible_landmarks(n_pool + 2, config, to_prev, to_curr, landmark_rng)
+    meas_prev, meas_curr = cam.project(X_prev), cam.project(X_curr)
+    O_prev, O_curr = moving_object(n_moving, config, to_prev, to_curr, outlier_rng)
+
+    random_rows = np.arange(n_in, n_in + n_random)
+    stereo_rows = np.arange(n_in + n_random, n_pool)
+    clean_prev = np.concatenate([meas_prev[:n_pool], cam.project(O_prev).reshape(-1, 4)])
+    clean_curr = np.concatenate([
+        meas_curr[:n_in],
+        random_mismatches(random_rows, meas_curr, config, outlier_rng),
+        stereo_mismatches(meas_curr[stereo_rows], config, outlier_rng),
+        cam.project(O_curr).reshape(-1, 4),
+    ])
+    kind = np.repeat(
+        np.array([OutlierKind.INLIER, OutlierKind.RANDOM_MISMATCH, OutlierKind.STEREO_MISMATCH,
+                  OutlierKind.MOVING_OBJECT], dtype=np.int8),
+        [n_in, n_random, n_stereo, n_moving],
+    )
+    assert clean_prev.shape == clean_curr.shape == (N, 4)
+
+    # One (2, N, 3) draw in row order, so the same seed gives the same standard-normal noise at any sigma.
+    normal = noise_rng.standard_normal((2, N, 3))
+    prev = _add_noise(clean_prev, normal[0], config, noise_rng)
+    curr = _add_noise(clean_curr, normal[1], config, noise_rng)
+
+    inlier = kind == OutlierKind.INLIER
+    mu = math.sqrt(2.0) * float(ndtri(config.score_auc))
+    latent = score_rng.standard_normal(N) + mu * inlier
+    scores = np.clip(ndtr(latent), np.finfo(float).tiny, np.nextafter(1.0, 0.0))
+
+    order = order_rng.permutation(N)
+    truth = FrameTruth(
+        rotation=rotation,
+        translation=translation,
+        inlier=inlier[order],
+        outlier_kind=kind[order],
+        pose_prev=np.array(pose_prev, dtype=float),
+        pose_curr=np.array(pose_curr, dtype=float),
+        outlier_ratio=float(epsilon),
+    )
+    return Frame(
+        index=int(index),
+        prev=prev[order],
+        curr=curr[order],
+        scores=scores[order],
+        camera=cam,
+        noise_sigma=config.noise_sigma,
+        truth=truth,
+    )
