@@ -1,0 +1,286 @@
+"""The report of an evaluation: its summary, the comparison tables, the figures and the output files.
+
+:func:`summarize_evaluation` turns the per-frame rows into a JSON-ready summary (both sweeps per
+method, the adaptive runs, the hypotheses needed for the success target), with the statistics of
+:func:`stereovo.benchmark.aggregate`; :func:`evaluation_markdown` writes its tables with
+:func:`stereovo.benchmark.markdown_table`, :func:`write_plots` its two figures with the helpers of
+:mod:`stereovo.reporting`, and :func:`write_evaluation` the files of a run folder.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from agents.evaluation_setup import (
+    KIND_ADAPTIVE,
+    KIND_AGENT,
+    KIND_AGENT_ADAPTIVE,
+    KIND_FIXED,
+    KIND_ORACLE,
+    EvalConfig,
+    EvaluationResult,
+)
+from stereovo.benchmark import aggregate, markdown_table, success_definition
+from stereovo.reporting import (
+    ERROR_FLOOR,
+    check_plot_format,
+    figure,
+    format_number,
+    format_percent,
+    line_style,
+    plot_success,
+    save_figure,
+)
+
+STAT_KEYS: tuple[str, ...] = (
+    "frames", "success_rate", "median_rot_err_deg", "median_trans_err_m", "mean_precision", "mean_recall",
+    "mean_hypotheses", "median_hypotheses", "n_failed", "n_errors", "median_time_ms",
+)
+TIME_KEYS: tuple[str, ...] = ("median_time_ms",)
+
+
+def _stats(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    agg = aggregate(rows)
+    return {k: _json_number(agg[k]) for k in STAT_KEYS}
+
+
+def _json_number(value: Any) -> Any:
+    if isinstance(value, (float, np.floating)):
+        value = float(value)
+        return value if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
+
+
+def summarize_evaluation(
+    rows: Sequence[Mapping[str, Any]], config: EvalConfig, agent_order: Sequence[str] = ()
+) -> dict[str, Any]:
+    """A JSON-ready summary: both sweeps per method, the adaptive runs, hypotheses for 99 % success.
+
+    Keys of the per-value dicts are strings (``"0.8"``, ``"16"``) so the summary survives JSON.
+    """
+    kinds = {r["method"]: r["kind"] for r in rows}
+    rank = {KIND_AGENT: 0, KIND_ORACLE: 1, KIND_FIXED: 2, KIND_ADAPTIVE: 3, KIND_AGENT_ADAPTIVE: 4}
+    first_seen = list(dict.fromkeys(r["method"] for r in rows))
+    agent_pos = {name: i for i, name in enumerate(agent_order)}
+    methods = sorted(first_seen, key=lambda m: (rank[kinds[m]], agent_pos.get(m, 0), first_seen.index(m)))
+
+    groups: dict[tuple, list[Mapping[str, Any]]] = {}
+    for r in rows:
+        groups.setdefault((r["method"], float(r["epsilon"]), int(r["budget"])), []).append(r)
+
+    def stats(method: str, epsilon: float, budget: int) -> dict[str, Any] | None:
+        group = groups.get((method, epsilon, budget))
+        return _stats(group) if group else None
+
+    eps_sweep = {
+        m: {f"{e:g}": s for e in config.epsilons if (s := stats(m, e, config.budget)) is not None} for m in methods
+    }
+    budget_methods = [m for m in methods if kinds[m] not in (KIND_ADAPTIVE, KIND_AGENT_ADAPTIVE)]
+    budget_sweep = {
+        m: {str(b): s for b in config.budgets if (s := stats(m, config.sweep_epsilon, b)) is not None}
+        for m in budget_methods
+    }
+    adaptive = {
+        m: s for m in methods if kinds[m] in (KIND_ADAPTIVE, KIND_AGENT_ADAPTIVE)
+        if (s := stats(m, config.sweep_epsilon, config.budget)) is not None
+    }
+    needed: dict[str, int | None] = {}
+    for m in budget_methods:
+        reached = [b for b in config.budgets
+                   if budget_sweep[m].get(str(b), {}).get("success_rate", -1.0) >= config.success_target]
+        needed[m] = min(reached) if reached else None
+    return {
+        "config": config.as_dict(),
+        "success_definition": success_definition(),
+        "methods": [{"name": m, "kind": kinds[m]} for m in methods],
+        "epsilon_sweep": {"budget": config.budget, "epsilons": list(config.epsilons), "methods": eps_sweep},
+        "budget_sweep": {"epsilon": config.sweep_epsilon, "budgets": list(config.budgets), "methods": budget_sweep,
+                         "adaptive": adaptive},
+        "hypotheses_for_success": {"target": config.success_target, "epsilon": config.sweep_epsilon,
+                                   "max_budget": max(config.budgets), "methods": needed},
+    }
+
+
+def hypotheses_label(summary: Mapping[str, Any], method: str) -> str:
+    h = summary["hypotheses_for_success"]
+    value = h["methods"].get(method)
+    return f"> {h['max_budget']}" if value is None else str(value)
+
+
+def evaluation_markdown(summary: Mapping[str, Any], wall_s: float | None = None) -> str:
+    """The comparison tables (markdown)."""
+    cfg = summary["config"]
+    kinds = {m["name"]: m["kind"] for m in summary["methods"]}
+    eps = summary["epsilon_sweep"]
+    bud = summary["budget_sweep"]
+    hyp = summary["hypotheses_for_success"]
+    frames = cfg["episodes"] * cfg["frames_per_episode"]
+    lines = [
+        "# Agents vs classical methods on the same frames",
+        "",
+        f"Environment `{cfg['env_id']}`, N = {cfg['n']}, {cfg['episodes']} episodes x {cfg['frames_per_episode']}"
+        f" frames = {frames} frames per setting, episode seeds {cfg['seed']}..{cfg['seed'] + cfg['episodes'] - 1}"
+        f" (identical frames for every agent and method of a setting). Success = {summary['success_definition']}.",
+        f"Agents and `(fixed)` methods draw exactly the budget's hypotheses with the environment's estimator"
+        f" settings; `(adaptive)` methods stop adaptively with the core's defaults, capped at"
+        f" {cfg['max_iterations']} hypotheses. The oracle reads the ground-truth labels: an upper bound only.",
+    ]
+    if wall_s is not None:
+        lines.append(f"Wall time {wall_s:.0f} s.")
+    lines.append("")
+
+    def table(title: str, per: Mapping[str, Mapping[str, Any]], keys: Sequence[str], header: str, stat: str,
+              fmt: Callable[[Any], str], extra: tuple[str, Callable[[str], str]] | None = None) -> None:
+        headers = ["method", "kind", *(f"{header} = {k}" for k in keys)]
+        if extra:
+            headers.append(extra[0])
+        body = []
+        for m, values in per.items():
+            row = [f"`{m}`", kinds[m], *(fmt(values.get(k, {}).get(stat)) for k in keys)]
+            if extra:
+                row.append(extra[1](m))
+            body.append(row)
+        lines.extend([f"## {title}", "", markdown_table(headers, body, "ll" + "r" * (len(headers) - 2)), ""])
+
+    eps_keys = [f"{e:g}" for e in eps["epsilons"]]
+    table(f"(a) Success rate vs contamination, budget {eps['budget']}", eps["methods"], eps_keys, "eps",
+          "success_rate", format_percent)
+    table(f"(a) Median rotation error [deg] vs contamination, budget {eps['budget']}", eps["methods"], eps_keys,
+          "eps", "median_rot_err_deg", format_number)
+    table(f"(a) Median translation error [m] vs contamination, budget {eps['budget']}", eps["methods"], eps_keys,
+          "eps", "median_trans_err_m", format_number)
+    bud_keys = [str(b) for b in bud["budgets"]]
+    table(f"(b) Success rate vs hypothesis budget, eps {bud['epsilon']:g}", bud["methods"], bud_keys, "budget",
+          "success_rate", format_percent,
+          (f"hyp. for {100 * hyp['target']:g} %", lambda m: hypotheses_label(summary, m)))
+    if bud["adaptive"]:
+        body = [[f"`{m}`", format_percent(s["success_rate"]), format_number(s["mean_hypotheses"], ".0f"),
+                 format_number(s["median_hypotheses"], ".0f"), format_number(s["median_time_ms"], ".1f")]
+                for m, s in bud["adaptive"].items()]
+        lines += [f"## (b) Adaptive runs at eps {bud['epsilon']:g} (classical methods: their own stopping rule;"
+                  f" `<agent> (adaptive)`: the agent's priors with the prior-aware stop)", "",
+                  markdown_table(["method", "success", "hypotheses mean", "hypotheses med", "time med [ms]"], body),
+                  ""]
+    body = [[f"`{m}`", kinds[m], hypotheses_label(summary, m)] for m in hyp["methods"]]
+    lines += [f"## Hypotheses needed for {100 * hyp['target']:g} % success at eps {hyp['epsilon']:g}"
+              f" (smallest budget of the sweep)", "", markdown_table(["method", "kind", "hypotheses"], body, "llr"), ""]
+    return "\n".join(lines).rstrip() + "\n"
+
+
+PLOT_NAMES = ("success_vs_epsilon", "success_vs_budget")
+PLOT_FILES = tuple(f"{name}.png" for name in PLOT_NAMES)
+"""The figures' file names in the default format (PNG); ``write_plots(..., fmt=)`` writes pdf or svg."""
+
+
+def _line_style(i: int, kind: str) -> dict[str, Any]:
+    style = line_style(i)
+    style["linestyle"] = {KIND_AGENT: "-", KIND_ORACLE: ":", KIND_FIXED: "--", KIND_ADAPTIVE: "-.",
+                          KIND_AGENT_ADAPTIVE: "-."}[kind]
+    return style
+
+
+def write_plots(summary: Mapping[str, Any], out: str | os.PathLike, fmt: str = "png") -> list[Path]:
+    """(a) success and median pose errors vs contamination; (b) success vs hypothesis budget.
+
+    Success rates carry their 95 % Wilson band over the frames behind each point; ``fmt`` is the
+    file format (png, pdf or svg).
+    """
+    fmt = check_plot_format(fmt)
+    names = [f"{name}.{fmt}" for name in PLOT_NAMES]
+    out = Path(out)
+    kinds = {m["name"]: m["kind"] for m in summary["methods"]}
+    index = {m: i for i, m in enumerate(kinds)}
+    eps = summary["epsilon_sweep"]
+    fig = figure((16, 5))
+    axes = [fig.add_subplot(1, 3, i + 1) for i in range(3)]
+    panels = (("success_rate", 100.0, "success rate [%]", False), ("median_rot_err_deg", 1.0,
+              "median rotation error [deg]", True), ("median_trans_err_m", 1.0, "median translation error [m]", True))
+    for ax, (key, scale, ylabel, logy) in zip(axes, panels):
+        for m, per in eps["methods"].items():
+            pts = [(float(e), s[key], s.get("frames") or 0) for e, s in per.items() if s.get(key) is not None]
+            if not pts:
+                continue
+            xs, ys, ns = zip(*sorted(pts))
+            if key == "success_rate":
+                plot_success(ax, xs, ys, ns, m, _line_style(index[m], kinds[m]), scale=scale)
+            else:
+                ys = [max(y * scale, ERROR_FLOOR) for y in ys] if logy else [y * scale for y in ys]
+                ax.plot(xs, ys, label=m, lw=1.3, ms=4, **_line_style(index[m], kinds[m]))
+        ax.set_xlabel("contamination epsilon")
+        ax.set_ylabel(ylabel)
+        ax.set_xticks(list(eps["epsilons"]))
+        if logy:
+            ax.set_yscale("log")
+        else:
+            ax.set_ylim(-2, 102)
+        ax.grid(True, which="both", alpha=0.3)
+    axes[-1].legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="small")
+    fig.suptitle(f"(a) vs contamination at a budget of {eps['budget']} hypotheses (adaptive: own stopping rule)",
+                 fontsize="medium")
+    paths = [save_figure(fig, out / names[0])]
+
+    bud = summary["budget_sweep"]
+    fig = figure((9.5, 5.5))
+    ax = fig.add_subplot()
+    for m, per in bud["methods"].items():
+        pts = [(int(b), s["success_rate"], s.get("frames") or 0) for b, s in per.items()
+               if s.get("success_rate") is not None]
+        if pts:
+            xs, ys, ns = zip(*sorted(pts))
+            plot_success(ax, xs, ys, ns, m, _line_style(index[m], kinds[m]))
+    for m, s in bud["adaptive"].items():
+        if s.get("mean_hypotheses") and s.get("success_rate") is not None:
+            style = _line_style(index[m], kinds[m])
+            ax.scatter([s["mean_hypotheses"]], [100 * s["success_rate"]], marker=style["marker"], s=60,
+                       color=style["color"], label=f"{m} (mean hypotheses)", zorder=3)
+    target = summary["hypotheses_for_success"]["target"]
+    ax.axhline(100 * target, color="tab:red", ls="--", lw=0.8, label=f"{100 * target:g} % success")
+    ax.set_xscale("log", base=2)
+    ticks = list(bud["budgets"])
+    far = max((s.get("mean_hypotheses") or 0 for s in bud["adaptive"].values()), default=0)
+    while ticks and ticks[-1] * 2 <= 2 * far:  # extend the axis' labels to the adaptive runs' hypotheses
+        ticks.append(ticks[-1] * 2)
+    ax.set_xticks(ticks)
+    ax.set_xticklabels([str(b) for b in ticks])
+    ax.minorticks_off()
+    ax.set_ylim(-2, 102)
+    ax.set_xlabel("hypotheses per frame")
+    ax.set_ylabel("success rate [%]")
+    ax.set_title(f"(b) Success vs hypothesis budget at eps {bud['epsilon']:g}", fontsize="medium")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="small")
+    paths.append(save_figure(fig, out / names[1]))
+    return paths
+
+
+def write_evaluation(result: EvaluationResult, out: str | os.PathLike, plots: bool = True,
+                     plot_format: str = "png") -> list[Path]:
+    """``frames.csv`` (per-frame rows), ``summary.json``, ``summary.md`` and the plots (``plot_format``:
+    png, pdf or svg) under ``out``."""
+    if plots:
+        check_plot_format(plot_format)  # before anything is written
+    import json
+
+    from stereovo.io import write_frame_csv
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    from stereovo.trials.store import atomic_path, atomic_write_text
+
+    with atomic_path(out / "frames.csv") as tmp:  # a reader never sees half a file
+        write_frame_csv(tmp, result.rows)
+    payload = {**result.summary, "agents": [asdict(a) for a in result.agents], "wall_s": round(result.wall_s, 1)}
+    atomic_write_text(out / "summary.json", json.dumps(payload, indent=2) + "\n")
+    atomic_write_text(out / "summary.md", evaluation_markdown(result.summary, result.wall_s))
+    paths = [out / "frames.csv", out / "summary.json", out / "summary.md"]
+    if plots:
+        paths += write_plots(result.summary, out, plot_format)
+    return paths

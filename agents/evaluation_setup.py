@@ -1,0 +1,280 @@
+"""What an evaluation of sampling agents compares, on which settings, and the format of its rows.
+
+:class:`AgentSpec` names an agent (a heuristic, the oracle or a checkpoint) and rebuilds it in any
+worker process; :func:`resolve_agent` turns a command-line name into one, loading a checkpoint once
+so that a bad file is refused before anything runs. :class:`EvalConfig` holds the settings of both
+sweeps and the classical methods (:func:`normalize_methods`). :data:`ROW_COLUMNS` are the columns
+of a per-frame row, ``KIND_*`` the kinds a row can have, :func:`parse_row_value` reads a stored
+``frames.csv`` cell back. The protocol itself is in :mod:`agents.evaluation`.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Mapping, Sequence
+
+from agents.policies import HEURISTICS, OraclePolicy, Policy, make_heuristic
+from stereovo.benchmark import typed_value
+
+ORACLE = "oracle"
+ORACLE_LABEL = "oracle (upper bound)"
+DEFAULT_METHODS: tuple[str, ...] = ("ransac", "msac", "prosac", "ransac+guided")
+METHOD_ALIASES: dict[str, str] = {"guided": "ransac+guided", "guided-ransac": "ransac+guided"}
+CHECKPOINT_SUFFIXES = (".pt", ".zip")
+
+KIND_AGENT = "agent"
+KIND_ORACLE = "upper bound"
+KIND_FIXED = "classical, fixed budget"
+KIND_ADAPTIVE = "classical, adaptive"
+KIND_AGENT_ADAPTIVE = "agent, adaptive"  # the agent's priors with the prior-aware adaptive stop
+
+ROW_COLUMNS: tuple[str, ...] = (
+    "epsilon", "budget", "n", "score_auc", "episode", "seed", "frame", "method", "kind", "success",
+    "rot_err_deg", "trans_err_m", "t_true_norm_m", "precision", "recall", "n_inliers", "n_true_inliers",
+    "n_hypotheses", "n_scored", "n_point_checks", "status", "frame_outlier_ratio", "reward", "time_s",
+)
+"""Columns of a per-frame row; ``time_s`` (agent action + environment step, or the estimator call) is the
+only one that differs between two runs with one seed."""
+
+
+# --------------------------------------------------------------------------- agents
+
+
+@dataclass(frozen=True)
+class AgentSpec:
+    """An agent to evaluate, rebuilt on demand (picklable, for worker processes).
+
+    Attributes:
+        label: the name in tables and rows.
+        kind: ``"heuristic"``, ``"oracle"`` or ``"checkpoint"``.
+        source: the heuristic's name, or the checkpoint path (``.pt`` from
+            :func:`agents.checkpoint.save_checkpoint`, or a PPO ``.zip``).
+    """
+
+    label: str
+    kind: str
+    source: str
+
+    @property
+    def row_kind(self) -> str:
+        return KIND_ORACLE if self.kind == "oracle" else KIND_AGENT
+
+    def build(self, env) -> Policy:
+        """The policy for ``env`` (the oracle reads the labels of ``env.unwrapped.current_frame``)."""
+        if self.kind == "heuristic":
+            return make_heuristic(self.source)
+        if self.kind == "oracle":
+            base = env.unwrapped
+            return OraclePolicy(lambda: base.current_frame.truth.inlier)
+        if self.kind == "checkpoint":
+            return load_agent_checkpoint(self.source, self.label)
+        raise ValueError(f"unknown agent kind {self.kind!r}")
+
+
+def load_agent_checkpoint(path: str | os.PathLike, name: str | None = None):
+    """A :class:`agents.checkpoint.LearnedPolicy` from a ``.pt`` checkpoint or a PPO ``.zip`` (its actor).
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: not a vo-gym checkpoint, or trained on another feature layout.
+    """
+    from agents.checkpoint import LearnedPolicy
+
+    path = Path(path)
+    if path.suffix == ".zip":
+        from agents.ppo import load_ppo_actor
+
+        return LearnedPolicy(load_ppo_actor(path), name or path.stem)
+    return LearnedPolicy.from_checkpoint(path, name)
+
+
+def resolve_agent(text: str) -> AgentSpec:
+    """``uniform``/``match-score``/``consistency``/``constant-velocity``, ``oracle``, a shipped sampler's
+    name (:data:`agents.checkpoint.SHIPPED_SAMPLERS`) or a checkpoint path.
+
+    A checkpoint is loaded once here, so a missing file, a foreign file or another feature
+    layout is reported before anything runs.
+
+    Raises:
+        ValueError: an unknown name, or a checkpoint that cannot be used (the message says why).
+        FileNotFoundError: a checkpoint path that does not exist.
+    """
+    from agents.checkpoint import SHIPPED_SAMPLERS, shipped_checkpoint
+
+    name = text.strip()
+    if name in HEURISTICS:
+        return AgentSpec(name, "heuristic", name)
+    if name == ORACLE:
+        return AgentSpec(ORACLE_LABEL, "oracle", ORACLE)
+    if name in SHIPPED_SAMPLERS:  # a packaged sampler by name, found wherever the package is installed
+        with shipped_checkpoint(name) as shipped:
+            load_agent_checkpoint(shipped)
+            return AgentSpec(name, "checkpoint", str(shipped))
+    path = Path(name).expanduser()
+    looks_like_path = path.suffix in CHECKPOINT_SUFFIXES or os.sep in name or path.exists()
+    if not looks_like_path:
+        raise ValueError(
+            f"unknown agent {name!r}: not a heuristic ({', '.join(HEURISTICS)}), not {ORACLE!r}, not a shipped "
+            f"sampler ({', '.join(SHIPPED_SAMPLERS)}) and not a checkpoint file (.pt or PPO .zip)"
+        )
+    if not path.is_file():
+        raise FileNotFoundError(f"agent {name!r}: no checkpoint at {path}")
+    load_agent_checkpoint(path)  # raises with a clear message on a foreign file or feature layout
+    return AgentSpec(path.stem, "checkpoint", str(path))
+
+
+def resolve_agents(texts: Sequence[str]) -> list[AgentSpec]:
+    """Resolve every agent; checkpoints whose file names clash get their parent folder in the label."""
+    specs = [resolve_agent(t) for t in texts]
+    if not specs:
+        raise ValueError("no agents to evaluate")
+    seen: dict[str, int] = {}
+    for s in specs:
+        seen[s.label] = seen.get(s.label, 0) + 1
+    out = []
+    for s in specs:
+        if s.kind == "checkpoint" and seen[s.label] > 1:
+            s = AgentSpec(f"{Path(s.source).parent.name}/{s.label}", s.kind, s.source)
+        out.append(s)
+    labels = [s.label for s in out]
+    dupes = sorted({x for x in labels if labels.count(x) > 1})
+    if dupes:
+        raise ValueError(f"agent(s) given twice: {', '.join(dupes)}")
+    return out
+
+
+# --------------------------------------------------------------------------- settings
+
+
+@dataclass(frozen=True)
+class EvalConfig:
+    """What to evaluate on. See the module doc for the protocol.
+
+    Attributes:
+        env_id: a registered vo_gym id; its registered keyword arguments apply.
+        episodes: episodes (trajectories) per setting; episode ``i`` uses seed ``seed + i``.
+        frames_per_episode: frame pairs per episode (the env's ``n_frames``).
+        seed: first episode seed (keep it away from training seeds).
+        budget: hypotheses per frame of the contamination sweep.
+        epsilons: contaminations of the sweep (a).
+        budgets: hypothesis budgets of the sweep (b).
+        sweep_epsilon: contamination of the budget sweep.
+        n: correspondences per frame.
+        score_auc: match-score AUC; None keeps the env id's (0.75 for ``StereoVO-v0``).
+        methods: classical methods (names of :func:`stereovo.benchmark.benchmark_methods` or aliases).
+        max_iterations: hypothesis cap of the adaptive classical runs.
+        env_kwargs: further keyword arguments of the environment (e.g. ``noise_sigma``).
+        success_target: the success rate of "hypotheses needed" (0.99).
+        adaptive_agents: also run every agent at the fixed-budget settings with no budget: its
+            priors and the estimator's prior-aware adaptive stop (q of the agent's weighted draw,
+            capped at ``max_iterations``), rows ``"<agent> (adaptive)"`` beside the classical
+            adaptive ones (PROSAC's own stop among them).
+    """
+
+    env_id: str = "vo_gym/StereoVO-v0"
+    episodes: int = 10
+    frames_per_episode: int = 10
+    seed: int = 1000
+    budget: int = 16
+    epsilons: tuple[float, ...] = (0.3, 0.5, 0.7, 0.8, 0.9)
+    budgets: tuple[int, ...] = (1, 2, 4, 8, 16, 32, 64)
+    sweep_epsilon: float = 0.8
+    n: int = 500
+    score_auc: float | None = None
+    methods: tuple[str, ...] = DEFAULT_METHODS
+    max_iterations: int = 2000
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    success_target: float = 0.99
+    adaptive_agents: bool = False
+
+    def __post_init__(self) -> None:
+        def positive(name: str, value: Any) -> int:
+            if isinstance(value, bool) or int(value) != value or value < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+            return int(value)
+
+        if not isinstance(self.adaptive_agents, bool):
+            raise ValueError(f"adaptive_agents must be True or False, got {self.adaptive_agents!r}")
+        for name in ("episodes", "frames_per_episode", "budget", "n", "max_iterations"):
+            object.__setattr__(self, name, positive(name, getattr(self, name)))
+        if isinstance(self.seed, bool) or int(self.seed) != self.seed or self.seed < 0:
+            raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+        eps = tuple(float(e) for e in self.epsilons)
+        if not eps or not all(0.0 <= e < 1.0 for e in eps) or len(set(eps)) != len(eps):
+            raise ValueError(f"epsilons must be distinct values in [0, 1), got {self.epsilons}")
+        object.__setattr__(self, "epsilons", eps)
+        budgets = tuple(positive("every budget", b) for b in self.budgets)
+        if not budgets or len(set(budgets)) != len(budgets):
+            raise ValueError(f"budgets must be distinct integers >= 1, got {self.budgets}")
+        object.__setattr__(self, "budgets", tuple(sorted(budgets)))
+        if not 0.0 <= float(self.sweep_epsilon) < 1.0:
+            raise ValueError(f"sweep_epsilon must be in [0, 1), got {self.sweep_epsilon}")
+        object.__setattr__(self, "sweep_epsilon", float(self.sweep_epsilon))
+        object.__setattr__(self, "methods", tuple(normalize_methods(self.methods)))
+        reserved = {"n_frames", "n_correspondences", "outlier_ratio", "budget"} & set(self.env_kwargs)
+        if reserved:
+            raise ValueError(f"env_kwargs must not set {sorted(reserved)}: the evaluation's own options do")
+        object.__setattr__(self, "env_kwargs", dict(self.env_kwargs))
+
+    def env_kwargs_for(self, epsilon: float, budget: int) -> dict[str, Any]:
+        kwargs = {
+            **self.env_kwargs, "n_frames": self.frames_per_episode, "n_correspondences": self.n,
+            "outlier_ratio": float(epsilon), "budget": int(budget),
+        }
+        if self.score_auc is not None:
+            kwargs["score_auc"] = float(self.score_auc)
+        return kwargs
+
+    def settings(self) -> list[tuple[float, int]]:
+        """Every ``(epsilon, budget)`` to run, each once: sweep (a), then (b)."""
+        out = [(e, self.budget) for e in self.epsilons] + [(self.sweep_epsilon, self.budget)]
+        out += [(self.sweep_epsilon, b) for b in self.budgets]
+        return list(dict.fromkeys(out))
+
+    def episode_seeds(self) -> list[int]:
+        return [self.seed + i for i in range(self.episodes)]
+
+    def as_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        for key in ("epsilons", "budgets", "methods"):
+            d[key] = list(d[key])
+        return d
+
+
+def normalize_methods(names: Iterable[str]) -> list[str]:
+    """Aliases resolved, duplicates dropped, unknown names refused (listing the known ones)."""
+    from stereovo import benchmark as bm
+
+    known = bm.benchmark_methods()
+    out = list(dict.fromkeys(METHOD_ALIASES.get(n.strip(), n.strip()) for n in names if n.strip()))
+    unknown = [n for n in out if n not in known]
+    if unknown:
+        raise ValueError(
+            f"unknown classical method(s): {', '.join(unknown)}; available: {', '.join(known)}"
+            f" (aliases: {', '.join(f'{a}={b}' for a, b in METHOD_ALIASES.items())})"
+        )
+    return out
+
+
+@dataclass
+class EvaluationResult:
+    """What :func:`agents.evaluation.run_evaluation` returns: its inputs, the per-frame rows, their summary
+    (:func:`agents.evaluation_report.summarize_evaluation`) and the wall time in seconds."""
+
+    config: EvalConfig
+    agents: list[AgentSpec]
+    rows: list[dict[str, Any]]
+    summary: dict[str, Any]
+    wall_s: float
+
+
+_ROW_INTS = {"budget", "n", "episode", "seed", "frame", "n_inliers", "n_true_inliers", "n_hypotheses", "n_scored",
+             "n_point_checks"}
+_ROW_STRS = {"method", "kind", "status"}
+
+
+def parse_row_value(column: str, text: str) -> Any:
+    """A ``frames.csv`` cell's value with its type restored (see :data:`ROW_COLUMNS`)."""
+    return typed_value(column, text, _ROW_INTS, _ROW_STRS, ("success",), strict=True)
