@@ -268,15 +268,38 @@ def test_prosac_n_star_minimises_the_draws():
     assert stop.n_star == 30 and stop.required(65, 100) == 1
 
 
+def test_prosac_maximality_counts_only_the_draws_from_u_n_star():
+    # Chum & Matas 2005: eta = (1 - q_n)^k for k samples all drawn from U_n. N = 500, T'_20 = 23 (the
+    # schedule above): of the first 100 draws, draws 1..23 lie in U_20 (draw t holds u_g(t)), 24..100
+    # hold a point ranked 21st or lower. A best with 10 inliers, the top 10: n* = 20 (min_n),
+    # q_20 = 10 * 9 * 8 / (20 * 19 * 18) = 2/19, k_20 = ln 0.01 / ln(17/19) = 41.40 -> 42 draws from U_20,
+    # 23 done: 19 more, every one in U_20 now; the stop is at draw 100 + 19 = 119, not at once (t >= k).
+    sampler = ProsacSampler(np.arange(500), t_n=200_000)
+    sampler.draw(100, np.random.default_rng(0))
+    assert sampler.drawn_within(20) == 23 and sampler.drawn_within(500) == 100 and sampler.drawn_within(10) == 8  # T'_10 = 8
+    stop = ProsacTermination(sampler, confidence=0.99)
+    inliers = np.zeros(500, dtype=bool)
+    inliers[:10] = True
+    stop.on_new_best(inliers, None)
+    assert stop.n_star == 20 and stop.k_stop == pytest.approx(math.log(0.01) / math.log(17 / 19))
+    assert stop.required(10, 500) == 119
+    later = sampler.draw(19, np.random.default_rng(1))
+    assert later.max() < 20 and sampler.drawn_within(20) == 42
+    # When every draw so far lies in U_n*, the stop is the paper's t >= k_n*: here at once.
+    inliers[:20] = True
+    stop.on_new_best(inliers, None)
+    assert stop.n_star == 20 and stop.required(20, 500) == 119  # k_20 = 1 <= 42 draws from U_20: stop now
+
+
 def test_prosac_counters_and_validation():
     sampler = ProsacSampler(np.arange(100))
     stop = ProsacTermination(sampler, confidence=0.99, max_iterations=777)
     # Before any model: n* is N, the bound the cap, no update.
-    assert stop.counters() == {"prosac_n_star": 100, "prosac_k_stop": 777.0, "prosac_updates": 0}
+    assert stop.counters() == {"prosac_n_star": 100, "prosac_k_stop": 777.0, "prosac_stop_at": 777, "prosac_updates": 0}
     inliers = np.zeros(100, dtype=bool)
     inliers[:40] = True
     stop.on_new_best(inliers, None)
-    assert stop.counters() == {"prosac_n_star": 40, "prosac_k_stop": 1.0, "prosac_updates": 1}
+    assert stop.counters() == {"prosac_n_star": 40, "prosac_k_stop": 1.0, "prosac_stop_at": 1, "prosac_updates": 1}
     stop.on_new_best(inliers, None)
     assert stop.counters()["prosac_updates"] == 2
     for name, value in (("beta", 0.0), ("beta", 1.0), ("psi", 0.0), ("psi", 1.0), ("min_n", 3), ("min_n", 20.5)):

@@ -17,7 +17,11 @@ draws ``k_n`` still needed among the prefixes that pass
   sample from ``U_n`` is all-inlier, ``prod_{j<m} (I_n - j) / (n - j)``;
 
 ties go to the largest such prefix (the most data for the same bound). It then lowers the
-sampler's ``n_max`` to ``n*`` and stops once ``t >= k_n*``. There is no guard on the inlier
+sampler's ``n_max`` to ``n*`` and stops once ``k_n*`` samples have been drawn *from* ``U_n*``: the
+paper's ``eta = (1 - q_n)^k`` holds for k samples all drawn from ``U_n``, so a draw that took a point
+ranked below ``n*`` (made before ``n*`` was lowered) does not count. Every later draw lies in
+``U_n*``, so the stop is at ``t + k_n* - (draws so far within U_n*)`` draws in all; while all draws
+lie in ``U_n*`` that is ``t >= k_n*``. There is no guard on the inlier
 fraction: the non-randomness test is what rejects a chance consensus, and a fraction guard
 switches PROSAC's stop off whenever the inlier ratio is low (with a perfect ordering it then
 needs RANSAC's thousands of draws instead of a handful). The one practical guard is ``min_n``:
@@ -95,7 +99,8 @@ class ProsacTermination:
         ):
             if not ok:
                 raise ValueError(f"option {name} has an invalid value {getattr(self, name.removeprefix('prosac_'))!r}")
-        self.k_stop = float(self.max_iterations)  # draws after which PROSAC may stop
+        self.k_stop = float(self.max_iterations)  # k_n*: the draws from U_n* that maximality asks for
+        self.stop_at = self.max_iterations  # all draws (t) after which PROSAC stops
         self.n_star: int | None = None
         N = self.sampler.order.shape[0]
         self._n = np.arange(1, N + 1)
@@ -117,15 +122,20 @@ class ProsacTermination:
         self.n_star = int(n[best])
         self.k_stop = float(k[best])
         self.sampler.n_max = self.n_star
+        # From here on every draw lies in U_n*; the ones before count only if they did.
+        within = self.sampler.drawn_within(self.n_star)
+        self.stop_at = self.sampler.t + max(int(np.ceil(min(self.k_stop, self.max_iterations))) - within, 0)
         self.updates += 1
 
     def required(self, n_inliers: int, n: int) -> int:
-        return int(np.clip(np.ceil(self.k_stop), 1, self.max_iterations))
+        return int(np.clip(self.stop_at, 1, self.max_iterations))
 
     def counters(self) -> dict[str, int | float]:
-        """``prosac_n_star``: the termination length (N if never set); ``prosac_k_stop``: its bound."""
+        """``prosac_n_star``: the termination length (N if never set); ``prosac_k_stop``: its bound
+        ``k_n*`` (draws from ``U_n*``); ``prosac_stop_at``: the draws in all at which it stops."""
         return {
             "prosac_n_star": int(self.n_star if self.n_star is not None else self.sampler.order.shape[0]),
             "prosac_k_stop": float(self.k_stop),
+            "prosac_stop_at": int(self.stop_at),
             "prosac_updates": int(self.updates),
         }

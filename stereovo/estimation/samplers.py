@@ -217,7 +217,10 @@ class ProsacSampler:
     Draw t (1-based) uses ``n = min(g(t), n_max)`` with ``g(t) = min{n : T'_n >= t}``.
     While ``t <= T'_n`` the sample is ``u_n`` plus two distinct points of ``U_{n-1}``;
     afterwards it is three distinct points of ``U_n`` (plain RANSAC on ``U_n``).
-    ``n_max`` is the termination length n*, which PROSAC's stopping rule may lower.
+    ``n_max`` is the termination length n*, which PROSAC's stopping rule may lower; lowering it
+    below the current ``n`` moves the draws into ``U_{n*}`` at once (they are then plain RANSAC on
+    ``U_{n*}``, the draw count being past ``T'_{n*}``). ``drawn_within(n)`` counts the draws whose
+    points all lie in ``U_n``: the samples "drawn from ``U_n``" that PROSAC's maximality counts.
     """
 
     def __init__(self, order: np.ndarray, t_n: float = 200_000) -> None:
@@ -228,6 +231,7 @@ class ProsacSampler:
         self.growth = prosac_growth(self.n, SAMPLE_SIZE, t_n)
         self.n_max = self.n
         self.t = 0
+        self._by_top = np.zeros(self.n + 1, dtype=np.int64)  # [j]: draws whose lowest-ranked point is u_j
 
     def all_inlier_probability(self, inliers: np.ndarray) -> float:
         """Chance that the next draw is all-inlier given ``inliers (n,)`` bool (PROSAC stops by its own rule).
@@ -262,7 +266,12 @@ class ProsacSampler:
             # n = 3 at the start: the only sample is the top three.
             first = anchored & (pool < SAMPLE_SIZE)
             ranks[first] = np.arange(SAMPLE_SIZE)
+        self._by_top += np.bincount(ranks.max(axis=1) + 1, minlength=self.n + 1)
         return self.order[ranks]
+
+    def drawn_within(self, n: int) -> int:
+        """Draws so far whose three points all lie in ``U_n``, the ``n`` top-ranked correspondences."""
+        return int(self._by_top[: int(n) + 1].sum())
 
 
 class ReplaySampler:
