@@ -30,6 +30,7 @@ import numpy as np
 from gymnasium import spaces
 
 from stereovo.camera import StereoCamera
+from stereovo.compilation import announce_compiling
 from stereovo.estimation import EstimatorOptions, StereoProblem, method_spec
 from stereovo.estimation.loop import LoopState, RansacSearch
 from stereovo.estimation.methods import MotionEstimate
@@ -289,6 +290,7 @@ class StereoVOAdaptiveEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
+        announce_compiling()  # one line on the first run after installing, else nothing
         self._sequence = Sequence(self._sequence_config, int(self.np_random.integers(0, 2**63 - 1)))
         self._rng = np.random.default_rng(int(self.np_random.integers(0, 2**63 - 1)))
         self._chain = PoseChain(self._sequence.true_poses[0])  # poses and the constant-velocity fallback

@@ -18,6 +18,7 @@ import numpy as np
 from gymnasium import spaces
 
 from stereovo.camera import StereoCamera
+from stereovo.compilation import announce_compiling
 from stereovo.estimation import EstimatorOptions, StereoProblem, estimate_problem, method_spec, validate_options
 from stereovo.estimation.methods import ESTIMATOR_OPTION_RULES, MAX_COUNT
 from stereovo.geometry import PoseChain
@@ -414,6 +415,7 @@ class StereoVOEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
+        announce_compiling()  # one line on the first run after installing, else nothing
         sequence_seed = int(self.np_random.integers(0, 2**63 - 1))
         ransac_seed = int(self.np_random.integers(0, 2**63 - 1))
         self._sequence = Sequence(self._sequence_config, sequence_seed)

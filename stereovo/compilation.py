@@ -1,0 +1,100 @@
+"""Whether numba's on-disk cache holds the compiled kernels, and one line when it does not.
+
+Every kernel of the package compiles with ``cache=True``: the first call in the first process
+after installing (or after a source file changed) compiles it, about half a minute for all of
+them on one core, and later processes load the machine code from disk in about a second. So
+that the first ``reset()`` or estimate does not sit silent for that half minute,
+:func:`announce_compiling` prints one line to stderr when a kernel the caller is about to use
+has no cache entry yet; it says nothing otherwise, and at most once per process.
+
+A kernel counts as cached when numba's index file for it (``<module>.<qualname>-<line>.pyXY.nbi``
+in the dispatcher's ``stats.cache_path``, beside the source or in numba's user-wide cache
+folder) exists and is not older than its source file. numba itself checks the source's stamp
+stored inside the index; the modification times are the same test without unpickling it.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+from pathlib import Path
+from typing import Iterable, TextIO
+
+from numba.core.dispatcher import Dispatcher
+
+# The modules whose kernels an estimate or an environment step compiles; their submodules too.
+KERNEL_MODULES = ("stereovo", "vo_gym.features")
+
+MESSAGE = ("vo-gym: compiling the numba kernels on this first run (about 30 s on one core); "
+           "they are cached on disk, later runs start in about a second")
+
+_announced = False  # once per process: a second line would only repeat the first
+
+
+def cache_index_path(kernel: Dispatcher) -> Path | None:
+    """Where numba keeps ``kernel``'s cache index; None when the kernel is not cached (``cache=False``)."""
+    folder = kernel.stats.cache_path
+    if folder is None:
+        return None
+    func = kernel.py_func
+    source = Path(func.__code__.co_filename)
+    qualname = func.__qualname__.replace("<", "").replace(">", "")
+    flags = getattr(sys, "abiflags", "")
+    name = f"{source.stem}.{qualname}-{func.__code__.co_firstlineno}.py{sys.version_info[0]}{sys.version_info[1]}{flags}.nbi"
+    return Path(folder) / name
+
+
+def is_cached(kernel: Dispatcher) -> bool:
+    """True when ``kernel`` will load from numba's cache instead of compiling (see the module docstring)."""
+    index = cache_index_path(kernel)
+    if index is None:
+        return False
+    try:
+        return index.stat().st_mtime >= os.stat(kernel.py_func.__code__.co_filename).st_mtime
+    except OSError:
+        return False
+
+
+def package_kernels(prefixes: Iterable[str] = KERNEL_MODULES) -> list[Dispatcher]:
+    """The cached numba kernels defined in the already imported modules under ``prefixes``."""
+    prefixes = tuple(prefixes)
+    kernels: dict[int, Dispatcher] = {}
+    for name, module in list(sys.modules.items()):
+        if module is None or not any(name == p or name.startswith(p + ".") for p in prefixes):
+            continue
+        for value in vars(module).values():
+            if isinstance(value, Dispatcher) and value.stats.cache_path is not None:
+                kernels[id(value)] = value
+    return list(kernels.values())
+
+
+def uncached_kernels(kernels: Iterable[Dispatcher] | None = None) -> list[str]:
+    """Qualified names of the kernels that would compile on their first call."""
+    if kernels is None:
+        for name in ("stereovo.estimation", "stereovo.simulation"):
+            importlib.import_module(name)
+        kernels = package_kernels()
+    return sorted(f"{k.py_func.__module__}.{k.py_func.__qualname__}" for k in kernels if not is_cached(k))
+
+
+def announce_compiling(kernels: Iterable[Dispatcher] | None = None, stream: TextIO | None = None) -> bool:
+    """Print :data:`MESSAGE` once per process if any of ``kernels`` (default: the package's) is not cached.
+
+    Returns whether it printed. Cheap (a few hundred ``stat`` calls), so the first estimate and the
+    first environment reset call it unconditionally.
+    """
+    global _announced
+    if _announced:
+        return False
+    _announced = True
+    if not uncached_kernels(kernels):
+        return False
+    print(MESSAGE, file=stream if stream is not None else sys.stderr, flush=True)
+    return True
+
+
+def reset_announcement() -> None:
+    """Let :func:`announce_compiling` speak again (for tests)."""
+    global _announced
+    _announced = False

@@ -1,0 +1,82 @@
+"""The one line that says the numba kernels are compiling: spoken when a kernel is not cached, once."""
+
+from __future__ import annotations
+
+import importlib.util
+import io
+import os
+import sys
+import time
+
+import pytest
+
+from stereovo import compilation
+
+
+@pytest.fixture
+def fresh_kernel(tmp_path, monkeypatch):
+    """A cached numba kernel in a new module of its own, never compiled before."""
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    source = tmp_path / "vo_gym_compilation_probe.py"
+    source.write_text(
+        "from numba import njit\n\n"
+        "@njit(cache=True)\n"
+        "def twice(x):\n"
+        "    return 2.0 * x\n"
+    )
+    spec = importlib.util.spec_from_file_location("vo_gym_compilation_probe", source)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    yield module
+    sys.modules.pop(spec.name, None)
+    compilation.reset_announcement()
+
+
+def test_a_kernel_is_cached_only_after_its_first_call(fresh_kernel):
+    kernel = fresh_kernel.twice
+    index = compilation.cache_index_path(kernel)
+    assert index is not None and index.name.startswith("vo_gym_compilation_probe.twice-3.py")  # numba names it by the decorator's line
+    assert not compilation.is_cached(kernel)
+    assert compilation.uncached_kernels([kernel]) == ["vo_gym_compilation_probe.twice"]
+    assert kernel(1.5) == 3.0
+    assert index.exists() and compilation.is_cached(kernel)
+    assert compilation.uncached_kernels([kernel]) == []
+
+
+def test_an_edited_source_counts_as_uncached(fresh_kernel):
+    kernel = fresh_kernel.twice
+    kernel(1.0)
+    assert compilation.is_cached(kernel)
+    later = time.time() + 10
+    os.utime(kernel.py_func.__code__.co_filename, (later, later))  # what saving an edit does
+    assert not compilation.is_cached(kernel)
+
+
+def test_the_line_is_printed_once_and_only_when_compiling(fresh_kernel):
+    kernel = fresh_kernel.twice
+    compilation.reset_announcement()
+    out = io.StringIO()
+    assert compilation.announce_compiling([kernel], stream=out)
+    assert out.getvalue() == compilation.MESSAGE + "\n"
+    assert not compilation.announce_compiling([kernel], stream=out)  # once per process
+    assert out.getvalue().count("\n") == 1
+
+    kernel(2.0)
+    compilation.reset_announcement()
+    quiet = io.StringIO()
+    assert not compilation.announce_compiling([kernel], stream=quiet)
+    assert quiet.getvalue() == ""
+
+
+def test_the_packages_kernels_are_found():
+    import stereovo.estimation  # noqa: F401  (imports the kernels)
+    import stereovo.simulation  # noqa: F401
+    import vo_gym.features  # noqa: F401
+
+    names = {f"{k.py_func.__module__}.{k.py_func.__qualname__}" for k in compilation.package_kernels()}
+    assert len(names) >= 20
+    assert any(name.startswith("stereovo.estimation.kernels") for name in names)
+    assert any(name.startswith("stereovo.simulation") for name in names)
+    assert any(name.startswith("vo_gym.features") for name in names)
+    assert all(name.startswith(("stereovo.", "vo_gym.")) for name in names)
