@@ -11,6 +11,9 @@ A kernel counts as cached when numba's index file for it (``<module>.<qualname>-
 in the dispatcher's ``stats.cache_path``, beside the source or in numba's user-wide cache
 folder) exists and is not older than its source file. numba itself checks the source's stamp
 stored inside the index; the modification times are the same test without unpickling it.
+Kernels inlined into others (``inline="always"``) and helpers that only compiled code calls never
+get an index of their own, so a source file counts as compiled when any of its kernels has one:
+the first run compiles every file's kernels, a later edit recompiles that file's.
 """
 
 from __future__ import annotations
@@ -70,12 +73,17 @@ def package_kernels(prefixes: Iterable[str] = KERNEL_MODULES) -> list[Dispatcher
 
 
 def uncached_kernels(kernels: Iterable[Dispatcher] | None = None) -> list[str]:
-    """Qualified names of the kernels that would compile on their first call."""
+    """Qualified names of the kernels in source files none of whose kernels is cached yet."""
     if kernels is None:
         for name in ("stereovo.estimation", "stereovo.simulation"):
             importlib.import_module(name)
         kernels = package_kernels()
-    return sorted(f"{k.py_func.__module__}.{k.py_func.__qualname__}" for k in kernels if not is_cached(k))
+    by_file: dict[str, list[Dispatcher]] = {}
+    for k in kernels:
+        if k.targetoptions.get("inline", "never") == "never":
+            by_file.setdefault(k.py_func.__code__.co_filename, []).append(k)
+    return sorted(f"{k.py_func.__module__}.{k.py_func.__qualname__}"
+                  for group in by_file.values() if not any(is_cached(k) for k in group) for k in group)
 
 
 def announce_compiling(kernels: Iterable[Dispatcher] | None = None, stream: TextIO | None = None) -> bool:

@@ -22,7 +22,16 @@ def fresh_kernel(tmp_path, monkeypatch):
         "from numba import njit\n\n"
         "@njit(cache=True)\n"
         "def twice(x):\n"
-        "    return 2.0 * x\n"
+        "    return 2.0 * x\n\n"
+        "@njit(cache=True)\n"
+        "def helper(x):\n"
+        "    return x + 1.0\n\n"
+        "@njit(cache=True)\n"
+        "def outer(x):\n"
+        "    return helper(x) * 3.0\n\n"
+        "@njit(cache=True, inline='always')\n"
+        "def inlined(x):\n"
+        "    return x - 1.0\n"
     )
     spec = importlib.util.spec_from_file_location("vo_gym_compilation_probe", source)
     module = importlib.util.module_from_spec(spec)
@@ -42,6 +51,15 @@ def test_a_kernel_is_cached_only_after_its_first_call(fresh_kernel):
     assert kernel(1.5) == 3.0
     assert index.exists() and compilation.is_cached(kernel)
     assert compilation.uncached_kernels([kernel]) == []
+
+
+def test_a_file_counts_as_compiled_once_any_of_its_kernels_is(fresh_kernel):
+    helper, outer, inlined = fresh_kernel.helper, fresh_kernel.outer, fresh_kernel.inlined
+    assert compilation.uncached_kernels([helper, outer, inlined]) == [
+        "vo_gym_compilation_probe.helper", "vo_gym_compilation_probe.outer"]  # inlined kernels never count
+    assert outer(1.0) == 6.0
+    assert compilation.is_cached(outer)
+    assert compilation.uncached_kernels([helper, outer, inlined]) == []
 
 
 def test_an_edited_source_counts_as_uncached(fresh_kernel):
