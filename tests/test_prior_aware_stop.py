@@ -3,6 +3,7 @@ use* is all-inlier given the best model's inliers; and priors of any scale (issu
 
 from __future__ import annotations
 
+import functools
 import itertools
 
 import numpy as np
@@ -10,11 +11,15 @@ import pytest
 from scipy.stats import binom
 
 from stereovo import estimate_motion
-from stereovo.estimation.loop import run_ransac
 from stereovo.estimation.methods import EstimatorOptions, method_spec
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.samplers import ProsacSampler, UniformSampler, WeightedSampler, normalised_weights
-from stereovo.estimation.termination import AdaptiveTermination, all_inlier_probability, required_iterations
+from stereovo.estimation.termination import (
+    AdaptiveTermination,
+    all_inlier_probability,
+    iterations_for,
+    required_iterations,
+)
 from stereovo.geometry import rotation_error
 from stereovo.simulation import SimulationConfig, simulate_frame
 
@@ -121,53 +126,73 @@ def test_complex_priors_are_refused_naming_priors():
         WeightedSampler(np.ones(30, dtype=complex))
 
 
-class RecordingSampler:
-    """A weighted sampler that remembers whether it ever drew an all-inlier sample (truth known)."""
+CALIBRATION_CONFIDENCE = 0.9  # misses allowed in one run of ten: frequent enough to count in 1000 runs
 
-    def __init__(self, priors: np.ndarray, truth: np.ndarray) -> None:
-        self.inner = WeightedSampler(priors)
-        self.n = self.inner.n
-        self.truth = truth
-        self.hit = False
 
-    def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
-        samples = self.inner.draw(batch, rng)
-        self.hit = self.hit or bool(np.any(np.all(self.truth[samples], axis=1)))
-        return samples
+@functools.cache
+def calibration_frames(frames: int = 1000) -> tuple:
+    """1000 seeded frames at eps 0.8 (N 40, 8 inliers) with their problems, simulated once."""
+    config = SimulationConfig(n_correspondences=40, outlier_ratio=0.8)
+    out = []
+    for seed in range(frames):
+        frame = simulate_frame(config, 5000 + seed)
+        out.append((frame, StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)))
+    return tuple(out)
 
-    def all_inlier_probability(self, inliers: np.ndarray) -> float:
-        return self.inner.all_inlier_probability(inliers)
+
+def calibration_misses(kind: str, wrong_q: str | None = None) -> tuple[int, int, float]:
+    """Runs that stop without ever having drawn an all-inlier sample: ``(misses, runs, mean draws)``.
+
+    Over :func:`calibration_frames`; the priors are the match scores (informative), constant
+    (uninformative) or one minus half the scores (adversarial: outliers favoured, every weight in
+    [0.5, 1]). Each run builds the library's components (``method_spec("ransac")``: the guided
+    sampler and the prior-aware stop), tells the stop that the best consensus is the true inlier set
+    and draws exactly the bound's number of samples with that sampler. That is the bound's claim:
+    given the consensus I, k(q_I) draws of *this* sampler miss every all-inlier sample at most
+    1 - confidence of the time. In the loop itself a run can stop only once its best consensus is
+    large, which (without a local refit) takes an all-inlier sample first, so the loop's miss count
+    is 0 whatever q is: a count that cannot fail.
+
+    ``wrong_q``: a deliberately wrong stop, to show that the count catches one: ``"uniform"`` (the
+    count formula, blind to the priors) or ``"doubled"`` (the sampler's q times 2).
+    """
+    options = EstimatorOptions(confidence=CALIBRATION_CONFIDENCE, max_iterations=1_000_000)
+    frames = calibration_frames()
+    misses = draws = 0
+    for seed, (frame, problem) in enumerate(frames):
+        priors = {"informative": frame.scores, "uninformative": np.ones(40), "adversarial": 1.0 - 0.5 * frame.scores}
+        components = method_spec("ransac").build(problem, options, priors[kind], None, {})
+        stop, truth = components.termination, frame.truth.inlier
+        stop.on_new_best(truth, None)
+        count = int(truth.sum())
+        k = stop.required(count, 40)
+        if wrong_q == "uniform":
+            k = required_iterations(count, 40, CALIBRATION_CONFIDENCE, options.max_iterations)
+        elif wrong_q == "doubled":
+            k = iterations_for(min(2 * stop.probability.q, 1.0), CALIBRATION_CONFIDENCE, options.max_iterations)
+        assert k < options.max_iterations  # the bound, not the cap, ends the run
+        samples = components.sampler.draw(k, np.random.default_rng(seed))
+        misses += not bool(np.any(np.all(truth[samples], axis=1)))
+        draws += k
+    return misses, len(frames), draws / len(frames)
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("kind", ["informative", "uninformative", "adversarial"])
-def test_calibration_stops_without_an_all_inlier_sample_at_most_one_in_a_hundred(kind):
-    """1000 seeded frames at eps 0.8 (N 40, 8 inliers), the real loop: a run that stops by the bound
-    without ever having drawn an all-inlier sample happens at most 1 - confidence of the time.
-
-    Low pixel noise and a 1 px gate, so that the minimal fit of an all-inlier sample explains the
-    inliers (the bound is about drawing such a sample). Batches of up to 64 draws: the last one may
-    run past the bound by a few per cent of the draws, which the loop really does."""
-    weights = {"informative": (3.0, 1.0), "uninformative": (1.0, 1.0), "adversarial": (1.0, 1.5)}[kind]
-    config = SimulationConfig(n_correspondences=40, outlier_ratio=0.8, noise_sigma=0.02, outlier_mix=(1, 0, 0))
-    options = EstimatorOptions(noise_sigma=0.02, threshold_px=1.0, max_iterations=1_000_000, batch_size=64,
-                               least_squares_refit=False)
-    misses = stops = 0
-    for seed in range(1000):
-        frame = simulate_frame(config, 5000 + seed)
-        problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, 0.02)
-        priors = np.where(frame.truth.inlier, *weights)
-        components = method_spec("ransac").build(problem, options, priors, None, {})
-        sampler = RecordingSampler(priors, frame.truth.inlier)
-        components.sampler = sampler
-        components.termination.probability.sampler = sampler  # record the very draws the bound is about
-        report = run_ransac(problem, components, np.random.default_rng(seed))
-        stops += 1
-        misses += not sampler.hit
-        assert report.n_hypotheses < options.max_iterations
-    # P(misses >= observed | p = 0.01) must not be tiny: one-sided binomial test at the 0.1 % level
-    assert binom.sf(misses - 1, stops, 0.01) > 1e-3, (kind, misses)
-    print(f"{kind}: {misses} of {stops} runs stopped without an all-inlier sample")
+def test_calibration_stops_without_an_all_inlier_sample_at_most_one_minus_confidence():
+    """Informative, uninformative and adversarial priors: the fraction of runs that stop without an
+    all-inlier sample is at most 1 - confidence (one-sided binomial test at the 0.1 % level), and it is
+    seen (the bound is tight: about 1 - confidence of the runs do miss). A wrong q fails the same test:
+    the uniform count formula under adversarial priors, or the sampler's q doubled."""
+    allowed = 1.0 - CALIBRATION_CONFIDENCE
+    for kind in ("informative", "uninformative", "adversarial"):
+        misses, runs, mean_draws = calibration_misses(kind)
+        assert binom.sf(misses - 1, runs, allowed) > 1e-3, (kind, misses, runs)  # not above 1 - confidence
+        assert binom.cdf(misses, runs, allowed) > 1e-3, (kind, misses, runs)  # nor far below it: the bound is tight
+        print(f"{kind}: {misses} of {runs} runs stopped without an all-inlier sample ({mean_draws:.0f} draws each)")
+    for kind, wrong_q in (("adversarial", "uniform"), ("informative", "doubled")):
+        misses, runs, _ = calibration_misses(kind, wrong_q)
+        assert binom.sf(misses - 1, runs, allowed) < 1e-3, (kind, wrong_q, misses, runs)
+        print(f"{kind} with the {wrong_q} q: {misses} of {runs} runs missed")
 
 
 def test_guided_ransac_draws_fewer_hypotheses_with_informative_priors():
