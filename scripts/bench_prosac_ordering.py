@@ -7,6 +7,11 @@ stop without ever having drawn an all-inlier sample, truth known), and PROSAC's 
 
     .venv/bin/python scripts/bench_prosac_ordering.py --frames 300 --eps 0.5 0.8
     .venv/bin/python scripts/bench_prosac_ordering.py --order perfect   # inliers first, shuffled
+    .venv/bin/python scripts/bench_prosac_ordering.py --rule --told-at 1 30 100
+
+``--rule``: PROSAC's stop alone, told the true consensus after ``--told-at`` draws on random
+orderings (no geometry): its bound against RANSAC's (``k_n* / k_N``), the inlier share of the prefix
+n* it picks, and how often the draws up to its stop hold no all-inlier sample.
 """
 
 from __future__ import annotations
@@ -18,6 +23,8 @@ import numpy as np
 from stereovo.estimation.loop import run_ransac
 from stereovo.estimation.methods import EstimatorOptions, method_spec
 from stereovo.estimation.problem import StereoProblem
+from stereovo.estimation.prosac import ProsacTermination, prefix_draws
+from stereovo.estimation.samplers import ProsacSampler
 from stereovo.geometry import rotation_error
 from stereovo.simulation import SimulationConfig, simulate_frame
 
@@ -55,6 +62,32 @@ def run_one(method: str, frame, options: EstimatorOptions, order, seed: int, ext
     return row
 
 
+def rule_on_true_consensus(eps: float, n: int, orderings: int, confidence: float, told_at: int) -> None:
+    n_inliers = int(round(n * (1 - eps)))
+    k_n = float(prefix_draws(n_inliers, n, 1 - confidence))
+    ratios, shares, misses, draws = [], [], 0, []
+    for seed in range(orderings):
+        g = np.random.default_rng(seed)
+        truth = np.zeros(n, dtype=bool)
+        truth[g.choice(n, n_inliers, replace=False)] = True
+        sampler = ProsacSampler(g.permutation(n))
+        stop = ProsacTermination(sampler, confidence=confidence, max_iterations=10**7)
+        rng = np.random.default_rng(seed + 1)
+        hit = bool(np.any(np.all(truth[sampler.draw(told_at, rng)], axis=1)))
+        stop.on_new_best(truth, None)
+        total = max(stop.required(n_inliers, n), told_at)
+        if total > sampler.t:
+            hit = hit or bool(np.any(np.all(truth[sampler.draw(total - sampler.t, rng)], axis=1)))
+        misses += not hit
+        ratios.append(stop.k_stop / k_n)
+        shares.append(truth[sampler.order[: stop.n_star]].mean())
+        draws.append(total)
+    print(f"eps {eps}  N {n}  {orderings} random orderings  confidence {confidence}  consensus told after {told_at} draw(s)")
+    print(f"  k_n*/k_N {np.mean(ratios):.3f}  inlier share at n* {np.mean(shares):.3f} (overall {n_inliers / n:.2f})  "
+          f"mean draws {np.mean(draws):.1f} (RANSAC's bound {np.ceil(k_n):.0f})  "
+          f"miss {misses / orderings:.3f} (allowed {1 - confidence:.2f})")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=300)
@@ -66,8 +99,18 @@ def main() -> None:
     parser.add_argument("--mix", type=float, nargs=3, default=None, metavar=("RANDOM", "STEREO", "MOVING"),
                         help="outlier_mix of the frames (default: the simulator's, with a moving object)")
     parser.add_argument("--seed0", type=int, default=10_000)
+    parser.add_argument("--batch", type=int, default=None, help="batch_size = first_batch_size (1: one draw at a time)")
+    parser.add_argument("--rule", action="store_true", help="the stop alone on the true consensus (see above)")
+    parser.add_argument("--told-at", type=int, nargs="+", default=[1])
     args = parser.parse_args()
+    if args.rule:
+        for eps in args.eps:
+            for told_at in args.told_at:
+                rule_on_true_consensus(eps, args.n, args.frames, args.confidence, told_at)
+        return
     enhanced = {"polish_iterations": 2, "local_refit": True} if args.enhanced else {}
+    if args.batch is not None:
+        enhanced.update(batch_size=args.batch, first_batch_size=args.batch)
     for eps in args.eps:
         mix = {} if args.mix is None else {"outlier_mix": tuple(args.mix)}
         config = SimulationConfig(n_correspondences=args.n, outlier_ratio=eps, **mix)
