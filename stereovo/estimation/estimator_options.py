@@ -1,0 +1,182 @@
+"""The options every method shares: :class:`EstimatorOptions`, their declarations, the enhancements.
+
+:data:`ESTIMATOR_OPTION_RULES` declares each field (:mod:`stereovo.options`), and
+:class:`EstimatorOptions` is checked against it on construction; :data:`ENHANCEMENTS` names
+the project's additions to the papers' recipes by the option values that switch them on.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+from scipy.stats import chi2
+
+from stereovo.estimation.solvers import SAMPLE_SIZE
+from stereovo.options import Boolean, Integer, Number, Option
+
+MAX_COUNT = 10**9
+"""Upper bound of every hypothesis or iteration count option (a cap that keeps counts in int64 arithmetic)."""
+
+NOISE_SIGMA_RANGE_PX = (1e-3, 1e3)
+"""Accepted ``noise_sigma`` (px): a thousandth of a pixel (far below any real sensor, whose gates would
+fall under the float64 resolution of pixel coordinates near 1e-12 px) to a thousand pixels (noise as
+large as the image, beyond which the gates square into overflow)."""
+
+ESTIMATOR_OPTION_RULES: dict[str, Option] = {
+    "noise_sigma": Number(low=NOISE_SIGMA_RANGE_PX[0], high=NOISE_SIGMA_RANGE_PX[1], unit="px"),
+    "confidence": Number(low=0.0, high=1.0, low_open=True, high_open=True),
+    "max_iterations": Integer(low=1, high=MAX_COUNT),
+    "budget": Integer(low=1, high=MAX_COUNT, allow_none=True),
+    "batch_size": Integer(low=1, high=MAX_COUNT),
+    "first_batch_size": Integer(low=1, high=MAX_COUNT),
+    "threshold_px": Number(low=0.0, high=1e4, low_open=True, unit="px", allow_none=True),
+    "gate_probability": Number(low=0.0, high=1.0, low_open=True, high_open=True),
+    "refine_gate_probability": Number(low=0.0, high=1.0, low_open=True, high_open=True),
+    "rigidity_gate_probability": Number(low=0.0, high=1.0, low_open=True, high_open=True, allow_none=True),
+    "polish_iterations": Integer(low=0, high=1000),
+    "refine": Boolean(),
+    "refine_iterations": Integer(low=0, high=1000),
+    "refine_rounds": Integer(low=1, high=1000),
+    "local_refit": Boolean(),
+    "least_squares_refit": Boolean(),
+    "min_inliers": Integer(low=SAMPLE_SIZE, high=MAX_COUNT),
+}
+"""The declaration of every :class:`EstimatorOptions` field (:mod:`stereovo.options`), by name."""
+
+
+@dataclass(frozen=True)
+class EstimatorOptions:
+    """Options shared by every method, validated on construction (COLMAP's ``Check()`` habit)
+    against :data:`ESTIMATOR_OPTION_RULES`: counts are integers (not bools, not floats), switches are
+    bools, numbers are finite and in range; an error names the option and the value.
+
+    Attributes:
+        noise_sigma: pixel noise standard deviation of the measurements (px), in [1e-3, 1e3]
+            (:data:`NOISE_SIGMA_RANGE_PX`).
+        confidence: probability of drawing at least one all-inlier sample (adaptive stop).
+        max_iterations: hard cap on hypotheses drawn.
+        budget: if set, draw exactly this many hypotheses (fixed budget) instead of stopping adaptively.
+        batch_size: hypotheses fitted and scored per vectorised batch under a fixed ``budget``; the
+            largest batch of an adaptive search.
+        first_batch_size: the first batch of an adaptive search (no ``budget``), after which each
+            batch doubles up to ``batch_size`` (16, 32, 64, 128, 128, ...): small first because at low
+            contamination the stopping bound falls below a batch at once, large later because the
+            bookkeeping between batches costs as much as several hypotheses.
+        threshold_px: reprojection inlier gate (px); None means ``6 * noise_sigma`` (the k-1 point
+            carries its own triangulation noise into frame k, so residuals exceed the pixel noise).
+        gate_probability: chi-square(3) quantile of the Mahalanobis inlier gate.
+        refine_gate_probability: chi-square quantile (3 dof with one v per match, 4 with independent
+            vL and vR: ``camera.measurement_dof``) of the pixel Mahalanobis gate with which
+            ``probabilistic`` re-selects inliers during its final refinement.
+        rigidity_gate_probability: chi-square(1) quantile of the rigidity check (an enhancement,
+            ``probabilistic``'s by default), which drops a minimal sample before fitting if a
+            pairwise distance changes between the frames by more than its triangulation noise
+            allows; None (the default) turns the check off.
+        polish_iterations: Gauss-Newton steps on each minimal sample's reprojection error (an
+            enhancement; 0, the default, keeps the paper's closed-form minimal fit).
+        refine: end with the iterated two-image Levenberg-Marquardt refinement: refine on the
+            inliers, re-select them, repeat until they settle (at most ``refine_rounds`` rounds; an
+            enhancement, off by default).
+        refine_iterations: LM iterations per refinement round.
+        refine_rounds: at most this many refine / re-select-inliers rounds.
+        local_refit: refit each new best on its consensus (a light local optimisation; an
+            enhancement, off by default).
+        least_squares_refit: without ``refine``, end as Fischler & Bolles do: refit the best model
+            by least squares on its inliers (``refine_iterations`` LM steps on their stereo
+            reprojection error, one round) and re-select the inliers once under the method's gate;
+            False keeps the best hypothesis as it is.
+        min_inliers: fewer inliers in the final model is reported as "no consensus".
+
+    The defaults are the papers' recipes. Each registered method may declare its own defaults
+    (:attr:`MethodSpec.defaults`, applied by :func:`estimate_motion` unless the caller gives the
+    option): ``probabilistic`` declares its tuned recipe, and the ``+ enhancement`` variants
+    (``ransac+polish``, ``ransac+lm``, ...) switch on the enhancements their names list
+    (:data:`ENHANCEMENTS`).
+    """
+
+    noise_sigma: float = 0.5
+    confidence: float = 0.99
+    max_iterations: int = 10_000
+    budget: int | None = None
+    batch_size: int = 128
+    first_batch_size: int = 16
+    threshold_px: float | None = None
+    gate_probability: float = 0.95
+    refine_gate_probability: float = 0.99
+    rigidity_gate_probability: float | None = None
+    polish_iterations: int = 0
+    refine: bool = False
+    refine_iterations: int = 6
+    refine_rounds: int = 3
+    local_refit: bool = False
+    least_squares_refit: bool = True
+    min_inliers: int = 6
+
+    def __post_init__(self) -> None:
+        # One contract (stereovo.options): integers only, bools only, finite numbers in range;
+        # values are normalised to plain Python types, never changed numerically.
+        for name, rule in ESTIMATOR_OPTION_RULES.items():
+            object.__setattr__(self, name, rule.check(name, getattr(self, name)))
+
+    @property
+    def reprojection_threshold_sq(self) -> float:
+        px = 6.0 * self.noise_sigma if self.threshold_px is None else self.threshold_px
+        return px * px
+
+    @property
+    def mahalanobis_threshold_sq(self) -> float:
+        return chi2_quantile(self.gate_probability, 3)
+
+    @property
+    def pixel_mahalanobis_threshold_sq(self) -> float:
+        """The pixel gate for independent vL and vR (4 dof); ``probabilistic`` takes the dof of its
+        camera's measurement model (``camera.measurement_dof``)."""
+        return chi2_quantile(self.refine_gate_probability, 4)
+
+
+@functools.lru_cache(maxsize=64)
+def chi2_quantile(probability: float, dof: int) -> float:
+    """The chi-square(``dof``) quantile at ``probability``, the gates' squared thresholds."""
+    # scipy's ppf costs ~0.2 ms a call, a noticeable share of an easy frame's estimate
+    return float(chi2.ppf(probability, dof))
+
+
+ENHANCEMENTS: dict[str, tuple[str, dict[str, Any]]] = {
+    "polish": ("sample polish (2 Gauss-Newton steps of each minimal fit on its points' reprojection error)",
+               {"polish_iterations": 2}),
+    "refit": ("local refit (each new best refitted on its consensus)", {"local_refit": True}),
+    "rigidity": ("rigidity check (samples whose pairwise distances change beyond their noise are dropped unfitted)",
+                 {"rigidity_gate_probability": 0.999}),
+    "lm": ("iterated two-image LM refinement (refine, re-select the inliers, until they settle)", {"refine": True}),
+}
+"""The project's additions to the papers' recipes, by the name a ``+`` variant gives them, with the
+:class:`EstimatorOptions` values that switch each one on (any method accepts them as options)."""
+
+
+def enhancements_used(values: Mapping[str, Any]) -> list[str]:
+    """Names of :data:`ENHANCEMENTS` that the option ``values`` switch on (absent = the default, off)."""
+    used = []
+    if values.get("polish_iterations", 0):
+        used.append("polish")
+    if values.get("local_refit", False):
+        used.append("refit")
+    if values.get("rigidity_gate_probability") is not None:
+        used.append("rigidity")
+    if values.get("refine", False):
+        used.append("lm")
+    return used
+
+
+def recipe_note(defaults: Mapping[str, Any]) -> str:
+    """Which enhancements a method's ``defaults`` switch on, in words (for its description)."""
+    used = enhancements_used(defaults)
+    if not used:
+        return "the paper's recipe, no enhancements"
+    return "enhancements: " + ", ".join(ENHANCEMENTS[name][0] for name in used)
+
+
+SHARED_OPTIONS = frozenset(f.name for f in dataclasses.fields(EstimatorOptions))
+"""The :class:`EstimatorOptions` field names: the options every method accepts besides its own."""

@@ -1,0 +1,208 @@
+"""The registry of named methods: :class:`MethodSpec`, the decorators that register, the look-ups.
+
+A method registers a recipe for the shared loop (:func:`register_method`) or a direct
+estimator (:func:`register_estimator`); :func:`register_variant` adds ``base+enhancement``
+variants; options several methods share are declared once (:func:`declare_options`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from stereovo.estimation.estimator_options import (
+    ENHANCEMENTS,
+    SHARED_OPTIONS,
+    EstimatorOptions,
+    recipe_note,
+)
+from stereovo.estimation.loop import RansacComponents, RansacReport, run_ransac
+from stereovo.estimation.problem import StereoProblem
+from stereovo.options import Option
+
+
+MethodBuilder = Callable[[StereoProblem, EstimatorOptions, np.ndarray | None, np.ndarray | None, dict], RansacComponents]
+# A method that is not a sampling loop (e.g. inlier detection by maximum clique) estimates directly:
+# ``run(problem, options, priors, order, extra, rng) -> RansacReport``.
+MethodRunner = Callable[
+    [StereoProblem, EstimatorOptions, np.ndarray | None, np.ndarray | None, dict, np.random.Generator], RansacReport
+]
+
+
+@dataclass(frozen=True)
+class MethodSpec:
+    """A registered estimator: its recipe (or direct runner), a one-line description and its paper.
+
+    Exactly one of ``build`` (a :class:`RansacComponents` recipe for the shared loop) and
+    ``runner`` (a direct estimator returning the loop's :class:`RansacReport`) is set.
+    """
+
+    name: str
+    description: str
+    reference: str
+    build: MethodBuilder | None
+    extra_options: tuple[str, ...] = ()  # method-specific keyword options besides EstimatorOptions
+    runner: MethodRunner | None = None
+    # Declarations (stereovo.options) of the extra options that have one; a given value is checked
+    # before the method runs, so that validity never depends on the frame (nor on a probe frame).
+    option_rules: Mapping[str, Option] = dataclasses.field(default_factory=dict)
+    # The method's own defaults for EstimatorOptions fields (e.g. probabilistic's tuned recipe, a
+    # variant's enhancements): plain values, applied unless the caller gives the option.
+    defaults: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    inputs: str = "any"  # what the sampler takes: "any" (priors=, order= or neither), "priors", "order", "none"
+
+    def check_options(self, extra: Mapping[str, Any]) -> dict[str, Any]:
+        """The given method options, validated against :attr:`option_rules` and normalised.
+
+        Raises:
+            ValueError: an option that is not the method's, or a value its declaration refuses.
+        """
+        unknown = set(extra) - set(self.extra_options)
+        if unknown:
+            allowed = sorted(SHARED_OPTIONS | set(self.extra_options))
+            raise ValueError(f"unknown option(s) {sorted(unknown)} for method {self.name!r}; known options: {allowed}")
+        return {k: rule.check(k, v) if (rule := self.option_rule(k)) is not None else v for k, v in extra.items()}
+
+    def option_rule(self, name: str) -> Option | None:
+        """The declaration of the method option ``name``: the method's own, else the shared one
+        (:func:`declare_options`); None if it has none (its recipe then checks it when building)."""
+        return self.option_rules.get(name) or _DECLARED_OPTIONS.get(name)
+
+    def check_inputs(self, priors: bool, order: bool) -> None:
+        """Whether the method can run with (``True``) or without priors= and order=; ValueError says why not."""
+        if priors and order:
+            raise ValueError("give either priors (guided sampling) or order (PROSAC), not both")
+        if self.inputs == "order" and not order:
+            raise ValueError(f"method {self.name!r} needs order=: a permutation of range(N), best correspondence first")
+        if self.inputs == "priors" and not priors:
+            raise ValueError(
+                f"method {self.name!r} needs priors=: one inlier probability gamma_i per correspondence "
+                "(e.g. calibrated match scores; clipped to (0, 1))"
+            )
+        if self.inputs == "none" and (priors or order):
+            raise ValueError(
+                f"method {self.name!r} does not sample hypotheses: priors= and order= have no role in it; pass neither"
+            )
+
+    def run(
+        self,
+        problem: StereoProblem,
+        options: EstimatorOptions,
+        priors: np.ndarray | None,
+        order: np.ndarray | None,
+        extra: dict,
+        rng: np.random.Generator,
+    ) -> RansacReport:
+        """Estimate on ``problem``: the shared loop on the recipe, or the direct runner."""
+        if self.runner is not None:
+            return self.runner(problem, options, priors, order, extra, rng)
+        return run_ransac(problem, self.build(problem, options, priors, order, extra), rng)
+
+
+_METHODS: dict[str, MethodSpec] = {}
+_DECLARED_OPTIONS: dict[str, Option] = {}
+
+
+def declare_options(rules: Mapping[str, Option]) -> None:
+    """Declare method options by name, for every method that lists them in ``extra_options``
+    (e.g. the ``sprt_*`` options of ``waldsac`` and ``usac``): each given value is then checked
+    by its declaration before any method runs.
+
+    Raises:
+        ValueError: a name declared before with another rule.
+    """
+    for name, rule in rules.items():
+        if _DECLARED_OPTIONS.get(name, rule) != rule:
+            raise ValueError(f"option {name!r} is already declared as {_DECLARED_OPTIONS[name]!r}")
+        _DECLARED_OPTIONS[name] = rule
+
+
+def declared_option(name: str) -> Option | None:
+    """The shared declaration of a method option (None if undeclared)."""
+    return _DECLARED_OPTIONS.get(name)
+
+
+def _register(spec: MethodSpec) -> None:
+    if spec.name in _METHODS:
+        raise ValueError(f"method {spec.name!r} is already registered")
+    unknown = set(spec.defaults) - {f.name for f in dataclasses.fields(EstimatorOptions)}
+    if unknown:
+        raise ValueError(f"method {spec.name!r}: defaults {sorted(unknown)} are not EstimatorOptions fields")
+    EstimatorOptions(**spec.defaults)  # each default obeys its declaration
+    _METHODS[spec.name] = spec
+
+
+def _option_names_and_rules(extra_options) -> tuple[tuple[str, ...], dict[str, Option]]:
+    if isinstance(extra_options, Mapping):
+        return tuple(extra_options), dict(extra_options)
+    return tuple(extra_options), {}
+
+
+def register_method(
+    name: str, description: str, reference: str, extra_options: tuple[str, ...] | Mapping[str, Option] = (),
+    inputs: str = "any", defaults: Mapping[str, Any] | None = None,
+) -> Callable[[MethodBuilder], MethodBuilder]:
+    """Decorator registering ``build(problem, options, priors, order, extra) -> RansacComponents``.
+
+    ``extra_options``: the method's own option names, or a mapping of them to their declarations
+    (:mod:`stereovo.options`), which are then checked before the method runs. ``inputs``: see
+    :meth:`MethodSpec.check_inputs`. ``defaults``: :attr:`MethodSpec.defaults`.
+    """
+
+    def decorator(build: MethodBuilder) -> MethodBuilder:
+        names, rules = _option_names_and_rules(extra_options)
+        _register(MethodSpec(name, description, reference, build, names, option_rules=rules, inputs=inputs,
+                             defaults=dict(defaults or {})))
+        return build
+
+    return decorator
+
+
+def register_estimator(
+    name: str, description: str, reference: str, extra_options: tuple[str, ...] | Mapping[str, Option] = (),
+    inputs: str = "none",
+) -> Callable[[MethodRunner], MethodRunner]:
+    """Decorator registering a method that is not a sampling loop.
+
+    The runner ``run(problem, options, priors, order, extra, rng) -> RansacReport`` reuses the
+    core's fit, refinement and scoring; :func:`estimate_motion` wraps its report like the loop's.
+    ``extra_options`` and ``inputs`` as :func:`register_method`'s (a direct runner samples nothing:
+    ``inputs="none"`` by default).
+    """
+
+    def decorator(runner: MethodRunner) -> MethodRunner:
+        names, rules = _option_names_and_rules(extra_options)
+        _register(MethodSpec(name, description, reference, None, names, runner, option_rules=rules, inputs=inputs))
+        return runner
+
+    return decorator
+
+
+def available_methods() -> dict[str, str]:
+    """Registered method names mapped to ``"description; recipe (reference)"``: the recipe says
+    which enhancements (:data:`ENHANCEMENTS`) the method uses by default, or that it has none."""
+    return {name: f"{spec.description}; {recipe_note(spec.defaults)} ({spec.reference})" for name, spec in _METHODS.items()}
+
+
+def method_spec(name: str) -> MethodSpec:
+    if name not in _METHODS:
+        raise ValueError(f"unknown method {name!r}; available: {', '.join(sorted(_METHODS))}")
+    return _METHODS[name]
+
+
+def register_variant(base: str, *enhancements: str) -> str:
+    """Register ``base+e1+e2...``: method ``base`` with the named :data:`ENHANCEMENTS` switched on by
+    default (for the baseline report's "+ enhancement" rows). Returns the variant's name."""
+    unknown = [e for e in enhancements if e not in ENHANCEMENTS]
+    if unknown or not enhancements:
+        raise ValueError(f"enhancements must be some of {sorted(ENHANCEMENTS)}, got {list(enhancements)}")
+    spec = method_spec(base)
+    defaults = dict(spec.defaults)
+    for name in enhancements:
+        defaults.update(ENHANCEMENTS[name][1])
+    name = "+".join((base, *enhancements))
+    _register(dataclasses.replace(spec, name=name, defaults=defaults))
+    return name
