@@ -104,10 +104,13 @@ def sprt_verify(R, t, X, mc, cam, threshold_sq, samples, perm, log_consistent, l
     ``log_inconsistent = log((1 - delta) / (1 - epsilon)) > 0`` for one outside; the hypothesis is
     rejected as soon as ``log lambda > log_A``. Working with logarithms, no product can overflow.
 
-    The points are copied once per call into contiguous arrays in checking order; each hypothesis
-    computes its residuals in blocks (8 points, doubling up to 128: a loop the compiler vectorises,
-    as in full scoring) and then walks the block's decisions, so a hypothesis rejected early costs
-    a few residuals past the deciding point and an accepted one runs at nearly full-scoring speed.
+    Each hypothesis computes its residuals in blocks (a loop the compiler vectorises, as in full
+    scoring) and then walks the block's decisions. No hypothesis can be rejected before
+    ``floor(log_A / log_inconsistent) + 1`` checks, so the first block is that long (at least 8);
+    later blocks start at 8 and double up to 128. A hypothesis rejected at its j-th point thus costs
+    j residuals plus at most a block's overshoot, and an accepted one runs at nearly full-scoring
+    speed. The points are copied into contiguous arrays in checking order as far as some hypothesis
+    reaches (a batch that rejects everything early copies a prefix, not all N).
 
     Returns:
         ``(accepted (H,) bool, checked (H,) int64, consistent (H,) int64, residual_sq (H, N))``:
@@ -119,10 +122,14 @@ def sprt_verify(R, t, X, mc, cam, threshold_sq, samples, perm, log_consistent, l
     fx, fy, cx, cy, b = cam[0], cam[1], cam[2], cam[3], cam[4]
     X0, X1, X2 = np.empty(N), np.empty(N), np.empty(N)
     M0, M1, M2, M3 = np.empty(N), np.empty(N), np.empty(N), np.empty(N)
-    for j in range(N):
-        n = perm[j]
-        X0[j], X1[j], X2[j] = X[n, 0], X[n, 1], X[n, 2]
-        M0[j], M1[j], M2[j], M3[j] = mc[n, 0], mc[n, 1], mc[n, 2], mc[n, 3]
+    copied = 0
+    # the fewest checks that can reach log_A (inconsistent points only); the sample's own points
+    # are skipped, so the first block may decide nothing, never too much
+    first = N
+    if log_inconsistent > 0.0:
+        need = log_A / log_inconsistent
+        if need < N:
+            first = max(int(need) + 1, 8)
     accepted = np.zeros(H, dtype=np.bool_)
     checked = np.zeros(H, dtype=np.int64)
     consistent = np.zeros(H, dtype=np.int64)
@@ -139,9 +146,14 @@ def sprt_verify(R, t, X, mc, cam, threshold_sq, samples, perm, log_consistent, l
         n_consistent = 0
         alive = True
         start = 0
-        block = 8
+        block = first
         while start < N and alive:
             stop = min(start + block, N)
+            while copied < stop:
+                n = perm[copied]
+                X0[copied], X1[copied], X2[copied] = X[n, 0], X[n, 1], X[n, 2]
+                M0[copied], M1[copied], M2[copied], M3[copied] = mc[n, 0], mc[n, 1], mc[n, 2], mc[n, 3]
+                copied += 1
             for j in range(start, stop):
                 buf[j] = point_reprojection_sq(
                     r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2,
@@ -160,8 +172,8 @@ def sprt_verify(R, t, X, mc, cam, threshold_sq, samples, perm, log_consistent, l
                     if log_lambda > log_A:
                         alive = False
                         break
+            block = 8 if start == 0 else min(2 * block, 128)
             start = stop
-            block = min(2 * block, 128)
         accepted[h] = alive
         checked[h] = n_checked
         consistent[h] = n_consistent

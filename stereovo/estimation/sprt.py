@@ -20,6 +20,7 @@ test's error bounds use; a hypothesis' own three sample points are skipped.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -38,8 +39,12 @@ DELTA_BOUNDS = (1e-3, 0.3)  # clamp delta: at 0 the test takes log 0 and rejects
 MIN_A = 2.0  # below this the test rejects almost anything: fall back to full verification
 
 
+_DESIGNS: dict[tuple[float, float, float, float, float], tuple[float, float, float]] = {}
+_DESIGNS_MAX = 4096  # each entry a few floats; cleared when full (runs repeat the same first design)
+
+
 def sprt_design(epsilon: float, delta: float, t_m: float, m_s: float = 1.0, tol: float = 1e-9) -> tuple[float, float, float]:
-    """The SPRT decision threshold for one (epsilon, delta) pair.
+    """The SPRT decision threshold for one (epsilon, delta) pair (cached: a pure function of its arguments).
 
     ``C = (1 - delta) log((1 - delta)/(1 - epsilon)) + delta log(delta/epsilon)``,
     ``K = t_M C / m_S``, ``A`` the fixed point of ``A = K + 1 + log A`` iterated from ``K + 1``.
@@ -52,6 +57,16 @@ def sprt_design(epsilon: float, delta: float, t_m: float, m_s: float = 1.0, tol:
     Returns:
         ``(C, K, A)``; ``A = inf`` (no early rejection) when ``C <= 0`` or ``A < 2``.
     """
+    key = (float(epsilon), float(delta), float(t_m), float(m_s), float(tol))
+    design = _DESIGNS.get(key)
+    if design is None:
+        if len(_DESIGNS) >= _DESIGNS_MAX:
+            _DESIGNS.clear()
+        design = _DESIGNS[key] = _design(*key)
+    return design
+
+
+def _design(epsilon: float, delta: float, t_m: float, m_s: float, tol: float) -> tuple[float, float, float]:
     if not (0 < delta < 1 and 0 < epsilon < 1):
         return 0.0, 0.0, np.inf
     C = (1 - delta) * np.log((1 - delta) / (1 - epsilon)) + delta * np.log(delta / epsilon)
@@ -125,7 +140,14 @@ class SprtTest:
 
     @property
     def active(self) -> bool:
-        return bool(np.isfinite(self.A))
+        return math.isfinite(self.A)
+
+    @functools.cached_property
+    def log_steps(self) -> tuple[float, float, float]:
+        """``(log(delta / epsilon) < 0, log((1 - delta) / (1 - epsilon)) > 0, log A)`` of an active
+        test: once per design (a design is fixed once made; only ``draws`` grows), not per batch."""
+        return (float(np.log(self.delta / self.epsilon)), float(np.log1p(-self.delta) - np.log1p(-self.epsilon)),
+                float(np.log(self.A)))
 
 
 @dataclass
@@ -212,7 +234,7 @@ class SprtVerification:
     def _update_delta(self) -> None:
         if self._n_rejected == 0:
             return
-        delta_hat = float(np.clip(self._ratio_sum / self._n_rejected, *DELTA_BOUNDS))
+        delta_hat = min(max(self._ratio_sum / self._n_rejected, DELTA_BOUNDS[0]), DELTA_BOUNDS[1])
         if abs(delta_hat - self.delta) > self.delta_tolerance * self.delta:
             self.delta = delta_hat
             self._design()
@@ -236,9 +258,7 @@ class SprtVerification:
             self.n_full += H
             return scores, H * n
 
-        log_consistent = np.log(test.delta / test.epsilon)  # < 0
-        log_inconsistent = np.log1p(-test.delta) - np.log1p(-test.epsilon)  # > 0
-        log_A = np.log(test.A)
+        log_consistent, log_inconsistent, log_A = test.log_steps
         self.n_tests += H
 
         perm = rng.permutation(n)
@@ -284,7 +304,7 @@ class SprtVerification:
         alive, checked, consistent, sq_all = kernels_verification.sprt_verify(
             np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float), p.points_prev, p.curr,
             p.camera.parameters, float(ctx.threshold_sq), np.ascontiguousarray(samples, dtype=np.int64),
-            perm.astype(np.int64), float(log_consistent), float(log_inconsistent), float(log_A),
+            np.ascontiguousarray(perm, dtype=np.int64), float(log_consistent), float(log_inconsistent), float(log_A),
         )
         return self._conclude(ctx, R, alive, checked, consistent, sq_all)
 
@@ -293,19 +313,22 @@ class SprtVerification:
         H, n = R.shape[0], ctx.problem.n
         scores = np.full(H, -np.inf)
         rows = np.flatnonzero(alive)
-        if rows.size:
+        n_alive = int(rows.size)
+        if n_alive:
             scores[rows] = ctx.quality.score(sq_all[rows], ctx.threshold_sq)
             row_of = np.full(H, -1, dtype=np.int64)
-            row_of[rows] = np.arange(rows.size)
+            row_of[rows] = np.arange(n_alive)
             ctx.remember(R, sq_all[rows], row_of)
-        n_alive = int(rows.size)
+            dead = ~alive
+            checked, consistent = checked[dead], consistent[dead]
         self.n_accepted += n_alive
-        dead = ~alive
-        if np.any(dead):
-            self._ratio_sum += float(np.sum(consistent[dead] / np.maximum(checked[dead], 1)))
-            self._n_rejected += int(np.count_nonzero(dead))
+        rejected_checks = 0
+        if n_alive < H:  # checked, consistent: of the rejected hypotheses only
+            self._ratio_sum += float(np.sum(consistent / np.maximum(checked, 1)))
+            self._n_rejected += H - n_alive
+            rejected_checks = int(np.sum(checked))
         self._update_delta()
-        return scores, int(np.sum(checked[dead])) + n_alive * n
+        return scores, rejected_checks + n_alive * n
 
 
 @dataclass
@@ -330,6 +353,10 @@ class SprtTermination:
         # alpha_i depends on the tests and on I_best only: cached per inlier count (the loop asks with
         # the count before and after a new best's local optimisation, so one entry would thrash)
         self._alphas_by_count: dict[int, list[float]] = {}
+        self._q_by_count: dict[tuple[int, int], float] = {}  # uniform sampling's P_g per (I, N)
+        # the last answers: the loop asks after every batch, and between redesigns only the current
+        # test's draws change, which the bound does not read (it needs the draws of the past tests)
+        self._answers: dict[tuple, tuple] = {}
 
     def on_new_best(self, inliers: np.ndarray, state: LoopState) -> None:
         """The sampler's all-inlier chance for the new best (the verifier redesigns the test)."""
@@ -353,10 +380,34 @@ class SprtTermination:
         return alphas
 
     def required(self, n_inliers: int, n: int) -> int:
-        p_good = self.probability.of(n_inliers, n)
+        if self.probability.guided:
+            p_good = self.probability.of(n_inliers, n)
+        else:
+            p_good = self._q_by_count.get((n_inliers, n))
+            if p_good is None:
+                if len(self._q_by_count) > 64:
+                    self._q_by_count.clear()
+                p_good = self._q_by_count[(n_inliers, n)] = self.probability.of(n_inliers, n)
         if p_good <= 0:
             return self.max_iterations
         history = self.verifier.history
+        # The bound reads the tests (fixed once designed) and the draws of all but the current one,
+        # which change only at a redesign: the answer is kept per (I, N, P_g) with the tests and
+        # draws it was computed for (the objects themselves, so a replaced test never matches).
+        key = (n_inliers, n, p_good, self.confidence, self.max_iterations)
+        tests, draws = tuple(history), tuple(test.draws for test in history[:-1])
+        kept = self._answers.get(key)
+        if kept is not None and kept[1] == draws and len(kept[0]) == len(tests) and all(
+            a is b for a, b in zip(kept[0], tests)
+        ):
+            return kept[2]
+        if len(self._answers) > 64:
+            self._answers.clear()
+        answer = self._bound(n_inliers, n, p_good, history)
+        self._answers[key] = (tests, draws, answer)
+        return answer
+
+    def _bound(self, n_inliers: int, n: int, p_good: float, history: list[SprtTest]) -> int:
         alphas = self._good_model_rejection(n_inliers, n, history)
         log_eta = 0.0
         done = 0
