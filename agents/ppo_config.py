@@ -1,0 +1,187 @@
+"""The PPO trainer's settings and how they become an environment and an SB3 model.
+
+:class:`PPOConfig` holds every setting (it is stored in the SB3 zip and the exported
+checkpoint); :func:`make_training_env` builds the vectorised environments and
+:func:`build_model` a fresh SB3 ``PPO`` with the equivariant policy. Training:
+:mod:`agents.ppo`; reading a zip back: :mod:`agents.ppo_zip`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from vo_gym.features import FEATURE_LAYOUT_VERSION, FEATURE_NAMES
+
+VEC_ENVS = ("dummy", "subproc")
+
+
+@dataclass
+class PPOConfig:
+    """PPO training settings (saved in the SB3 zip and the exported checkpoint).
+
+    Environment: ``env_id`` with ``n_frames`` frame pairs per episode, ``n_correspondences``,
+    contamination drawn per frame from ``epsilon_range``, ``budget`` hypotheses, ``reward_mode``
+    and any further ``env_kwargs``. Evaluation: every ``eval_every`` environment steps (rounded up to
+    a whole vectorised step), ``eval_frames`` frames at ``eval_epsilon`` from seeds ``eval_seed + i``,
+    with ``eval_n_correspondences`` matches per frame (None: the training ``n_correspondences``; the
+    network serves any N, so training on fewer matches and evaluating on more is legitimate).
+    The remaining fields are SB3 ``PPO`` arguments and the policy's sizes.
+
+    Defaults are what trained in minutes on 2 CPU cores (measured, see the probes in the PPO report):
+    exploration is Gaussian noise on every logit, and the share of a frame's outcome that one
+    correspondence's noise explains shrinks with N, so PPO trains on N = 100 (about 5x faster steps
+    too) and is evaluated on N = 500; a wide initial std (log-std 1) and a learning rate of 1e-4 keep
+    the PPO ratio, a product over all N slots, inside the clip range (approx. KL ~0.02 per update).
+    With N = 500 and log-std 0 nothing was learnt in 6000 steps.
+    """
+
+    env_id: str = "vo_gym/StereoVO-v0"
+    n_envs: int = 2
+    vec_env: str = "dummy"
+    seed: int = 0
+    timesteps: int = 20_000
+    # environment
+    n_frames: int = 8
+    n_correspondences: int = 100
+    epsilon_range: tuple[float, float] = (0.3, 0.9)
+    budget: int = 16
+    reward_mode: str = "supervised"
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+    # PPO
+    n_steps: int = 256
+    batch_size: int = 128
+    n_epochs: int = 4
+    learning_rate: float = 1e-4
+    gamma: float = 0.5
+    gae_lambda: float = 0.9
+    clip_range: float = 0.2
+    ent_coef: float = 0.0
+    vf_coef: float = 0.5
+    max_grad_norm: float = 0.5
+    target_kl: float | None = None
+    # policy
+    width: int = 32
+    blocks: int = 3
+    critic_width: int | None = 32
+    critic_hidden: int = 64
+    share_trunk: bool = False
+    log_std_init: float = 1.0
+    # evaluation and checkpoints
+    eval_every: int = 2000
+    eval_frames: int = 100
+    eval_epsilon: float = 0.8
+    eval_n_correspondences: int | None = 500
+    eval_seed: int = 10_000
+    checkpoint_every: int = 5000
+    max_wall_s: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("n_envs", "timesteps", "n_frames", "n_correspondences", "budget", "n_steps", "batch_size",
+                     "n_epochs", "width", "blocks", "critic_hidden", "eval_every", "eval_frames", "checkpoint_every"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or int(value) != value or value < 1:
+                raise ValueError(f"PPO: {name} must be an integer >= 1, got {value!r}")
+            setattr(self, name, int(value))
+        if self.eval_n_correspondences is not None and (
+            int(self.eval_n_correspondences) != self.eval_n_correspondences or self.eval_n_correspondences < 3
+        ):
+            raise ValueError(f"PPO: eval_n_correspondences must be None or an integer >= 3, got "
+                             f"{self.eval_n_correspondences!r}")
+        if self.max_wall_s is not None and not self.max_wall_s > 0:
+            raise ValueError(f"PPO: max_wall_s must be None or > 0 seconds, got {self.max_wall_s!r}")
+        if self.vec_env not in VEC_ENVS:
+            raise ValueError(f"PPO: vec_env must be one of {VEC_ENVS}, got {self.vec_env!r}")
+        lo, hi = (float(x) for x in self.epsilon_range)
+        if not 0.0 <= lo <= hi < 1.0:
+            raise ValueError(f"PPO: epsilon_range must satisfy 0 <= low <= high < 1, got {self.epsilon_range}")
+        self.epsilon_range = (lo, hi)
+        if not 0.0 <= self.eval_epsilon < 1.0:
+            raise ValueError(f"PPO: eval_epsilon must be in [0, 1), got {self.eval_epsilon}")
+        if self.batch_size > self.n_steps * self.n_envs:
+            raise ValueError(
+                f"PPO: batch_size={self.batch_size} exceeds the rollout size n_steps * n_envs = "
+                f"{self.n_steps * self.n_envs}"
+            )
+        for name in ("learning_rate", "clip_range"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"PPO: {name} must be > 0, got {getattr(self, name)!r}")
+        if not (0.0 <= self.gamma <= 1.0 and 0.0 <= self.gae_lambda <= 1.0):
+            raise ValueError(f"PPO: gamma and gae_lambda must be in [0, 1], got {self.gamma}, {self.gae_lambda}")
+        self.env_kwargs = dict(self.env_kwargs)
+
+    def train_env_kwargs(self) -> dict[str, Any]:
+        return {**self.env_kwargs, "n_frames": self.n_frames, "n_correspondences": self.n_correspondences,
+                "outlier_ratio": self.epsilon_range, "budget": self.budget, "reward_mode": self.reward_mode}
+
+    def eval_env_kwargs(self) -> dict[str, Any]:
+        n = self.n_correspondences if self.eval_n_correspondences is None else self.eval_n_correspondences
+        return {**self.train_env_kwargs(), "outlier_ratio": float(self.eval_epsilon), "n_correspondences": n}
+
+    def eval_seeds(self) -> list[int]:
+        return [self.eval_seed + i for i in range(math.ceil(self.eval_frames / self.n_frames))]
+
+    def as_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d["epsilon_range"] = list(self.epsilon_range)
+        return d
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "PPOConfig":
+        known = {f.name for f in dataclasses.fields(cls)}
+        data = {k: v for k, v in data.items() if k in known}
+        if "epsilon_range" in data:
+            data["epsilon_range"] = tuple(data["epsilon_range"])
+        return cls(**data)
+
+
+# --------------------------------------------------------------------------- building blocks
+
+
+def make_training_env(config: PPOConfig, seed: int | None = None):
+    """``config.n_envs`` monitored envs in a ``DummyVecEnv`` / ``SubprocVecEnv``, seeded ``seed + rank``."""
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+    import vo_gym  # noqa: F401  (registers the ids)
+
+    cls = SubprocVecEnv if config.vec_env == "subproc" else DummyVecEnv
+    return make_vec_env(
+        config.env_id, n_envs=config.n_envs, seed=config.seed if seed is None else seed,
+        env_kwargs=config.train_env_kwargs(), vec_env_cls=cls,
+    )
+
+
+def stored_config(config: PPOConfig) -> dict[str, Any]:
+    """What the SB3 zip carries in ``policy_kwargs["train_config"]``: the config and the feature layout."""
+    return {**config.as_dict(), "feature_names": list(FEATURE_NAMES), "feature_layout_version": FEATURE_LAYOUT_VERSION}
+
+
+def policy_kwargs(config: PPOConfig) -> dict[str, Any]:
+    return {
+        "width": config.width, "blocks": config.blocks, "critic_width": config.critic_width,
+        "critic_hidden": config.critic_hidden, "share_trunk": config.share_trunk,
+        "log_std_init": config.log_std_init, "train_config": stored_config(config),
+    }
+
+
+def build_model(config: PPOConfig, env, tensorboard_log: str | None = None, verbose: int = 0, setup: bool = True):
+    """A fresh SB3 ``PPO`` with :class:`agents.sb3_policy.EquivariantActorCriticPolicy`.
+
+    ``setup=False``: the object without its policy and buffers yet (SB3's ``_init_setup_model``), for
+    :func:`load_ppo` to set the spaces first when there is no ``env``.
+    """
+    from stable_baselines3 import PPO
+
+    from agents.sb3_policy import EquivariantActorCriticPolicy
+
+    return PPO(
+        EquivariantActorCriticPolicy, env, learning_rate=config.learning_rate, n_steps=config.n_steps,
+        batch_size=config.batch_size, n_epochs=config.n_epochs, gamma=config.gamma, gae_lambda=config.gae_lambda,
+        clip_range=config.clip_range, ent_coef=config.ent_coef, vf_coef=config.vf_coef,
+        max_grad_norm=config.max_grad_norm, target_kl=config.target_kl, tensorboard_log=tensorboard_log,
+        policy_kwargs=policy_kwargs(config), seed=config.seed, device="cpu", verbose=verbose,
+        _init_setup_model=setup,
+    )
