@@ -276,7 +276,8 @@ def test_prosac_maximality_counts_only_the_draws_from_u_n_star():
     # 23 done: 19 more, every one in U_20 now; the stop is at draw 100 + 19 = 119, not at once (t >= k).
     sampler = ProsacSampler(np.arange(500), t_n=200_000)
     sampler.draw(100, np.random.default_rng(0))
-    assert sampler.drawn_within(20) == 23 and sampler.drawn_within(500) == 100 and sampler.drawn_within(10) == 8  # T'_10 = 8
+    assert sampler.drawn_within(20) == 23 and sampler.drawn_within(500) == 100
+    assert sampler.drawn_within(10) == 8  # T'_10 = 8
     stop = ProsacTermination(sampler, confidence=0.99)
     inliers = np.zeros(500, dtype=bool)
     inliers[:10] = True
