@@ -231,7 +231,10 @@ class ProsacSampler:
         self.growth = prosac_growth(self.n, SAMPLE_SIZE, t_n)
         self.n_max = self.n
         self.t = 0
-        self._by_top = np.zeros(self.n + 1, dtype=np.int64)  # [j]: draws whose lowest-ranked point is u_j
+        # Draws by their largest rank (0-based), for drawn_within; batches wait in _pending and are
+        # folded in now and then (a bincount per batch would cost more than the draw's bookkeeping).
+        self._by_largest_rank = np.zeros(self.n, dtype=np.int64)
+        self._pending: list[np.ndarray] = []
 
     def all_inlier_probability(self, inliers: np.ndarray) -> float:
         """Chance that the next draw is all-inlier given ``inliers (n,)`` bool (PROSAC stops by its own rule).
@@ -266,12 +269,20 @@ class ProsacSampler:
             # n = 3 at the start: the only sample is the top three.
             first = anchored & (pool < SAMPLE_SIZE)
             ranks[first] = np.arange(SAMPLE_SIZE)
-        self._by_top += np.bincount(ranks.max(axis=1) + 1, minlength=self.n + 1)
+        self._pending.append(ranks)
+        if len(self._pending) >= 64:
+            self._fold()
         return self.order[ranks]
+
+    def _fold(self) -> None:
+        if self._pending:
+            self._by_largest_rank += np.bincount(np.concatenate(self._pending).max(axis=1), minlength=self.n)
+            self._pending = []
 
     def drawn_within(self, n: int) -> int:
         """Draws so far whose three points all lie in ``U_n``, the ``n`` top-ranked correspondences."""
-        return int(self._by_top[: int(n) + 1].sum())
+        self._fold()
+        return int(self._by_largest_rank[: max(int(n), 0)].sum())
 
 
 class ReplaySampler:
