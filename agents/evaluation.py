@@ -81,6 +81,7 @@ from agents.evaluation_setup import (
 )
 from agents.policies import Policy
 from agents.rollout import make_env, success_rate
+from stereovo.options import Integer
 
 __all__ = [
     "ORACLE",
@@ -309,8 +310,7 @@ def run_evaluation(
     """
     from stereovo.trials import Task, make_backend, run_tasks
 
-    if isinstance(workers, bool) or int(workers) != workers or workers < 1:
-        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    workers = Integer(low=1).check("workers", workers, prefix="")
     make_env(config.env_id, **config.env_kwargs_for(config.sweep_epsilon, config.budget)).close()  # validates
     units = evaluation_units(config, agents)
     owned = backend is None

@@ -17,6 +17,7 @@ from typing import Any, Iterable, Mapping, Sequence
 
 from agents.policies import HEURISTICS, OraclePolicy, Policy, make_heuristic
 from stereovo.benchmark import typed_value
+from stereovo.options import Integer
 
 ORACLE = "oracle"
 ORACLE_LABEL = "oracle (upper bound)"
@@ -190,22 +191,16 @@ class EvalConfig:
     adaptive_agents: bool = False
 
     def __post_init__(self) -> None:
-        def positive(name: str, value: Any) -> int:
-            if isinstance(value, bool) or int(value) != value or value < 1:
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-            return int(value)
-
         if not isinstance(self.adaptive_agents, bool):
             raise ValueError(f"adaptive_agents must be True or False, got {self.adaptive_agents!r}")
         for name in ("episodes", "frames_per_episode", "budget", "n", "max_iterations"):
-            object.__setattr__(self, name, positive(name, getattr(self, name)))
-        if isinstance(self.seed, bool) or int(self.seed) != self.seed or self.seed < 0:
-            raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+            object.__setattr__(self, name, Integer(low=1).check(name, getattr(self, name), prefix=""))
+        object.__setattr__(self, "seed", Integer(low=0).check("seed", self.seed, prefix=""))
         eps = tuple(float(e) for e in self.epsilons)
         if not eps or not all(0.0 <= e < 1.0 for e in eps) or len(set(eps)) != len(eps):
             raise ValueError(f"epsilons must be distinct values in [0, 1), got {self.epsilons}")
         object.__setattr__(self, "epsilons", eps)
-        budgets = tuple(positive("every budget", b) for b in self.budgets)
+        budgets = tuple(Integer(low=1).check("every budget", b, prefix="") for b in self.budgets)
         if not budgets or len(set(budgets)) != len(budgets):
             raise ValueError(f"budgets must be distinct integers >= 1, got {self.budgets}")
         object.__setattr__(self, "budgets", tuple(sorted(budgets)))

@@ -33,6 +33,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
+from stereovo.options import Integer
+
 __all__ = [
     "ALGOS",
     "AXIS_KINDS",
@@ -68,11 +70,8 @@ class MetricSpec:
 
     def __post_init__(self) -> None:
         for name in ("budget", "n", "episodes", "frames_per_episode"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"sweep metric.{name} must be an integer >= 1, got {value!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ValueError(f"sweep metric.seed must be an integer >= 0, got {self.seed!r}")
+            Integer(low=1).check(name, getattr(self, name), prefix="sweep metric.")
+        Integer(low=0).check("seed", self.seed, prefix="sweep metric.")
         if not isinstance(self.epsilon, (int, float)) or not 0.0 <= float(self.epsilon) < 1.0:
             raise ValueError(f"sweep metric.epsilon must be in [0, 1), got {self.epsilon!r}")
 

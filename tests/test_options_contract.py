@@ -163,3 +163,28 @@ def test_env_learns_validity_without_running_the_method(monkeypatch):
     with pytest.raises(ValueError, match="sampling='guided'"):
         StereoVOEnv(n_correspondences=60, method="prosac")
     StereoVOEnv(n_correspondences=60, method="prosac", sampling="prosac", prosac_beta=0.1)
+
+
+@pytest.mark.parametrize("value", [0, -1, 1.5, math.nan, True, "2"])
+def test_worker_counts_and_seeds_of_every_layer_follow_the_contract(value):
+    """One rule for counts everywhere: the backends, the benchmark grid, the agents' evaluation and sweeps."""
+    from agents.evaluation import EvalConfig
+    from agents.sweep import MetricSpec
+    import dataclasses
+
+    from stereovo.benchmark import DEFAULT_GRID, check_seed
+    from stereovo.trials.backend import LocalBackend, chunked
+
+    cases = [
+        (lambda: LocalBackend(value), r"^workers must be an integer >= 1, got "),
+        (lambda: chunked([], value), r"^chunk size must be an integer >= 1, got "),
+        (lambda: dataclasses.replace(DEFAULT_GRID, frames_per_cell=value), r"^BenchmarkGrid\.frames_per_cell must be an integer >= 1"),
+        (lambda: EvalConfig(episodes=value), r"^episodes must be an integer >= 1, got "),
+        (lambda: MetricSpec(budget=value), r"^sweep metric\.budget must be an integer >= 1, got "),
+    ]
+    if value != 0:  # 0 is a valid seed
+        cases += [(lambda: check_seed(value), r"^seed must be an integer >= 0, got "),
+                  (lambda: EvalConfig(seed=value), r"^seed must be an integer >= 0, got ")]
+    for make, message in cases:
+        with pytest.raises(ValueError, match=message):
+            make()

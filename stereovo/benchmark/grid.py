@@ -26,6 +26,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from stereovo.simulation import Frame, SimulationConfig, simulate_frame
+from stereovo.options import Integer
 
 OUTLIER_MIXES: dict[str, tuple[float, float, float]] = {
     "mix": SimulationConfig().outlier_mix,  # the simulator's default blend
@@ -125,10 +126,8 @@ class BenchmarkGrid:
         unknown = [k for k in self.outlier_kinds if k not in OUTLIER_MIXES]
         if unknown:
             raise ValueError(f"unknown outlier kind(s) {unknown}; known: {', '.join(OUTLIER_MIXES)}")
-        if int(self.frames_per_cell) != self.frames_per_cell or self.frames_per_cell < 1:
-            raise ValueError(f"BenchmarkGrid.frames_per_cell must be an integer >= 1, got {self.frames_per_cell}")
-        if self.max_iterations is not None and (int(self.max_iterations) != self.max_iterations or self.max_iterations < 1):
-            raise ValueError(f"BenchmarkGrid.max_iterations must be None or an integer >= 1, got {self.max_iterations}")
+        Integer(low=1).check("frames_per_cell", self.frames_per_cell, prefix="BenchmarkGrid.")
+        Integer(low=1, allow_none=True).check("max_iterations", self.max_iterations, prefix="BenchmarkGrid.")
         for cell in self.cells():  # the simulator validates every value
             cell.config()
 
@@ -232,9 +231,7 @@ def _frame_key(cell: GridCell, repeat: int) -> tuple[int, ...]:
 
 
 def check_seed(seed: int) -> int:
-    if isinstance(seed, bool) or int(seed) != seed or seed < 0:
-        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
-    return int(seed)
+    return Integer(low=0).check("seed", seed, prefix="")
 
 
 def frame_seed(seed: int, cell: GridCell, repeat: int) -> np.random.SeedSequence:

@@ -30,6 +30,7 @@ from stereovo.benchmark.grid import GridCell, Trial, check_seed, estimator_seed,
 from stereovo.estimation import available_methods, estimate_motion
 from stereovo.metrics import frame_metrics
 from stereovo.simulation import Frame, simulate_frame
+from stereovo.options import Integer
 
 Estimator = Callable[[Frame, np.random.Generator], Any]
 """``(frame, rng) -> estimate`` with the fields :func:`stereovo.metrics.frame_metrics` reads."""
@@ -320,8 +321,7 @@ def run_benchmark(
         raise ValueError(f"estimator names must be unique, got {names}")
     if not names:
         raise ValueError("no estimators to run")
-    if isinstance(workers, bool) or int(workers) != workers or workers < 1:
-        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    workers = Integer(low=1).check("workers", workers, prefix="")
     trials = list(trials)
     owned = backend is None
     backend = make_backend("local", int(workers)) if owned else backend

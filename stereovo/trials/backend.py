@@ -24,6 +24,7 @@ import signal
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Any, Callable, Iterator, Sequence
+from stereovo.options import Integer
 
 __all__ = ["BACKENDS", "Task", "Backend", "LocalBackend", "RayBackend", "make_backend", "chunked", "WorkerDied"]
 
@@ -45,8 +46,7 @@ class WorkerDied(RuntimeError):
 
 def chunked(tasks: Sequence[Task], size: int) -> list[list[Task]]:
     """Consecutive groups of ``size`` tasks (one backend call each: less overhead per trial)."""
-    if int(size) != size or size < 1:
-        raise ValueError(f"chunk size must be an integer >= 1, got {size!r}")
+    size = Integer(low=1).check("chunk size", size, prefix="")
     return [list(tasks[i:i + size]) for i in range(0, len(tasks), size)]
 
 
@@ -120,9 +120,7 @@ class LocalBackend(Backend):
     name = "local"
 
     def __init__(self, workers: int = 1) -> None:
-        if isinstance(workers, bool) or int(workers) != workers or workers < 1:
-            raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
-        self.workers = int(workers)
+        self.workers = Integer(low=1).check("workers", workers, prefix="")
         self._pool: ProcessPoolExecutor | None = None
 
     def run(self, fn, chunks, warmup=None):
@@ -218,10 +216,8 @@ class RayBackend(Backend):
     name = "ray"
 
     def __init__(self, workers: int | None = None, address: str | None = None, max_retries: int = 3) -> None:
-        if workers is not None and (isinstance(workers, bool) or int(workers) != workers or workers < 1):
-            raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
-        if int(max_retries) != max_retries or max_retries < 0:
-            raise ValueError(f"max_retries must be an integer >= 0, got {max_retries!r}")
+        Integer(low=1, allow_none=True).check("workers", workers, prefix="")
+        Integer(low=0).check("max_retries", max_retries, prefix="")
         import ray
 
         self._ray = ray
