@@ -73,10 +73,13 @@ def tdd_pretest(R, t, X, mc, cam, threshold_sq, samples, u, stop_at_failure):
             r = int(u[h, j] * pool)
             if r >= pool:
                 r = pool - 1
+            # the rank's index: shifted past each exclusion it reaches; the exclusions are sorted, so
+            # the first one beyond it ends the walk and is where it goes in (one pass, not two)
             idx = r
-            for e in range(size):
-                if idx >= excluded[e]:
-                    idx += 1
+            e = 0
+            while e < size and idx >= excluded[e]:
+                idx += 1
+                e += 1
             checks[h] += 1
             if _point_sq(R, t, h, X, mc, idx, fx, fy, cx, cy, b) < threshold_sq:
                 consistent[h] += 1
@@ -84,11 +87,8 @@ def tdd_pretest(R, t, X, mc, cam, threshold_sq, samples, u, stop_at_failure):
                 ok = False
                 if stop_at_failure:
                     break
-            # insert idx into the sorted exclusions
-            e = size
-            while e > 0 and excluded[e - 1] > idx:
-                excluded[e] = excluded[e - 1]
-                e -= 1
+            for k in range(size, e, -1):
+                excluded[k] = excluded[k - 1]
             excluded[e] = idx
             size += 1
         passed[h] = ok
