@@ -85,7 +85,7 @@ MODULES: tuple[Module, ...] = (
            ("tests/test_stopping_bounds.py", "tests/test_mutation_survivors.py", "tests/test_mutation_samplers.py",
             "tests/test_classical_prosac.py", "tests/test_estimation_core.py")),
     Module("scoring", "stereovo/estimation/scoring.py",
-           ("tests/test_estimation_core.py", "tests/test_classical_verification.py")),
+           ("tests/test_estimation_core.py", "tests/test_classical_verification.py", "tests/test_mutation_scoring.py")),
     Module("features", "vo_gym/features.py", ("tests/test_features.py", "tests/test_env_honesty.py")),
     Module("geometry", "stereovo/geometry.py", ("tests/test_geometry.py",)),
     Module("ngransac-losses", "agents/ngransac.py", ("tests/test_agents_ngransac.py",),
@@ -109,6 +109,7 @@ _INT = ("integer counts stay integers until a float operation (the binomial, the
 _AXIS = "drops axis=1: the default axis -1 is axis 1 of these 2-D arrays."
 _S = "stereovo.estimation.sprt."
 _SA = "stereovo.estimation.samplers."
+_SC = "stereovo.estimation.scoring."
 _CACHE = ("a different eviction of the per-count alpha cache (>= 16, > 17, [:16], [:-17]): evicted entries are "
           "recomputed to the same values, so only memory changes.")
 _BRACKET = ("a different upper bracket for brentq (start at 2, double while f <= 1, or until 1e6 as well, or stop "
@@ -214,6 +215,14 @@ EQUIVALENT: dict[str, str] = {
     **{_SA + f"xǁProsacSamplerǁ__init____mutmut_{i}":
        "_by_top without dtype=int64 (float64): draw counts stay exact integers far below 2^53, and drawn_within "
        "returns int() of their sum." for i in (25, 27)},
+    **{_SC + f"x{cls}score__mutmut_{i}": "sum over axis=+1 instead of -1: the same axis of the (H, N) squared "
+       "residuals a quality scores (Quality.score)." for cls, i in (("ǁInlierCountǁ", 8), ("ǁTruncatedQuadraticǁ", 11))},
+    **{_SC + f"xǁ{cls}ǁsquared__mutmut_{i}":
+       "R or t passed on without dtype=float: the compiled kernel reads the motions entry by entry into float64 "
+       "arithmetic, so float32 or integer motions give bit-identical residuals (only a new compiled specialisation "
+       "differs); test_mutation_scoring.py::test_residual_models_compute_in_double_precision_whatever_the_motions_dtype "
+       "checks it with the mutation applied." for cls in ("MahalanobisResidual", "PixelMahalanobisResidual")
+       for i in (16, 18, 20, 22)},
 }
 
 # Survivors that are not equivalent but are left on purpose, with the reason (counted as survived).
@@ -251,6 +260,9 @@ ADDRESSED: dict[str, str] = {
     **{_SA + f"x_normalised_weights__mutmut_{i}":
        "test_mutation_survivors.py::test_normalised_weights_direct_overflowing_and_tiny (the kept weight is tiny "
        "exactly; the old approx(tiny / 2) passed on 5e-321 by its absolute tolerance)" for i in (28, 32)},
+    **{_SC + f"xǁInlierCountǁscore__mutmut_{i}":
+       "test_mutation_scoring.py::test_inlier_count_is_strictly_under_the_gate_and_a_float_score" for i in (3, 6, 7)},
+    _SC + "xǁTruncatedQuadraticǁscore__mutmut_1": "test_mutation_scoring.py::test_truncated_quadratic_is_normalised_by_the_gate",
 }
 
 
@@ -358,10 +370,11 @@ def mutmut_environment(workdir: Path | None = None) -> dict[str, str]:
     return env
 
 
-def run_module(workdir: Path, module: Module, minutes: float, max_children: int) -> str:
-    """Run mutmut on one module's mutants; returns ``"done"`` or ``"stopped after N min"``."""
+def run_module(workdir: Path, module: Module, minutes: float, max_children: int,
+               names: list[str] | None = None) -> str:
+    """Run mutmut on one module's mutants (or only ``names``); returns ``"done ..."`` or ``"stopped after N min"``."""
     mutmut = Path(sys.executable).with_name("mutmut")
-    command = [str(mutmut), "run", "--max-children", str(max_children), *module.patterns]
+    command = [str(mutmut), "run", "--max-children", str(max_children), *(names or module.patterns)]
     log = (workdir / f"mutmut-{module.name}.log").open("w")
     start = time.monotonic()
     process = subprocess.Popen(command, cwd=workdir, env=mutmut_environment(workdir), stdout=log, stderr=subprocess.STDOUT,
@@ -558,6 +571,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="verdicts of every run so far, merged per module (the report is built from it)")
     parser.add_argument("--report-only", action="store_true", help="rewrite the report from the results file")
     parser.add_argument("--keep", action="store_true", help="reuse the workdir of the last run (resume it)")
+    parser.add_argument("--mutants", nargs="+", metavar="NAME",
+                        help="recheck only these mutants (names as in the report) in the copies of the last run, "
+                             "with the working tree's current test files of their module copied in: confirms the tests written for them")
     args = parser.parse_args(argv)
     if shutil.which("mutmut", path=str(Path(sys.executable).parent)) is None:
         print("mutmut is not installed in this environment: pip install -e '.[dev]'", file=sys.stderr)
@@ -566,7 +582,26 @@ def main(argv: list[str] | None = None) -> int:
     carried = carry_from_report(args.report, args.results)
     if carried:
         print(f"{args.results} was missing: verdicts of {', '.join(carried)} carried from {args.report}", flush=True)
-    if not args.report_only:
+    if args.mutants and not args.report_only:
+        for module in modules:
+            names = [n for n in args.mutants if n.startswith(module.dotted + ".")]
+            workdir = args.workdir / module.name
+            if not names:
+                continue
+            if not (workdir / "mutants").is_dir():
+                print(f"{module.name}: no earlier run in {workdir} to recheck", file=sys.stderr)
+                return 1
+            # Only the module's own test files: others may need sources newer than the copy's.
+            for test in sorted({t.split("::")[0] for t in module.tests}):
+                for target in (workdir, workdir / "mutants"):
+                    shutil.copy2(ROOT / test, target / test)
+            write_config(workdir, [module])
+            previous = json.loads(args.results.read_text()).get(module.name, {}).get("note", "") \
+                if args.results.is_file() else ""
+            note = run_module(workdir, module, args.minutes, args.max_children, names)
+            record(args.results, workdir, module, f"{previous}; {len(names)} rechecked: {note}")
+            print(f"{module.name}: {len(names)} rechecked, {note}", flush=True)
+    elif not args.report_only:
         base = args.workdir / "base"
         if not (args.keep and base.is_dir()):
             copy_tree(base, args.commit)
