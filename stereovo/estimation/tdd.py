@@ -313,6 +313,7 @@ class TddTermination:
         self.probability = SampleProbability(self.sampler)
         self.last_alpha = float("nan")
         self._drawn = 0
+        self._q_by_count: dict[tuple[int, int], float] = {}  # uniform sampling's q per (I, N): asked every batch
 
     def on_new_best(self, inliers: np.ndarray, state) -> None:
         self.probability.on_new_best(inliers, state)
@@ -321,7 +322,14 @@ class TddTermination:
         self._drawn = int(state.n_hypotheses)
 
     def required(self, n_inliers: int, n: int) -> int:
-        q = self.probability.of(n_inliers, n)
+        if self.probability.guided:
+            q = self.probability.of(n_inliers, n)
+        else:
+            q = self._q_by_count.get((n_inliers, n))
+            if q is None:
+                if len(self._q_by_count) > 64:
+                    self._q_by_count.clear()
+                q = self._q_by_count[(n_inliers, n)] = self.probability.of(n_inliers, n)
         v = self.verifier
         alpha = v.alpha() if v is not None else None
         if alpha is None:
