@@ -15,7 +15,7 @@ from numba import njit
 
 from stereovo.geometry import random_rotation
 from stereovo.simulation.config import SimulationConfig
-from stereovo.simulation.world import CAMERA_HEIGHT, camera_vector, loguniform, rotation_about_y, see_point
+from stereovo.simulation.world import CAMERA_HEIGHT, camera_vector, loguniform, see_point
 
 MAX_REDRAWS = 30  # redraws of a row that misses its condition (an outlier too near, a noisy row off the image)
 _MAX_OBJECT_ATTEMPTS = 30
@@ -26,6 +26,12 @@ _STEREO_FACTOR = (1.25, 2.5)  # range of the disparity ratio of a stereo mismatc
 def _outlier_threshold(sigma: float) -> float:
     """Minimum pixel distance (px) between an outlier and where the true motion puts it."""
     return max(_MIN_OUTLIER_PX, 8.0 * sigma)
+
+
+def _rotation_about_y(angle: float) -> np.ndarray:
+    """``so3_exp((0, angle, 0))`` in closed form (a heading change on the street)."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
 @njit(cache=True, nogil=True)
@@ -211,10 +217,10 @@ def moving_object(
             half = 0.5 * np.array([rng.uniform(1.6, 2.0), rng.uniform(1.4, 1.8), rng.uniform(3.5, 5.0)])
             centre[1] = CAMERA_HEIGHT - half[1]
             heading = rng.uniform(-np.pi, np.pi)
-            orientation = rotation_about_y(heading)
+            orientation = _rotation_about_y(heading)
             # a random sign, drawn as Generator.choice([-1.0, 1.0]) draws it, without its overhead
             velocity = orientation[:, 2] * rng.uniform(0.5, 2.0) * (-1.0, 1.0)[int(rng.integers(0, 2))]
-            spin = rotation_about_y(rng.uniform(-1, 1) * np.radians(3.0))
+            spin = _rotation_about_y(rng.uniform(-1, 1) * np.radians(3.0))
         else:
             half = 0.5 * rng.uniform(0.8, 3.0, 3)
             orientation = random_rotation(rng)

@@ -31,12 +31,6 @@ def loguniform(rng: np.random.Generator, low: float, high: float, size: int) -> 
     return low * np.exp(rng.random(size) * math.log(high / low))
 
 
-def rotation_about_y(angle: float) -> np.ndarray:
-    """``so3_exp((0, angle, 0))`` in closed form (a heading change on the street)."""
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
 def _frustum(cam: StereoCamera) -> tuple[float, float, float, float]:
     """Tangent bounds ``(left, right, top, bottom)`` of the left camera's view, widened by the slack."""
     s = _FRUSTUM_SLACK
