@@ -12,7 +12,8 @@ the working tree: mutmut writes its ``mutants/`` folder there. Each module is ch
 copy against a fast subset of the suite (``MODULES``), in order of importance, each within
 ``--minutes``; mutmut runs the tests of a mutant fastest first and stops at the first failure.
 
-Not mutated: the numba kernels (``stereovo/estimation/kernels*.py``, and any ``@njit`` function:
+Not mutated: the numba kernels (the package ``stereovo/estimation/kernels/`` and
+``stereovo/estimation/kernels_verification.py``, never in ``MODULES``; and any ``@njit`` function:
 mutmut leaves decorated functions alone, so also properties and ``lru_cache``d helpers).
 
 Compiled kernels are reused, not recompiled: numba caches its machine code beside each source
