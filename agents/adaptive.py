@@ -171,6 +171,10 @@ class AdaptiveTrainConfig:
         right_precision, right_recall: when the hypothesis a frame would end on counts as right.
         frames_per_update: frames whose losses are summed per optimiser step.
         seed: seeds the episodes (``seed + episode``) and torch.
+        clock: what ``minutes`` counts: ``"wall"`` (wall clock) or ``"cpu"`` (this process' CPU time,
+            the budget that stays the same on a busy machine).
+        init: checkpoint whose weights training starts from (``None``: fresh weights); its own
+            training time adds to this run's in the budget of the result.
     """
 
     minutes: float = 25.0
@@ -193,6 +197,8 @@ class AdaptiveTrainConfig:
     frames_per_update: int = 4
     seed: int = 0
     log_every_s: float = 30.0
+    clock: str = "wall"
+    init: str | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
 
@@ -222,14 +228,24 @@ def train_adaptive(config: AdaptiveTrainConfig, out: str | Path, log_path: str |
     """Train :class:`AdaptiveSamplerNet` in the adaptive env for ``config.minutes``; write ``out``."""
     torch.manual_seed(config.seed)
     torch.set_num_threads(1)  # small per-step batches: more threads only contend on a shared machine
-    net = AdaptiveSamplerNet(width=config.width, blocks=config.blocks)
+    if config.clock not in ("wall", "cpu"):
+        raise ValueError(f"clock must be 'wall' or 'cpu', got {config.clock!r}")
+    clock = time.time if config.clock == "wall" else time.process_time
+    if config.init is not None:
+        net, payload = load_adaptive(config.init)
+        if (net.width, net.blocks) != (config.width, config.blocks):
+            raise ValueError(f"init checkpoint {config.init} has width {net.width}, blocks {net.blocks}; "
+                             f"the config asks for {config.width}, {config.blocks}")
+        net.train()
+    else:
+        net = AdaptiveSamplerNet(width=config.width, blocks=config.blocks)
     optimiser = torch.optim.Adam(net.parameters(), lr=config.lr)
     bce = nn.BCEWithLogitsLoss()
-    baseline, log, start, last_log = 0.0, [], time.time(), time.time()
+    baseline, log, start, last_log = 0.0, [], clock(), time.time()
     stats = {"frames": 0, "success": 0, "hypotheses": 0, "stops": 0}
     episode, pending = 0, []
     log_file = open(log_path, "a") if log_path else None
-    while time.time() - start < 60 * config.minutes:
+    while clock() - start < 60 * config.minutes:
         env, setting = _training_env(config, episode)
         obs, info = env.reset(seed=config.seed * 1_000_003 + episode)
         episode += 1
@@ -283,7 +299,7 @@ def train_adaptive(config: AdaptiveTrainConfig, out: str | Path, log_path: str |
         if time.time() - last_log >= config.log_every_s:
             last_log = time.time()
             frames = max(stats["frames"], 1)
-            row = {"minutes": round((time.time() - start) / 60, 2), "episodes": episode, "frames": stats["frames"],
+            row = {"minutes": round((clock() - start) / 60, 2), "episodes": episode, "frames": stats["frames"],
                    "success": round(stats["success"] / frames, 3), "mean_hypotheses": round(stats["hypotheses"] / frames, 1),
                    "stopped": round(stats["stops"] / frames, 3), "baseline": round(baseline, 3)}
             log.append(row)
@@ -307,10 +323,41 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--log", default=None)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--n", type=int, default=500)
+    defaults = AdaptiveTrainConfig()
+    parser.add_argument("--epsilons", default=None, metavar="LO,HI",
+                        help=f"contamination range of the standard episodes (default: {defaults.epsilons})")
+    parser.add_argument("--hard-epsilons", default=None, metavar="LO,HI",
+                        help=f"contamination range of the hard episodes (default: {defaults.hard_epsilons})")
+    parser.add_argument("--hard-fraction", type=float, default=defaults.hard_fraction)
+    parser.add_argument("--right-precision", type=float, default=defaults.right_precision)
+    parser.add_argument("--right-recall", type=float, default=defaults.right_recall)
+    parser.add_argument("--lr", type=float, default=defaults.lr)
+    parser.add_argument("--clock", choices=("wall", "cpu"), default=defaults.clock,
+                        help="what --minutes counts: wall clock or this process' CPU time (default: wall)")
+    parser.add_argument("--init", default=None, metavar="CHECKPOINT",
+                        help="start from this checkpoint's weights (path or shipped name)")
     args = parser.parse_args(argv)
     if not math.isfinite(args.minutes) or args.minutes <= 0:
         parser.error(f"--minutes must be a positive number, got {args.minutes}")
-    train_adaptive(AdaptiveTrainConfig(minutes=args.minutes, seed=args.seed, n=args.n), args.out, args.log)
+    ranges = {}
+    for name in ("epsilons", "hard_epsilons"):
+        text = getattr(args, name)
+        if text is None:
+            continue
+        try:
+            low, high = (float(x) for x in text.split(","))
+        except ValueError:
+            parser.error(f"--{name.replace('_', '-')} must be LO,HI, got {text!r}")
+        if not 0 <= low <= high < 1:
+            parser.error(f"--{name.replace('_', '-')} must satisfy 0 <= LO <= HI < 1, got {text!r}")
+        ranges[name] = (low, high)
+    for name in ("hard_fraction", "right_precision", "right_recall"):
+        if not 0 <= getattr(args, name) <= 1:
+            parser.error(f"--{name.replace('_', '-')} must be in [0, 1], got {getattr(args, name)}")
+    config = AdaptiveTrainConfig(minutes=args.minutes, seed=args.seed, n=args.n, hard_fraction=args.hard_fraction,
+                                 right_precision=args.right_precision, right_recall=args.right_recall, lr=args.lr,
+                                 clock=args.clock, init=args.init, **ranges)
+    train_adaptive(config, args.out, args.log)
     return 0
 
 

@@ -234,6 +234,8 @@ class AdaptiveComparison:
     n: int = 500
     max_hypotheses: int = 64
     settings: tuple[tuple[str, float], ...] = (("standard", 0.9), ("hard", 0.8))
+    learned_only: bool = False  # the learned rows alone: a candidate checkpoint against the same frames
+    part: tuple[int, int] = (0, 1)  # (i, k): the rows whose index is i mod k (PROSAC in the last part)
     extra: dict[str, Any] = field(default_factory=dict)
 
 
@@ -253,6 +255,8 @@ def policies(config: AdaptiveComparison) -> list[tuple[str, Any, Any]]:
     net, _ = load_adaptive(config.learned)
     for c in config.confidences:
         out.append(("learned (own stop)", c, LearnedAdaptivePolicy(AdaptiveSamplerPolicy(net, c), "learned")))
+    if config.learned_only:
+        return out
     guide = one_shot_logits(load_sampler(config.one_shot[0]))
     for tau in config.bansac_thresholds:
         out.append(("bansac, score priors (own stop)", tau, BansacPolicy(threshold=tau)))
@@ -292,23 +296,52 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
 
 
 def run_comparison(config: AdaptiveComparison, log: Callable[[str], None] = print) -> dict[str, Any]:
-    """Every policy on every setting; returns ``{setting: [{family, point, ...summary}]}``."""
+    """Every policy on every setting; returns ``{setting: [{family, point, ...summary}]}``.
+
+    Every row also carries ``order``, its index in the full comparison, so that the parts of a
+    comparison split by ``config.part`` (the frames depend on the seeds alone) merge back in order
+    (:func:`merge_comparisons`)."""
     result: dict[str, Any] = {"config": {k: v for k, v in config.__dict__.items()}}
     seeds = [config.seed + i for i in range(config.episodes)]
+    part, parts = config.part
     for setting, epsilon in config.settings:
         env = make_env(config, setting, epsilon)
         table = []
-        for family, point, policy in policies(config):
+        todo = policies(config)
+        for order, (family, point, policy) in enumerate(todo):
+            if order % parts != part:
+                continue
             start = time.time()
             rows = [r for s in seeds for r in run_policy(env, policy, s)]
-            table.append({"family": family, "point": point, **summarise(rows)})
+            table.append({"family": family, "point": point, "order": order, **summarise(rows)})
             log(f"{setting} eps {epsilon}: {family} {point}: {table[-1]['success']:.3f} "
                 f"at {table[-1]['mean_hypotheses']:.1f} ({time.time() - start:.0f} s)")
+        if config.learned_only or part != parts - 1:
+            result[f"{setting} eps {epsilon}"] = table
+            continue
         rows = [r for s in seeds for r in run_prosac_by_score(env, s)]
-        table.append({"family": "prosac by score (own stop)", "point": None, **summarise(rows)})
+        table.append({"family": "prosac by score (own stop)", "point": None, "order": len(todo), **summarise(rows)})
         log(f"{setting} eps {epsilon}: prosac by score: {table[-1]['success']:.3f} at {table[-1]['mean_hypotheses']:.1f}")
         result[f"{setting} eps {epsilon}"] = table
     return result
+
+
+def merge_comparisons(results: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """One comparison from parts of it (:func:`run_comparison` with ``part``), rows in ``order``; a
+    row of a later result replaces an earlier one of the same family and point (a candidate's
+    learned rows over a full run's)."""
+    merged: dict[str, Any] = {"config": [r.get("config") for r in results]}
+    for result in results:
+        for key, table in result.items():
+            if key == "config":
+                continue
+            rows = merged.setdefault(key, {})
+            for row in table:
+                rows[(row["family"], row["point"])] = row
+    for key in list(merged):
+        if key != "config":
+            merged[key] = sorted(merged[key].values(), key=lambda r: r.get("order", math.inf))
+    return merged
 
 
 def comparison_markdown(result: dict[str, Any]) -> str:
@@ -377,9 +410,27 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=10)
     parser.add_argument("--frames", type=int, default=10)
     parser.add_argument("--seed", type=int, default=5000)
+    parser.add_argument("--learned-only", action="store_true", help="run the learned sampler's rows alone")
+    parser.add_argument("--part", default="0/1", metavar="I/K", help="run the rows whose index is I mod K")
+    parser.add_argument("--setting", action="append", choices=("standard", "hard"),
+                        help="run this setting only (repeatable; default: both)")
+    parser.add_argument("--merge", nargs="+", metavar="DIR",
+                        help="merge the adaptive.json of these folders (later rows win) into --out; runs nothing")
     args = parser.parse_args(argv)
+    if args.merge:
+        results = [json.loads((Path(d) / "adaptive.json").read_text()) for d in args.merge]
+        for path in write_comparison(merge_comparisons(results), args.out):
+            print(path)
+        return 0
+    try:
+        part, parts = (int(x) for x in args.part.split("/"))
+    except ValueError:
+        parser.error(f"--part must be I/K, got {args.part!r}")
+    if not 0 <= part < parts:
+        parser.error(f"--part I/K needs 0 <= I < K, got {args.part!r}")
+    settings = tuple(s for s in AdaptiveComparison().settings if not args.setting or s[0] in args.setting)
     config = AdaptiveComparison(learned=args.learned, episodes=args.episodes, frames_per_episode=args.frames,
-                                seed=args.seed)
+                                seed=args.seed, learned_only=args.learned_only, part=(part, parts), settings=settings)
     for path in write_comparison(run_comparison(config), args.out):
         print(path)
     return 0

@@ -15,7 +15,15 @@ from agents.adaptive import (
     save_adaptive,
     train_adaptive,
 )
-from agents.adaptive_evaluation import ArsPolicy, BansacPolicy, BudgetPolicy, run_policy, summarise, wilson
+from agents.adaptive_evaluation import (
+    ArsPolicy,
+    BansacPolicy,
+    BudgetPolicy,
+    merge_comparisons,
+    run_policy,
+    summarise,
+    wilson,
+)
 from vo_gym.adaptive_env import StereoVOAdaptiveEnv
 
 
@@ -75,6 +83,35 @@ def test_training_runs_and_writes_a_loadable_checkpoint(tmp_path):
     path = train_adaptive(config, tmp_path / "t.pt", tmp_path / "t.log")
     net, payload = load_adaptive(path)
     assert payload["config"]["n"] == 60 and (tmp_path / "t.log").read_text().strip()
+
+
+def test_training_starts_from_an_init_checkpoint_on_a_cpu_clock(tmp_path):
+    torch.manual_seed(1)
+    start = save_adaptive(tmp_path / "init.pt", AdaptiveSamplerNet(width=8, blocks=1), {"minutes": 1})
+    # lr 0: Adam's steps are zero, so the result must hold the init weights, not fresh ones
+    config = AdaptiveTrainConfig(minutes=0.01, n=60, frames_per_episode=2, width=8, blocks=1, lr=0.0,
+                                 clock="cpu", init=str(start), seed=5)
+    net, payload = load_adaptive(train_adaptive(config, tmp_path / "t.pt"))
+    init, _ = load_adaptive(start)
+    for key, value in init.state_dict().items():
+        torch.testing.assert_close(net.state_dict()[key], value)
+    assert payload["config"]["init"] == str(start) and payload["config"]["clock"] == "cpu"
+    with pytest.raises(ValueError, match="width"):
+        train_adaptive(AdaptiveTrainConfig(minutes=0.01, width=16, blocks=1, init=str(start)), tmp_path / "u.pt")
+    with pytest.raises(ValueError, match="clock"):
+        train_adaptive(AdaptiveTrainConfig(minutes=0.01, clock="gpu"), tmp_path / "v.pt")
+
+
+def test_merge_comparisons_restores_the_order_and_later_rows_win():
+    def row(family, point, order, success):
+        return {"family": family, "point": point, "order": order, "success": success}
+
+    part0 = {"config": {}, "s": [row("a", 1, 0, 0.5), row("c", None, 2, 0.7)]}
+    part1 = {"config": {}, "s": [row("b", 2, 1, 0.6)], "t": [row("a", 1, 0, 0.1)]}
+    candidate = {"config": {}, "s": [row("a", 1, 0, 0.9)]}
+    merged = merge_comparisons([part0, part1, candidate])
+    assert [(r["family"], r["success"]) for r in merged["s"]] == [("a", 0.9), ("b", 0.6), ("c", 0.7)]
+    assert [r["success"] for r in merged["t"]] == [0.1]
 
 
 @pytest.mark.parametrize("policy", [BansacPolicy(0.99), ArsPolicy(0.99), BudgetPolicy("uniform", 8, lambda o: np.zeros(len(o["mask"])))])
