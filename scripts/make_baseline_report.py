@@ -6,7 +6,8 @@ Usage::
     vo-gym baselines --out runs/baselines
     python scripts/make_baseline_report.py --from runs/baselines
 
-Without ``--from`` the default grid is run first (into ``runs/baselines``,
+``--name baselines-full`` writes ``docs/baselines-full.md`` and ``docs/img/baselines-full/``
+instead (the report of the full grid, beside the default grid's). Without ``--from`` the default grid is run first (into ``runs/baselines``,
 about two minutes on two cores). The summary and the claim checks are
 recomputed from ``trials.csv`` (the run's only source of truth), the run's
 figures are copied to ``docs/img/baselines/`` (redrawn from the CSV when the
@@ -22,7 +23,7 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-IMAGE_DIR = Path("img") / "baselines"
+REPORT_NAME = "baselines"  # the markdown file and the image folder are named after it
 
 
 def _fmt(key: str, value) -> str:
@@ -98,8 +99,10 @@ def enhancement_section(summary) -> list[str]:
     ]
 
 
-def build_report(run_dir: Path, docs_dir: Path, redraw: bool = False) -> Path:
-    """Write ``docs_dir/baselines.md`` and its figures from the run in ``run_dir``; returns the markdown path.
+def build_report(run_dir: Path, docs_dir: Path, redraw: bool = False, name: str = REPORT_NAME) -> Path:
+    """Write ``docs_dir/<name>.md`` and its figures (``docs_dir/img/<name>/``) from the run in ``run_dir``.
+
+    Returns the markdown path.
 
     The run's PNGs are copied; with ``redraw`` (or when the run has none) they are drawn again from ``trials.csv``.
     """
@@ -115,11 +118,12 @@ def build_report(run_dir: Path, docs_dir: Path, redraw: bool = False) -> Path:
     # measured figures that explain the verdicts, on the run's own frames (re-simulated with its seed)
     claims = bm.check_claims(summary, bm.claim_diagnostics(rows, int(settings.get("seed", 0))))
 
-    image_dir = docs_dir / IMAGE_DIR
+    image_rel = Path("img") / name
+    image_dir = docs_dir / image_rel
     image_dir.mkdir(parents=True, exist_ok=True)
-    if not redraw and all((run_dir / name).is_file() for name in bm.PLOT_FILES):
-        for name in bm.PLOT_FILES:
-            shutil.copyfile(run_dir / name, image_dir / name)
+    if not redraw and all((run_dir / figure).is_file() for figure in bm.PLOT_FILES):
+        for figure in bm.PLOT_FILES:
+            shutil.copyfile(run_dir / figure, image_dir / figure)
     else:
         bm.write_plots(rows, summary, image_dir)
 
@@ -137,9 +141,10 @@ def build_report(run_dir: Path, docs_dir: Path, redraw: bool = False) -> Path:
         "Reproduce:",
         "",
         "```bash",
-        f"vo-gym baselines --seed {settings.get('seed', 0)} --out runs/baselines"
-        + (" --full" if settings.get("full") else ""),
-        "python scripts/make_baseline_report.py --from runs/baselines",
+        f"vo-gym baselines --seed {settings.get('seed', 0)} --out runs/{name}"
+        + (" --full --backend ray" if settings.get("full") else ""),
+        f"python scripts/make_baseline_report.py --from runs/{name}"
+        + (f" --name {name}" if name != REPORT_NAME else ""),
         "```",
         "",
         "## Setup",
@@ -171,9 +176,9 @@ def build_report(run_dir: Path, docs_dir: Path, redraw: bool = False) -> Path:
         "time_vs_n.png": "Median time vs N",
         "error_cdf.png": "Rotation and translation error CDFs",
     }
-    for name in bm.PLOT_FILES:
-        lines += [f"![{captions[name]}]({(IMAGE_DIR / name).as_posix()})", ""]
-    out = docs_dir / "baselines.md"
+    for figure in bm.PLOT_FILES:
+        lines += [f"![{captions[figure]}]({(image_rel / figure).as_posix()})", ""]
+    out = docs_dir / f"{name}.md"
     out.write_text("\n".join(lines).rstrip() + "\n")
     return out
 
@@ -185,6 +190,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--docs", type=Path, default=REPO / "docs", help="docs folder (default: the repo's docs/)")
     parser.add_argument("--out", type=Path, default=Path("runs/baselines"),
                         help="where to run the default grid when --from is not given (default: runs/baselines)")
+    parser.add_argument("--name", default=REPORT_NAME,
+                        help="report name: docs/NAME.md and docs/img/NAME/ (default: baselines)")
     parser.add_argument("--redraw", action="store_true", help="draw the figures again from trials.csv instead of copying them")
     parser.add_argument("--workers", type=int, default=None, help="worker processes for that run")
     parser.add_argument("--seed", type=int, default=0, help="seed for that run (default: 0)")
@@ -202,11 +209,11 @@ def main(argv: list[str] | None = None) -> int:
             return code
         run_dir = args.out
     try:
-        path = build_report(run_dir, args.docs, redraw=args.redraw)
+        path = build_report(run_dir, args.docs, redraw=args.redraw, name=args.name)
     except FileNotFoundError as err:
         print(f"make_baseline_report: error: {err}", file=sys.stderr)
         return 2
-    print(f"wrote {path} and {args.docs / IMAGE_DIR}/")
+    print(f"wrote {path} and {args.docs / 'img' / args.name}/")
     return 0
 
 

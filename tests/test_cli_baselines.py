@@ -141,6 +141,12 @@ def test_report_script_builds_docs_from_a_run(runs, tmp_path):
     redrawn = tmp_path / "redrawn"
     assert module.main(["--from", str(runs[1]), "--docs", str(redrawn)]) == 0  # run without PNGs
     assert all((redrawn / "img" / "baselines" / name).stat().st_size > 0 for name in PLOT_FILES)
+    assert module.main(["--from", str(one), "--docs", str(docs), "--name", "baselines-full"]) == 0
+    full = (docs / "baselines-full.md").read_text()
+    assert "--from runs/baselines-full --name baselines-full" in full
+    for name in PLOT_FILES:
+        assert f"](img/baselines-full/{name})" in full and (docs / "img" / "baselines-full" / name).is_file()
+    assert (docs / "baselines.md").read_text() == text  # the default report is left alone
 
 
 # ------------------------------------------------------------------ results that survive
