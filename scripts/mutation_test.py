@@ -87,7 +87,8 @@ MODULES: tuple[Module, ...] = (
             "tests/test_classical_prosac.py", "tests/test_estimation_core.py")),
     Module("scoring", "stereovo/estimation/scoring.py",
            ("tests/test_estimation_core.py", "tests/test_classical_verification.py", "tests/test_mutation_scoring.py")),
-    Module("features", "vo_gym/features.py", ("tests/test_features.py", "tests/test_env_honesty.py")),
+    Module("features", "vo_gym/features.py",
+           ("tests/test_features.py", "tests/test_env_honesty.py", "tests/test_mutation_features.py")),
     Module("geometry", "stereovo/geometry.py", ("tests/test_geometry.py",)),
     Module("ngransac-losses", "agents/ngransac.py", ("tests/test_agents_ngransac.py",),
            ("x_pose_loss", "x_inlier_loss", "x_smooth_inlier_loss", "x__pose_loss", "x_ordered_triplet_log_prob",
@@ -111,6 +112,7 @@ _AXIS = "drops axis=1: the default axis -1 is axis 1 of these 2-D arrays."
 _S = "stereovo.estimation.sprt."
 _SA = "stereovo.estimation.samplers."
 _SC = "stereovo.estimation.scoring."
+_F = "vo_gym.features."
 _CACHE = ("a different eviction of the per-count alpha cache (>= 16, > 17, [:16], [:-17]): evicted entries are "
           "recomputed to the same values, so only memory changes.")
 _BRACKET = ("a different upper bracket for brentq (start at 2, double while f <= 1, or until 1e6 as well, or stop "
@@ -224,10 +226,36 @@ EQUIVALENT: dict[str, str] = {
        "differs); test_mutation_scoring.py::test_residual_models_compute_in_double_precision_whatever_the_motions_dtype "
        "checks it with the mutation applied." for cls in ("MahalanobisResidual", "PixelMahalanobisResidual")
        for i in (16, 18, 20, 22)},
+    **{_F + f"x__validate_motion__mutmut_{i}":
+       "R or t kept in the given dtype: their one use, reprojection_sq, converts motions to float64 (_motions), so "
+       "integer motions predict the same (test_mutation_features checks the integer identity with the mutation "
+       "applied)." for i in (9, 11, 13, 15)},
+    _F + "x_rigid_consistency_degree__mutmut_9":
+        "n < MAX_ANCHORS instead of <=: at n = MAX_ANCHORS the other branches also take every row "
+        "(round(linspace(0, n - 1, n)) is arange(n); the n best of n are all rows).",
+    _F + "x_rigid_consistency_degree__mutmut_26":
+        "always recomputes the order: priority_order is documented as argsort(-priority, kind='stable'), the same.",
+    _F + "x_rigid_consistency_degree__mutmut_34": "kind=\"STABLE\": NumPy reads the sort kind case-insensitively.",
+    **{_F + f"x_rigid_consistency_degree__mutmut_{i}":
+       "spread kept in the given dtype: squared integers add and compare with the float gate exactly as their "
+       "float64 values (callers pass float64 covariance roots)." for i in (41, 43)},
+    **{_F + f"x_rigid_consistency_degree__mutmut_{i}":
+       "anchors without dtype=int64: every branch makes them int64 already (arange, astype(int64), argsort)."
+       for i in (64, 66)},
+    **{_F + f"x_rigid_consistency_degree__mutmut_{i}":
+       "is_anchor as float 0/1 instead of bool: count - 1.0 and anchors.size - 1.0 are the same small integers, "
+       "so the same quotient." for i in (71, 73)},
+    _F + "x_compute_features__mutmut_4":
+        "own_arrays = None: the problem's own arrays are validated again (as_measurements returns the same values) "
+        "and then compare equal to the problem's, so the same features (checked with the mutation applied).",
 }
 
 # Survivors that are not equivalent but are left on purpose, with the reason (counted as survived).
 NOTED: dict[str, str] = {
+    **{_F + f"x_rigid_consistency_degree__mutmut_{i}":
+       "points passed to the kernel in their own dtype: float32 points would be compared in single precision "
+       "(a different verdict only at the gate's edge); every caller passes float64 triangulations, so no test "
+       "pins it." for i in (56, 58, 60, 62)},
     _S + "xǁSprtTerminationǁrequired__mutmut_59":
         "P_find < 0 instead of <= 0: with P_find = 0 (the current test rejects every good model, h = 0) after past "
         "tests already reached the confidence, the mutant stops at the draws done, the code asks for max_iterations. "
@@ -264,6 +292,19 @@ ADDRESSED: dict[str, str] = {
     **{_SC + f"xǁInlierCountǁscore__mutmut_{i}":
        "test_mutation_scoring.py::test_inlier_count_is_strictly_under_the_gate_and_a_float_score" for i in (3, 6, 7)},
     _SC + "xǁTruncatedQuadraticǁscore__mutmut_1": "test_mutation_scoring.py::test_truncated_quadratic_is_normalised_by_the_gate",
+    **{_F + f"x__validate_motion__mutmut_{i}":
+       "test_mutation_features.py::test_previous_motion_and_camera_are_validated_with_exact_messages"
+       for i in (3, 4, 5, 6, 24)},
+    **{_F + f"x_rigid_consistency_degree__mutmut_{i}": "test_mutation_features.py::test_degree_by_hand_on_four_matches"
+       for i in (3, 4, 5, 6, 7, 8, 68, 74, 75, 78, 80)},
+    **{_F + f"x_rigid_consistency_degree__mutmut_{i}":
+       "test_mutation_features.py::test_degree_above_max_anchors_uses_evenly_spaced_rows_without_priority"
+       for i in range(13, 24)},
+    **{_F + f"x_rigid_consistency_degree__mutmut_{i}":
+       "test_mutation_features.py::test_degree_above_max_anchors_uses_the_best_priorities_ties_by_row" for i in (28, 30, 31)},
+    _F + "x_compute_features__mutmut_3":
+        "test_mutation_features.py::test_previous_motion_and_camera_are_validated_with_exact_messages",
+    _F + "x_compute_features__mutmut_8": "test_mutation_features.py::test_a_problem_of_other_measurements_is_refused",
 }
 
 
