@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from stereovo.options import Integer
 from vo_gym.features import FEATURE_LAYOUT_VERSION, FEATURE_NAMES
 
 VEC_ENVS = ("dummy", "subproc")
@@ -81,15 +82,8 @@ class PPOConfig:
     def __post_init__(self) -> None:
         for name in ("n_envs", "timesteps", "n_frames", "n_correspondences", "budget", "n_steps", "batch_size",
                      "n_epochs", "width", "blocks", "critic_hidden", "eval_every", "eval_frames", "checkpoint_every"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or int(value) != value or value < 1:
-                raise ValueError(f"PPO: {name} must be an integer >= 1, got {value!r}")
-            setattr(self, name, int(value))
-        if self.eval_n_correspondences is not None and (
-            int(self.eval_n_correspondences) != self.eval_n_correspondences or self.eval_n_correspondences < 3
-        ):
-            raise ValueError(f"PPO: eval_n_correspondences must be None or an integer >= 3, got "
-                             f"{self.eval_n_correspondences!r}")
+            setattr(self, name, Integer(low=1).check(name, getattr(self, name), prefix="PPO: "))
+        Integer(low=3, allow_none=True).check("eval_n_correspondences", self.eval_n_correspondences, prefix="PPO: ")
         if self.max_wall_s is not None and not self.max_wall_s > 0:
             raise ValueError(f"PPO: max_wall_s must be None or > 0 seconds, got {self.max_wall_s!r}")
         if self.vec_env not in VEC_ENVS:

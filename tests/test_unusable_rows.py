@@ -182,16 +182,10 @@ def test_environment_steps_through_frames_with_unusable_rows():
 
 
 def _kernel_signatures() -> dict[str, int]:
-    """Compiled signatures of every numba dispatcher of the estimator's kernel modules."""
-    import importlib
+    """Compiled signatures of every numba kernel of the package (its kernel modules' private ones too)."""
+    from stereovo.compilation import package_kernels
 
-    counts = {}
-    for name in ("stereovo.estimation.kernels", "stereovo.camera", "stereovo.estimation.refinement"):
-        module = importlib.import_module(name)
-        for attr, value in vars(module).items():
-            if hasattr(value, "signatures") and hasattr(value, "py_func"):
-                counts[f"{name}.{attr}"] = len(value.signatures)
-    return counts
+    return {f"{k.py_func.__module__}.{k.py_func.__qualname__}": len(k.signatures) for k in package_kernels()}
 
 
 def test_other_layouts_compile_nothing_new(frame):

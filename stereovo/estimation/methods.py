@@ -22,6 +22,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from stereovo.camera import StereoCamera
+from stereovo.compilation import announce_compiling
 from stereovo.estimation.estimator_options import (
     ENHANCEMENTS,
     ESTIMATOR_OPTION_RULES,
@@ -237,6 +238,7 @@ def estimate_motion(
         ValueError: malformed input (shapes, NaN/inf, mismatched N, complex or non-numeric
             values), bad priors/order, an unknown method or option.
     """
+    announce_compiling()  # one line on the first run after installing, else nothing
     start = time.perf_counter()
     spec = method_spec(method)
     shared, extra = _split_options(spec, options)
@@ -263,6 +265,7 @@ def estimate_problem(
         ValueError: as :func:`estimate_motion`, and if a ``noise_sigma`` option differs from
             the one the problem was built with.
     """
+    announce_compiling()
     start = time.perf_counter()
     if not isinstance(problem, StereoProblem):
         raise ValueError(f"problem must be a StereoProblem, got {type(problem).__name__}")
