@@ -17,7 +17,9 @@ the T(1,1) pre-test can pay: with fit cost t_M (in point checks), the pre-test p
 
 Compilation is warmed up first. Usage::
 
-    python scripts/bench_early_rejection.py [--frames 7] [--repeats 3] [--clock cpu|wall] [--enhanced] [--json out.json]
+    python scripts/bench_early_rejection.py [--frames 25] [--repeats 7] [--clock cpu|wall] [--enhanced] [--json out.json]
+
+(about five minutes on the project's 2-core machine; docs/performance.md records a run.)
 """
 
 from __future__ import annotations
@@ -151,12 +153,12 @@ def run_cell(method: str, n: int, eps: float, frames: int, extra: dict, method_o
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--frames", type=int, default=7, help="seeded frames per cell (default 7)")
+    parser.add_argument("--frames", type=int, default=25, help="seeded frames per cell (default 25)")
     parser.add_argument("--sizes", type=int, nargs="+", default=[1000, 5000])
     parser.add_argument("--eps", type=float, nargs="+", default=[0.5, 0.8])
     parser.add_argument("--methods", nargs="+", default=["waldsac", "r-ransac", "r-ransac:on"],
                         help="methods; r-ransac:on keeps the pre-test on throughout")
-    parser.add_argument("--repeats", type=int, default=3, help="runs per frame and route, the fastest kept (default 3)")
+    parser.add_argument("--repeats", type=int, default=7, help="runs per frame and route, the fastest kept (default 7)")
     parser.add_argument("--clock", choices=sorted(CLOCKS), default="cpu", help="process CPU time (default) or wall time")
     parser.add_argument("--enhanced", action="store_true", help="sample polish, local refit, LM refinement on")
     parser.add_argument("--json", help="also write the rows to this file")
