@@ -89,7 +89,7 @@ MODULES: tuple[Module, ...] = (
            ("tests/test_estimation_core.py", "tests/test_classical_verification.py", "tests/test_mutation_scoring.py")),
     Module("features", "vo_gym/features.py",
            ("tests/test_features.py", "tests/test_env_honesty.py", "tests/test_mutation_features.py")),
-    Module("geometry", "stereovo/geometry.py", ("tests/test_geometry.py",)),
+    Module("geometry", "stereovo/geometry.py", ("tests/test_geometry.py", "tests/test_mutation_geometry.py")),
     Module("ngransac-losses", "agents/ngransac.py", ("tests/test_agents_ngransac.py",),
            ("x_pose_loss", "x_inlier_loss", "x_smooth_inlier_loss", "x__pose_loss", "x_ordered_triplet_log_prob",
             "xǁNGRansacTrainerǁ_frame_loss")),
@@ -113,6 +113,7 @@ _S = "stereovo.estimation.sprt."
 _SA = "stereovo.estimation.samplers."
 _SC = "stereovo.estimation.scoring."
 _F = "vo_gym.features."
+_G = "stereovo.geometry."
 _CACHE = ("a different eviction of the per-count alpha cache (>= 16, > 17, [:16], [:-17]): evicted entries are "
           "recomputed to the same values, so only memory changes.")
 _BRACKET = ("a different upper bracket for brentq (start at 2, double while f <= 1, or until 1e6 as well, or stop "
@@ -248,6 +249,29 @@ EQUIVALENT: dict[str, str] = {
     _F + "x_compute_features__mutmut_4":
         "own_arrays = None: the problem's own arrays are validated again (as_measurements returns the same values) "
         "and then compare equal to the problem's, so the same features (checked with the mutation applied).",
+    **{_F + f"x_compute_features__mutmut_{i}":
+       "max(W - 1, 2) instead of max(W - 1, 1) in the column or row scale: differs only for an image 1 or 2 pixels "
+       "wide or high." for i in (138, 147)},
+    _F + "x_compute_features__mutmut_114": "kind=\"STABLE\": NumPy reads the sort kind case-insensitively.",
+    **{_F + f"x_compute_features__mutmut_{i}":
+       "priority_order not passed: rigid_consistency_degree recomputes the same argsort(-scores, kind='stable')."
+       for i in (251, 256)},
+    **{_F + f"x_compute_features__mutmut_{i}":
+       "an errstate argument dropped: no floating-point flag arises there (the depths are positive or NaN on rows "
+       "without depth, sq is finite, +inf behind the camera or NaN, and log, sqrt, log1p of those raise none); "
+       "test_mutation_features.py::test_every_column_by_its_definition runs it under errstate(all='raise') and "
+       "passes with each mutation applied." for i in (168, 207, 208, 209, 210)},
+    _G + "x_compose__mutmut_9": "einsum labels in capitals (\"...IJ,...J->...I\"): the same contraction.",
+    **{_G + f"x_transform_points__mutmut_{i}":
+       "X or R without dtype=float: the other operand of the product is float64, so integer values are promoted "
+       "exactly to the same result." for i in (3, 5, 13, 15)},
+    **{_G + f"x_{name}__mutmut_{i}":
+       "the rotation or translation read in its own dtype: integer entries give the same float64 arithmetic (the "
+       "trace and differences are exact, the division by 2 or the norm makes floats)."
+       for name, i in (("rotation_angle", 3), ("rotation_angle", 5), ("rotation_error", 9), ("rotation_error", 11),
+                       ("translation_error", 7), ("translation_error", 9))},
+    **{_G + f"x_quaternion_from_rotation__mutmut_{i}": "R in its own dtype: so3_log reads it as float64 first."
+       for i in (3, 5)},
 }
 
 # Survivors that are not equivalent but are left on purpose, with the reason (counted as survived).
@@ -305,6 +329,22 @@ ADDRESSED: dict[str, str] = {
     _F + "x_compute_features__mutmut_3":
         "test_mutation_features.py::test_previous_motion_and_camera_are_validated_with_exact_messages",
     _F + "x_compute_features__mutmut_8": "test_mutation_features.py::test_a_problem_of_other_measurements_is_refused",
+    **{_F + f"x_compute_features__mutmut_{i}": "test_mutation_features.py::test_every_column_by_its_definition"
+       for i in (109, 111, 136, 137, 145, 146, 149, 153, 157, 177, 179, 218, 220, 221, *range(229, 242), 257, 258, 264, 268,
+                 272, 274, 275, 276, 278, 280, 282, 283, 284, 288, 89)},
+    **{_F + f"x_compute_features__mutmut_{i}":
+       "test_mutation_features.py::test_two_and_one_matches_and_the_input_checks"
+       for i in (128, 9, 19, 23, 24, 30, 31, 32, 33, 36, 38, 39, 40, 50, 53, 56, 58, 67, 75, 85)},
+    **{_G + f"x_rotation_angle__mutmut_{i}":
+       "test_mutation_geometry.py::test_rotation_angle_about_each_axis_one_by_one_and_batched"
+       for i in (13, 14, 17, 25, 26, 36, 46, 48)},
+    **{_G + f"x_rotation_error__mutmut_{i}": "test_mutation_geometry.py::test_rotation_error_is_the_angle_of_the_relative_rotation"
+       for i in (12, 13)},
+    **{_G + f"x_translation_error__mutmut_{i}": "test_mutation_geometry.py::test_translation_error_per_row"
+       for i in (2, 4, 5)},
+    **{_G + f"x_transform_points__mutmut_{i}": "test_mutation_geometry.py::test_transform_points_single_and_batched"
+       for i in (1, 16)},
+    _G + "x_quaternion_from_rotation__mutmut_10": "test_mutation_geometry.py::test_quaternions_of_a_batch",
 }
 
 
