@@ -212,6 +212,18 @@ def test_ray_gives_the_same_rows_as_one_local_process(ray_backend, reference):
     _same(_without_time(rows), _without_time(reference))
 
 
+def _niceness(_):
+    return os.nice(0)
+
+
+def test_ray_workers_run_at_the_callers_niceness(ray_backend):
+    """Not Ray's default 15: on a busy machine that starves the trials (0.69x one local worker, measured)."""
+    from stereovo.trials import Task, run_tasks
+
+    result = run_tasks(_niceness, [Task(i, i) for i in range(4)], ray_backend, progress=False)
+    assert set(result.results.values()) == {os.nice(0)}
+
+
 def test_ray_retries_a_trial_whose_worker_was_killed(ray_backend, reference, tmp_path):
     victim = [r for r in reference if r["trial"] == 4][0]["t_true_norm_m"]
     assert sum(math.isclose(r["t_true_norm_m"], victim, rel_tol=1e-12) for r in reference if r["method"] == "ransac") == 1

@@ -25,8 +25,8 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from stereovo.simulation import Frame, SimulationConfig, simulate_frame
 from stereovo.options import Integer
+from stereovo.simulation import Frame, SimulationConfig, simulate_frame
 
 OUTLIER_MIXES: dict[str, tuple[float, float, float]] = {
     "mix": SimulationConfig().outlier_mix,  # the simulator's default blend

@@ -24,11 +24,13 @@ import signal
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Any, Callable, Iterator, Sequence
+
 from stereovo.options import Integer
 
 __all__ = ["BACKENDS", "Task", "Backend", "LocalBackend", "RayBackend", "make_backend", "chunked", "WorkerDied"]
 
 BACKENDS = ("local", "ray")
+RAY_WORKER_NICENESS = "RAY_worker_niceness"  # the environment variable the raylet reads at start
 
 
 @dataclass(frozen=True)
@@ -194,6 +196,11 @@ def connect_ray(workers: int | None, address: str | None, log_to_driver: bool = 
                                   configure_logging=True)
     if address is None:
         kwargs["num_cpus"] = int(workers or os.cpu_count() or 1)
+        # Ray starts its workers at niceness 15 (to keep its own daemons responsive): on a machine
+        # doing anything else they then get a sliver of a core, and the same trials run several times
+        # slower than in the local pool, whose workers run at the caller's niceness. The trials are
+        # the work; give them the caller's priority. (A cluster keeps its own setting.)
+        os.environ.setdefault(RAY_WORKER_NICENESS, "0")
     else:
         kwargs["address"] = address
     try:
