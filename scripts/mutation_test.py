@@ -252,6 +252,12 @@ EQUIVALENT: dict[str, str] = {
     **{_F + f"x_compute_features__mutmut_{i}":
        "max(W - 1, 2) instead of max(W - 1, 1) in the column or row scale: differs only for an image 1 or 2 pixels "
        "wide or high." for i in (138, 147)},
+    _F + "x_compute_features__mutmut_272":
+        "out[~usable, 8:12] instead of 8:11: column 11 of those rows is set to 0 on the next line all the same.",
+    _F + "x_compute_features__mutmut_101":
+        "always the branch for rows without depth: with every row usable it computes the degree over all rows with "
+        "priority scores[rows] = scores (the same anchors) and flags no row, so the same features (rechecked: "
+        "survives test_every_column_by_its_definition).",
     _F + "x_compute_features__mutmut_114": "kind=\"STABLE\": NumPy reads the sort kind case-insensitively.",
     **{_F + f"x_compute_features__mutmut_{i}":
        "priority_order not passed: rigid_consistency_degree recomputes the same argsort(-scores, kind='stable')."
@@ -272,6 +278,21 @@ EQUIVALENT: dict[str, str] = {
                        ("translation_error", 7), ("translation_error", 9))},
     **{_G + f"x_quaternion_from_rotation__mutmut_{i}": "R in its own dtype: so3_log reads it as float64 first."
        for i in (3, 5)},
+    _G + "x_quaternion_from_rotation__mutmut_25":
+        "theta >= 1e-8 instead of >: differs only at |w| = 1e-8 exactly, by an x, y, z part of sin(5e-9) w / |w| "
+        "= 5e-9 w / |w| in place of 0 (the same rotation within 5e-9).",
+    **{_G + f"x_quaternion_from_rotation__mutmut_{i}":
+       "the inner divisor's guard (>= or a placeholder 2.0 instead of 1.0) matters only where the outer where "
+       "takes 0.0, so the axis is the same." for i in (33, 34)},
+    _G + "x_quaternion_from_rotation__mutmut_57":
+        "qw <= 0 instead of < 0: qw = cos(theta / 2) of a float is never exactly 0 (at a half turn it is about "
+        "+-6e-17), so the same rows flip.",
+    **{_G + f"x_{name}__mutmut_{i}":
+       "an input read in its own dtype: integer entries give the same values (solve, the float64 zeros T is "
+       "written into, and the product with a float64 matrix all make float64)."
+       for name, i in (("se3_log", 10), ("se3_log", 12), ("make_transform", 3), ("make_transform", 5),
+                       ("invert_transform", 3), ("invert_transform", 5), ("relative_motion", 4),
+                       ("relative_motion", 6))},
 }
 
 # Survivors that are not equivalent but are left on purpose, with the reason (counted as survived).
@@ -331,7 +352,7 @@ ADDRESSED: dict[str, str] = {
     _F + "x_compute_features__mutmut_8": "test_mutation_features.py::test_a_problem_of_other_measurements_is_refused",
     **{_F + f"x_compute_features__mutmut_{i}": "test_mutation_features.py::test_every_column_by_its_definition"
        for i in (109, 111, 136, 137, 145, 146, 149, 153, 157, 177, 179, 218, 220, 221, *range(229, 242), 257, 258, 264, 268,
-                 272, 274, 275, 276, 278, 280, 282, 283, 284, 288, 89)},
+                 274, 275, 276, 278, 280, 282, 283, 284, 288, 89)},
     **{_F + f"x_compute_features__mutmut_{i}":
        "test_mutation_features.py::test_two_and_one_matches_and_the_input_checks"
        for i in (128, 9, 19, 23, 24, 30, 31, 32, 33, 36, 38, 39, 40, 50, 53, 56, 58, 67, 75, 85)},
@@ -344,7 +365,15 @@ ADDRESSED: dict[str, str] = {
        for i in (2, 4, 5)},
     **{_G + f"x_transform_points__mutmut_{i}": "test_mutation_geometry.py::test_transform_points_single_and_batched"
        for i in (1, 16)},
-    _G + "x_quaternion_from_rotation__mutmut_10": "test_mutation_geometry.py::test_quaternions_of_a_batch",
+    **{_G + f"x_quaternion_from_rotation__mutmut_{i}": "test_mutation_geometry.py::test_quaternions_of_a_batch"
+       for i in (10, 13, 38, 40)},
+    **{_G + f"x_quaternion_from_rotation__mutmut_{i}":
+       "test_mutation_geometry.py::test_quaternions_keep_qw_non_negative_at_half_turns_and_drop_a_vanishing_axis"
+       for i in (35, 50, 59)},
+    **{_G + f"x_{name}__mutmut_{i}": "test_mutation_geometry.py::test_batched_transforms_and_twists"
+       for name, i in (("se3_log", 15), ("se3_log", 17), ("make_transform", 10))},
+    **{_G + f"x_random_rotation__mutmut_{i}": "test_mutation_geometry.py::test_random_rotation_angles_stay_within_the_maximum"
+       for i in (5, 8, 12)},
 }
 
 

@@ -13,9 +13,12 @@ import pytest
 
 from stereovo.geometry import (
     PoseChain,
+    make_transform,
+    random_rotation,
     quaternion_from_rotation,
     rotation_angle,
     rotation_error,
+    se3_log,
     transform_points,
     translation_error,
 )
@@ -84,3 +87,34 @@ def test_pose_chain_chains_estimates_and_falls_back_to_the_last_motion():
     np.testing.assert_allclose(chain.append(False, _rot(0, 1.0), np.ones(3))[:3, 3], [0.0, 0.0, 2.0], atol=1e-15)
     assert chain.fallbacks == [True, False, True] and len(chain.poses) == 4
     np.testing.assert_array_equal(chain.last_motion[1], [0.0, 0.0, -1.0])
+
+
+def test_batched_transforms_and_twists():
+    R = np.stack([np.eye(3), _rot(2, math.pi / 2)])
+    t = np.array([[1.0, 2.0, 3.0], [0.0, 0.0, -1.0]])
+    T = make_transform(R, t)
+    assert T.shape == (2, 4, 4)
+    np.testing.assert_array_equal(T[:, 3], [[0, 0, 0, 1], [0, 0, 0, 1]])
+    np.testing.assert_array_equal(T[:, :3, 3], t)
+    # Pure translations: the twist is (t, 0) for each.
+    xi = se3_log(np.stack([np.eye(3), np.eye(3)]), t)
+    assert xi.shape == (2, 6)
+    np.testing.assert_allclose(xi, [[1.0, 2.0, 3.0, 0, 0, 0], [0, 0, -1.0, 0, 0, 0]], atol=1e-15)
+
+
+def test_random_rotation_angles_stay_within_the_maximum():
+    angles = [float(rotation_angle(random_rotation(np.random.default_rng(seed), 0.1))) for seed in range(40)]
+    assert max(angles) <= 0.1 + 1e-12 and max(angles) > 0.05  # uniform in [0, 0.1]: 40 draws reach past half
+
+
+def test_quaternions_keep_qw_non_negative_at_half_turns_and_drop_a_vanishing_axis():
+    axes = np.random.default_rng(0).normal(size=(200, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    from stereovo.geometry import so3_exp
+
+    q = quaternion_from_rotation(so3_exp(axes * math.pi))  # half turns: qw = cos(pi / 2) ~ 0 either sign
+    assert np.all(q[:, 3] >= 0.0)
+    np.testing.assert_allclose(np.abs(np.sum(q[:, :3] * axes, axis=1)), 1.0, rtol=1e-12)
+    # Below 1e-8 rad the axis is dropped: a rotation about z has no x or y component.
+    tiny = quaternion_from_rotation(_rot(2, 5e-9))
+    assert tiny[0] == 0.0 and tiny[1] == 0.0 and tiny[3] == pytest.approx(1.0, abs=1e-15)
