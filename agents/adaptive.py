@@ -142,7 +142,10 @@ def load_adaptive(name_or_path: str | Path) -> tuple[AdaptiveSamplerNet, dict[st
         path = shipped_adaptive_path(str(name_or_path))
     if not path.is_file():
         raise FileNotFoundError(f"no adaptive-sampler checkpoint {name_or_path!r} (neither a file nor a shipped name)")
-    payload = torch.load(path, map_location="cpu", weights_only=True)
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)  # never runs code from the file
+    except Exception as err:  # noqa: BLE001 - torch reports a non-checkpoint in many ways, over many lines
+        raise ValueError(f"{path} is not a readable adaptive-sampler checkpoint ({type(err).__name__})") from None
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:
         raise ValueError(f"{path} is not an adaptive-sampler checkpoint")
     if tuple(payload["feature_names"]) != ADAPTIVE_FEATURE_NAMES or tuple(payload["global_names"]) != GLOBAL_FEATURE_NAMES:

@@ -133,3 +133,15 @@ def test_evaluate_finds_a_shipped_sampler_by_name():
 
     spec = resolve_agent("ngransac-supervised")
     assert spec.kind == "checkpoint" and spec.label == "ngransac-supervised"
+
+
+@pytest.mark.parametrize("content", [None, b"not a checkpoint", b"PK\x03\x04 truncated"])
+def test_a_bad_adaptive_sampler_is_named_before_computing(tmp_path, capsys, content):
+    path = tmp_path / "sampler.pt"
+    if content is not None:
+        path.write_bytes(content)
+    out = tmp_path / "out"
+    assert main(["evaluate", "--adaptive", "--adaptive-sampler", str(path), "--out", str(out)]) == 2
+    line = _one_line(capsys, "evaluate")
+    assert "--adaptive-sampler" in line and str(path) in line
+    assert not out.exists() or not any(out.iterdir())

@@ -83,6 +83,9 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                              " in-frame sampler, BANSAC, ARS, one-shot samplers, uniform and PROSAC by score on"
                              " identical held-out frames at eps 0.9 and on the hard id at eps 0.8; uses --episodes,"
                              " --frames-per-episode, --seed, --n and --out")
+    parser.add_argument("--adaptive-sampler", default="adaptive-pg", metavar="NAME|PATH",
+                        help="with --adaptive: the learned in-frame sampler, a shipped name or a checkpoint file"
+                             " (default: adaptive-pg)")
     parser.add_argument("--adaptive-agents", action="store_true",
                         help="also run each agent without a budget: its priors with the prior-aware adaptive stop"
                              " (capped at --max-iterations), reported beside the adaptive classical methods"
@@ -106,10 +109,15 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run_adaptive(args: argparse.Namespace) -> int:
+    from agents.adaptive import load_adaptive
     from agents.adaptive_evaluation import AdaptiveComparison, comparison_markdown, run_comparison, write_comparison
 
-    config = AdaptiveComparison(episodes=args.episodes, frames_per_episode=args.frames_per_episode, seed=args.seed,
-                                n=args.n)
+    try:
+        load_adaptive(args.adaptive_sampler)  # a bad checkpoint is named before any computing
+    except (ValueError, FileNotFoundError, KeyError) as err:
+        raise UsageError(f"--adaptive-sampler {args.adaptive_sampler!r}: {err}") from None
+    config = AdaptiveComparison(learned=args.adaptive_sampler, episodes=args.episodes,
+                                frames_per_episode=args.frames_per_episode, seed=args.seed, n=args.n)
     out = open_run_folder(args)  # before any computing
     result = run_comparison(config, log=(lambda line: None) if args.json else print)
     paths = write_comparison(result, out)
