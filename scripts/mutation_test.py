@@ -90,7 +90,7 @@ MODULES: tuple[Module, ...] = (
     Module("features", "vo_gym/features.py",
            ("tests/test_features.py", "tests/test_env_honesty.py", "tests/test_mutation_features.py")),
     Module("geometry", "stereovo/geometry.py", ("tests/test_geometry.py", "tests/test_mutation_geometry.py")),
-    Module("ngransac-losses", "agents/ngransac.py", ("tests/test_agents_ngransac.py",),
+    Module("ngransac-losses", "agents/ngransac.py", ("tests/test_agents_ngransac.py", "tests/test_mutation_ngransac.py"),
            ("x_pose_loss", "x_inlier_loss", "x_smooth_inlier_loss", "x__pose_loss", "x_ordered_triplet_log_prob",
             "xǁNGRansacTrainerǁ_frame_loss")),
 )
@@ -267,6 +267,8 @@ EQUIVALENT: dict[str, str] = {
        "without depth, sq is finite, +inf behind the camera or NaN, and log, sqrt, log1p of those raise none); "
        "test_mutation_features.py::test_every_column_by_its_definition runs it under errstate(all='raise') and "
        "passes with each mutation applied." for i in (168, 207, 208, 209, 210)},
+    "agents.ngransac.x_smooth_inlier_loss__mutmut_17":
+        "degrees * SMOOTHNESS_SCALE_DEG instead of /: the scale is 1.0 degree, multiplying and dividing by 1 agree.",
     _G + "x_compose__mutmut_9": "einsum labels in capitals (\"...IJ,...J->...I\"): the same contraction.",
     **{_G + f"x_transform_points__mutmut_{i}":
        "X or R without dtype=float: the other operand of the product is float64, so integer values are promoted "
@@ -372,6 +374,9 @@ ADDRESSED: dict[str, str] = {
        for i in (35, 50, 59)},
     **{_G + f"x_{name}__mutmut_{i}": "test_mutation_geometry.py::test_batched_transforms_and_twists"
        for name, i in (("se3_log", 15), ("se3_log", 17), ("make_transform", 10))},
+    "agents.ngransac.x_inlier_loss__mutmut_7": "test_mutation_ngransac.py::test_inlier_loss_of_a_single_correspondence_frame",
+    **{f"agents.ngransac.x_smooth_inlier_loss__mutmut_{i}": "test_mutation_ngransac.py::test_smoothness_penalty_by_hand"
+       for i in (16, 30)},
     **{_G + f"x_random_rotation__mutmut_{i}": "test_mutation_geometry.py::test_random_rotation_angles_stay_within_the_maximum"
        for i in (5, 8, 12)},
 }
@@ -620,6 +625,8 @@ def write_report(path: Path, store: Path) -> dict[str, dict]:
         "written after the run targets still counts as survived here until its module is rerun; runs",
         "stopped at their time cap leave the rest of the module *not checked*, and their rate covers",
         "only the mutants reached (mutmut goes function by function, so whole functions may be missing).",
+        "`--mutants NAME ...` rechecks named survivors in the last run's copies against the current tests",
+        "and merges their verdicts into the results (the run column says how many were rechecked).",
         "",
         "## The bugs of issue 19 and the tests that catch them",
         "",
@@ -710,8 +717,16 @@ def main(argv: list[str] | None = None) -> int:
             previous = json.loads(args.results.read_text()).get(module.name, {}).get("note", "") \
                 if args.results.is_file() else ""
             note = run_module(workdir, module, args.minutes, args.max_children, names)
-            record(args.results, workdir, module, f"{previous}; {len(names)} rechecked: {note}")
-            print(f"{module.name}: {len(names)} rechecked, {note}", flush=True)
+            # mutmut forgets the other mutants' verdicts when given names: merge only the rechecked ones.
+            fresh = read_results(workdir, module)
+            results = json.loads(args.results.read_text()) if args.results.is_file() else {}
+            entry = results.setdefault(module.name, {"note": "", "status": {}, "diff": {}})
+            verdicts = {n: fresh[n] for n in names if fresh.get(n, "not checked") != "not checked"}
+            entry["status"].update(verdicts)
+            killed = sum(v in ("killed", "timeout") for v in verdicts.values())
+            entry["note"] = f"{previous}; {len(verdicts)} survivors rechecked with later tests, {killed} killed"
+            args.results.write_text(json.dumps(results, indent=1, ensure_ascii=False), encoding="utf-8")
+            print(f"{module.name}: {len(verdicts)} rechecked, {killed} killed ({note})", flush=True)
     elif not args.report_only:
         base = args.workdir / "base"
         if not (args.keep and base.is_dir()):
