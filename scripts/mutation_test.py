@@ -76,7 +76,7 @@ MODULES: tuple[Module, ...] = (
     Module("termination", "stereovo/estimation/termination.py", ("tests/test_stopping_bounds.py",)),
     Module("prosac", "stereovo/estimation/prosac.py", ("tests/test_stopping_bounds.py",)),
     Module("mlesac", "stereovo/estimation/mlesac.py",
-           ("tests/test_mlesac_densities.py", "tests/test_classical_mlesac.py")),
+           ("tests/test_mlesac_densities.py", "tests/test_classical_mlesac.py", "tests/test_mutation_mlesac.py")),
     Module("env", "vo_gym/env.py", ("tests/test_env_honesty.py", "tests/test_rewards.py", *_ENV_TESTS)),
     Module("sprt", "stereovo/estimation/sprt.py",
            ("tests/test_stopping_bounds.py", "tests/test_mutation_survivors.py", "tests/test_classical_verification.py")),
@@ -269,6 +269,14 @@ EQUIVALENT: dict[str, str] = {
        "passes with each mutation applied." for i in (168, 207, 208, 209, 210)},
     "agents.ngransac.x_smooth_inlier_loss__mutmut_17":
         "degrees * SMOOTHNESS_SCALE_DEG instead of /: the scale is 1.0 degree, multiplying and dividing by 1 agree.",
+    "stereovo.estimation.mlesac.x_inlier_log_normaliser__mutmut_10":
+        "sign < 0 instead of <= 0: a zero sign comes with logdet = -inf, which ~isfinite(logdet) flags.",
+    "stereovo.estimation.mlesac.x_inlier_log_normaliser__mutmut_9":
+        "(sign <= 0) & ~isfinite: S is symmetric, so sign <= 0 means an eigenvalue <= 0, which the condition test "
+        "eig_min > 1e-12 eig_max flags anyway (also when all are negative).",
+    "stereovo.estimation.mlesac.x_inlier_log_normaliser__mutmut_16":
+        ">= instead of >: differs only when eig_min = 1e-12 eig_max exactly, where the floor is eig_min itself: the "
+        "same log-determinant up to slogdet's rounding.",
     _G + "x_compose__mutmut_9": "einsum labels in capitals (\"...IJ,...J->...I\"): the same contraction.",
     **{_G + f"x_transform_points__mutmut_{i}":
        "X or R without dtype=float: the other operand of the product is float64, so integer values are promoted "
@@ -374,6 +382,9 @@ ADDRESSED: dict[str, str] = {
        for i in (35, 50, 59)},
     **{_G + f"x_{name}__mutmut_{i}": "test_mutation_geometry.py::test_batched_transforms_and_twists"
        for name, i in (("se3_log", 15), ("se3_log", 17), ("make_transform", 10))},
+    **{f"stereovo.estimation.mlesac.x_inlier_log_normaliser__mutmut_{i}":
+       "test_mutation_mlesac.py::test_inlier_normaliser_keeps_slogdet_and_floors_only_ill_conditioned_rows"
+       for i in (8, 11, 12, 14, 15, 17)},
     "agents.ngransac.x_inlier_loss__mutmut_7": "test_mutation_ngransac.py::test_inlier_loss_of_a_single_correspondence_frame",
     **{f"agents.ngransac.x_smooth_inlier_loss__mutmut_{i}": "test_mutation_ngransac.py::test_smoothness_penalty_by_hand"
        for i in (16, 30)},
