@@ -272,8 +272,9 @@ EQUIVALENT: dict[str, str] = {
     "stereovo.estimation.mlesac.x_inlier_log_normaliser__mutmut_10":
         "sign < 0 instead of <= 0: a zero sign comes with logdet = -inf, which ~isfinite(logdet) flags.",
     "stereovo.estimation.mlesac.x_inlier_log_normaliser__mutmut_9":
-        "(sign <= 0) & ~isfinite: S is symmetric, so sign <= 0 means an eigenvalue <= 0, which the condition test "
-        "eig_min > 1e-12 eig_max flags anyway (also when all are negative).",
+        "((sign <= 0) & ~isfinite) | ~cond: S is symmetric, so sign <= 0 means an eigenvalue <= 0, which the "
+        "condition test eig_min > 1e-12 eig_max flags anyway (also when all are negative); a non-finite logdet with "
+        "a positive sign comes only from non-finite entries, whose NaN eigenvalues fail the condition test too.",
     "stereovo.estimation.mlesac.x_inlier_log_normaliser__mutmut_16":
         ">= instead of >: differs only when eig_min = 1e-12 eig_max exactly, where the floor is eig_min itself: the "
         "same log-determinant up to slogdet's rounding.",
