@@ -232,8 +232,10 @@ def test_ctrl_c_or_sigterm_prints_one_line_and_exits_130(tmp_path, signame):
     import time
 
     out = tmp_path / "run"
-    argv = [sys.executable, "-m", "vo_gym.cli", "baselines", "--methods", "ransac,msac", "--epsilons", "0.3,0.5,0.7",
-            "--aucs", "0.9", "--ns", "80", "--frames-per-cell", "200", "--max-iterations", "300", "--no-progress",
+    # Trials of a few ms each, 3000 of them: the run cannot finish between the journal's first rows
+    # and the signal (with 600 trials of under a millisecond it once did, on a busy machine).
+    argv = [sys.executable, "-m", "vo_gym.cli", "baselines", "--methods", "ransac,msac", "--epsilons", "0.5,0.7,0.8",
+            "--aucs", "0.9", "--ns", "300", "--frames-per-cell", "1000", "--max-iterations", "2000", "--no-progress",
             "--no-plots", "--workers", "2", "--out", str(out)]
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     journal = out / "journal.csv"
@@ -242,10 +244,11 @@ def test_ctrl_c_or_sigterm_prints_one_line_and_exits_130(tmp_path, signame):
         if journal.is_file() and len(journal.read_text().splitlines()) > 3:
             break
         time.sleep(0.2)
+    assert proc.poll() is None, "the run ended before it could be interrupted"
     proc.send_signal(getattr(signal, signame))
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
     lines = err.strip().splitlines()
     assert "Traceback" not in err and len(lines) == 1, err
     saved = len({line.split(",")[0] for line in journal.read_text().splitlines()[1:]})
-    assert lines[0] == f"interrupted: {saved} of 600 trials saved in {out}; rerun with --resume"
+    assert lines[0] == f"interrupted: {saved} of 3000 trials saved in {out}; rerun with --resume"
