@@ -145,3 +145,30 @@ def test_a_bad_adaptive_sampler_is_named_before_computing(tmp_path, capsys, cont
     line = _one_line(capsys, "evaluate")
     assert "--adaptive-sampler" in line and str(path) in line
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_only_the_pool_exit_race_is_silenced_after_an_interrupt(monkeypatch):
+    """After Ctrl-C, CPython 3.11's process-pool exit hook may hit its closed pipe; that, and only that, stays quiet."""
+    import types
+
+    from vo_gym.commands.common import quiet_pool_exit
+
+    def unraisable(filename, error):
+        code = compile("def boom(e):\n    raise e\n", filename, "exec")
+        scope: dict = {}
+        exec(code, scope)  # noqa: S102 - a test-made function whose frame names the given file
+        try:
+            scope["boom"](error)
+        except Exception as err:  # noqa: BLE001
+            return types.SimpleNamespace(exc_type=type(err), exc_value=err, exc_traceback=err.__traceback__,
+                                         err_msg=None, object=None)
+
+    passed = []
+    monkeypatch.setattr("sys.__unraisablehook__", passed.append)
+    quiet_pool_exit(unraisable("/usr/lib/python3.11/concurrent/futures/process.py", OSError(9, "Bad file descriptor")))
+    assert passed == []
+    other = unraisable("/somewhere/else.py", OSError(9, "Bad file descriptor"))
+    quiet_pool_exit(other)
+    not_os = unraisable("/usr/lib/python3.11/concurrent/futures/process.py", ValueError("x"))
+    quiet_pool_exit(not_os)
+    assert passed == [other, not_os]
