@@ -237,7 +237,10 @@ def test_ctrl_c_or_sigterm_prints_one_line_and_exits_130(tmp_path, signame):
     argv = [sys.executable, "-m", "vo_gym.cli", "baselines", "--methods", "ransac,msac", "--epsilons", "0.5,0.7,0.8",
             "--aucs", "0.9", "--ns", "300", "--frames-per-cell", "1000", "--max-iterations", "2000", "--no-progress",
             "--no-plots", "--workers", "2", "--out", str(out)]
-    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # An xdist worker may ignore SIGINT, and a child inherits an ignored signal (Python then installs
+    # no KeyboardInterrupt handler): give the command the default disposition a terminal would.
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     journal = out / "journal.csv"
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None:
