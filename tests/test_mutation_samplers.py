@@ -158,6 +158,7 @@ def test_log_probability_stays_a_finite_log_probability_when_the_mass_left_round
     s = WeightedSampler(np.array([1.0, 1.0, 1e-17]))
     log_p = s.log_probability(np.array([[0, 1, 2], [2, 0, 1]]))
     assert np.all(np.isfinite(log_p)) and np.all(log_p <= 0.0)
+    assert log_p[0] == pytest.approx(math.log(0.5), rel=1e-12)  # the third pick is all the mass left
     assert log_p[1] == pytest.approx(math.log(5e-18) + math.log(0.5) + 0.0, rel=1e-12)
 
 

@@ -178,7 +178,12 @@ class WeightedSampler:
         """Log-probability ``(B,)`` of drawing each ordered triplet sequentially without replacement."""
         picked = self._w[samples]
         taken = np.cumsum(picked, axis=1) - picked
-        return np.sum(np.log(picked) - np.log1p(-np.minimum(taken, 1 - 1e-12)), axis=1)
+        # The mass left before a pick holds at least the picked point's weight. When 1 - taken rounds
+        # below it (0.5 + 0.5 == 1.0 with a third weight of 5e-18), that point is all that is left:
+        # its factor is 1 (a floor on the mass left instead made it 5e-18 / 1e-12).
+        with np.errstate(invalid="ignore"):
+            left = np.where(1.0 - taken > picked, np.log1p(-taken), np.log(picked))
+        return np.sum(np.log(picked) - left, axis=1)
 
 
 def prosac_growth(n: int, sample_size: int = SAMPLE_SIZE, t_n: float = 200_000) -> np.ndarray:
