@@ -41,6 +41,21 @@ def oracle_estimate(frame, fail: bool = False) -> MotionEstimate:
     )
 
 
+class Recording:
+    """A sequence that notes each frame under its ``prev`` array, so a fake estimator knows its frame."""
+
+    def __init__(self, seq, frames_by_prev):
+        self.seq, self.true_poses, self.frames_by_prev = seq, seq.true_poses, frames_by_prev
+
+    def __len__(self):
+        return len(self.seq)
+
+    def __iter__(self):
+        for frame in self.seq:
+            self.frames_by_prev[id(frame.prev)] = frame
+            yield frame
+
+
 def patch_estimator(monkeypatch, fail_frames=(), calls=None):
     """Replace the estimator inside odometry by the oracle, failing on the given frame indices."""
     frames_by_prev = {}
@@ -51,20 +66,8 @@ def patch_estimator(monkeypatch, fail_frames=(), calls=None):
             calls.append((frame, kwargs))
         return oracle_estimate(frame, fail=frame.index in fail_frames)
 
-    class Recording:
-        def __init__(self, seq):
-            self.seq, self.true_poses = seq, seq.true_poses
-
-        def __len__(self):
-            return len(self.seq)
-
-        def __iter__(self):
-            for frame in self.seq:
-                frames_by_prev[id(frame.prev)] = frame
-                yield frame
-
     monkeypatch.setattr(odometry, "estimate_motion", fake)
-    return Recording
+    return lambda seq: Recording(seq, frames_by_prev)
 
 
 def test_short_car_run_is_accurate(result, sequence):
@@ -197,20 +200,8 @@ def test_result_trajectory_scores_the_chained_estimate(monkeypatch, sequence):
             rotation=truth.rotation, translation=1.1 * truth.translation, inliers=truth.inlier.copy(),
             status="ok", n_hypotheses=1, n_scored=1, n_point_checks=frame.n, time_s=0.0, method="biased")
 
-    class Recording:
-        def __init__(self, seq):
-            self.seq, self.true_poses = seq, seq.true_poses
-
-        def __len__(self):
-            return len(self.seq)
-
-        def __iter__(self):
-            for frame in self.seq:
-                frames_by_prev[id(frame.prev)] = frame
-                yield frame
-
     monkeypatch.setattr(odometry, "estimate_motion", biased)
-    res = run_odometry(Recording(sequence), method="biased", kitti_lengths=SHORT_LENGTHS, kitti_step=5)
+    res = run_odometry(Recording(sequence, frames_by_prev), method="biased", kitti_lengths=SHORT_LENGTHS, kitti_step=5)
     steps = np.array([np.linalg.norm(frame.truth.translation) for frame in sequence])
     traj = res.trajectory
     assert traj.n_poses == len(sequence) + 1
