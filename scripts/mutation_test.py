@@ -74,6 +74,10 @@ class Module:
 _ENV_TESTS = tuple(f"tests/test_env.py::{name}" for name in (
     "test_invalid_settings_are_rejected_by_make", "test_padding_and_action_validation",
     "test_estimator_settings_pass_through", "test_spaces_and_episode_end"))
+_NGRANSAC_TESTS = tuple(f"tests/test_agents_ngransac.py::{name}" for name in (
+    "test_network_is_permutation_equivariant_and_padding_independent", "test_ordered_triplet_log_prob_matches_core_sampler",
+    "test_policy_gradient_raises_probability_of_all_inlier_sets", "test_checkpoint_round_trip_and_layout_refusal",
+    "test_smoothness_loss_prefers_the_motion_that_continues_the_previous_one"))
 MODULES: tuple[Module, ...] = (
     Module("rewards", "vo_gym/rewards.py", ("tests/test_rewards.py",)),
     Module("termination", "stereovo/estimation/termination.py", ("tests/test_stopping_bounds.py",)),
@@ -93,7 +97,9 @@ MODULES: tuple[Module, ...] = (
     Module("features", "vo_gym/features.py",
            ("tests/test_features.py", "tests/test_env_honesty.py", "tests/test_mutation_features.py")),
     Module("geometry", "stereovo/geometry.py", ("tests/test_geometry.py", "tests/test_mutation_geometry.py")),
-    Module("ngransac-losses", "agents/ngransac.py", ("tests/test_agents_ngransac.py", "tests/test_mutation_ngransac.py"),
+    # Without the two training tests (a minute each on two shared cores, and every surviving mutant
+    # would run both): test_mutation_ngransac.py checks the losses and one training step by hand.
+    Module("ngransac-losses", "agents/ngransac.py", (*_NGRANSAC_TESTS, "tests/test_mutation_ngransac.py"),
            ("x_pose_loss", "x_inlier_loss", "x_smooth_inlier_loss", "x__pose_loss", "x_ordered_triplet_log_prob",
             "xǁNGRansacTrainerǁ_frame_loss")),
 )
@@ -270,6 +276,15 @@ EQUIVALENT: dict[str, str] = {
        "without depth, sq is finite, +inf behind the camera or NaN, and log, sqrt, log1p of those raise none); "
        "test_mutation_features.py::test_every_column_by_its_definition runs it under errstate(all='raise') and "
        "passes with each mutation applied." for i in (168, 207, 208, 209, 210)},
+    "agents.ngransac.xǁNGRansacTrainerǁ_frame_loss__mutmut_28":
+        "the all-valid mask as float ones instead of bool: CorrespondenceNet reads its mask as mask.bool(), the "
+        "same all-True mask.",
+    "stereovo.estimation.mlesac.x_mlesac_em__mutmut_16":
+        "the start's (gamma, L) computed when no history is asked as well: one more evaluation of a pure function, "
+        "never appended to or returned.",
+    "vo_gym.env.xǁStereoVOEnvǁ_trajectory_summary__mutmut_13":
+        "kitti_step=KITTI_STEP dropped: it is trajectory_metrics' default.",
+    "vo_gym.env.xǁStereoVOEnvǁstep__mutmut_33": "kind=\"STABLE\": NumPy reads the sort kind case-insensitively.",
     "agents.ngransac.x_smooth_inlier_loss__mutmut_17":
         "degrees * SMOOTHNESS_SCALE_DEG instead of /: the scale is 1.0 degree, multiplying and dividing by 1 agree.",
     "stereovo.estimation.mlesac.x_inlier_log_normaliser__mutmut_10":

@@ -232,3 +232,55 @@ def test_stepping_out_of_turn_names_the_fix():
     env.step(np.zeros(120))
     with pytest.raises(RuntimeError, match=r"^StereoVOEnv: the episode is over \(truncated\); call reset\(\)$"):
         env.step(np.zeros(120))
+
+
+def test_the_episode_summary_drifts_over_the_envs_kitti_lengths(monkeypatch):
+    # A 2 m segment fits the 4-frame episode (about 1 m per frame; the default 100-800 m ones do not): one
+    # segment, from frame 0 to the first frame 2 m along the true path, whose drift is that frame's pose
+    # error inv(P_e) Q_e (P_0 = Q_0 = I) over 2 m.
+    stub_estimator(monkeypatch)
+    env = StereoVOEnv(**{**KWARGS, "kitti_lengths": (2.0,)})
+    env.reset(seed=7)
+    truncated, info = False, {}
+    while not truncated:
+        _, _, _, truncated, info = env.step(np.zeros(120))
+    est, true = env.estimated_poses, env.sequence.true_poses[:5]
+    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(true[:, :3, 3], axis=0), axis=1))])
+    assert along[-1] > 2.0
+    end = int(np.argmax(along >= 2.0))
+    error = np.linalg.inv(est[end]) @ true[end]
+    summary = info["trajectory"]
+    assert summary["kitti_segments"] == 1
+    assert summary["kitti_t_percent"] == pytest.approx(100 * np.linalg.norm(error[:3, 3]) / 2.0, rel=1e-9)
+
+
+@pytest.mark.parametrize("sampling", ["guided", "prosac"])
+def test_render_shows_the_sampling_weights_relative_to_uniform(monkeypatch, sampling):
+    # guided: N softmax(logit_scale a), mean 1; prosac: 1 for the first of the order down to 0 for the last,
+    # the order by value with ties by row (integer actions: many ties).
+    import vo_gym.rendering as rendering
+
+    drawn = []
+    monkeypatch.setattr(rendering, "render_rgb", lambda est, true, frame, weights, inliers, title: drawn.append(weights))
+    received = []
+    real = env_module.estimate_problem
+
+    def spy(problem, **kwargs):
+        received.append(kwargs.get("order"))
+        return real(problem, **kwargs)
+
+    monkeypatch.setattr(env_module, "estimate_problem", spy)
+    env = StereoVOEnv(**{**KWARGS, "sampling": sampling, "logit_scale": 0.5, "action_bound": 10.0,
+                         "render_mode": "rgb_array"})
+    env.reset(seed=1)
+    action = np.random.default_rng(0).integers(-3, 4, 120).astype(float)
+    env.step(action)
+    env.render()
+    (weights,) = drawn
+    if sampling == "guided":
+        expected = 120 * np.exp(0.5 * action) / np.sum(np.exp(0.5 * action))
+        np.testing.assert_allclose(weights, expected, rtol=1e-9)
+    else:
+        by_rank = sorted(range(120), key=lambda i: (-action[i], i))
+        np.testing.assert_array_equal(received[0], by_rank)
+        np.testing.assert_allclose(weights[by_rank], 1.0 - np.arange(120) / 119, rtol=0, atol=1e-15)
