@@ -276,9 +276,12 @@ EQUIVALENT: dict[str, str] = {
        "without depth, sq is finite, +inf behind the camera or NaN, and log, sqrt, log1p of those raise none); "
        "test_mutation_features.py::test_every_column_by_its_definition runs it under errstate(all='raise') and "
        "passes with each mutation applied." for i in (168, 207, 208, 209, 210)},
-    "agents.ngransac.xǁNGRansacTrainerǁ_frame_loss__mutmut_28":
-        "the all-valid mask as float ones instead of bool: CorrespondenceNet reads its mask as mask.bool(), the "
-        "same all-True mask.",
+    **{f"agents.ngransac.xǁNGRansacTrainerǁ_frame_loss__mutmut_{i}":
+       "the all-valid mask as float ones instead of bool: CorrespondenceNet reads its mask as mask.bool(), the "
+       "same all-True mask." for i in (28, 31)},
+    "stereovo.estimation.mlesac.x_outlier_log_density__mutmut_28":
+        "no upper depth clip: never reached, a usable row's disparity d exceeds min_disparity, so its depth "
+        "fB / d < fB / min_disparity (division rounds monotonically), and an unusable row's NaN stays NaN.",
     "stereovo.estimation.mlesac.x_mlesac_em__mutmut_16":
         "the start's (gamma, L) computed when no history is asked as well: one more evaluation of a pure function, "
         "never appended to or returned.",
@@ -405,6 +408,8 @@ ADDRESSED: dict[str, str] = {
        "test_mutation_mlesac.py::test_inlier_normaliser_keeps_slogdet_and_floors_only_ill_conditioned_rows"
        for i in (8, 11, 12, 14, 15, 17)},
     "agents.ngransac.x_inlier_loss__mutmut_7": "test_mutation_ngransac.py::test_inlier_loss_of_a_single_correspondence_frame",
+    "agents.ngransac.xǁNGRansacTrainerǁ_frame_loss__mutmut_70":
+        "test_mutation_ngransac.py::test_frame_loss_of_a_randomised_method_draws_from_the_trainers_rng",
     **{f"agents.ngransac.x_smooth_inlier_loss__mutmut_{i}": "test_mutation_ngransac.py::test_smoothness_penalty_by_hand"
        for i in (16, 30)},
     **{_G + f"x_random_rotation__mutmut_{i}": "test_mutation_geometry.py::test_random_rotation_angles_stay_within_the_maximum"

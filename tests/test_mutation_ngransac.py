@@ -111,3 +111,14 @@ def test_frame_loss_pools_the_frames_problem_and_the_previous_motions_features(m
     expected = np.mean((np.array(losses) - np.mean(losses)) * log_prob) - 0.1 * entropy
     assert float(objective.detach()) == pytest.approx(expected, rel=1e-5, abs=1e-7)
     assert objective.requires_grad
+
+
+def test_frame_loss_of_a_randomised_method_draws_from_the_trainers_rng():
+    # R-RANSAC's pre-test picks random points: the pools take them from the trainer's generator, so one seed
+    # gives one training step.
+    config = NGRansacConfig(loss="self-supervised", method="r-ransac", n_correspondences=60, epsilon_range=(0.5, 0.5),
+                            budget=3, pools=2, width=8, blocks=1, seed=4)
+    frame = simulate_frame(config.simulation(0.5), np.random.default_rng(5))
+    steps = [NGRansacTrainer(config)._frame_loss(frame, None) for _ in range(2)]
+    assert steps[0][1] == steps[1][1]
+    assert float(steps[0][0].detach()) == float(steps[1][0].detach())
