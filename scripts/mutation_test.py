@@ -279,6 +279,12 @@ EQUIVALENT: dict[str, str] = {
     **{f"agents.ngransac.xǁNGRansacTrainerǁ_frame_loss__mutmut_{i}":
        "the all-valid mask as float ones instead of bool: CorrespondenceNet reads its mask as mask.bool(), the "
        "same all-True mask." for i in (28, 31)},
+    "agents.ngransac.xǁNGRansacTrainerǁ_frame_loss__mutmut_102":
+        "the entropy term also at weight 0: 0 x a finite entropy (log_softmax is finite on every row, all valid), "
+        "so the same objective and gradient.",
+    "agents.ngransac.xǁNGRansacTrainerǁ_frame_loss__mutmut_114":
+        "max(N, 3) instead of max(N, 2) in the entropy's log N: differs only at N = 2, where no triplet can be drawn "
+        "(WeightedSampler needs three positive weights).",
     "stereovo.estimation.mlesac.x_outlier_log_density__mutmut_28":
         "no upper depth clip: never reached, a usable row's disparity d exceeds min_disparity, so its depth "
         "fB / d < fB / min_disparity (division rounds monotonically), and an unusable row's NaN stays NaN.",
@@ -410,6 +416,14 @@ ADDRESSED: dict[str, str] = {
     "agents.ngransac.x_inlier_loss__mutmut_7": "test_mutation_ngransac.py::test_inlier_loss_of_a_single_correspondence_frame",
     "agents.ngransac.xǁNGRansacTrainerǁ_frame_loss__mutmut_70":
         "test_mutation_ngransac.py::test_frame_loss_of_a_randomised_method_draws_from_the_trainers_rng",
+    **{f"agents.ngransac.xǁNGRansacTrainerǁ_frame_loss__mutmut_{i}":
+       "test_mutation_ngransac.py::test_frame_loss_pools_the_frames_problem_and_the_previous_motions_features (the "
+       "smooth loss)" for i in (84, 87)},
+    "agents.ngransac.xǁNGRansacTrainerǁ_frame_loss__mutmut_93":
+        "test_mutation_ngransac.py::test_frame_loss_success_is_strictly_under_the_bound",
+    **{f"agents.ngransac.x_ordered_triplet_log_prob__mutmut_{i}":
+       "test_mutation_ngransac.py::test_triplet_log_prob_stays_finite_when_two_picks_hold_all_the_float32_mass"
+       for i in (15, 16)},
     **{f"agents.ngransac.x_smooth_inlier_loss__mutmut_{i}": "test_mutation_ngransac.py::test_smoothness_penalty_by_hand"
        for i in (16, 30)},
     **{_G + f"x_random_rotation__mutmut_{i}": "test_mutation_geometry.py::test_random_rotation_angles_stay_within_the_maximum"

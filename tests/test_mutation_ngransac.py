@@ -69,7 +69,7 @@ def test_frame_loss_pools_the_frames_problem_and_the_previous_motions_features(m
     # features of (frame, previous motion), each pool fitted on the frame's own problem (its noise: 2 px, not
     # the default 0.5), the advantage against the pools' mean loss times each pool's draw log-probability
     # (the core sampler's), minus the entropy bonus over log N.
-    config = NGRansacConfig(loss="self-supervised", n_correspondences=60, noise_sigma=2.0, epsilon_range=(0.5, 0.5),
+    config = NGRansacConfig(loss="self-supervised-smooth", n_correspondences=60, noise_sigma=2.0, epsilon_range=(0.5, 0.5),
                             budget=3, pools=3, width=8, blocks=1, entropy_weight=0.1, seed=2)
     trainer = NGRansacTrainer(config)
     frame = simulate_frame(config.simulation(0.5), np.random.default_rng(3))
@@ -103,7 +103,9 @@ def test_frame_loss_pools_the_frames_problem_and_the_previous_motions_features(m
         np.testing.assert_array_equal(problem.cov_prev, reference.cov_prev)
     estimates = [estimate for _, _, estimate in pools]
     assert first is estimates[0]
-    assert losses == [-e.n_inliers / 60 for e in estimates] and len(set(losses)) > 1
+    # The smooth loss of each pool against the previous motion (2 degrees and 40 cm off: the capped penalty).
+    assert losses == [smooth_inlier_loss(e, frame, previous) for e in estimates] and len(set(losses)) > 1
+    assert any(loss != inlier_loss(e, frame) for loss, e in zip(losses, estimates))
     assert success == [pose_loss(e, frame) < 1.0 for e in estimates]
     p = torch.softmax(net_outputs[0][0].detach().double(), 0).numpy()
     log_prob = np.array([WeightedSampler(p).log_probability(samples).sum() for _, samples, _ in pools])
@@ -122,3 +124,25 @@ def test_frame_loss_of_a_randomised_method_draws_from_the_trainers_rng():
     steps = [NGRansacTrainer(config)._frame_loss(frame, None) for _ in range(2)]
     assert steps[0][1] == steps[1][1]
     assert float(steps[0][0].detach()) == float(steps[1][0].detach())
+
+
+def test_frame_loss_success_is_strictly_under_the_bound(monkeypatch):
+    # As frame_metrics' success: a pose error of exactly the bound (ratio 1) is a miss.
+    config = NGRansacConfig(loss="self-supervised", n_correspondences=60, epsilon_range=(0.5, 0.5), budget=3, pools=2,
+                            width=8, blocks=1, seed=4)
+    frame = simulate_frame(config.simulation(0.5), np.random.default_rng(5))
+    monkeypatch.setattr(ngransac, "pose_loss", lambda estimate, frame: 1.0)
+    assert NGRansacTrainer(config)._frame_loss(frame, None)[2] == [False, False]
+
+
+def test_triplet_log_prob_stays_finite_when_two_picks_hold_all_the_float32_mass():
+    # The trainer's float32 softmax of logits (0, 0, -80): the first two picks sum to exactly 1.0, so the third
+    # draw's remaining mass rounds to 0; its log-probability and gradient must stay finite (they are bounded by
+    # a floor on the mass left), or one such pool turns the whole policy gradient into inf or NaN.
+    logits = torch.tensor([0.0, 0.0, -80.0], requires_grad=True)
+    log_p = torch.log_softmax(logits, 0)
+    assert float(log_p.detach().exp()[:2].sum()) == 1.0
+    value = ngransac.ordered_triplet_log_prob(log_p, torch.tensor([[0, 1, 2], [1, 0, 2]]))
+    assert bool(torch.isfinite(value).all())
+    value.sum().backward()
+    assert bool(torch.isfinite(logits.grad).all())
