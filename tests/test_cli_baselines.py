@@ -224,29 +224,50 @@ def test_report_only_rebuilds_tables_and_plots_from_the_stored_trials(runs, tmp_
     assert main(["baselines", "--report-only", str(tmp_path / "nothing")]) == 2
 
 
-@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
-def test_ctrl_c_or_sigterm_prints_one_line_and_exits_130(tmp_path, signame):
+def _start(argv: list[str], **popen):
+    """The command ``vo-gym ARGV...`` as a child process, with SIGINT's default disposition.
+
+    An xdist worker may ignore SIGINT, and a child inherits an ignored signal (Python then installs
+    no KeyboardInterrupt handler): give the command the default disposition a terminal would.
+    """
     import signal
     import subprocess
     import sys
+
+    return subprocess.Popen([sys.executable, "-m", "vo_gym.cli", *argv], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL), **popen)
+
+
+def _saved_trials(journal: Path) -> int:
+    """Complete trials in a run's journal (a torn last block does not count)."""
+    from stereovo.benchmark import parse_trial_value
+    from stereovo.trials.store import read_journal
+
+    return len(read_journal(journal, parse_trial_value))
+
+
+def _wait_for_trials(proc, journal: Path, more_than: int) -> None:
+    """Until the journal holds more than ``more_than`` trials, or the command ended."""
     import time
+
+    deadline = time.monotonic() + 180  # only so that a hung command cannot hang the suite
+    while time.monotonic() < deadline and proc.poll() is None and _saved_trials(journal) <= more_than:
+        time.sleep(0.1)
+
+
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_ctrl_c_or_sigterm_prints_one_line_and_exits_130(tmp_path, signame):
+    import signal
 
     out = tmp_path / "run"
     # Trials of a few ms each, 3000 of them: the run cannot finish between the journal's first rows
     # and the signal (with 600 trials of under a millisecond it once did, on a busy machine).
-    argv = [sys.executable, "-m", "vo_gym.cli", "baselines", "--methods", "ransac,msac", "--epsilons", "0.5,0.7,0.8",
-            "--aucs", "0.9", "--ns", "300", "--frames-per-cell", "1000", "--max-iterations", "2000", "--no-progress",
-            "--no-plots", "--workers", "2", "--out", str(out)]
-    # An xdist worker may ignore SIGINT, and a child inherits an ignored signal (Python then installs
-    # no KeyboardInterrupt handler): give the command the default disposition a terminal would.
-    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    proc = _start(["baselines", "--methods", "ransac,msac", "--epsilons", "0.5,0.7,0.8", "--aucs", "0.9", "--ns", "300",
+                   "--frames-per-cell", "1000", "--max-iterations", "2000", "--no-progress", "--no-plots",
+                   "--workers", "2", "--out", str(out)])
     journal = out / "journal.csv"
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline and proc.poll() is None:
-        if journal.is_file() and len(journal.read_text().splitlines()) > 3:
-            break
-        time.sleep(0.2)
+    _wait_for_trials(proc, journal, 1)
     assert proc.poll() is None, "the run ended before it could be interrupted"
     proc.send_signal(getattr(signal, signame))
     _, err = proc.communicate(timeout=60)
@@ -255,3 +276,93 @@ def test_ctrl_c_or_sigterm_prints_one_line_and_exits_130(tmp_path, signame):
     assert "Traceback" not in err and len(lines) == 1, err
     saved = len({line.split(",")[0] for line in journal.read_text().splitlines()[1:]})
     assert lines[0] == f"interrupted: {saved} of 3000 trials saved in {out}; rerun with --resume"
+
+
+# Trials of some 20-40 ms (N 1000 at eps 0.8): a few seconds of work on two workers, so a signal sent
+# on the journal's first new trial always lands in the run, while resuming it stays quick.
+RAY_GRID = ["--methods", "ransac,msac", "--epsilons", "0.8", "--aucs", "0.9", "--ns", "1000", "--frames-per-cell", "120",
+            "--max-iterations", "2000", "--seed", "3", "--no-progress", "--no-plots"]
+
+
+def _ray_processes(ray_tmp: str) -> list[str]:
+    """Command lines of the live processes of the Ray instances started with ``RAY_TMPDIR=ray_tmp``.
+
+    Ray's daemons and workers inherit the driver's environment; other Ray instances on the machine
+    (another run's) have another RAY_TMPDIR and are not counted.
+    """
+    marker = f"RAY_TMPDIR={ray_tmp}".encode()
+    found = []
+    for proc in Path("/proc").iterdir():
+        try:
+            if proc.name.isdigit() and marker in (proc / "environ").read_bytes().split(b"\0"):
+                found.append((proc / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace"))
+        except OSError:  # gone meanwhile, or not ours to read
+            continue
+    return found
+
+
+def _no_ray_left(ray_tmp: str) -> list[str]:
+    import time
+
+    deadline = time.monotonic() + 30  # ray.shutdown does not wait for its processes to be reaped
+    while (left := _ray_processes(ray_tmp)) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    return left
+
+
+@pytest.mark.skipif(not Path("/proc/self/environ").is_file(), reason="finds Ray's processes through /proc")
+def test_ray_backend_stops_on_sigterm_or_ctrl_c_in_one_line_and_resumes(tmp_path, capsys):
+    """ray.init installs its own SIGTERM handlers (an exit, then a C++ dump and abort): ours must win.
+
+    SIGTERM to the command alone (a scheduler's kill), then, on a resume, SIGINT to its process
+    group (Ctrl-C in a terminal: Ray's daemons get it too); a last resume (local: the journal does
+    not depend on the backend) completes the run with the files an uninterrupted run writes.
+    """
+    pytest.importorskip("ray")
+    import os
+    import shutil
+    import signal
+    import tempfile
+
+    from stereovo.compilation import MESSAGE
+
+    out, total = tmp_path / "run", 120
+    journal = out / "journal.csv"
+    # A short folder of its own (Ray's socket paths are length-limited): it tells our Ray processes
+    # from any other instance's.
+    ray_tmp = tempfile.mkdtemp(prefix="vo-ray-", dir="/tmp")
+    env = dict(os.environ, RAY_TMPDIR=ray_tmp)
+    argv = ["baselines", *RAY_GRID, "--out", str(out)]
+    proc = None
+    try:
+        saved = 0
+        for signame, to_group in (("SIGTERM", False), ("SIGINT", True)):
+            proc = _start(argv + ["--backend", "ray", "--workers", "2"] + (["--resume"] if saved else []), env=env,
+                          start_new_session=True)
+            _wait_for_trials(proc, journal, saved)
+            assert proc.poll() is None, "the run ended before it could be interrupted"
+            sig = getattr(signal, signame)
+            os.killpg(proc.pid, sig) if to_group else proc.send_signal(sig)
+            _, err = proc.communicate(timeout=120)
+            where = f"{signame} to the {'process group' if to_group else 'command'}"
+            assert proc.returncode == 130, (where, err)
+            # The workers' first-run line (numba compiling, forwarded by Ray) is the only other output allowed.
+            lines = [line for line in err.splitlines() if line.strip() and MESSAGE not in line]
+            now = _saved_trials(journal)
+            assert lines == [f"interrupted: {now} of {total} trials saved in {out}; rerun with --resume"], (where, err)
+            assert saved < now < total, where  # the earlier trials kept, this run's added
+            assert not _no_ray_left(ray_tmp), where
+            saved = now
+    finally:
+        if proc is not None and proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+        _no_ray_left(ray_tmp)  # a Ray process still exiting would write its logs back after the removal
+        shutil.rmtree(ray_tmp, ignore_errors=True)
+    reference = tmp_path / "reference"
+    assert main(["baselines", *RAY_GRID, "--workers", "1", "--out", str(reference)]) == 0
+    capsys.readouterr()
+    assert main(argv + ["--workers", "1", "--resume"]) == 0
+    assert f"resuming: {saved} of {total} frames" in capsys.readouterr().out
+    for name in ("trials.csv", "cells.csv", "summary.csv"):
+        assert _timeless(out / name) == _timeless(reference / name), name

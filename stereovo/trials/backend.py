@@ -203,11 +203,44 @@ def connect_ray(workers: int | None, address: str | None, log_to_driver: bool = 
         os.environ.setdefault(RAY_WORKER_NICENESS, "0")
     else:
         kwargs["address"] = address
+    # ray.init takes SIGTERM over: a Python handler that exits for the start-up, then the core
+    # worker's C++ failure handler, which dumps "*** SIGTERM received ***" and aborts. A caller that
+    # installed its own handler (vo-gym's sigterm_as_interrupt: a stop that keeps the journal and
+    # says how to resume) gets it back, so SIGTERM means the same on every backend.
+    keep = _callers_sigterm_handler()
     try:
         ray.init(**kwargs)
     except ConnectionError as err:
         raise ValueError(f"--address {address!r}: cannot join a Ray cluster ({err})") from None
+    except (KeyboardInterrupt, SystemExit) as stop:
+        # Stopped during the start-up (Ray's handler turns SIGTERM into sys.exit(SIGTERM)): stop
+        # what was started, then hand a SIGTERM to the caller's handler, as the signal would have.
+        _shutdown_quietly(ray)
+        if keep is not None and isinstance(stop, SystemExit) and stop.code == signal.SIGTERM:
+            signal.signal(signal.SIGTERM, keep)
+            keep(signal.SIGTERM, None)
+        raise
+    finally:
+        if keep is not None:
+            signal.signal(signal.SIGTERM, keep)
     return True
+
+
+def _callers_sigterm_handler() -> Callable[[int, Any], Any] | None:
+    """The Python SIGTERM handler in place, if the caller installed one and can reinstall it here."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return None  # signal.signal would refuse; and Ray sets no handler outside the main thread
+    handler = signal.getsignal(signal.SIGTERM)
+    return handler if callable(handler) else None  # SIG_DFL / SIG_IGN / set outside Python: Ray's stays
+
+
+def _shutdown_quietly(ray: Any) -> None:
+    try:
+        ray.shutdown()
+    except Exception:  # noqa: BLE001 - a start-up cut short may leave nothing to shut down
+        pass
 
 
 class RayBackend(Backend):
@@ -233,9 +266,13 @@ class RayBackend(Backend):
         self._started = False
         self._pending: list = []
         self._started = connect_ray(workers, address, log_to_driver=True)
-        cpus = int(ray.cluster_resources().get("CPU", 1))
-        self.workers = int(workers) if (workers is not None and address is None) else cpus
-        self._remote = ray.remote(num_cpus=1, max_retries=self.max_retries, retry_exceptions=False)(_warm_chunk)
+        try:
+            cpus = int(ray.cluster_resources().get("CPU", 1))
+            self.workers = int(workers) if (workers is not None and address is None) else cpus
+            self._remote = ray.remote(num_cpus=1, max_retries=self.max_retries, retry_exceptions=False)(_warm_chunk)
+        except BaseException:  # an interrupt here: nobody holds this backend to close it
+            self.close()
+            raise
 
     def describe(self) -> str:
         where = "a local instance" if self.address is None else f"cluster {self.address}"
@@ -249,6 +286,7 @@ class RayBackend(Backend):
         queue = iter(chunks)
         window = 2 * self.workers
         self._pending = []
+        interrupted = False
         try:
             for chunk in queue:
                 self._pending.append(self._remote.remote(fn_ref, warm_ref, token, chunk))
@@ -261,8 +299,14 @@ class RayBackend(Backend):
                     nxt = next(queue, None)
                     if nxt is not None:
                         self._pending.append(self._remote.remote(fn_ref, warm_ref, token, nxt))
+        except KeyboardInterrupt:
+            interrupted = True
+            raise
         finally:
-            self._cancel()
+            if interrupted and self._started:
+                self._pending = []  # the caller closes next; see close
+            else:
+                self._cancel()
 
     def _cancel(self) -> None:
         pending, self._pending = self._pending, []
@@ -273,10 +317,15 @@ class RayBackend(Backend):
                 pass
 
     def close(self) -> None:
-        self._cancel()
         if self._started:
+            # Shutting our instance down stops its tasks. Force-cancelling them first races their
+            # replies: Ray 2.60 then fails a check in CompletePendingTask and the driver exits 1
+            # without a word (seen once in four interrupts of `vo-gym evaluate`).
+            self._pending = []
             self._started = False
             self._ray.shutdown()
+        else:
+            self._cancel()
 
 
 def make_backend(kind: str = "local", workers: int = 1, address: str | None = None, max_retries: int = 3) -> Backend:

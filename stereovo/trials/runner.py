@@ -37,6 +37,7 @@ class sigterm_as_interrupt:
 
     So a run stopped either way closes its journal and workers and says how to resume. Only in
     the main thread (signal handlers cannot be set elsewhere); elsewhere it does nothing.
+    ``ray.init`` replaces the handler; :func:`stereovo.trials.backend.connect_ray` puts it back.
     """
 
     def __enter__(self) -> "sigterm_as_interrupt":
