@@ -336,6 +336,23 @@ def test_guided_claims_are_judged_at_the_most_informative_auc():
     assert c.verdict == NOT_MEASURED and "uninformative" in c.numbers
 
 
+def test_guided_claims_list_the_ratio_of_each_epsilon_at_that_auc():
+    rows = []
+    for eps, guided_hyps in ((0.2, 90), (0.8, 300)):
+        for method, hyps, ok in (("ransac", 100 if eps == 0.2 else 1000, True), ("ransac+guided", guided_hyps, eps == 0.2)):
+            for auc in (0.75, 0.9):
+                h = hyps if auc == 0.9 else 2 * hyps
+                rows.append({"method": method, "epsilon": eps, "n": 500, "score_auc": auc, "success": ok,
+                             "status": "ok", "n_hypotheses": h, "n_hypotheses_to_best": h, "rot_err_deg": 0.1,
+                             "trans_err_m": 0.01, "precision": 1.0, "recall": 1.0, "n_point_checks": 500 * h,
+                             "time_s": 1e-3})
+    summary = bm.summarize(rows)
+    assert summary.by_epsilon_auc["ransac+guided"][(0.8, 0.9)]["mean_hypotheses"] == 300
+    c = _claims(summary)["guided-ransac-iterations"]
+    assert "by epsilon at AUC 0.9 (mean hypotheses, success): 0.2 x0.90 (100.0 % vs 100.0 %), " \
+           "0.8 x0.30 (0.0 % vs 100.0 %)" in c.numbers
+
+
 def test_claims_time_and_accuracy():
     overall = {
         "ransac": _stats(),

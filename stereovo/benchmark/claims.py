@@ -95,7 +95,25 @@ def _fewer_hypotheses(summary: BenchmarkSummary, key: str, method: str, referenc
     for auc in aucs[:-1]:
         other = _ratio(finite_stat(per_a[auc], "mean_hypotheses"), finite_stat(per_b[auc], "mean_hypotheses"))
         numbers += f"; at AUC {auc:g}: x{format_number(other, '.2f')}"
+    if aucs:
+        numbers += _per_epsilon(summary, method, reference, aucs[-1])
     return ClaimCheck(key, claim, source, numbers, AGREES if r <= CUT_RATIO else DISAGREES, note)
+
+
+def _per_epsilon(summary: BenchmarkSummary, method: str, reference: str, auc: float) -> str:
+    """``; by epsilon at AUC a: e1 xr1 (success s1 vs s1'), ...``: the hypothesis ratio of each
+    contamination of the run at one AUC (empty when the run has a single epsilon)."""
+    per_a, per_b = summary.by_epsilon_auc.get(method, {}), summary.by_epsilon_auc.get(reference, {})
+    cells = sorted(e for (e, a) in set(per_a) & set(per_b) if a == auc)
+    if len(cells) < 2:
+        return ""
+    parts = []
+    for e in cells:
+        a, b = per_a[(e, auc)], per_b[(e, auc)]
+        r = _ratio(finite_stat(a, "mean_hypotheses"), finite_stat(b, "mean_hypotheses"))
+        parts.append(f"{e:g} x{format_number(r, '.2f')} ({format_percent(finite_stat(a, 'success_rate'))}"
+                     f" vs {format_percent(finite_stat(b, 'success_rate'))})")
+    return f"; by epsilon at AUC {auc:g} (mean hypotheses, success): " + ", ".join(parts)
 
 
 def _time_vs(summary: BenchmarkSummary, key: str, method: str, reference: str, claim: str, source: str,
