@@ -351,3 +351,167 @@ def test_sprt_bound_clips_to_one_and_the_cap_and_stops_after_enough_draws():
     term = _sprt_term([SprtTest(0.5, 0.05, math.inf)], almost)
     term.on_new_best(np.ones(100, bool), None)
     assert term.required(50, 100) == 1
+
+
+def _bound_at_half(past, current_A):
+    """The SPRT bound at I = 50 of N = 100 (P_g = 4/33) for tests designed at epsilon 0.5 (h = 1, alpha = 1/A):
+    ``past`` the (A, draws) of the past tests, ``current_A`` the current test's A."""
+    q = 4 / 33
+    log_eta = sum(d * math.log(1 - q * (1 - 1 / A)) for A, d in past)
+    k = (math.log(0.01) - log_eta) / math.log(1 - q * (1 - 1 / current_A))
+    return sum(d for _, d in past) + math.ceil(max(k, 0.0))
+
+
+def test_sprt_bound_kept_between_batches_follows_the_past_draws_and_redesigns():
+    # The loop asks after every batch and the answer is kept; it must be recomputed whenever what it reads
+    # changes: the draws of a past test (a batch begun under it is charged after the redesign), a new test.
+    history = [SprtTest(0.5, 0.05, 4.0, draws=10), SprtTest(0.5, 0.05, 2.0, draws=5), SprtTest(0.5, 0.05, 4.0)]
+    term = SprtTermination(SimpleNamespace(history=history), confidence=0.99, max_iterations=10_000)
+    assert term.required(50, 100) == _bound_at_half([(4.0, 10), (2.0, 5)], 4.0) == 51
+    history[2].draws = 7  # the current test's draws are not read
+    assert term.required(50, 100) == 51
+    history[1].draws += 10
+    assert term.required(50, 100) == _bound_at_half([(4.0, 10), (2.0, 15)], 4.0) == 54
+    history.append(SprtTest(0.5, 0.05, 8.0))
+    assert term.required(50, 100) == _bound_at_half([(4.0, 10), (2.0, 15), (4.0, 7)], 8.0) != 54
+
+
+def test_good_model_exponent_beyond_the_bracket_is_its_end_not_an_error():
+    # epsilon 0.9 against a test for epsilon_i 0.5 with delta_i just under it: log a = -log b = 2 x 10^-r
+    # (nearly), so eps a^h + (1 - eps) b^h = 1 is 0.9 / y + 0.1 y = 1 with y = b^h: y = 9, h = ln 9 / (2 x 10^-r).
+    # At r = 5 that is 1.1e5, found by the solver; at r = 6 it is 1.1e6, past the bracket's end (2^20 = 1.05e6),
+    # which is returned: a good model is then never rejected (alpha = A^-h = 0) either way.
+    assert good_model_exponent(0.9, 0.5, 0.5 - 1e-5) == pytest.approx(math.log(9) / 2e-5, rel=1e-4)
+    h = good_model_exponent(0.9, 0.5, 0.5 - 1e-6)
+    assert 1e6 <= h < math.log(9) / 2e-6
+    assert rejection_probability(10.0, h) == 0.0
+
+
+def _sprt_frame(n=200, epsilon=0.5, seed=11):
+    from stereovo.estimation.problem import StereoProblem
+    from stereovo.estimation.scoring import InlierCount, ReprojectionResidual
+    from stereovo.estimation.verification import ScoringContext
+    from stereovo.simulation import SimulationConfig, simulate_frame
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=n, outlier_ratio=epsilon), seed)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    return frame, problem, ScoringContext(problem, ReprojectionResidual(9.0), InlierCount(), 9.0)
+
+
+def test_sprt_verifier_with_its_test_off_scores_every_point_and_counts_each_batch():
+    # delta0 >= epsilon0 switches the test off (A = inf): every hypothesis is scored on all N points (its
+    # inlier count, the quality), accepted and counted as verified fully, batch after batch.
+    from stereovo.geometry import random_rotation
+
+    _, problem, ctx = _sprt_frame()
+    rng = np.random.default_rng(2)
+    R = np.stack([np.eye(3)] * 3 + [random_rotation(rng, 0.1) for _ in range(2)])
+    t = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, -0.9], [0.1, 0.0, -1.0], [0.0, 0.0, -1.0], [0.2, 0.1, -1.1]])
+    samples = np.stack([rng.choice(problem.n, 3, replace=False) for _ in range(5)])
+    verifier = SprtVerification(problem.n, epsilon0=0.1, delta0=0.2)
+    assert not verifier.current.active
+    counts = np.sum(ctx.residuals(R, t) < 9.0, axis=1)
+    for batch in (1, 2):
+        scores, checks = verifier.verify(ctx, R, t, rng, samples=samples)
+        np.testing.assert_array_equal(scores, counts)
+        assert checks == 5 * problem.n
+        c = verifier.counters()
+        assert (c["sprt_accepted"], c["sprt_full"], c["sprt_tested"]) == (5 * batch, 5 * batch, 0)
+
+
+def _sprt_by_hand(sq, samples, perm, test, gate=9.0):
+    """The SPRT point by point (docs: Matas & Chum 2005) for each hypothesis' squared residuals ``sq (H, N)``:
+    in the order ``perm``, its own ``samples`` skipped, log lambda grows by log(delta / epsilon) per consistent
+    point and by log((1 - delta) / (1 - epsilon)) per inconsistent one; rejected once above log A. Returns the
+    rejected mask and, per hypothesis, the points checked and the consistent ones up to the rejection."""
+    log_c, log_i, log_A = math.log(test.delta / test.epsilon), math.log((1 - test.delta) / (1 - test.epsilon)), math.log(test.A)
+    rejected, checked, consistent = [], [], []
+    for h in range(sq.shape[0]):
+        lam, c, k, out = 0.0, 0, 0, False
+        for j in perm:
+            if j in samples[h]:
+                continue
+            k += 1
+            inside = sq[h, j] < gate
+            c += inside
+            lam += log_c if inside else log_i
+            if lam > log_A:
+                out = True
+                break
+        rejected.append(out)
+        checked.append(k)
+        consistent.append(c)
+    return np.array(rejected), np.array(checked), np.array(consistent)
+
+
+class _OtherResidual:
+    """Stands in for ReprojectionResidual in the sprt module's type test: the numpy route is taken."""
+
+
+@pytest.mark.parametrize("route", ["compiled", "numpy"])
+def test_sprt_verifier_decides_counts_and_reestimates_delta_point_by_point(monkeypatch, route):
+    # Two batches of wrong motions near the truth, by hand: which are rejected, the point checks paid (a
+    # rejected hypothesis the points up to its rejection, an accepted one all N), the accepted ones' scores,
+    # and delta re-estimated as the mean over all rejected hypotheses so far of consistent / checked, a new
+    # test designed when it moves by more than 5 %. Then a batch of the true motion, all accepted: no new
+    # evidence, no new test, N checks each. Both routes: the compiled pass and the numpy one (chunks of 16,
+    # 32, ... points: most of these hypotheses are rejected after the first chunk).
+    import stereovo.estimation.sprt as sprt_module
+    from stereovo.geometry import random_rotation
+
+    if route == "numpy":
+        monkeypatch.setattr(sprt_module, "ReprojectionResidual", _OtherResidual)
+
+    frame, problem, ctx = _sprt_frame()
+    rng = np.random.default_rng(5)
+    verifier = SprtVerification(problem.n, t_m=200.0, epsilon0=0.4, delta0=0.05)
+    ratios, designs = [], 1
+    for batch, seed in enumerate((1, 2)):
+        R = np.stack([random_rotation(rng, np.radians(0.5)) @ frame.truth.rotation for _ in range(40)])
+        t = frame.truth.translation + rng.normal(0, 0.05, (40, 3))
+        samples = np.stack([rng.choice(problem.n, 3, replace=False) for _ in range(40)])
+        test = verifier.current
+        sq = ctx.residuals(R, t)
+        rejected, checked, consistent = _sprt_by_hand(sq, samples, np.random.default_rng(seed).permutation(problem.n), test)
+        assert 5 <= rejected.sum() <= 35
+        scores, checks = verifier.verify(ctx, R, t, np.random.default_rng(seed), samples=samples)
+        np.testing.assert_array_equal(np.isinf(scores), rejected)
+        np.testing.assert_array_equal(scores[~rejected], np.sum(sq[~rejected] < 9.0, axis=1))
+        assert checks == checked[rejected].sum() + (~rejected).sum() * problem.n
+        # the accepted ones' inliers come from the residuals just computed; a rejected one's are computed
+        i, j = np.flatnonzero(~rejected)[0], np.flatnonzero(rejected)[0]
+        for k, fresh in ((i, False), (j, True)):
+            mask, computed = ctx.inliers_of(R, t, k)
+            np.testing.assert_array_equal(mask, sq[k] < 9.0)
+            assert computed is fresh
+        ratios += list(consistent[rejected] / checked[rejected])
+        delta = min(max(np.mean(ratios), 1e-3), 0.3)
+        c = verifier.counters()
+        if abs(delta - test.delta) > 0.05 * test.delta:
+            designs += 1
+            assert c["sprt_delta"] == pytest.approx(delta, rel=1e-12)
+        assert c["sprt_designs"] == designs and c["sprt_rejected"] == len(ratios)
+        assert c["sprt_accepted"] == 40 * (batch + 1) - len(ratios)
+    assert designs >= 2
+    accepted = verifier.counters()["sprt_accepted"]
+    assert accepted + len(ratios) == 80 and verifier.counters()["sprt_tested"] == 80
+    good_R = np.repeat(frame.truth.rotation[None], 4, axis=0)
+    good_t = np.repeat(frame.truth.translation[None], 4, axis=0)
+    scores, checks = verifier.verify(ctx, good_R, good_t, np.random.default_rng(3), samples=samples[:4])
+    assert np.all(np.isfinite(scores)) and checks == 4 * problem.n
+    c = verifier.counters()
+    assert c["sprt_designs"] == designs and c["sprt_rejected"] == len(ratios) and c["sprt_accepted"] == accepted + 4
+
+
+def test_sprt_verifier_accepts_cheap_fits_and_single_point_chunks_and_designs_with_its_models_per_sample():
+    # t_m in (0, 1] (a fit cheaper than a point check) and chunk = 1 are valid settings; m_s divides
+    # K = t_m C / m_s, and A is the fixed point of A = K + 1 + log A.
+    SprtVerification(50, t_m=0.5, chunk=1)
+    epsilon, delta = 0.1, 0.01
+    C = (1 - delta) * math.log((1 - delta) / (1 - epsilon)) + delta * math.log(delta / epsilon)
+    for m_s in (1.0, 2.0):
+        K = 500.0 * C / m_s
+        A = K + 1.0
+        for _ in range(200):
+            A = K + 1.0 + math.log(A)
+        assert SprtVerification(50, m_s=m_s).current.A == pytest.approx(A, rel=1e-9)
