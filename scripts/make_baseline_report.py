@@ -153,7 +153,10 @@ def build_report(run_dir: Path, docs_dir: Path, redraw: bool = False, name: str 
         f"- Seed {settings.get('seed', 'n/a')}; {settings.get('workers', 'n/a')} worker process(es);"
         f" {settings.get('n_trials', len({r['trial'] for r in rows}))} frames x {len(methods)} methods"
         + (f" in {settings['wall_s']:.0f} s" if settings.get("wall_s") is not None else "")
-        + (f" on {settings['machine']}" if settings.get("machine") else "") + ".",
+        + (f" on {settings['machine']}" if settings.get("machine") else "")
+        + (f" (the last invocation, a `--resume` that ran {settings['n_trials'] - settings['n_resumed']} of"
+           f" them; the other {settings['n_resumed']} came from the run's journal)"
+           if settings.get("n_resumed") and settings.get("n_trials") else "") + ".",
         f"- Success: {bm.success_definition()}.",
         "- Time: wall time of one estimator call, measured while the other workers run (relative"
         " comparisons are fair: every method runs on the same frames in the same process, one after another).",
