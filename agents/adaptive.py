@@ -10,6 +10,13 @@ same weights serve any number of matches and a permutation of the rows permutes 
 - a stop logit from the masked mean and max of the embeddings and the globals: ``sigmoid`` of it is
   the network's belief that the hypothesis the frame would end on now is right.
 
+With ``prior`` (a shipped one-shot sampler, e.g. ``"ngransac-supervised"``), the network carries
+a frozen copy of that sampler's network and its per-correspondence logits are the one-shot logits
+(centred on the valid rows) plus its own, whose last layer starts at zero: training begins from the
+one-shot sampler and learns what the loop's evidence adds, how to select and when to stop (ARS-MAGSAC
+likewise starts from network priors and updates them in the frame). The copy travels in the
+checkpoint, so loading never needs the shipped file.
+
 Policy (:class:`AdaptiveSamplerPolicy`): the logits as they are, stop once the stop belief reaches
 ``confidence``.
 
@@ -54,20 +61,46 @@ class AdaptiveSamplerNet(nn.Module):
     """
 
     def __init__(self, n_features: int = len(ADAPTIVE_FEATURE_NAMES), n_globals: int = len(GLOBAL_FEATURE_NAMES),
-                 width: int = 48, blocks: int = 3) -> None:
+                 width: int = 48, blocks: int = 3, prior: dict[str, int] | None = None) -> None:
         super().__init__()
         self.n_features, self.n_globals, self.width, self.blocks = n_features, n_globals, width, blocks
         self.body = CorrespondenceNet(n_features + n_globals, width, blocks)
         self.stop = nn.Sequential(nn.Linear(2 * width + n_globals, width), nn.ReLU(), nn.Linear(width, 1))
+        self.prior: CorrespondenceNet | None = None
+        if prior is not None:  # the one-shot network's architecture; its weights come from a checkpoint
+            if prior["n_features"] > n_features:
+                raise ValueError(f"prior network reads {prior['n_features']} features, the observation has {n_features}")
+            self.prior = CorrespondenceNet(**prior).requires_grad_(False)
+            nn.init.zeros_(self.body.head.weight)
+            nn.init.zeros_(self.body.head.bias)
 
-    def config(self) -> dict[str, int]:
-        return {"n_features": self.n_features, "n_globals": self.n_globals, "width": self.width, "blocks": self.blocks}
+    @classmethod
+    def with_prior(cls, sampler: str, width: int = 48, blocks: int = 3) -> "AdaptiveSamplerNet":
+        """A fresh network over the shipped one-shot ``sampler`` (a name of ``agents.checkpoint.SHIPPED_SAMPLERS``)."""
+        from agents.checkpoint import load_checkpoint, shipped_checkpoint
+
+        with shipped_checkpoint(sampler) as path:
+            one_shot, _ = load_checkpoint(path)
+        net = cls(width=width, blocks=blocks, prior=one_shot.config())
+        net.prior.load_state_dict(one_shot.state_dict())
+        return net
+
+    def config(self) -> dict[str, Any]:
+        return {"n_features": self.n_features, "n_globals": self.n_globals, "width": self.width, "blocks": self.blocks,
+                "prior": None if self.prior is None else self.prior.config()}
 
     def forward(self, features: torch.Tensor, mask: torch.Tensor, globals_: torch.Tensor):
         mask = mask.bool()
         rows = torch.cat([features, globals_.unsqueeze(1).expand(-1, features.shape[1], -1)], dim=-1)
         embedded = self.body.embed(rows, mask)
-        logits = self.body.head(embedded).squeeze(-1).masked_fill(~mask, PAD_LOGIT)
+        logits = self.body.head(embedded).squeeze(-1)
+        if self.prior is not None:
+            with torch.no_grad():
+                one_shot = self.prior.head(self.prior.embed(features[..., :self.prior.n_features], mask)).squeeze(-1)
+                valid = mask.float()
+                one_shot = one_shot - (one_shot * valid).sum(-1, keepdim=True) / valid.sum(-1, keepdim=True).clamp_min(1)
+            logits = logits + one_shot
+        logits = logits.masked_fill(~mask, PAD_LOGIT)
         m = mask.unsqueeze(-1)
         mean = embedded.sum(dim=1) / m.sum(dim=1).clamp_min(1)
         peak = embedded.masked_fill(~m, float("-inf")).amax(dim=1).clamp_min(0.0)
@@ -150,7 +183,7 @@ def load_adaptive(name_or_path: str | Path) -> tuple[AdaptiveSamplerNet, dict[st
         raise ValueError(f"{path} is not an adaptive-sampler checkpoint")
     if tuple(payload["feature_names"]) != ADAPTIVE_FEATURE_NAMES or tuple(payload["global_names"]) != GLOBAL_FEATURE_NAMES:
         raise ValueError(f"checkpoint {path} was trained on another adaptive feature layout")
-    net = AdaptiveSamplerNet(**payload["network"])
+    net = AdaptiveSamplerNet(**payload["network"])  # a checkpoint from before ``prior`` has no such key
     net.load_state_dict(payload["state_dict"])
     return net.eval(), payload
 
@@ -178,6 +211,8 @@ class AdaptiveTrainConfig:
             the budget that stays the same on a busy machine).
         init: checkpoint whose weights training starts from (``None``: fresh weights); its own
             training time adds to this run's in the budget of the result.
+        prior: shipped one-shot sampler whose logits a fresh network adds to its own (``None``: none;
+            see :class:`AdaptiveSamplerNet`); that sampler's training time is its own.
     """
 
     minutes: float = 25.0
@@ -202,6 +237,7 @@ class AdaptiveTrainConfig:
     log_every_s: float = 30.0
     clock: str = "wall"
     init: str | None = None
+    prior: str | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
 
@@ -240,6 +276,8 @@ def train_adaptive(config: AdaptiveTrainConfig, out: str | Path, log_path: str |
             raise ValueError(f"init checkpoint {config.init} has width {net.width}, blocks {net.blocks}; "
                              f"the config asks for {config.width}, {config.blocks}")
         net.train()
+    elif config.prior is not None:
+        net = AdaptiveSamplerNet.with_prior(config.prior, width=config.width, blocks=config.blocks)
     else:
         net = AdaptiveSamplerNet(width=config.width, blocks=config.blocks)
     optimiser = torch.optim.Adam(net.parameters(), lr=config.lr)
@@ -339,7 +377,17 @@ def main(argv: list[str] | None = None) -> int:
                         help="what --minutes counts: wall clock or this process' CPU time (default: wall)")
     parser.add_argument("--init", default=None, metavar="CHECKPOINT",
                         help="start from this checkpoint's weights (path or shipped name)")
+    parser.add_argument("--prior", default=None, metavar="SAMPLER",
+                        help="a fresh network adds this shipped one-shot sampler's logits to its own "
+                             "(e.g. ngransac-supervised)")
     args = parser.parse_args(argv)
+    if args.prior is not None:
+        from agents.checkpoint import SHIPPED_SAMPLERS
+
+        if args.prior not in SHIPPED_SAMPLERS:
+            parser.error(f"--prior must be a shipped one-shot sampler ({', '.join(SHIPPED_SAMPLERS)}), got {args.prior!r}")
+        if args.init is not None:
+            parser.error("--prior starts a fresh network; --init continues a checkpoint (which keeps its own prior)")
     if not math.isfinite(args.minutes) or args.minutes <= 0:
         parser.error(f"--minutes must be a positive number, got {args.minutes}")
     ranges = {}
@@ -359,7 +407,7 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--{name.replace('_', '-')} must be in [0, 1], got {getattr(args, name)}")
     config = AdaptiveTrainConfig(minutes=args.minutes, seed=args.seed, n=args.n, hard_fraction=args.hard_fraction,
                                  right_precision=args.right_precision, right_recall=args.right_recall, lr=args.lr,
-                                 clock=args.clock, init=args.init, **ranges)
+                                 clock=args.clock, init=args.init, prior=args.prior, **ranges)
     train_adaptive(config, args.out, args.log)
     return 0
 

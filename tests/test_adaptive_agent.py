@@ -102,6 +102,38 @@ def test_training_starts_from_an_init_checkpoint_on_a_cpu_clock(tmp_path):
         train_adaptive(AdaptiveTrainConfig(minutes=0.01, clock="gpu"), tmp_path / "v.pt")
 
 
+def test_a_prior_network_starts_as_the_one_shot_sampler_and_travels_in_its_checkpoint(tmp_path, capsys):
+    from agents.adaptive import main as train_main
+    from agents.checkpoint import load_sampler
+    from vo_gym.features import N_FEATURES
+
+    env = StereoVOAdaptiveEnv(n_frames=2, n_correspondences=150, outlier_ratio=0.8)
+    obs, _ = env.reset(seed=3)
+    net = AdaptiveSamplerNet.with_prior("ngransac-supervised", width=8, blocks=1)
+    action = AdaptiveSamplerPolicy(net, confidence=0.9).act(obs)
+    one_shot = load_sampler("ngransac-supervised").act({"features": obs["features"][:, :N_FEATURES], "mask": obs["mask"]})
+    valid = obs["mask"].astype(bool)
+    np.testing.assert_allclose(action[:-1][valid], one_shot[valid], atol=1e-5)  # the own head starts at zero
+    assert np.ptp(one_shot[valid]) > 1.0  # the comparison has something to compare
+    assert not any(p.requires_grad for p in net.prior.parameters())
+    loaded, payload = load_adaptive(save_adaptive(tmp_path / "p.pt", net, {"prior": "ngransac-supervised"}))
+    assert payload["network"]["prior"] == net.prior.config()
+    for got, want in zip(loaded(*_obs_tensors(obs)), net(*_obs_tensors(obs))):
+        torch.testing.assert_close(got, want)
+    with pytest.raises(SystemExit):
+        train_main(["--prior", "ngransac-nope", "--minutes", "0.01", "--out", str(tmp_path / "x.pt")])
+    err = capsys.readouterr().err
+    assert "--prior must be a shipped one-shot sampler" in err and "'ngransac-nope'" in err
+    with pytest.raises(SystemExit):
+        train_main(["--prior", "ngransac-supervised", "--init", "adaptive-pg", "--out", str(tmp_path / "x.pt")])
+    assert "--prior starts a fresh network" in capsys.readouterr().err
+
+
+def _obs_tensors(obs):
+    return (torch.as_tensor(obs["features"], dtype=torch.float32)[None], torch.as_tensor(obs["mask"]).bool()[None],
+            torch.as_tensor(obs["globals"], dtype=torch.float32)[None])
+
+
 def test_merge_comparisons_restores_the_order_and_later_rows_win():
     def row(family, point, order, success):
         return {"family": family, "point": point, "order": order, "success": success}
