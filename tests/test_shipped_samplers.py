@@ -1,4 +1,5 @@
-"""The samplers shipped in agents/checkpoints are good: each beats uniform sampling by a clear margin.
+"""The samplers shipped in agents/checkpoints are good: each beats uniform sampling by a clear margin
+(the in-frame samplers, adaptive-*.pt, in their own environment at the end of the file).
 
 Setting: eps 0.8, 16 hypotheses per frame, N = 500 (the README's headline setting), three fixed
 10-frame episodes (30 frames). There uniform sampling succeeds on about 20 % of the frames and the
@@ -90,3 +91,61 @@ def test_random_weights_of_the_shipped_architectures_miss_the_margin():
         for seed in (0, 1):
             untrained = success_rate(random_policy(dict(network), seed))
             assert untrained < uniform + MARGIN, (dict(network), seed, untrained, uniform)
+
+
+# The in-frame samplers (agents.adaptive format) in their own environment, with their own stop:
+# eps 0.8, N 500, three 10-frame episodes. Uniform sampling at 16 hypotheses a frame succeeds on
+# few of these frames; a shipped in-frame sampler must clear it by the same margin while drawing
+# at most 16 hypotheses a frame on average, and random weights of its architecture must not.
+ADAPTIVE_CHECKPOINTS = sorted(SHIPPED.glob("adaptive-*.pt"))
+
+
+def adaptive_rate(policy) -> tuple[float, float]:
+    """(success rate, mean hypotheses) of an adaptive-env policy over the fixed episodes."""
+    from agents.adaptive_evaluation import run_policy
+    from vo_gym.adaptive_env import StereoVOAdaptiveEnv
+
+    rows = []
+    for seed in SEEDS:
+        env = StereoVOAdaptiveEnv(n_frames=10, n_correspondences=500, outlier_ratio=0.8)
+        rows += run_policy(env, policy, seed)
+    return float(np.mean([r["success"] for r in rows])), float(np.mean([r["n_hypotheses"] for r in rows]))
+
+
+def learned_adaptive(net, name: str):
+    from agents.adaptive import AdaptiveSamplerPolicy
+    from agents.adaptive_evaluation import LearnedAdaptivePolicy
+
+    return LearnedAdaptivePolicy(AdaptiveSamplerPolicy(net, confidence=0.9), name)
+
+
+@lru_cache(maxsize=1)
+def adaptive_uniform_rate() -> float:
+    from agents.adaptive_evaluation import BudgetPolicy
+
+    return adaptive_rate(BudgetPolicy("uniform", 16, lambda obs: np.zeros(len(obs["mask"]))))[0]
+
+
+@pytest.mark.parametrize("path", ADAPTIVE_CHECKPOINTS, ids=lambda p: p.stem)
+def test_adaptive_checkpoint_beats_uniform_with_its_own_stop(path):
+    from agents.adaptive import load_adaptive
+
+    uniform = adaptive_uniform_rate()
+    assert uniform <= 0.4  # the setting is as hard as intended
+    net, _ = load_adaptive(path)
+    success, hypotheses = adaptive_rate(learned_adaptive(net, path.stem))
+    assert success >= uniform + MARGIN and hypotheses <= 16, (path.name, success, hypotheses, uniform)
+
+
+def test_random_weights_of_the_adaptive_architectures_miss_the_margin():
+    from agents.adaptive import AdaptiveSamplerNet, load_adaptive
+
+    assert ADAPTIVE_CHECKPOINTS
+    uniform = adaptive_uniform_rate()
+    for path in ADAPTIVE_CHECKPOINTS:
+        network = load_adaptive(path)[1]["network"]
+        with torch.random.fork_rng():
+            torch.manual_seed(0)
+            untrained = AdaptiveSamplerNet(**network).eval()
+        success, hypotheses = adaptive_rate(learned_adaptive(untrained, "random"))
+        assert success < uniform + MARGIN or hypotheses > 16, (path.name, success, hypotheses, uniform)
