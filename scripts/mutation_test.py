@@ -71,9 +71,14 @@ class Module:
 # The subsets are the fast tests that check each module's behaviour (the slow statistical and
 # checker tests are left out: mutmut runs every selected test once first, then those calling a
 # mutant's function, and two shared cores make minutes count).
+# test_env.py without its two slow tests (a subprocess import, and 45 s of pickled episodes).
 _ENV_TESTS = tuple(f"tests/test_env.py::{name}" for name in (
-    "test_invalid_settings_are_rejected_by_make", "test_padding_and_action_validation",
-    "test_estimator_settings_pass_through", "test_spaces_and_episode_end"))
+    "test_registered_ids", "test_gymnasium_check_env", "test_sb3_check_env", "test_docstring_states_the_contract",
+    "test_simulator_defaults_match_the_simulator", "test_spaces_and_episode_end", "test_padding_and_action_validation",
+    "test_invalid_settings_are_rejected_by_make", "test_method_options_and_sampling_are_checked_when_made",
+    "test_estimator_settings_pass_through", "test_same_seed_same_actions_identical_episodes",
+    "test_shuffled_labels_give_identical_observations", "test_reward_modes_are_bounded_and_ordered",
+    "test_render_rgb_array_draws_the_weights_and_the_inliers", "test_feature_layout_is_exposed"))
 _NGRANSAC_TESTS = tuple(f"tests/test_agents_ngransac.py::{name}" for name in (
     "test_network_is_permutation_equivariant_and_padding_independent", "test_ordered_triplet_log_prob_matches_core_sampler",
     "test_policy_gradient_raises_probability_of_all_inlier_sets", "test_checkpoint_round_trip_and_layout_refusal",
@@ -88,7 +93,7 @@ MODULES: tuple[Module, ...] = (
     Module("sprt", "stereovo/estimation/sprt.py",
            ("tests/test_stopping_bounds.py", "tests/test_mutation_survivors.py", "tests/test_classical_verification.py")),
     Module("tdd", "stereovo/estimation/tdd.py",
-           ("tests/test_stopping_bounds.py", "tests/test_classical_verification.py")),
+           ("tests/test_stopping_bounds.py", "tests/test_classical_verification.py", "tests/test_mutation_tdd.py")),
     Module("samplers", "stereovo/estimation/samplers.py",
            ("tests/test_stopping_bounds.py", "tests/test_mutation_survivors.py", "tests/test_mutation_samplers.py",
             "tests/test_classical_prosac.py", "tests/test_estimation_core.py")),

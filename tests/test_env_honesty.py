@@ -284,3 +284,62 @@ def test_render_shows_the_sampling_weights_relative_to_uniform(monkeypatch, samp
         by_rank = sorted(range(120), key=lambda i: (-action[i], i))
         np.testing.assert_array_equal(received[0], by_rank)
         np.testing.assert_allclose(weights[by_rank], 1.0 - np.arange(120) / 119, rtol=0, atol=1e-15)
+
+
+def test_render_draws_the_poses_so_far_and_the_frame_just_estimated(monkeypatch):
+    # Before a step: the current frame, grey (no weights, no inliers); after one: the frame the step estimated,
+    # its weights and the estimate's inliers, with the estimated and true poses so far and the title.
+    import re
+
+    import vo_gym.rendering as rendering
+
+    drawn = []
+    monkeypatch.setattr(rendering, "render_rgb", lambda *args, **kwargs: drawn.append((args, kwargs)) or "image")
+    calls = stub_estimator(monkeypatch)
+    env = StereoVOEnv(**{**KWARGS, "render_mode": "rgb_array"})
+    with pytest.raises(RuntimeError, match=r"^StereoVOEnv: call reset\(\) before render\(\)$"):
+        env.render()
+    env.reset(seed=3)
+    first = env.current_frame
+    assert env.render() == "image"
+    (est, true, frame, weights, inliers), kwargs = drawn[-1]
+    assert frame is first and weights is None and inliers is None and kwargs == {"title": "frame 1/4 (guided)"}
+    np.testing.assert_array_equal(est, np.eye(4)[None])
+    np.testing.assert_array_equal(true, env.sequence.true_poses[:1])
+    env.step(np.zeros(120))
+    env.render()
+    (est, true, frame, weights, inliers), kwargs = drawn[-1]
+    assert frame is first and kwargs == {"title": "frame 1/4 (guided)"}
+    np.testing.assert_array_equal(inliers, calls[0].inliers)
+    np.testing.assert_allclose(weights, np.ones(120), rtol=1e-12)  # a zero action: uniform weights
+    np.testing.assert_allclose(est, hand_chained_poses([(WRONG_R, WRONG_T)]), atol=1e-12)
+    np.testing.assert_array_equal(true, env.sequence.true_poses[:2])
+    # Without a render mode: a warning that names the fix, and no image.
+    with pytest.warns(UserWarning) as warned:
+        assert StereoVOEnv(**KWARGS).render() is None
+    text = re.sub(r"\x1b\[[0-9;]*m", "", str(warned[0].message)).removeprefix("WARN: ")
+    assert text == "StereoVOEnv.render() called without a render_mode; make the env with render_mode='rgb_array'"
+
+
+def test_step_info_names_the_frame_its_pose_error_ratio_and_outlier_ratio_and_the_method_is_the_envs(monkeypatch):
+    from stereovo.metrics import pose_error_ratio
+
+    methods = []
+    real = env_module.estimate_problem
+
+    def spy(problem, **kwargs):
+        methods.append(kwargs.get("method"))
+        return real(problem, **kwargs)
+
+    monkeypatch.setattr(env_module, "estimate_problem", spy)
+    env = StereoVOEnv(**{**KWARGS, "method": "ransac"})
+    _, info0 = env.reset(seed=5)
+    assert info0 == {"frame": 1}
+    for k in (1, 2):
+        truth = env.current_frame.truth
+        _, _, _, _, info = env.step(np.zeros(120))
+        assert info["frame"] == k
+        assert info["outlier_ratio"] == float(truth.outlier_ratio) and 0 < info["outlier_ratio"] < 1
+        assert info["pose_error_ratio"] == pytest.approx(
+            pose_error_ratio(info["rot_err_deg"], info["trans_err_m"], float(np.linalg.norm(truth.translation))), rel=1e-12)
+    assert methods == ["ransac", "ransac"]
