@@ -222,7 +222,7 @@ def run_prosac_by_score(env: StereoVOAdaptiveEnv, seed: int) -> list[dict[str, A
 class AdaptiveComparison:
     """Settings of the comparison (held-out seeds ``seed .. seed + episodes - 1``)."""
 
-    learned: str = "adaptive-pg"
+    learned: str = "adaptive-pg-prior"
     confidences: tuple[float, ...] = (0.5, 0.8, 0.9, 0.95, 0.98)
     bansac_thresholds: tuple[float, ...] = (BANSAC_THRESHOLD, P_BANSAC_THRESHOLD)  # BANSAC, P-BANSAC
     budgets: tuple[int, ...] = (4, 8, 16, 32, 64)
@@ -406,7 +406,7 @@ def main(argv: list[str] | None = None) -> int:
 
     parser = argparse.ArgumentParser(description="in-frame adaptive sampling comparison")
     parser.add_argument("--out", default="runs/adaptive")
-    parser.add_argument("--learned", default="adaptive-pg")
+    parser.add_argument("--learned", default="adaptive-pg-prior")
     parser.add_argument("--episodes", type=int, default=10)
     parser.add_argument("--frames", type=int, default=10)
     parser.add_argument("--seed", type=int, default=5000)

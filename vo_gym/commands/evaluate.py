@@ -83,9 +83,9 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                              " in-frame sampler, BANSAC, ARS, one-shot samplers, uniform and PROSAC by score on"
                              " identical held-out frames at eps 0.9 and on the hard id at eps 0.8; uses --episodes,"
                              " --frames-per-episode, --seed, --n and --out")
-    parser.add_argument("--adaptive-sampler", default="adaptive-pg", metavar="NAME|PATH",
+    parser.add_argument("--adaptive-sampler", default="adaptive-pg-prior", metavar="NAME|PATH",
                         help="with --adaptive: the learned in-frame sampler, a shipped name or a checkpoint file"
-                             " (default: adaptive-pg)")
+                             " (default: adaptive-pg-prior)")
     parser.add_argument("--adaptive-agents", action="store_true",
                         help="also run each agent without a budget: its priors with the prior-aware adaptive stop"
                              " (capped at --max-iterations), reported beside the adaptive classical methods"
