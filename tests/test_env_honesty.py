@@ -343,3 +343,15 @@ def test_step_info_names_the_frame_its_pose_error_ratio_and_outlier_ratio_and_th
         assert info["pose_error_ratio"] == pytest.approx(
             pose_error_ratio(info["rot_err_deg"], info["trans_err_m"], float(np.linalg.norm(truth.translation))), rel=1e-12)
     assert methods == ["ransac", "ransac"]
+
+
+def test_the_documented_defaults_and_the_kitti_lengths_check():
+    env = StereoVOEnv()
+    c = env.sim_config
+    assert (c.n_frames, c.n_correspondences, c.z_min, c.z_max) == (100, 500, 3.0, 60.0)
+    assert (env.budget, env.batch_size, env.action_bound, env.logit_scale, env.hypothesis_cost) == (32, 32, 10.0, 1.0, 0.001)
+    assert StereoVOEnv(kitti_lengths=(0.5,)).kitti_lengths == (0.5,)  # any positive length, under 1 m too
+    for bad in ((), (0.0,), (-2.0,), (float("nan"),), ("a",)):
+        with pytest.raises(ValueError) as raised:
+            StereoVOEnv(kitti_lengths=bad)
+        assert str(raised.value) == f"StereoVOEnv: kitti_lengths must be positive numbers (m), got {bad!r}"

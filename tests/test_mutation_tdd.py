@@ -58,3 +58,42 @@ def test_tdd_pretest_on_the_numpy_route_by_hand(monkeypatch):
             assert c["tdd_passed"] == passed_before
         else:
             assert c["tdd_passed"] == passed_before + int(passed.sum())
+
+
+def _two_point_chance(c, m):
+    """The chance that 2 distinct points drawn from m, c of them consistent, are both consistent."""
+    c, m = np.asarray(c, float), np.asarray(m, float)
+    return np.maximum(c, 0) * np.maximum(c - 1, 0) / (np.maximum(m, 1) * np.maximum(m - 1, 1))
+
+
+def test_tdd_measures_good_hypotheses_pass_chance_on_the_numpy_route_by_hand(monkeypatch):
+    # With a best model, hypotheses drawn from its inliers are good: a good one that passed has its exact pass
+    # chance from its full support (its own 3 points left out of the N - 3), a good one that failed is measured
+    # on measure_points more random points outside its sample (the same generator, after the pre-test's), which
+    # the checks count. alpha is the mean of those chances.
+    monkeypatch.setattr(tdd_module, "ReprojectionResidual", _OtherResidual)
+    frame = simulate_frame(SimulationConfig(n_correspondences=150, outlier_ratio=0.3), 4)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    ctx = ScoringContext(problem, ReprojectionResidual(9.0), InlierCount(), 9.0)
+    n, rng = problem.n, np.random.default_rng(9)
+    verifier = TddVerification(d=2, measure_points=20, adaptive=False)
+    verifier.on_new_best(frame.truth.inlier, None)
+    R = np.stack([random_rotation(rng, np.radians(0.1)) @ frame.truth.rotation for _ in range(30)])
+    t = frame.truth.translation + rng.normal(0, 0.01, (30, 3))
+    samples = np.stack([rng.choice(np.flatnonzero(frame.truth.inlier), 3, replace=False) for _ in range(30)])
+    mask = ctx.residuals(R, t) < 9.0
+    g = np.random.default_rng(4)
+    consistent = np.take_along_axis(mask, random_points_excluding(samples, n, 2, g), axis=1)
+    passed = consistent.all(axis=1)
+    failed = np.flatnonzero(~passed)
+    assert 3 <= passed.sum() <= 27
+    measured = np.take_along_axis(mask[failed], random_points_excluding(samples[failed], n, 20, g), axis=1).sum(axis=1)
+    own = np.take_along_axis(mask, samples, axis=1).sum(axis=1)
+    chances = np.concatenate([_two_point_chance(mask[passed].sum(axis=1) - own[passed], n - 3),
+                              _two_point_chance(measured, 20)])
+    scores, checks = verifier.verify(ctx, R, t, np.random.default_rng(4), samples=samples)
+    first_miss = np.where(~consistent[:, 0], 1, 2)
+    assert checks == first_miss[failed].sum() + passed.sum() * n + failed.size * 20
+    c = verifier.counters()
+    assert c["tdd_good_measured"] == 30 and c["tdd_alpha"] == pytest.approx(np.mean(chances), rel=1e-12)
+    assert (c["tdd_measure_checks"], c["tdd_failed"], c["tdd_on"], c["tdd_off"]) == (failed.size * 20, failed.size, 30, 0)
