@@ -411,10 +411,6 @@ NOTED: dict[str, str] = {
 ADDRESSED: dict[str, str] = {
     "stereovo.estimation.prosac.xǁProsacTerminationǁrequired__mutmut_4":
         "test_stopping_bounds.py::test_prosac_n_star_needs_a_non_random_prefix_of_at_least_min_n (the cap)",
-    "stereovo.estimation.tdd.x_random_points_excluding__mutmut_14":
-        "test_stopping_bounds.py::test_tdd_pretest_points_are_the_smallest_random_keys_outside_the_sample",
-    "stereovo.estimation.tdd.x_random_points_excluding__mutmut_15":
-        "test_stopping_bounds.py::test_tdd_pretest_points_are_the_smallest_random_keys_outside_the_sample",
     **{f"vo_gym.env.xǁStereoVOEnvǁstep__mutmut_{i}":
        "test_env_honesty.py::test_stepping_out_of_turn_names_the_fix" for i in (3, 4, 8, 9)},
     **{f"vo_gym.env.xǁStereoVOEnvǁstep__mutmut_{i}":
