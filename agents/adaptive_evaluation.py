@@ -37,6 +37,7 @@ from stereovo.estimation.loop import LoopState
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.termination import required_iterations
 from stereovo.metrics import frame_metrics
+from stereovo.reporting import plot_success
 from vo_gym.adaptive_env import LOOP_FEATURE_NAMES, StereoVOAdaptiveEnv
 from vo_gym.features import N_FEATURES, feature_index
 from vo_gym.registration import HARD_SETTINGS
@@ -361,6 +362,19 @@ def comparison_markdown(result: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def figure_panels(families: Sequence[str]) -> list[tuple[str, list[str]]]:
+    """The two panels of a setting's figure (eight lines at most each for the default rows, as every
+    figure of the project; ``tests/test_adaptive_agent.py`` checks it): the learned in-frame sampler
+    against the one-shot samplers (a y range zoomed onto them), and against the hand-derived in-frame
+    rules (BANSAC, ARS, PROSAC) and uniform sampling."""
+    learned = [f for f in families if f.startswith("learned")]
+    floor = [f for f in families if f == "uniform"]
+    one_shot = [f for f in families if "one-shot" in f]
+    rules = [f for f in families if f not in learned + floor + one_shot]
+    return [("against the one-shot samplers", learned + one_shot),
+            ("against BANSAC, ARS, PROSAC and uniform", learned + rules + floor)]
+
+
 def write_comparison(result: dict[str, Any], out: str | Path) -> list[Path]:
     """``adaptive.json``, ``adaptive.md`` and one ``adaptive-<setting>.png`` per setting in ``out``."""
     import matplotlib
@@ -376,22 +390,23 @@ def write_comparison(result: dict[str, Any], out: str | Path) -> list[Path]:
     for key, table in result.items():
         if key == "config":
             continue
-        fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), gridspec_kw={"width_ratios": [1, 1]})
+        families = list(dict.fromkeys(r["family"] for r in table))
         colours = plt.get_cmap("tab20").colors
-        for i, family in enumerate(dict.fromkeys(r["family"] for r in table)):
-            pts = sorted((r["mean_hypotheses"], 100 * r["success"]) for r in table if r["family"] == family)
-            style = {"marker": "os^vD<>ph*"[i % 10], "color": colours[i % len(colours)], "label": family}
-            for ax in axes:
-                ax.plot(*zip(*pts), **style)
-        for ax, low in zip(axes, (0, 90)):
+        styles = {f: {"marker": "os^vD<>ph*"[i % 10], "color": colours[i % len(colours)]} for i, f in enumerate(families)}
+        fig, axes = plt.subplots(1, 2, figsize=(13, 4.8))
+        for ax, (title, members) in zip(axes, figure_panels(families)):
+            lowest = min(r["success_ci95"][0] for r in table if r["family"] in members)
+            for family in members:
+                pts = sorted((r["mean_hypotheses"], r["success"], r["frames"]) for r in table if r["family"] == family)
+                xs, rates, frames = zip(*pts)
+                plot_success(ax, xs, rates, frames, family, styles[family])
             ax.set_xscale("log")
-            ax.set_ylim(low, 100.5)
+            ax.set_ylim(min(5 * math.floor(20 * lowest), 90), 100.5)
             ax.set_xlabel("mean hypotheses per frame")
-            ax.set_ylabel("success (%)")
+            ax.set_ylabel("success (%), 95 % Wilson band")
+            ax.set_title(f"{key}: {title}")
             ax.grid(alpha=0.3)
-        axes[0].set_title(f"{key}: all")
-        axes[1].set_title(f"{key}: success >= 90 %")
-        axes[1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.02, 0.5))
+            ax.legend(fontsize=7, loc="lower right")
         path = out / f"adaptive-{key.replace(' ', '-')}.png"
         fig.tight_layout()
         fig.savefig(path, dpi=110)

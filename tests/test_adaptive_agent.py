@@ -162,3 +162,14 @@ def test_classical_samplers_act_as_policies_of_the_env(policy):
 def test_wilson_interval():
     low, high = wilson(99, 100)
     assert low == pytest.approx(0.9455, abs=1e-3) and high == pytest.approx(0.9982, abs=1e-3)
+
+
+def test_the_comparison_figure_has_two_panels_of_at_most_eight_lines_with_every_family():
+    from agents.adaptive_evaluation import AdaptiveComparison, figure_panels, policies
+    from stereovo.reporting import MAX_LINES_PER_PANEL
+
+    families = list(dict.fromkeys(family for family, _, _ in policies(AdaptiveComparison())))
+    panels = figure_panels(families)
+    assert len(panels) == 2 and all(len(members) <= MAX_LINES_PER_PANEL for _, members in panels)
+    assert set().union(*(members for _, members in panels)) == set(families) | {"uniform"}
+    assert all(any(f.startswith("learned") for f in members) for _, members in panels)
