@@ -193,6 +193,20 @@ def test_sprt_bound_uses_the_current_tests_alpha():
     assert sprt_bound([SprtTest(epsilon=0.5, delta=0.05, A=math.inf)], 50, 100) == 36
 
 
+def test_sprt_bound_follows_a_replaced_test():
+    # The same termination asked again after its verifier's test was replaced by another (A = 4,
+    # alpha = 1/4: 49 draws, above; then A = inf, alpha = 0: plain RANSAC's 36). Its caches must
+    # not keep the first test's alpha.
+    verifier = SprtVerification(n=100)
+    verifier.history[:] = [SprtTest(epsilon=0.5, delta=0.05, A=4.0)]
+    stop = SprtTermination(verifier, confidence=0.99)
+    assert stop.required(50, 100) == 49
+    verifier.history[:] = [SprtTest(epsilon=0.5, delta=0.05, A=math.inf)]
+    assert stop.required(50, 100) == 36
+    verifier.history[:] = [SprtTest(epsilon=0.5, delta=0.05, A=4.0)]
+    assert stop.required(50, 100) == 49
+
+
 def test_sprt_bound_sums_over_the_history_of_tests():
     # Test 1 (A = 4, alpha = 1/4) ran 10 draws: log eta = 10 log(1 - (4/33)(3/4)) = 10 log(10/11) = -0.95310.
     # Test 2 (A = 2, alpha = 1/2) is current: k_2 = (log 0.01 + 0.95310) / log(1 - (4/33)/2) = 58.41,

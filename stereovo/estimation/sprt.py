@@ -352,7 +352,7 @@ class SprtTermination:
         self._test_index = 0
         # alpha_i depends on the tests and on I_best only: cached per inlier count (the loop asks with
         # the count before and after a new best's local optimisation, so one entry would thrash)
-        self._alphas_by_count: dict[int, list[float]] = {}
+        self._alphas_by_count: dict[int, tuple[list[SprtTest], list[float]]] = {}
         self._q_by_count: dict[tuple[int, int], float] = {}  # uniform sampling's P_g per (I, N)
         # the last answers: the loop asks after every batch, and between redesigns only the current
         # test's draws change, which the bound does not read (it needs the draws of the past tests)
@@ -369,14 +369,20 @@ class SprtTermination:
 
     def _good_model_rejection(self, n_inliers: int, n: int, history: list[SprtTest]) -> list[float]:
         """``alpha_i = A_i^-h_i`` of every test for a good model of inlier ratio ``I / N`` (0 if the test is off)."""
-        alphas = self._alphas_by_count.setdefault(n_inliers, [])
+        tests, alphas = self._alphas_by_count.setdefault(n_inliers, ([], []))
         if len(self._alphas_by_count) > 16:  # counts from long-gone bests
             for count in list(self._alphas_by_count)[:-16]:
                 del self._alphas_by_count[count]
+        # The verifier only appends tests, so the cached prefix is normally still the history's; a
+        # history whose kept prefix was replaced (another verifier's, or a test swapped) starts over.
+        if len(tests) > len(history) or not all(a is b for a, b in zip(tests, history)):
+            tests.clear()
+            alphas.clear()
         epsilon = n_inliers / n
         for test in history[len(alphas) :]:
             h = good_model_exponent(epsilon, test.epsilon, test.delta) if test.active else 0.0
             alphas.append(rejection_probability(test.A, h) if test.active else 0.0)
+            tests.append(test)
         return alphas
 
     def required(self, n_inliers: int, n: int) -> int:
