@@ -355,6 +355,29 @@ EQUIVALENT: dict[str, str] = {
     "vo_gym.env.xǁStereoVOEnvǁ_trajectory_summary__mutmut_13":
         "kitti_step=KITTI_STEP dropped: it is trajectory_metrics' default.",
     "vo_gym.env.xǁStereoVOEnvǁstep__mutmut_33": "kind=\"STABLE\": NumPy reads the sort kind case-insensitively.",
+    **{f"vo_gym.env.xǁStereoVOEnvǁ__init____mutmut_{i}":
+       "another initial value of state that nothing reads before reset() sets it: step() and render() refuse to run "
+       "while the current frame is None, and reset() assigns the sampler, the problem, the successes and the last "
+       "step." for i in (273, 275, 279, 280)},
+    **{f"vo_gym.env.xǁStereoVOEnvǁreset__mutmut_{i}":
+       "integers(2**63 - 1) instead of integers(0, 2**63 - 1): one argument is the exclusive high with low 0, the "
+       "same draw." for i in (6, 18)},
+    **{f"vo_gym.env.xǁStereoVOEnvǁ_observation__mutmut_{i}":
+       "the features build their own StereoProblem when given none: the same build from the same measurements, "
+       "camera and noise, so the same features (only the reuse is lost)." for i in (18, 25)},
+    "vo_gym.env.xǁStereoVOEnvǁ_observation__mutmut_37":
+        "M >= n instead of M > n: with M = n the padded copy is the same float32 features, nothing padded.",
+    "vo_gym.env.xǁStereoVOEnvǁ_validate_action__mutmut_21":
+        "the problem is never None when an action is checked: reset() and every step build the next frame's "
+        "problem with its observation, and step() refuses to run before reset() or after close().",
+    **{f"vo_gym.env.xǁStereoVOEnvǁ__init____mutmut_{i}":
+       "dtype=np.float32 dropped from a Box: float32 is gymnasium's default Box dtype." for i in (255, 268)},
+    "vo_gym.env.xǁStereoVOEnvǁ_validate_action__mutmut_18":
+        "np.all(None) is False, so the non-finite branch also runs on an all-finite action: no slot is bad and "
+        "np.where keeps every value, the same action.",
+    "vo_gym.env.xǁStereoVOEnvǁstep__mutmut_47":
+        "max(n - 1, 2) instead of max(n - 1, 1): they differ only for n <= 2, and the simulator needs "
+        "n_correspondences >= 3.",
     "agents.ngransac.x_smooth_inlier_loss__mutmut_17":
         "degrees * SMOOTHNESS_SCALE_DEG instead of /: the scale is 1.0 degree, multiplying and dividing by 1 agree.",
     "stereovo.estimation.mlesac.x_inlier_log_normaliser__mutmut_10":

@@ -5,6 +5,10 @@ from that motion alone, the constant-velocity feature of the next step must be t
 stubbed motion, and the episode's trajectory summary must score those poses. Frames whose
 ground truth is permuted or withheld (every label, the true motion and the true poses replaced)
 must give bit-identical observations.
+
+The last section pins the rest of the contract value by value, each against a value worked out
+independently (the exact messages, the simulator's and estimator's settings, the seeds, the action's
+validation and clipping, the rewards): what mutation testing (scripts/mutation_test.py) found untested.
 """
 
 from __future__ import annotations
@@ -13,9 +17,12 @@ import dataclasses
 
 import numpy as np
 import pytest
+from gymnasium.utils import seeding
 from gymnasium.utils.env_checker import data_equivalence
 
 import vo_gym.env as env_module
+from stereovo.camera import StereoCamera
+from stereovo.estimation import EstimatorOptions, method_spec
 from stereovo.simulation import Sequence
 from vo_gym import StereoVOEnv
 from vo_gym.features import compute_features, feature_index
@@ -355,3 +362,206 @@ def test_the_documented_defaults_and_the_kitti_lengths_check():
         with pytest.raises(ValueError) as raised:
             StereoVOEnv(kitti_lengths=bad)
         assert str(raised.value) == f"StereoVOEnv: kitti_lengths must be positive numbers (m), got {bad!r}"
+
+
+# ---------------------------------------------------------------- the contract, value by value (mutation testing)
+
+def test_every_simulator_keyword_reaches_the_simulator():
+    camera = StereoCamera(fx=700.0, fy=700.0, baseline=0.6)
+    given = dict(preset="free", world="open", n_frames=3, n_correspondences=50, noise_sigma=0.7,
+                 outlier_ratio=(0.2, 0.3), outlier_mix=(0.5, 0.3, 0.2), score_auc=0.65, z_min=4.0, z_max=40.0,
+                 camera=camera, speed=0.8)
+    env = StereoVOEnv(**given)
+    for name, value in given.items():
+        assert getattr(env.sim_config, name) == value, name
+    assert env.sim_config.camera is camera
+    # One spare frame pair for the observation at truncation, no more.
+    env.reset(seed=0)
+    assert env.sequence.config == dataclasses.replace(env.sim_config, n_frames=4)
+
+
+def test_reset_derives_the_frames_and_the_sampler_from_the_seed_as_documented(monkeypatch):
+    received = []
+    real = env_module.estimate_problem
+
+    def spy(problem, **kwargs):
+        received.append(kwargs["rng"].bit_generator.state)  # before the estimator draws from it
+        return real(problem, **kwargs)
+
+    monkeypatch.setattr(env_module, "estimate_problem", spy)
+    env = StereoVOEnv(**KWARGS)
+    # Seed 5's draws change if the bound 2**63 - 1 changes by one, seed 2's if the low 0 becomes 1.
+    for seed in (5, 2):
+        rng, _ = seeding.np_random(seed)
+        sequence_seed, ransac_seed = (int(rng.integers(0, 2**63 - 1)) for _ in range(2))
+        env.reset(seed=seed)
+        assert env.sequence.seed == sequence_seed
+        env.step(np.zeros(120))
+        assert received[-1] == np.random.default_rng(ransac_seed).bit_generator.state
+
+
+def test_a_noise_free_simulator_needs_the_estimators_noise_and_says_so():
+    message = ("StereoVOEnv: noise_sigma=0 (noise-free frames) needs estimator_noise_sigma > 0: "
+               "the estimator's gates and the features' uncertainties need a positive pixel noise")
+    with pytest.raises(ValueError) as err:
+        StereoVOEnv(**{**KWARGS, "noise_sigma": 0.0})
+    assert str(err.value) == message
+    assert StereoVOEnv(**{**KWARGS, "noise_sigma": 0.0, "estimator_noise_sigma": 0.4}).estimator_noise_sigma == 0.4
+
+
+def test_batch_size_defaults_to_the_budget_or_to_the_estimators_default():
+    assert StereoVOEnv(**KWARGS).estimator_kwargs["batch_size"] == 8
+    adaptive = StereoVOEnv(**{**KWARGS, "budget": None})
+    assert adaptive.estimator_kwargs["batch_size"] == EstimatorOptions.batch_size == 128
+    assert adaptive.estimator_kwargs["budget"] is None
+    assert StereoVOEnv(**{**KWARGS, "batch_size": 4}).estimator_kwargs["batch_size"] == 4
+
+
+@pytest.mark.parametrize("method", ["msac", "mlesac"])
+def test_an_unknown_keyword_lists_the_methods_options_without_the_environments_own(method):
+    shared = sorted({f.name for f in dataclasses.fields(EstimatorOptions)} - {"noise_sigma", "budget", "batch_size"})
+    allowed = sorted({*shared, *method_spec(method).extra_options})
+    with pytest.raises(TypeError) as err:
+        StereoVOEnv(**KWARGS, method=method, not_an_option=1)
+    assert str(err.value) == (
+        f"StereoVOEnv got unexpected keyword argument(s) ['not_an_option']: not an environment or simulator "
+        f"argument nor an option of estimator method {method!r} (its options: {allowed})")
+    assert "noise_sigma" not in allowed and ("mlesac_em_iterations" in allowed) == (method == "mlesac")
+
+
+def test_a_method_that_samples_nothing_refuses_guided_weights():
+    with pytest.raises(ValueError) as err:
+        StereoVOEnv(**KWARGS, method="inlier-detection", sampling="guided")
+    assert str(err.value) == (
+        "StereoVOEnv: estimator method 'inlier-detection' with sampling='guided': method 'inlier-detection' does "
+        "not sample hypotheses: priors= and order= have no role in it; pass neither")
+
+
+def test_invalid_environment_options_name_the_environment():
+    with pytest.raises(ValueError) as err:
+        StereoVOEnv(**KWARGS, sampling="random")
+    assert str(err.value) == "StereoVOEnv: sampling must be one of 'guided', 'prosac', got 'random'"
+
+
+def test_the_weights_bound_is_300_inclusive_and_its_message_gives_the_product():
+    assert StereoVOEnv(**KWARGS, action_bound=30.0, logit_scale=10.0).action_bound == 30.0  # exactly 300
+    for bound, scale, product in ((20.0, 20.0, "400"), (10.0, 30.05, "300.5")):
+        with pytest.raises(ValueError) as err:
+            StereoVOEnv(**KWARGS, action_bound=bound, logit_scale=scale)
+        assert str(err.value) == ("StereoVOEnv: action_bound * logit_scale must be <= 300 (weights exp(+-300) stay "
+                                  f"representable), got {product}")
+
+
+def test_spaces_are_float32_and_symmetric():
+    env = StereoVOEnv(**KWARGS, action_bound=3.0, max_correspondences=130)
+    assert env.observation_space["features"].dtype == np.float32
+    assert env.action_space.dtype == np.float32
+    np.testing.assert_array_equal(env.action_space.low, np.full(130, -3.0, dtype=np.float32))
+    np.testing.assert_array_equal(env.action_space.high, np.full(130, 3.0, dtype=np.float32))
+
+
+def test_before_the_first_reset_the_env_has_no_episode():
+    env = StereoVOEnv(**KWARGS)
+    assert env.sequence is None and env.current_frame is None and env.frame_index == 0
+    assert env.estimated_poses.shape == (0,) and env.true_poses.shape == (0, 4, 4)
+
+
+def test_padded_observations_are_float32_and_keep_the_frames_features():
+    padded, _ = StereoVOEnv(**KWARGS, max_correspondences=130).reset(seed=4)
+    plain, _ = StereoVOEnv(**KWARGS).reset(seed=4)
+    assert padded["features"].dtype == np.float32 and padded["features"].shape == (130, plain["features"].shape[1])
+    np.testing.assert_array_equal(padded["features"][:120], plain["features"])
+    np.testing.assert_array_equal(padded["features"][120:], 0.0)
+    np.testing.assert_array_equal(padded["mask"], np.r_[np.ones(120), np.zeros(10)])
+
+
+def _without_depth(env, rows):
+    """The current frame's ``rows`` lose their depth (zero disparity at k-1); the observation is rebuilt."""
+    frame = env.current_frame
+    frame.prev[rows, 2] = frame.prev[rows, 0]
+    return env._observation()
+
+
+def _spy_priors(monkeypatch):
+    received = []
+    real = env_module.estimate_problem
+
+    def spy(problem, **kwargs):
+        received.append(kwargs["priors"])
+        return real(problem, **kwargs)
+
+    monkeypatch.setattr(env_module, "estimate_problem", spy)
+    return received
+
+
+def test_rows_without_depth_are_masked_and_take_any_action_value(monkeypatch):
+    received = _spy_priors(monkeypatch)
+    env = StereoVOEnv(**KWARGS)
+    env.reset(seed=2)
+    obs = _without_depth(env, [5, 9])
+    np.testing.assert_array_equal(np.flatnonzero(obs["mask"] == 0), [5, 9])
+    action = np.zeros(120)
+    action[0] = 2.0
+    action[5], action[9] = np.nan, np.inf
+    env.step(action)
+    # The non-finite rows get the lowest value, -action_bound: weight exp(-10 - 2) relative to the best row.
+    expected = np.exp(action.clip(-10, 10) - 2.0)
+    expected[[5, 9]] = np.exp(-10.0 - 2.0)
+    np.testing.assert_allclose(received[0], expected, rtol=1e-12)
+
+
+def test_a_non_finite_value_in_a_valid_slot_is_refused_by_count_and_first_slot():
+    env = StereoVOEnv(**KWARGS, max_correspondences=125)
+    env.reset(seed=2)
+    action = np.zeros(125)
+    action[[120, 124]] = np.nan  # padding: ignored
+    env.step(action)
+    action[[7, 30]] = [np.inf, np.nan]
+    with pytest.raises(ValueError) as err:
+        env.step(action)
+    assert str(err.value) == "StereoVOEnv: the action has NaN or inf in 2 valid slot(s) (first: slot 7)"
+    # With rows without depth, only the usable ones count.
+    _without_depth(env, [7, 11])
+    action[11] = np.nan
+    with pytest.raises(ValueError) as err:
+        env.step(action)
+    assert str(err.value) == "StereoVOEnv: the action has NaN or inf in 1 valid slot(s) (first: slot 30)"
+
+
+def test_action_values_are_clipped_to_the_box_on_both_sides(monkeypatch):
+    received = _spy_priors(monkeypatch)
+    env = StereoVOEnv(**KWARGS, action_bound=2.0)
+    env.reset(seed=2)
+    action = np.zeros(120)
+    action[:3] = [50.0, -50.0, 1.0]
+    env.step(action)
+    np.testing.assert_allclose(received[0][:4], np.exp(np.array([2.0, -2.0, 1.0, 0.0]) - 2.0), rtol=1e-12)
+
+
+def test_complex_and_non_numeric_actions_are_refused_by_type():
+    env = StereoVOEnv(**KWARGS)
+    env.reset(seed=2)
+    with pytest.raises(ValueError) as err:
+        env.step(np.zeros(120, dtype=complex))
+    assert str(err.value) == "StereoVOEnv: the action must be real, got complex dtype complex128"
+    with pytest.raises(ValueError) as err:
+        env.step(["left"] * 120)
+    assert str(err.value) == "StereoVOEnv: the action must be a numeric array of shape (120,), got list"
+
+
+def test_the_supervised_reward_by_hand():
+    env = StereoVOEnv(**KWARGS, success_bonus=0.3, hypothesis_cost=0.01)
+    env.reset(seed=5)
+    _, reward, _, _, info = env.step(np.zeros(120))
+    e = info["pose_error_ratio"]
+    expected = 0.3 * info["success"] + 0.7 * (1 - e) / (1 + e) - 0.01 * info["n_hypotheses"]
+    assert info["status"] == "ok" and reward == pytest.approx(expected, abs=1e-12)
+
+
+@pytest.mark.parametrize("reward_mode", ["inliers", "msac"])
+def test_a_failed_frame_gets_the_envs_failure_reward(monkeypatch, reward_mode):
+    stub_estimator(monkeypatch, fail_at=(1,))
+    env = StereoVOEnv(**KWARGS, reward_mode=reward_mode, failure_reward=-0.25)
+    env.reset(seed=5)
+    _, reward, _, _, info = env.step(np.zeros(120))
+    assert info["fallback"] and reward == -0.25
