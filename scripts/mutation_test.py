@@ -152,6 +152,38 @@ EQUIVALENT: dict[str, str] = {
     _D + "x_random_points_excluding__mutmut_22": "take_along_axis " + _AXIS,
     _D + "x_random_points_excluding__mutmut_26": "argsort " + _AXIS,
     _D + "x_random_points_excluding__mutmut_32": "the inner take_along_axis " + _AXIS,
+    **{_D + f"x_pass_probability__mutmut_{i}": (
+        "pass_probability without the float dtype: integer counts and pools turn float at np.maximum(., 0.0) and "
+        "np.maximum(., 1.0), and a factor c - j < 0 comes only after the factor c - c = 0.") for i in (3, 5, 8, 10)},
+    _D + "xǁTddTerminationǁ__post_init____mutmut_6": 'float("NAN") is NaN, as float("nan") is.',
+    _D + "xǁTddTerminationǁon_new_best__mutmut_2":
+        "passes None for the loop state: SampleProbability.on_new_best never reads the state.",
+    **{_D + f"xǁTddTerminationǁrequired__mutmut_{i}":
+        "SampleProbability.of(None, n) / of(I, None) on the guided branch: a guided sampler's q ignores the counts."
+        for i in (2, 3)},
+    **{_D + f"xǁTddTerminationǁrequired__mutmut_{i}":
+        "the per-count q cache missed (q = None, get(None)): q is recomputed from the same counts, the same value."
+        for i in (6, 7)},
+    **{_D + f"xǁTddTerminationǁrequired__mutmut_{i}":
+        "a different eviction of the per-count q cache (>= 64, > 65): evicted entries are recomputed to the same values."
+        for i in (9, 10)},
+    _D + "xǁTddTerminationǁrequired__mutmut_51":
+        "q >= 0 instead of q > 0: q is never negative, and at q = 0 per_draw = 0 returns max_iterations two lines on.",
+    **{_D + f"xǁTddVerificationǁ__post_init____mutmut_{i}":
+        "another initial _good_mask: never read before on_new_best replaces it (every read needs a best model)."
+        for i in (46, 48, 50, 51)},
+    _D + "xǁTddVerificationǁ_measure__mutmut_29": "take_along_axis " + _AXIS,
+    _D + "xǁTddVerificationǁ_verify_fully__mutmut_32": "take_along_axis " + _AXIS,
+    _D + "xǁTddVerificationǁ_measure__mutmut_50":
+        "room >= 0 instead of > 0: at room 0 the rows good_failed[:0] are empty: nothing measured, no checks, and "
+        "rng.random of size 0 leaves the generator as it was.",
+    _D + "xǁTddVerificationǁ_measure__mutmut_68":
+        "stop_at_failure=None instead of False for the measuring: the kernel only tests its truth, None is false.",
+    _D + "xǁTddVerificationǁverify__mutmut_117":
+        "sq = '' instead of None: _measure reads it only when a hypothesis passed, and then it was assigned.",
+    **{_D + f"xǁTddVerificationǁverify__mutmut_{i}":
+        "row_of float or -2 for the failed rows: inliers_of reads int(rows[i]) and takes any negative row as none."
+        for i in (130, 133, 135)},
     _P + "x_non_random_minimum__mutmut_8": "asarray(n, dtype=None): " + _INT,
     _P + "x_non_random_minimum__mutmut_10": "asarray(n) without dtype: " + _INT,
     _P + "x_prefix_draws__mutmut_3": "asarray(support, dtype=None): " + _INT,

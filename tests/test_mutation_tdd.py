@@ -1,9 +1,12 @@
-"""T(d,d)'s verifier by hand, for the survivors of the mutmut run of ``stereovo/estimation/tdd.py``
+"""T(d,d)'s verifier and bound by hand, for the survivors of the mutmut run of ``stereovo/estimation/tdd.py``
 (docs/mutation-testing.md): the numpy route (taken for residual models other than the reprojection one,
 whose compiled route test_classical_verification checks), point by point.
 """
 
 from __future__ import annotations
+
+import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -11,7 +14,7 @@ import pytest
 import stereovo.estimation.tdd as tdd_module
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.scoring import InlierCount, ReprojectionResidual
-from stereovo.estimation.tdd import TddVerification, random_points_excluding
+from stereovo.estimation.tdd import TddTermination, TddVerification, pass_probability, random_points_excluding
 from stereovo.estimation.verification import ScoringContext
 from stereovo.geometry import random_rotation
 from stereovo.simulation import SimulationConfig, simulate_frame
@@ -97,3 +100,349 @@ def test_tdd_measures_good_hypotheses_pass_chance_on_the_numpy_route_by_hand(mon
     c = verifier.counters()
     assert c["tdd_good_measured"] == 30 and c["tdd_alpha"] == pytest.approx(np.mean(chances), rel=1e-12)
     assert (c["tdd_measure_checks"], c["tdd_failed"], c["tdd_on"], c["tdd_off"]) == (failed.size * 20, failed.size, 30, 0)
+
+
+# ---------------------------------------------------------------- the formulas and the bound, by hand
+
+
+def test_pass_probability_is_the_hypergeometric_chance():
+    # d distinct points from a pool of m, c consistent: C(c, d) / C(m, d), for every c in [0, m] (c < d gives 0,
+    # a pool of exactly d consistent ones gives 1), integer or float counts, elementwise over arrays.
+    for d in (1, 2, 3):
+        for m in range(d, 9):
+            c = np.arange(m + 1)
+            expected = [math.comb(int(k), d) / math.comb(m, d) for k in c]
+            np.testing.assert_allclose(pass_probability(c, m, d), expected, rtol=1e-12, atol=0)
+            np.testing.assert_allclose(pass_probability(c.astype(float), float(m), d), expected, rtol=1e-12, atol=0)
+    assert pass_probability(1, 1, 1) == 1.0 and pass_probability(0, 5, 1) == 0.0 and pass_probability(1, 10, 2) == 0.0
+    # no points to draw: every hypothesis passes, in the broadcast shape of the counts and the pools
+    assert pass_probability(np.array([0, 2, 5]), 7, 0).tolist() == [1.0, 1.0, 1.0]
+    assert pass_probability(4, np.array([6, 8]), 0).tolist() == [1.0, 1.0]
+
+
+def _q(i, n):
+    return math.comb(i, 3) / math.comb(n, 3)
+
+
+def _k(q, p=0.99, cap=10_000):
+    if q >= 1:
+        return 1
+    return cap if q <= 0 else min(max(math.ceil(math.log(1 - p) / math.log(1 - q)), 1), cap)
+
+
+class _Verifier:
+    """Stands in for TddVerification in the bound: a measured alpha and the draws with the test on and off."""
+
+    def __init__(self, alpha, n_on, n_off, active):
+        self._a, self.n_on, self.n_off, self.active = alpha, n_on, n_off, active
+
+    def alpha(self):
+        return self._a
+
+
+def test_tdd_bound_without_a_verifier_by_hand():
+    # uniform sampling, no measured alpha: k = log(1 - p) / log(1 - q alpha) with q = C(I, 3) / C(N, 3) and
+    # alpha = prod_{j<d} (I - 3 - j) / (N - 3 - j), the chance for a hypothesis explaining the whole support
+    for i, n, d in ((60, 100, 1), (60, 100, 2), (20, 150, 1), (40, 50, 3)):
+        term = TddTermination(d=d)
+        alpha = math.comb(i - 3, d) / math.comb(n - 3, d)
+        assert term.required(i, n) == _k(_q(i, n) * alpha)
+        assert term.last_alpha == pytest.approx(alpha, rel=1e-12)
+        assert term.counters() == {"tdd_alpha_used": term.last_alpha}
+        assert term.required(i, n) == _k(_q(i, n) * alpha)  # the cached q
+    # a support of only the sample: no point outside it is consistent, alpha = 0, the cap
+    term = TddTermination(d=1)
+    assert term.required(3, 8) == 10_000 and term.last_alpha == 0.0
+    # before any bound: no alpha used yet
+    assert math.isnan(TddTermination().counters()["tdd_alpha_used"])
+
+
+class _Guided:
+    """A guided sampler: q is a function of the inlier mask it is given."""
+
+    def all_inlier_probability(self, inliers):
+        return 0.5 * float(np.mean(inliers))
+
+
+def test_tdd_bound_with_a_guided_sampler_takes_its_q():
+    term = TddTermination(d=1, sampler=_Guided())
+    mask = np.zeros(100, dtype=bool)
+    mask[:40] = True
+    term.on_new_best(mask, None)
+    alpha = 37 / 97
+    assert term.required(40, 100) == _k(0.2 * alpha)
+
+
+def test_tdd_bound_with_the_test_switched_on_and_off_by_hand():
+    # the draws so far under each mode: (1 - q alpha)^k_on (1 - q)^k_off <= 1 - p, then what the current mode
+    # needs beyond the draws made: drawn + ceil((log(1 - p) - log_miss) / log(1 - per_draw))
+    i, n = 25, 100
+    q = _q(i, n)
+    for alpha, n_on, n_off, active, drawn in ((0.3, 10, 20, True, 30), (0.3, 10, 1, True, 11), (0.3, 10, 20, False, 30),
+                                              (0.3, 50, 0, False, 50), (0.25, 5, 3, True, 0)):
+        term = TddTermination(d=1, verifier=_Verifier(alpha, n_on, n_off, active))
+        if drawn:
+            term.on_batch(SimpleNamespace(n_hypotheses=drawn))
+        log_miss = n_on * math.log(1 - q * alpha) + n_off * math.log(1 - q)
+        per_draw = q * alpha if active else q
+        remaining = (math.log(0.01) - log_miss) / math.log(1 - per_draw)
+        assert remaining > 0 and term.required(i, n) == drawn + math.ceil(remaining), (alpha, n_on, n_off, active)
+        assert term.last_alpha == alpha
+    # with the test on throughout the bound ignores the draws: the plain T(d,d) bound
+    term = TddTermination(d=1, verifier=_Verifier(0.3, 50, 0, True))
+    assert term.required(i, n) == _k(q * 0.3)
+    # the draws so far already suffice: at least one
+    term = TddTermination(d=1, verifier=_Verifier(0.3, 10, 1000, False))
+    assert term.required(i, n) == 1
+    # a good hypothesis that cannot pass the test (alpha = 0) while it is on: never enough, the cap
+    assert TddTermination(d=1, verifier=_Verifier(0.0, 10, 5, True)).required(i, n) == 10_000
+    assert TddTermination(d=1, verifier=_Verifier(0.3, 10, 5, True)).required(2, n) == 10_000  # q = 0
+
+
+def test_tdd_bound_when_every_draw_is_good():
+    # q = 1 and alpha = 1 (every point an inlier): the next draw is good; the draws' misses are clamped below 1
+    for active in (True, False):
+        term = TddTermination(d=1, max_iterations=50, verifier=_Verifier(1.0, 5, 2, active))
+        assert term.required(20, 20) == 1
+        term.on_batch(SimpleNamespace(n_hypotheses=7))
+        assert term.required(20, 20) == 8
+        term.on_batch(SimpleNamespace(n_hypotheses=50))
+        assert term.required(20, 20) == 50
+
+
+# ---------------------------------------------------------------- the verifier's options, state and cost model
+
+
+@pytest.mark.parametrize("name", ["d", "measure_points", "max_measured", "min_measured"])
+def test_tdd_integer_options_are_checked_with_their_names(name):
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ValueError) as err:
+            TddVerification(**{name: bad})
+        assert str(err.value) == f"option tdd_{name} must be an integer >= 1, got {bad!r}"
+    v = TddVerification(**{name: 1.0})
+    assert getattr(v, name) == 1
+
+
+def test_tdd_t_m_is_checked():
+    for bad in (0, 0.0, -1.0, float("inf"), float("nan"), "200", None):
+        with pytest.raises(ValueError) as err:
+            TddVerification(t_m=bad)
+        assert str(err.value) == f"option tdd_t_m must be a positive number, got {bad!r}"
+    assert TddVerification(t_m=0.5).t_m == 0.5
+
+
+def test_tdd_counters_of_a_fresh_verifier():
+    assert TddVerification().counters() == {
+        "tdd_tested": 0, "tdd_passed": 0, "tdd_failed": 0, "tdd_good_measured": 0, "tdd_alpha": -1.0,
+        "tdd_measure_checks": 0, "tdd_on": 0, "tdd_off": 0, "tdd_switches": 0}
+
+
+def _rates(v, *, on, off, passed, alpha=None, good=0):
+    """The verifier's measured rates as its verify calls leave them: hypotheses verified with the test on and
+    off, the sum of their pass chances, the mean pass chance of the good ones measured and how many."""
+    v.n_on, v.n_off, v._pass_sum, v._alpha, v._good = on, off, passed, alpha, good
+
+
+def _pays(t_m, d, p_pass, alpha, n):
+    return (t_m + d + p_pass * (n - d)) / alpha < t_m + n
+
+
+def test_tdd_pays_is_matas_and_chums_cost_model_by_hand():
+    # with min_measured good hypotheses measured their mean alpha counts; the pass rate is over all verified
+    n = 100
+    for t_m, d, alpha in ((1.0, 1, 0.6), (5.0, 2, 0.4), (200.0, 1, 0.9)):
+        for on, off in ((40, 0), (30, 10), (1, 0)):
+            for passed in np.linspace(0, on + off, 21):
+                v = TddVerification(d=d, t_m=t_m, min_measured=4)
+                _rates(v, on=on, off=off, passed=passed, alpha=alpha, good=4)
+                assert v.pays(n) == _pays(t_m, d, passed / (on + off), alpha, n), (t_m, d, alpha, on, off, passed)
+    # the expected costs equal exactly: it does not pay
+    v = TddVerification(d=1, t_m=200.0, min_measured=1)
+    _rates(v, on=4, off=0, passed=1.0, alpha=0.5, good=1)
+    assert (200 + 1 + 0.25 * 402) / 0.5 == 200 + 403 and not v.pays(403)
+    # alpha 0: a good hypothesis never passes, it cannot pay
+    _rates(v, on=4, off=0, passed=1.0, alpha=0.0, good=1)
+    assert not v.pays(403)
+    # nothing verified yet: the paper's test stays on
+    _rates(v, on=0, off=0, passed=0.0, alpha=0.01, good=1)
+    assert v.pays(403)
+
+
+def test_tdd_pays_takes_the_optimistic_alpha_until_min_measured():
+    # until min_measured good ones are measured alpha is C(I - 3, d) / C(N - 3, d) for the best model's support I
+    n, support, t_m = 100, 60, 1.0
+    mask = np.zeros(n, dtype=bool)
+    mask[:support] = True
+    for d in (1, 2):
+        optimistic = math.comb(support - 3, d) / math.comb(n - 3, d)
+        for good, alpha_used in ((2, optimistic), (3, 0.2), (4, 0.2)):
+            v = TddVerification(d=d, t_m=t_m, min_measured=3, adaptive=False)
+            v.on_new_best(mask, None)
+            for passed in np.linspace(0, 40, 81):
+                _rates(v, on=40, off=0, passed=passed, alpha=0.2, good=good)
+                assert v.pays(n) == _pays(t_m, d, passed / 40, alpha_used, n), (d, good, passed)
+    # a best model with no support beyond its sample: alpha 0, the test is switched off
+    # (a cheap model, t_m = 0.01, and no hypothesis passing: any alpha >= 1 / (N - 3) would pay)
+    v = TddVerification(d=1, t_m=0.01, adaptive=True)
+    _rates(v, on=10, off=0, passed=0.0)
+    v.on_new_best(np.arange(n) < 3, None)
+    assert (v.active, v.counters()["tdd_switches"]) == (False, 1)
+    v = TddVerification(d=1, adaptive=True)
+    v.on_new_best(mask, None)  # nothing verified yet: stays on, no switch
+    assert (v.active, v.counters()["tdd_switches"]) == (True, 0)
+
+
+# ---------------------------------------------------------------- verify's counts on small problems
+
+
+def _setup(n, outlier_ratio=0.3, seed=4):
+    frame = simulate_frame(SimulationConfig(n_correspondences=n, outlier_ratio=outlier_ratio), seed)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    return frame, problem, ScoringContext(problem, ReprojectionResidual(9.0), InlierCount(), 9.0)
+
+
+def _near_truth(frame, rng, h, spread=0.1):
+    R = np.stack([random_rotation(rng, np.radians(spread)) @ frame.truth.rotation for _ in range(h)])
+    return R, frame.truth.translation + rng.normal(0, spread / 10, (h, 3))
+
+
+def test_tdd_verify_without_points_outside_the_sample():
+    # N = 3: nothing to pre-test on, every hypothesis is scored on all points; N = 4 with d = 2: one point left
+    for n, d in ((3, 1), (4, 2)):
+        frame, problem, ctx = _setup(n, 0.0)
+        rng = np.random.default_rng(1)
+        R, t = _near_truth(frame, rng, 6, spread=2.0)
+        samples = np.tile(np.arange(3), (6, 1))
+        sq = ctx.residuals(R, t)
+        verifier = TddVerification(d=d, adaptive=False)
+        scores, checks = verifier.verify(ctx, R, t, np.random.default_rng(2), samples=samples)
+        if n == 3:
+            np.testing.assert_array_equal(scores, np.sum(sq < 9.0, axis=1))
+            assert checks == 6 * 3
+        else:  # the pre-test on point 3 alone
+            passed = sq[:, 3] < 9.0
+            np.testing.assert_array_equal(np.isinf(scores), ~passed)
+            assert checks == (~passed).sum() + passed.sum() * 4
+
+
+def test_tdd_compiled_pretest_stops_at_the_first_miss():
+    # hypotheses far off explain no point: with d = 3 each fails at its first point and costs one check
+    frame, problem, ctx = _setup(60)
+    rng = np.random.default_rng(3)
+    R = np.stack([random_rotation(rng, np.radians(40)) for _ in range(12)])
+    t = rng.normal(0, 5.0, (12, 3))
+    assert not np.any(ctx.residuals(R, t) < 9.0)
+    samples = np.stack([rng.choice(problem.n, 3, replace=False) for _ in range(12)])
+    verifier = TddVerification(d=3, adaptive=False)
+    scores, checks = verifier.verify(ctx, R, t, np.random.default_rng(2), samples=samples)
+    assert np.all(np.isinf(scores)) and checks == 12
+
+
+def test_tdd_measuring_counts_by_hand(monkeypatch):
+    # numpy route, d = 1. Hypotheses with a sample point outside the best model are not good: nothing is measured,
+    # nothing added to the checks; good ones that all passed are measured exactly, at no extra checks.
+    monkeypatch.setattr(tdd_module, "ReprojectionResidual", _OtherResidual)
+    frame, problem, ctx = _setup(80)
+    n, rng = problem.n, np.random.default_rng(5)
+    inl, out = np.flatnonzero(frame.truth.inlier), np.flatnonzero(~frame.truth.inlier)
+    verifier = TddVerification(d=1, measure_points=10, adaptive=False)
+    verifier.on_new_best(frame.truth.inlier, None)
+    R, t = _near_truth(frame, rng, 10)
+    bad = np.stack([np.r_[rng.choice(inl, 2, replace=False), rng.choice(out, 1)] for _ in range(10)])
+    g = np.random.default_rng(6)
+    mask = ctx.residuals(R, t) < 9.0
+    passed = np.take_along_axis(mask, random_points_excluding(bad, n, 1, g), axis=1)[:, 0]
+    _, checks = verifier.verify(ctx, R, t, np.random.default_rng(6), samples=bad)
+    assert checks == (~passed).sum() + passed.sum() * n
+    assert verifier.counters()["tdd_good_measured"] == 0 and verifier.alpha() is None
+    # all good and passing (no outliers, near-truth hypotheses): exact alphas, no extra checks
+    frame, problem, ctx = _setup(40, 0.0)
+    n = problem.n
+    verifier = TddVerification(d=1, measure_points=10, adaptive=False)
+    verifier.on_new_best(np.ones(n, dtype=bool), None)
+    R, t = _near_truth(frame, rng, 10, spread=0.01)
+    good = np.stack([rng.choice(n, 3, replace=False) for _ in range(10)])
+    mask = ctx.residuals(R, t) < 9.0
+    assert mask.all()
+    _, checks = verifier.verify(ctx, R, t, np.random.default_rng(7), samples=good)
+    assert checks == 10 * n and verifier.counters()["tdd_measure_checks"] == 0
+    assert verifier.alpha() == 1.0 and verifier.counters()["tdd_good_measured"] == 10
+
+
+def test_tdd_measures_at_most_max_measured_and_keeps_the_samples(monkeypatch):
+    # failed good hypotheses are measured only while fewer than max_measured good ones are on record (the room is
+    # counted before the batch); the measuring checks add up over batches; a new best re-selects the good ones
+    monkeypatch.setattr(tdd_module, "ReprojectionResidual", _OtherResidual)
+    frame, problem, ctx = _setup(150)
+    n, rng = problem.n, np.random.default_rng(9)
+    inl = np.flatnonzero(frame.truth.inlier)
+    batches = []
+    for _ in range(2):
+        R, t = _near_truth(frame, rng, 30)
+        samples = np.stack([rng.choice(inl, 3, replace=False) for _ in range(30)])
+        batches.append((R, t, samples))
+
+    def failed_in(R, t, samples, seed):
+        mask = ctx.residuals(R, t) < 9.0
+        g = np.random.default_rng(seed)
+        consistent = np.take_along_axis(mask, random_points_excluding(samples, n, 2, g), axis=1)
+        return np.flatnonzero(~consistent.all(axis=1)), mask, g
+
+    f1, _, _ = failed_in(*batches[0], 11)
+    f2, _, _ = failed_in(*batches[1], 12)
+    assert f1.size >= 2 and f2.size >= 2 and f1.size < 29
+    # max_measured = 1: the first failed one of batch 1 is measured, none of batch 2 (no room left)
+    v = TddVerification(d=2, measure_points=20, max_measured=1, adaptive=False)
+    v.on_new_best(frame.truth.inlier, None)
+    v.verify(ctx, *batches[0][:2], np.random.default_rng(11), samples=batches[0][2])
+    assert v.counters()["tdd_measure_checks"] == 20
+    v.verify(ctx, *batches[1][:2], np.random.default_rng(12), samples=batches[1][2])
+    assert v.counters()["tdd_measure_checks"] == 20
+    # unbounded: every failed good one in both batches, the checks summed
+    v = TddVerification(d=2, measure_points=20, adaptive=False)
+    v.on_new_best(frame.truth.inlier, None)
+    for (R, t, samples), seed in zip(batches, (11, 12)):
+        v.verify(ctx, R, t, np.random.default_rng(seed), samples=samples)
+    assert v.counters()["tdd_measure_checks"] == 20 * (f1.size + f2.size) and v.counters()["tdd_good_measured"] == 60
+    alphas, measured = v._alphas.copy(), v._samples.copy()  # the measured chances and their samples, in record order
+    # a new best that drops point samples[0, 0] of batch 1: the hypotheses using it are no longer good
+    kept = frame.truth.inlier.copy()
+    kept[batches[0][2][0, 0]] = False
+    v.on_new_best(kept, None)
+    still = kept[measured].all(axis=1)
+    np.testing.assert_array_equal(np.sort(measured, axis=0), np.sort(np.concatenate([b[2] for b in batches]), axis=0))
+    assert v.counters()["tdd_good_measured"] == still.sum() < 60
+    assert v.alpha() == pytest.approx(np.mean(alphas[still]), rel=1e-12)
+
+
+def test_tdd_switched_off_scores_fully_and_measures_exactly(monkeypatch):
+    # the test off: every hypothesis scored on all N points (H N checks), a good one's chance exact from its
+    # support outside its sample, the pass rate of all hypotheses kept at its value from while it was on
+    monkeypatch.setattr(tdd_module, "ReprojectionResidual", _OtherResidual)
+    frame, problem, ctx = _setup(150)
+    n, rng = problem.n, np.random.default_rng(10)
+    inl = np.flatnonzero(frame.truth.inlier)
+    v = TddVerification(d=2, adaptive=False)
+    R, t = _near_truth(frame, rng, 20)
+    samples = np.stack([rng.choice(inl, 3, replace=False) for _ in range(20)])
+    for seed in (1, 3):  # two batches, no best yet: nothing measured, the pass rate over both
+        v.verify(ctx, R, t, np.random.default_rng(seed), samples=samples)
+    rate = v._pass_sum / v.n_on
+    assert v._pass_sum == v.counters()["tdd_passed"]
+    assert 0 < rate < 1
+    v.active = False
+    v.on_new_best(frame.truth.inlier, None)
+    R, t = _near_truth(frame, rng, 20)
+    samples = np.stack([rng.choice(inl, 3, replace=False) for _ in range(19)] + [rng.choice(problem.n, 3, replace=False)])
+    samples[-1, 0] = np.flatnonzero(~frame.truth.inlier)[0]  # the last one is not good
+    mask = ctx.residuals(R, t) < 9.0
+    scores, checks = v.verify(ctx, R, t, np.random.default_rng(2), samples=samples)
+    np.testing.assert_array_equal(scores, mask.sum(axis=1))
+    assert checks == 20 * n
+    own = np.take_along_axis(mask, samples, axis=1).sum(axis=1)
+    c = mask.sum(axis=1) - own
+    chances = c[:19] * (c[:19] - 1) / ((n - 3) * (n - 4))
+    counters = v.counters()
+    assert (counters["tdd_on"], counters["tdd_off"], counters["tdd_good_measured"]) == (40, 20, 19)
+    assert counters["tdd_alpha"] == pytest.approx(np.mean(chances), rel=1e-12)
+    assert v._pass_sum / (v.n_on + v.n_off) == pytest.approx(rate, rel=1e-12)
