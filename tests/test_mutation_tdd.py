@@ -413,6 +413,8 @@ def test_tdd_measures_at_most_max_measured_and_keeps_the_samples(monkeypatch):
     np.testing.assert_array_equal(np.sort(measured, axis=0), np.sort(np.concatenate([b[2] for b in batches]), axis=0))
     assert v.counters()["tdd_good_measured"] == still.sum() < 60
     assert v.alpha() == pytest.approx(np.mean(alphas[still]), rel=1e-12)
+    v.on_new_best(kept.astype(np.int8), None)  # a 0/1 mask is a mask too
+    assert v.counters()["tdd_good_measured"] == still.sum() and v.alpha() == pytest.approx(np.mean(alphas[still]), rel=1e-12)
 
 
 def test_tdd_switched_off_scores_fully_and_measures_exactly(monkeypatch):
@@ -446,3 +448,18 @@ def test_tdd_switched_off_scores_fully_and_measures_exactly(monkeypatch):
     assert (counters["tdd_on"], counters["tdd_off"], counters["tdd_good_measured"]) == (40, 20, 19)
     assert counters["tdd_alpha"] == pytest.approx(np.mean(chances), rel=1e-12)
     assert v._pass_sum / (v.n_on + v.n_off) == pytest.approx(rate, rel=1e-12)
+
+
+def test_tdd_switched_off_after_a_single_hypothesis_keeps_its_pass_rate(monkeypatch):
+    # one hypothesis verified with the test on (it passed: rate 1), then 20 fully: the rate stays 1
+    monkeypatch.setattr(tdd_module, "ReprojectionResidual", _OtherResidual)
+    frame, problem, ctx = _setup(40, 0.0)
+    rng = np.random.default_rng(12)
+    v = TddVerification(d=1, adaptive=False)
+    R, t = _near_truth(frame, rng, 1, spread=0.01)
+    assert (ctx.residuals(R, t) < 9.0).all()
+    v.verify(ctx, R, t, np.random.default_rng(1), samples=np.array([[0, 1, 2]]))
+    v.active = False
+    R, t = _near_truth(frame, rng, 20)
+    v.verify(ctx, R, t, np.random.default_rng(2), samples=np.tile(np.arange(3), (20, 1)))
+    assert (v.n_on, v.n_off) == (1, 20) and v._pass_sum / 21 == pytest.approx(1.0, rel=1e-12)
