@@ -55,6 +55,20 @@ def stub_estimator(monkeypatch, fail_at: tuple[int, ...] = ()):
     return calls
 
 
+def spy_estimator(monkeypatch, read):
+    """Record ``read(kwargs)`` of every estimator call the env makes (before the estimator runs), then
+    run the real one; returns the list the records go to."""
+    real = env_module.estimate_problem
+    received = []
+
+    def spy(problem, **kwargs):
+        received.append(read(kwargs))
+        return real(problem, **kwargs)
+
+    monkeypatch.setattr(env_module, "estimate_problem", spy)
+    return received
+
+
 def hand_chained_poses(motions: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
     """Camera-to-world poses from the identity under ``x_k = R x_{k-1} + t``: O_k = O_{k-1} R^T,
     c_k = c_{k-1} - O_{k-1} R^T t (the camera centre at k is -R^T t in frame k-1's coordinates)."""
@@ -205,14 +219,7 @@ def test_observation_carries_the_match_scores_and_their_ranks():
 @pytest.mark.parametrize("sampling", ["guided", "prosac"])
 def test_the_estimator_receives_the_agents_weights_or_order(monkeypatch, sampling):
     calls = stub_estimator(monkeypatch)
-    received = []
-    real = env_module.estimate_problem
-
-    def spy(problem, **kwargs):
-        received.append((kwargs.get("priors"), kwargs.get("order")))
-        return real(problem, **kwargs)
-
-    monkeypatch.setattr(env_module, "estimate_problem", spy)
+    received = spy_estimator(monkeypatch, lambda kwargs: (kwargs.get("priors"), kwargs.get("order")))
     env = StereoVOEnv(**{**KWARGS, "sampling": sampling, "logit_scale": 0.5, "action_bound": 10.0})
     env.reset(seed=1)
     action = np.random.default_rng(0).uniform(-6, 6, 120)
@@ -269,14 +276,7 @@ def test_render_shows_the_sampling_weights_relative_to_uniform(monkeypatch, samp
 
     drawn = []
     monkeypatch.setattr(rendering, "render_rgb", lambda est, true, frame, weights, inliers, title: drawn.append(weights))
-    received = []
-    real = env_module.estimate_problem
-
-    def spy(problem, **kwargs):
-        received.append(kwargs.get("order"))
-        return real(problem, **kwargs)
-
-    monkeypatch.setattr(env_module, "estimate_problem", spy)
+    received = spy_estimator(monkeypatch, lambda kwargs: kwargs.get("order"))
     env = StereoVOEnv(**{**KWARGS, "sampling": sampling, "logit_scale": 0.5, "action_bound": 10.0,
                          "render_mode": "rgb_array"})
     env.reset(seed=1)
@@ -331,14 +331,7 @@ def test_render_draws_the_poses_so_far_and_the_frame_just_estimated(monkeypatch)
 def test_step_info_names_the_frame_its_pose_error_ratio_and_outlier_ratio_and_the_method_is_the_envs(monkeypatch):
     from stereovo.metrics import pose_error_ratio
 
-    methods = []
-    real = env_module.estimate_problem
-
-    def spy(problem, **kwargs):
-        methods.append(kwargs.get("method"))
-        return real(problem, **kwargs)
-
-    monkeypatch.setattr(env_module, "estimate_problem", spy)
+    methods = spy_estimator(monkeypatch, lambda kwargs: kwargs.get("method"))
     env = StereoVOEnv(**{**KWARGS, "method": "ransac"})
     _, info0 = env.reset(seed=5)
     assert info0 == {"frame": 1}
@@ -381,14 +374,7 @@ def test_every_simulator_keyword_reaches_the_simulator():
 
 
 def test_reset_derives_the_frames_and_the_sampler_from_the_seed_as_documented(monkeypatch):
-    received = []
-    real = env_module.estimate_problem
-
-    def spy(problem, **kwargs):
-        received.append(kwargs["rng"].bit_generator.state)  # before the estimator draws from it
-        return real(problem, **kwargs)
-
-    monkeypatch.setattr(env_module, "estimate_problem", spy)
+    received = spy_estimator(monkeypatch, lambda kwargs: kwargs["rng"].bit_generator.state)  # before the estimator draws from it
     env = StereoVOEnv(**KWARGS)
     # Seed 5's draws change if the bound 2**63 - 1 changes by one, seed 2's if the low 0 becomes 1.
     for seed in (5, 2):
@@ -483,15 +469,7 @@ def _without_depth(env, rows):
 
 
 def _spy_priors(monkeypatch):
-    received = []
-    real = env_module.estimate_problem
-
-    def spy(problem, **kwargs):
-        received.append(kwargs["priors"])
-        return real(problem, **kwargs)
-
-    monkeypatch.setattr(env_module, "estimate_problem", spy)
-    return received
+    return spy_estimator(monkeypatch, lambda kwargs: kwargs["priors"])
 
 
 def test_rows_without_depth_are_masked_and_take_any_action_value(monkeypatch):
