@@ -455,10 +455,6 @@ NOTED: dict[str, str] = {
        "points passed to the kernel in their own dtype: float32 points would be compared in single precision "
        "(a different verdict only at the gate's edge); every caller passes float64 triangulations, so no test "
        "pins it." for i in (56, 58, 60, 62)},
-    _S + "xǁSprtTerminationǁ_bound__mutmut_51":
-        "P_find < 0 instead of <= 0: with P_find = 0 (the current test rejects every good model, h = 0) after past "
-        "tests already reached the confidence, the mutant stops at the draws done, the code asks for max_iterations. "
-        "The mutant's answer is arguably the right one; left for the estimator's owner to decide, so no test pins it.",
 }
 
 

@@ -217,6 +217,22 @@ def test_sprt_bound_sums_over_the_history_of_tests():
     assert sprt_bound(history, 50, 100) == 69
 
 
+def test_sprt_bound_when_the_current_test_rejects_every_good_model():
+    # N = 100, I = 50 (P_g = 4/33). The current test, designed for epsilon_i = 0.99 with delta_i = 0.5,
+    # has Wald's drift 0.5 log(0.5/0.99) + 0.5 log(0.5/0.01) = 1.61 > 0 for a good model of epsilon
+    # 0.5: h = 0, alpha = A^0 = 1, so it can never find one (P_find = 0). A past test (A = 4,
+    # alpha = 1/4) that ran 60 draws already has log eta = 60 log(10/11) = -5.72 < log 0.01: stop at
+    # the 60 draws done. After only 10 (log eta = -0.95) no draw of the current test can help: the cap.
+    assert 60 * math.log(10 / 11) < math.log(0.01) < 10 * math.log(10 / 11)
+    blind = SprtTest(epsilon=0.99, delta=0.5, A=4.0)
+    reached = [SprtTest(epsilon=0.5, delta=0.05, A=4.0, draws=60), blind]
+    assert sprt_bound(reached, 50, 100) == 60
+    short = [SprtTest(epsilon=0.5, delta=0.05, A=4.0, draws=10), SprtTest(epsilon=0.99, delta=0.5, A=4.0)]
+    verifier = SprtVerification(n=100)
+    verifier.history[:] = short
+    assert SprtTermination(verifier, confidence=0.99, max_iterations=777).required(50, 100) == 777
+
+
 def test_sprt_bound_uses_wald_exponent_for_a_mismatched_design():
     # A test designed for epsilon_i = 0.5, delta_i = 0.1 and a good model of epsilon = 0.7 (N = 100, I = 70):
     # h solves 0.7 (0.1/0.5)^h + 0.3 (0.9/0.5)^h = 1; h = 2 does (0.7 * 0.04 + 0.3 * 3.24 = 1).

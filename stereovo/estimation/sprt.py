@@ -424,6 +424,10 @@ class SprtTermination:
         if p_find >= 1:
             return min(done + 1, self.max_iterations)
         if p_find <= 0:
+            # The current test rejects every good model, so only the past tests can have found one:
+            # stop at once if they already reached the confidence, otherwise sampling cannot help.
+            if log_eta <= np.log1p(-self.confidence):
+                return int(np.clip(done, 1, self.max_iterations))
             return self.max_iterations
         k_current = (np.log1p(-self.confidence) - log_eta) / np.log1p(-p_find)
         return int(np.clip(done + np.ceil(max(k_current, 0.0)), 1, self.max_iterations))
