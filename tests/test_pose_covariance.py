@@ -47,6 +47,25 @@ def test_every_ok_estimate_has_a_symmetric_positive_definite_covariance_and_fail
     assert not failed.ok and failed.covariance is None
 
 
+def test_covariance_is_computed_on_first_read_and_survives_copies_and_pickling():
+    """It is computed when first read (the environment never reads it), from the final fit."""
+    import dataclasses
+    import pickle
+
+    frame = simulate_frame(SimulationConfig(outlier_ratio=0.5), rng=4)
+    est = estimate_motion(frame.prev, frame.curr, frame.camera, rng=1)
+    expected = pose_covariance(
+        StereoProblem.build(frame.prev, frame.curr, frame.camera, 0.5), est.rotation, est.translation, est.inliers
+    )
+    unpickled = pickle.loads(pickle.dumps(est))  # before any read: the pickle carries the matrix
+    np.testing.assert_array_equal(unpickled.covariance, expected)
+    np.testing.assert_array_equal(est.covariance, expected)
+    copy = dataclasses.replace(est, status="ok")
+    np.testing.assert_array_equal(copy.covariance, expected)
+    est.covariance = None  # an assigned value wins over the deferred one
+    assert est.covariance is None and copy.covariance is not None
+
+
 def test_error_vector_convention_is_the_left_perturbation_mapped_to_world_form():
     """A small left perturbation ``exp(delta^) T`` moves ``(log(R' R^T), t' - t)`` by ``M delta``."""
     rng = np.random.default_rng(0)

@@ -46,7 +46,6 @@ Bron-Kerbosch proved the maximum), ``clique_subsampled`` (1 if M < N),
 
 from __future__ import annotations
 
-import dataclasses
 import time
 
 import numpy as np
@@ -209,14 +208,6 @@ def maximum_consistent_set(
     return clique, W, False
 
 
-def _rows(problem: StereoProblem, rows: np.ndarray) -> StereoProblem:
-    """The problem restricted to ``rows`` (nothing validated or triangulated again)."""
-    return dataclasses.replace(
-        problem, prev=problem.prev[rows], curr=problem.curr[rows], points_prev=problem.points_prev[rows],
-        points_curr=problem.points_curr[rows], cov_prev=problem.cov_prev[rows], cov_curr=problem.cov_curr[rows],
-    )
-
-
 def robust_clique_fit(
     problem: StereoProblem,
     clique: np.ndarray,
@@ -239,7 +230,7 @@ def robust_clique_fit(
         ``(R (3, 3), t (3,), inner report, point checks spent)``; when the inner report is not
         ok (every sample of the clique degenerate, e.g. collinear), ``R, t`` are the identity.
     """
-    sub = _rows(problem, clique)
+    sub = problem.select(clique)
     inner = run_ransac(sub, RansacComponents(
         sampler=UniformSampler(sub.n),
         residual_model=MahalanobisResidual(gate_sq),
@@ -306,7 +297,7 @@ def detect_inliers(
     rng = np.random.default_rng(0) if rng is None else rng
     n = problem.n
     nodes = np.arange(n) if n <= graph_max else np.sort(rng.choice(n, size=graph_max, replace=False))
-    graph = problem if n <= graph_max else _rows(problem, nodes)
+    graph = problem if n <= graph_max else problem.select(nodes)
     found, W, exact = maximum_consistent_set(graph, c, exact_max, time_limit_s)
     clique = nodes[found]
     counters = {

@@ -8,37 +8,17 @@ so they reuse the very same residual code and gate as full verification.
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
-from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.verification import ScoringContext
 
 # Hypotheses per call of :func:`residuals_at`: its cost is O(group * d) per hypothesis.
 _GROUP = 64
 
 
-def subset_problem(problem: StereoProblem, rows: np.ndarray) -> StereoProblem:
-    """The correspondences ``rows`` (int array ``(M,)``) of ``problem`` as a problem of their own.
-
-    No validation or triangulation is repeated: the rows are sliced from the
-    already validated problem.
-    """
-    return dataclasses.replace(
-        problem,
-        prev=problem.prev[rows],
-        curr=problem.curr[rows],
-        points_prev=problem.points_prev[rows],
-        points_curr=problem.points_curr[rows],
-        cov_prev=problem.cov_prev[rows],
-        cov_curr=problem.cov_curr[rows],
-    )
-
-
 def residuals_on(ctx: ScoringContext, R: np.ndarray, t: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """Squared residuals ``(H, M)`` of every hypothesis on the same correspondences ``rows (M,)``."""
-    return ctx.residual_model.squared(subset_problem(ctx.problem, rows), R, t)
+    return ctx.residual_model.squared(ctx.problem.select(rows), R, t)
 
 
 def residuals_at(ctx: ScoringContext, R: np.ndarray, t: np.ndarray, idx: np.ndarray) -> np.ndarray:

@@ -131,6 +131,23 @@ class StereoProblem:
         """Number of rows without depth."""
         return 0 if self.usable is None else int(np.count_nonzero(~self.usable))
 
+    def select(self, rows: np.ndarray) -> "StereoProblem":
+        """The correspondences ``rows`` (int array ``(M,)``) as a problem of their own.
+
+        No validation or triangulation is repeated: the rows are sliced from this already
+        validated problem (their usable flags with them).
+        """
+        return dataclasses.replace(
+            self,
+            prev=self.prev[rows],
+            curr=self.curr[rows],
+            points_prev=self.points_prev[rows],
+            points_curr=self.points_curr[rows],
+            cov_prev=self.cov_prev[rows],
+            cov_curr=self.cov_curr[rows],
+            usable=None if self.usable is None else self.usable[rows],
+        )
+
     def usable_subproblem(self) -> tuple["StereoProblem", np.ndarray | None]:
         """The usable rows as a problem of their own, and their indices ``(M,)`` into this one.
 
@@ -140,14 +157,4 @@ class StereoProblem:
         if self.usable is None:
             return self, None
         rows = np.flatnonzero(self.usable)
-        sub = dataclasses.replace(
-            self,
-            prev=self.prev[rows],
-            curr=self.curr[rows],
-            points_prev=self.points_prev[rows],
-            points_curr=self.points_curr[rows],
-            cov_prev=self.cov_prev[rows],
-            cov_curr=self.cov_curr[rows],
-            usable=None,
-        )
-        return sub, rows
+        return dataclasses.replace(self.select(rows), usable=None), rows
