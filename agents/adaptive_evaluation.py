@@ -37,7 +37,7 @@ from stereovo.estimation.loop import LoopState
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.termination import required_iterations
 from stereovo.metrics import frame_metrics
-from stereovo.reporting import plot_success
+from stereovo.reporting import plot_success, wilson_interval
 from vo_gym.adaptive_env import LOOP_FEATURE_NAMES, StereoVOAdaptiveEnv
 from vo_gym.features import N_FEATURES, feature_index
 from vo_gym.registration import HARD_SETTINGS
@@ -283,17 +283,7 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     return {"frames": len(rows), "success": float(success.mean()), "successes": k,
             "mean_hypotheses": float(np.mean([r["n_hypotheses"] for r in rows])),
             "stopped": len(stopped), "miss_rate": float(np.mean(miss)) if miss else None,
-            "success_ci95": list(wilson(k, len(rows)))}
-
-
-def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """Wilson score interval of a binomial proportion."""
-    if n == 0:
-        return (math.nan, math.nan)
-    p = k / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return (max(0.0, centre - half), min(1.0, centre + half))
+            "success_ci95": [float(b) for b in wilson_interval(k, len(rows))]}
 
 
 def run_comparison(config: AdaptiveComparison, log: Callable[[str], None] = print) -> dict[str, Any]:

@@ -22,7 +22,6 @@ from agents.adaptive_evaluation import (
     merge_comparisons,
     run_policy,
     summarise,
-    wilson,
 )
 from vo_gym.adaptive_env import StereoVOAdaptiveEnv
 
@@ -159,8 +158,9 @@ def test_classical_samplers_act_as_policies_of_the_env(policy):
     assert summary["frames"] == 2 and 0 <= summary["success"] <= 1
 
 
-def test_wilson_interval():
-    low, high = wilson(99, 100)
+def test_the_summary_carries_the_wilson_interval_of_its_success_rate():
+    rows = [{"success": i < 99, "stopped": False, "n_hypotheses": 4, "all_inlier_drawn": None} for i in range(100)]
+    low, high = summarise(rows)["success_ci95"]
     assert low == pytest.approx(0.9455, abs=1e-3) and high == pytest.approx(0.9982, abs=1e-3)
 
 
