@@ -463,3 +463,156 @@ def test_tdd_switched_off_after_a_single_hypothesis_keeps_its_pass_rate(monkeypa
     R, t = _near_truth(frame, rng, 20)
     v.verify(ctx, R, t, np.random.default_rng(2), samples=np.tile(np.arange(3), (20, 1)))
     assert (v.n_on, v.n_off) == (1, 20) and v._pass_sum / 21 == pytest.approx(1.0, rel=1e-12)
+
+
+# ---------------------------------------------------------------- the gate's edge, the draws, the dtypes
+
+
+def _adversarial_argpartition(a, kth, axis=-1, **_):
+    """np.argpartition's contract and no more: the kth entry in place, the entries before it no larger, those after
+    no smaller, each side in an undefined order, here the worst one (reversed); NumPy's own SIMD selection sorts
+    small blocks, which would hide a wrong kth."""
+    assert a.ndim == 2 and axis in (1, -1)
+    kth = kth + a.shape[1] if kth < 0 else kth
+    order = np.argsort(a, axis=1, kind="stable")
+    return np.concatenate([order[:, :kth][:, ::-1], order[:, kth:kth + 1], order[:, kth + 1:][:, ::-1]], axis=1)
+
+
+def test_random_points_excluding_are_the_d_smallest_keys_outside_the_sample_in_key_order(monkeypatch):
+    # the definition: one uniform key per point (the generator's (H, n) draw), the sample's keys +inf, then the
+    # d points of smallest key, in increasing key order; for every d from 1 to n - 3 (then all the other points),
+    # with NumPy's argpartition and with one that keeps to its contract only
+    n = 9
+    for argpartition in (np.argpartition, _adversarial_argpartition):
+        monkeypatch.setattr(np, "argpartition", argpartition)
+        for d in range(1, n - 2):
+            for seed in range(3):
+                samples = np.stack([np.random.default_rng(100 + seed).choice(n, 3, replace=False) for _ in range(40)])
+                keys = np.random.default_rng(seed).random((40, n))
+                expected = []
+                for row, sample in zip(keys, samples):
+                    order = sorted((k, i) for i, k in enumerate(row) if i not in set(sample.tolist()))
+                    expected.append([i for _, i in order[:d]])
+                got = random_points_excluding(samples, n, d, np.random.default_rng(seed))
+                assert got.tolist() == expected, (argpartition, d, seed)
+
+
+class _TableResidual:
+    """A residual model read from a table: hypothesis h (its t[h, 0]) has squared residual table[h, i] on point i
+    (found by its k-1 measurement, so sub-problems keep their points); with a cap it bounds as the contract allows,
+    returning exactly the cap for every residual at or above it."""
+
+    name = "table"
+
+    def __init__(self, problem, table):
+        self._row = {tuple(m): i for i, m in enumerate(problem.prev.tolist())}
+        self._table = np.asarray(table, dtype=float)
+
+    def squared(self, problem, R, t, cap=None):
+        points = [self._row[tuple(m)] for m in problem.prev.tolist()]
+        sq = self._table[np.ix_(np.asarray(t)[:, 0].astype(int), points)]
+        return sq if cap is None else np.where(sq >= cap, cap, sq)
+
+
+def test_tdd_a_residual_at_the_gate_is_inconsistent_in_the_pretest_the_measuring_and_the_exact_chances():
+    # Gate 4 px^2; N = 12, d = 1, every point an inlier of the best model, so every hypothesis is good, and
+    # measure_points >= N - 3 so a failed one is measured on all 9 other points. Hypothesis 0 has residual exactly
+    # 4 on every point outside its sample: it fails whichever point is drawn, is measured at 0 consistent of 9,
+    # chance 0. Hypothesis 1 has residual 1 everywhere: it passes, scores 12, chance 9/9. Hypotheses 2..7 have
+    # residual 4 on one point outside their sample: passed or failed, their chance is 8/9 (exact from the scored
+    # residuals, where the model returns the capped 4, or measured on the 9). alpha = (0 + 1 + 6 * 8/9) / 8.
+    frame, problem, _ = _setup(12, 0.0)
+    n, H = problem.n, 8
+    table = np.ones((H, n))
+    table[0, 3:] = 4.0
+    for h in range(2, H):
+        table[h, h - 2] = 4.0
+    samples = np.array([[0, 1, 2], [3, 4, 5], *[[6, 7, 8]] * 6])
+    ctx = ScoringContext(problem, _TableResidual(problem, table), InlierCount(), 4.0)
+    R = np.tile(np.eye(3), (H, 1, 1))
+    t = np.zeros((H, 3))
+    t[:, 0] = np.arange(H)
+    v = TddVerification(d=1, measure_points=64, adaptive=False)
+    v.on_new_best(np.ones(n, dtype=bool), None)
+    scores, checks = v.verify(ctx, R, t, np.random.default_rng(3), samples=samples)
+    passed = np.isfinite(scores)
+    assert scores[0] == -np.inf and scores[1] == 12.0
+    assert passed[2:].any() and np.all(scores[2:][passed[2:]] == 11.0)
+    assert checks == 12 * passed.sum() + (1 + 9) * (~passed).sum()
+    c = v.counters()
+    assert (c["tdd_good_measured"], c["tdd_measure_checks"]) == (8, 9 * (~passed).sum())
+    assert c["tdd_alpha"] == pytest.approx((0 + 1 + 6 * 8 / 9) / 8, rel=1e-12)
+    # the test switched off: every hypothesis scored on the capped residuals, the chances exact from them
+    v = TddVerification(d=1, adaptive=False)
+    v.active = False
+    v.on_new_best(np.ones(n, dtype=bool), None)
+    scores, checks = v.verify(ctx, R, t, np.random.default_rng(3), samples=samples)
+    assert scores.tolist() == [3.0, 12.0, *[11.0] * 6] and checks == H * n
+    assert v.counters()["tdd_alpha"] == pytest.approx((0 + 1 + 6 * 8 / 9) / 8, rel=1e-12)
+
+
+def _kernel_points(sample, u, n):
+    """The compiled pre-test's points (kernels_verification.tdd_pretest's rule): point j is the floor(u_j (n - 3 - j))-th,
+    in increasing index, of the points not yet excluded (the sample and the earlier points)."""
+    excluded, points = set(int(s) for s in sample), []
+    for j, uj in enumerate(u):
+        rest = [i for i in range(n) if i not in excluded]
+        point = rest[min(int(uj * (n - 3 - j)), len(rest) - 1)]
+        points.append(point)
+        excluded.add(point)
+    return points
+
+
+def test_tdd_compiled_route_measures_failed_good_hypotheses_with_the_kernels_draws():
+    # The reprojection residual: the pre-test (d = 1) and the measuring of failed good ones both run compiled, on
+    # the verifier's generator in that order: (H, 1) uniforms for the pre-test, then (failed, measure_points) for the
+    # measuring, each turned into points by the kernel's rule. alpha is the mean of the good ones' chances: exact
+    # (support outside the sample / (N - 3)) for those that passed, consistent / measure_points for those that failed.
+    frame, problem, ctx = _setup(150)
+    n, H, m, rng = problem.n, 30, 20, np.random.default_rng(21)
+    inl = np.flatnonzero(frame.truth.inlier)
+    R, t = _near_truth(frame, rng, H)
+    samples = np.stack([rng.choice(inl, 3, replace=False) for _ in range(H)])
+    mask = ctx.residuals(R, t) < 9.0
+    g = np.random.default_rng(5)
+    u = g.random((H, 1))
+    passed = np.array([mask[h, _kernel_points(samples[h], u[h], n)[0]] for h in range(H)])
+    failed = np.flatnonzero(~passed)
+    assert 3 <= failed.size <= H - 3
+    um = g.random((failed.size, m))
+    measured = [mask[h, _kernel_points(samples[h], um[k], n)].sum() for k, h in enumerate(failed)]
+    own = np.take_along_axis(mask, samples, axis=1).sum(axis=1)
+    chances = np.concatenate([(mask[passed].sum(axis=1) - own[passed]) / (n - 3), np.array(measured) / m])
+    v = TddVerification(d=1, measure_points=m, adaptive=False)
+    v.on_new_best(frame.truth.inlier, None)
+    rng = np.random.default_rng(5)
+    scores, checks = v.verify(ctx, R, t, rng, samples=samples)
+    np.testing.assert_array_equal(np.isfinite(scores), passed)
+    assert checks == failed.size + passed.sum() * n + failed.size * m
+    assert v.alpha() == pytest.approx(np.mean(chances), rel=1e-12)
+    assert rng.random() == g.random()  # nothing else drawn
+
+
+def test_tdd_verify_hands_the_kernels_float64_motions_and_int64_samples():
+    # kernels_verification takes float64 / int64 arrays, which its wrappers ensure: motions in half or single
+    # precision and sample indices held as int32 or floats give the verdicts, counts and alpha of their float64 /
+    # int64 copies (numba compiles no float16, and float indices index nothing), on the compiled route with a
+    # best model, so the pre-test and the measuring of failed good hypotheses both run.
+    frame, problem, ctx = _setup(150)
+    rng = np.random.default_rng(22)
+    inl = np.flatnonzero(frame.truth.inlier)
+    R, t = _near_truth(frame, rng, 30)
+    R16, t16 = R.astype(np.float16), t.astype(np.float16)
+    samples = np.stack([rng.choice(inl, 3, replace=False) for _ in range(30)])
+
+    def run(R, t, samples):
+        v = TddVerification(d=1, measure_points=20, adaptive=False)
+        v.on_new_best(frame.truth.inlier, None)
+        scores, checks = v.verify(ctx, R, t, np.random.default_rng(6), samples=samples)
+        return scores.tolist(), checks, v.counters()
+
+    expected = run(R16.astype(float), t16.astype(float), samples)
+    assert 0 < expected[2]["tdd_passed"] < 30 and expected[2]["tdd_measure_checks"] > 0
+    assert run(R16, t16, samples) == expected
+    assert run(R16.astype(float), t16.astype(float), samples.astype(np.int32)) == expected
+    assert run(R16.astype(float), t16.astype(float), samples.astype(float)) == expected
