@@ -35,9 +35,11 @@ def _rodrigues_coefficients(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
     small = theta < 1e-4
     th = np.where(small, 1.0, theta)
     th2 = th * th
-    a = np.where(small, 1 - theta**2 / 6 + theta**4 / 120, np.sin(th) / th)
-    b = np.where(small, 0.5 - theta**2 / 24 + theta**4 / 720, (1 - np.cos(th)) / th2)
-    c = np.where(small, 1 / 6 - theta**2 / 120 + theta**4 / 5040, (th - np.sin(th)) / (th2 * th))
+    # Two terms are exact in float64 there: the next ones (theta^4 / 120, / 720, / 5040 < 1e-18) are
+    # below half an ulp of 1, 1/2 and 1/6, so adding them would round back to the same value.
+    a = np.where(small, 1 - theta**2 / 6, np.sin(th) / th)
+    b = np.where(small, 0.5 - theta**2 / 24, (1 - np.cos(th)) / th2)
+    c = np.where(small, 1 / 6 - theta**2 / 120, (th - np.sin(th)) / (th2 * th))
     return a, b, c
 
 
@@ -51,7 +53,11 @@ def so3_exp(w: np.ndarray) -> np.ndarray:
 
 
 def so3_log(R: np.ndarray) -> np.ndarray:
-    """Rotation vectors ``(..., 3)`` of rotation matrices ``(..., 3, 3)``; angle in [0, pi]."""
+    """Rotation vectors ``(..., 3)`` of rotation matrices ``(..., 3, 3)``; angle in [0, pi].
+
+    At a half turn (``w`` and ``-w`` the same rotation) the sign follows R's antisymmetric part; an
+    exactly symmetric R gets the one whose largest component (the first of equal ones) is positive.
+    """
     R = np.asarray(R, dtype=float)
     cos = np.clip((np.trace(R, axis1=-2, axis2=-1) - 1) / 2, -1.0, 1.0)
     theta = np.arccos(cos)
@@ -64,16 +70,13 @@ def so3_log(R: np.ndarray) -> np.ndarray:
     scale = np.where(small, 0.5 + theta**2 / 12, theta / (2 * np.where(small, 1.0, sin)))
     w = scale[..., None] * vee
     if np.any(near_pi):
-        # sin(theta) ~ 0 loses the axis: read it from the symmetric part instead.
+        # sin(theta) ~ 0 loses the axis: read it from the symmetric part B = (1 - cos) k k^T instead.
+        # Its row of the largest diagonal entry is (1 - cos) k_i k, |k_i| >= 1/sqrt(3): k up to sign.
         B = (R + np.swapaxes(R, -1, -2)) / 2 - np.eye(3) * cos[..., None, None]
-        diag = np.clip(np.diagonal(B, axis1=-2, axis2=-1), 0, None)
-        axis = np.sqrt(diag / np.maximum(1 - cos, 1e-12)[..., None])
-        k = np.argmax(diag, axis=-1)
-        row = np.take_along_axis(B, k[..., None, None].repeat(3, axis=-1), axis=-2)[..., 0, :]
-        pivot = np.take_along_axis(axis, k[..., None], axis=-1)
-        with np.errstate(divide="ignore", invalid="ignore"):  # rows away from pi are masked below
-            axis = row / np.maximum(pivot * (1 - cos[..., None]), 1e-12)
-            axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+        k = np.argmax(np.diagonal(B, axis1=-2, axis2=-1), axis=-1)
+        row = np.take_along_axis(B, k[..., None, None], axis=-2)[..., 0, :]
+        # Rows away from pi (masked below) are divided by 1, not by their norm: 0 at the identity.
+        axis = row / np.where(near_pi, np.linalg.norm(row, axis=-1), 1.0)[..., None]
         axis = np.where((np.sum(axis * vee, axis=-1) < 0)[..., None], -axis, axis)
         w = np.where(near_pi[..., None], axis * theta[..., None], w)
     return w

@@ -118,3 +118,214 @@ def test_quaternions_keep_qw_non_negative_at_half_turns_and_drop_a_vanishing_axi
     # Below 1e-8 rad the axis is dropped: a rotation about z has no x or y component.
     tiny = quaternion_from_rotation(_rot(2, 5e-9))
     assert tiny[0] == 0.0 and tiny[1] == 0.0 and tiny[3] == pytest.approx(1.0, abs=1e-15)
+
+
+# --- The rotation and twist maps at their branch edges (the Taylor series below 1e-4 rad, the small
+# angles below 1e-6 rad and the half turns above pi - 1e-3 rad), against independent values: the
+# coefficients' series summed exactly in rationals, Rodrigues' formula, scipy's matrix exponential.
+
+from fractions import Fraction
+
+import scipy.linalg
+
+from stereovo.geometry import (  # noqa: E402
+    _rodrigues_coefficients,
+    hat,
+    invert_transform,
+    se3_exp,
+    so3_exp,
+    so3_log,
+)
+
+_EPS = 2.0**-52
+
+
+def _series(theta: float, offset: int) -> float:
+    """sum_n (-1)^n theta^(2n) / (2n + offset)!, exactly in rationals, rounded once: the coefficient
+    a (offset 1: sin/theta), b (2: (1 - cos)/theta^2) or c (3: (theta - sin)/theta^3)."""
+    x2 = Fraction(theta) ** 2
+    term = Fraction(1, math.factorial(offset))
+    total, n = Fraction(0), 0
+    while term != 0 and abs(term) > abs(total) * Fraction(1, 2**120):
+        total += term
+        n += 1
+        term = -term * x2 / ((2 * n + offset - 1) * (2 * n + offset))
+    return float(total)
+
+
+def _rodrigues(axis, angle: float) -> np.ndarray:
+    """cos I + sin [k]x + (1 - cos) k k^T for a unit axis k."""
+    k = np.asarray(axis, dtype=float)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return math.cos(angle) * np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * np.outer(k, k)
+
+
+def test_rodrigues_coefficients_match_their_series_on_both_sides_of_1e_4():
+    taylor = [0.0, 1e-9, 1e-5, 5e-5, 9e-5, math.nextafter(1e-4, 0.0)]
+    closed = [1e-4, math.nextafter(1e-4, 1.0), 1e-3, 0.1, 1.0, 2.0, 3.0, math.pi]
+    theta = np.array(taylor + closed)
+    a, b, c = _rodrigues_coefficients(theta)
+    ref = {name: np.array([_series(t, offset) for t in theta]) for name, offset in (("a", 1), ("b", 2), ("c", 3))}
+    # Below 1e-4 the series' two terms are exact to an ulp; above, the closed forms lose what their
+    # cancellations lose: half an ulp of cos (of 1) over 1 - cos, half an ulp of sin (of theta) over theta - sin.
+    small = theta < 1e-4
+    th = np.where(small, 1.0, theta)
+    tol_b = np.where(small, 2 * _EPS, 2 * _EPS * (1 + 1 / (1 - np.cos(th))))
+    tol_c = np.where(small, 2 * _EPS, 2 * _EPS * (1 + th / (th - np.sin(th))))
+    assert np.all(np.abs(a / ref["a"] - 1) <= 2 * _EPS)
+    assert np.all(np.abs(b / ref["b"] - 1) <= tol_b)
+    assert np.all(np.abs(c / ref["c"] - 1) <= tol_c)
+    # One by one (scalars) as in a batch.
+    for t, ai, bi, ci in zip(theta, a, b, c):
+        assert tuple(map(float, _rodrigues_coefficients(np.float64(t)))) == (ai, bi, ci)
+
+
+_ANGLES = [0.0, 1e-9, 1e-5, math.nextafter(1e-4, 0.0), 1e-4, math.nextafter(1e-4, 1.0), 1e-3, 1.0, 3.0,
+           math.pi - 2e-3, math.pi - 9e-4, math.pi - 1e-4]
+# Unit axes: along z, with a zero and a negative component, the largest component negative in x,
+# in y, in z, and none above 1/sqrt(2) (two equal ones).
+_AXES = [(0.0, 0.0, 1.0), (0.6, 0.0, -0.8), (-0.8, 0.48, 0.36), (0.36, -0.8, -0.48), (0.48, 0.36, -0.8),
+         (0.0, -math.sqrt(0.5), math.sqrt(0.5))]
+
+
+def test_so3_exp_and_log_against_rodrigues_formula_from_zero_to_near_pi():
+    for axis in _AXES:
+        for angle in _ANGLES:
+            w = angle * np.array(axis)
+            R = _rodrigues(axis, angle)
+            np.testing.assert_allclose(so3_exp(w), R, rtol=0, atol=2e-16 * 4)
+            # The angle comes from arccos of the trace, off by ~1e-16 / sin(theta): the half turns' axis
+            # times it keeps that; below pi - 1e-3, theta / (2 sin theta) times the antisymmetric part
+            # turns it into ~1e-16 theta / (pi - theta)^2 (relative 1e-15 at small angles).
+            tol = 1e-15 * angle + (4e-16 / math.sin(angle) if angle > math.pi - 1e-3 else
+                                   4e-16 * angle / (math.pi - angle) ** 2)
+            np.testing.assert_allclose(so3_log(R), w, rtol=0, atol=tol, err_msg=f"{axis} {angle}")
+            np.testing.assert_allclose(so3_log(so3_exp(w)), w, rtol=0, atol=tol + 4e-16)
+
+
+def test_so3_log_of_small_angles_keeps_the_second_order_of_theta_over_sin():
+    # Below 1e-6 rad the scale theta / (2 sin theta) is the series 1/2 + theta^2 / 12: at 9.5e-7 rad
+    # its second term is 7.5e-14 of 1/2, far above the rounding (a few 1e-16) of w = scale * vee.
+    for axis in _AXES[:3]:
+        for angle in (9.5e-7, 5e-7, 1.2e-6):
+            w = so3_log(_rodrigues(axis, angle))
+            np.testing.assert_allclose(w, angle * np.array(axis), rtol=0, atol=2e-15 * angle)
+
+
+def test_so3_log_near_pi_in_a_batch_matches_one_by_one():
+    angles = [math.pi - 9e-4, math.pi - 1e-4, math.pi - 1e-6]
+    Rs, ws = [], []
+    for axis in _AXES:
+        for angle in angles:
+            Rs.append(_rodrigues(axis, angle))
+            ws.append(angle * np.array(axis))
+    batch = so3_log(np.stack(Rs))
+    for R, w, row in zip(Rs, ws, batch):
+        tol = 1e-15 + 4e-16 / math.sin(np.linalg.norm(w))
+        np.testing.assert_allclose(so3_log(R), w, rtol=0, atol=tol)
+        np.testing.assert_allclose(row, w, rtol=0, atol=tol)
+    # Two rotations only (the axes' signs differ): each row's own sign.
+    pair = so3_log(np.stack(Rs[3:5]))
+    np.testing.assert_allclose(pair, np.stack(ws[3:5]), rtol=0, atol=1e-11)
+
+
+def test_exactly_symmetric_half_turns_get_the_largest_component_positive():
+    # R = 2 k k^T - I is symmetric to the bit: no antisymmetric part tells w from -w (docstring).
+    for axis, expected in (((1.0, 0.0, 0.0), (1.0, 0.0, 0.0)), ((0.0, -1.0, 0.0), (0.0, 1.0, 0.0)),
+                           ((0.0, 0.0, -1.0), (0.0, 0.0, 1.0)), ((0.6, -0.8, 0.0), (-0.6, 0.8, 0.0)),
+                           ((0.0, -math.sqrt(0.5), math.sqrt(0.5)), (0.0, math.sqrt(0.5), -math.sqrt(0.5)))):
+        k = np.array(axis)
+        R = 2 * np.outer(k, k) - np.eye(3)
+        # The angle from a trace of -1 rounded by an ulp: arccos(-1 + 1e-16) is pi - 1.5e-8.
+        np.testing.assert_allclose(so3_log(R), math.pi * np.array(expected), rtol=0, atol=3e-8)
+    np.testing.assert_array_equal(so3_log(np.diag([1.0, -1.0, -1.0])), [math.pi, 0.0, 0.0])
+
+
+def test_so3_log_clips_traces_rounded_past_three_and_minus_one():
+    R = np.eye(3)
+    R[0, 0] = math.nextafter(1.0, 2.0)  # trace 3 + 4e-16: cos clipped to 1, not arccos(1 + 2e-16) = nan
+    np.testing.assert_array_equal(so3_log(R), [0.0, 0.0, 0.0])
+    R = np.diag([1.0, -1.0, math.nextafter(-1.0, -2.0)])  # trace -1 - 2e-16: cos clipped to -1
+    np.testing.assert_array_equal(so3_log(R), [math.pi, 0.0, 0.0])
+
+
+def test_zero_and_vanishing_rotations_raise_no_floating_point_error():
+    # The masked branches must not divide 0 by 0 (the Taylor series' placeholders, the half turn's
+    # normalisation of the identity's zero row, or its underflowing norm at 1e-100 rad).
+    tiny = so3_exp(np.array([1e-100, 1e-100, 0.0]))
+    with np.errstate(divide="raise", invalid="raise", over="raise"):
+        np.testing.assert_array_equal(so3_exp(np.zeros(3)), np.eye(3))
+        np.testing.assert_array_equal(so3_exp(np.zeros((2, 3))), np.stack([np.eye(3)] * 2))
+        np.testing.assert_array_equal(so3_log(np.eye(3)), np.zeros(3))
+        w = so3_log(np.stack([np.eye(3), np.diag([1.0, -1.0, -1.0]), tiny]))
+        np.testing.assert_array_equal(w[:2], [[0.0, 0.0, 0.0], [math.pi, 0.0, 0.0]])
+        np.testing.assert_allclose(w[2], [1e-100, 1e-100, 0.0], rtol=1e-15, atol=0)
+        R, t = se3_exp(np.zeros(6))
+        np.testing.assert_array_equal(R, np.eye(3))
+        np.testing.assert_array_equal(t, np.zeros(3))
+        np.testing.assert_array_equal(se3_log(np.eye(3), np.array([1.0, 2.0, 3.0])), [1, 2, 3, 0, 0, 0])
+
+
+def _twist_matrix(xi) -> np.ndarray:
+    rho, w = xi[:3], xi[3:]
+    A = np.zeros((4, 4))
+    A[:3, :3] = [[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]]
+    A[:3, 3] = rho
+    return A
+
+
+def test_se3_exp_is_the_matrix_exponential_of_the_twist_one_by_one_and_batched():
+    rho = np.array([0.4, -1.3, 2.0])
+    xis = np.array([np.concatenate([rho, angle * np.array(axis)])
+                    for angle, axis in ((0.0, _AXES[0]), (5e-5, _AXES[2]), (1e-3, _AXES[1]), (1.0, _AXES[3]),
+                                        (2.5, _AXES[4]), (3.0, _AXES[5]))])
+    expected = np.stack([scipy.linalg.expm(_twist_matrix(xi)) for xi in xis])
+    # From 1e-4 rad the left Jacobian's (1 - cos) / theta^2 carries cos's rounding (1e-16) over
+    # theta^2, times theta |rho| in t: 1e-13 at 1e-3 rad.
+    angles = np.linalg.norm(xis[:, 3:], axis=1)
+    tol_t = 1e-14 + np.where(angles < 1e-4, 0.0, 2 * _EPS * np.linalg.norm(rho) / np.maximum(angles, 1e-4))
+    R, t = se3_exp(xis)
+    np.testing.assert_allclose(R, expected[:, :3, :3], rtol=0, atol=1e-14)
+    assert np.all(np.abs(t - expected[:, :3, 3]) <= tol_t[:, None])
+    for xi, T, tol in zip(xis, expected, tol_t):
+        R1, t1 = se3_exp(xi)
+        np.testing.assert_allclose(R1, T[:3, :3], rtol=0, atol=1e-14)
+        np.testing.assert_allclose(t1, T[:3, 3], rtol=0, atol=tol)
+    # Two twists only: each row's own angle in its left Jacobian.
+    assert np.all(np.abs(se3_exp(xis[2:4])[1] - expected[2:4, :3, 3]) <= tol_t[2:4, None])
+
+
+def test_invert_transform_of_a_batch_is_each_inverse():
+    T = make_transform(np.stack([_rot(0, 0.7), _rot(2, -1.2)]), np.array([[1.0, 2.0, 3.0], [-0.5, 0.0, 4.0]]))
+    np.testing.assert_allclose(invert_transform(T), np.linalg.inv(T), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(invert_transform(T[1]), np.linalg.inv(T[1]), rtol=0, atol=1e-15)
+
+
+def test_single_precision_inputs_are_computed_in_double():
+    w32 = np.array([0.3, -0.2, 0.1], dtype=np.float32)
+    R = so3_exp(w32)
+    assert R.dtype == np.float64
+    np.testing.assert_array_equal(R, so3_exp(w32.astype(np.float64)))
+    R32 = so3_exp(np.array([0.5, 1.0, -2.0])).astype(np.float32)
+    w = so3_log(R32)
+    assert w.dtype == np.float64
+    np.testing.assert_array_equal(w, so3_log(R32.astype(np.float64)))
+    xi32 = np.array([0.4, -1.3, 2.0, 0.3, -0.2, 0.1], dtype=np.float32)
+    R, t = se3_exp(xi32)
+    assert R.dtype == t.dtype == np.float64
+    R64, t64 = se3_exp(xi32.astype(np.float64))
+    np.testing.assert_array_equal(R, R64)
+    np.testing.assert_array_equal(t, t64)
+
+
+def test_hat_negates_unsigned_integers_as_numbers():
+    # -w of uint8 (1, 2, 3) would wrap to (255, 254, 253).
+    np.testing.assert_array_equal(hat(np.array([1, 2, 3], dtype=np.uint8)), [[0, -3, 2], [3, 0, -1], [-2, 1, 0]])
+
+
+def test_pose_chain_keeps_a_float_copy_of_an_integer_first_pose():
+    first = np.eye(4, dtype=int)
+    chain = PoseChain(first)
+    assert chain.poses[0].dtype == np.float64
+    first[0, 3] = 5
+    np.testing.assert_array_equal(chain.poses[0], np.eye(4))
