@@ -543,3 +543,20 @@ def test_a_failed_frame_gets_the_envs_failure_reward(monkeypatch, reward_mode):
     env.reset(seed=5)
     _, reward, _, _, info = env.step(np.zeros(120))
     assert info["fallback"] and reward == -0.25
+
+
+def test_close_releases_the_episode_and_a_reset_starts_afresh():
+    # close() drops the sequence and the current frame: no sequence, no true poses, and stepping or rendering
+    # asks for a reset again, as before the first one; a reset then gives what a fresh environment gives
+    env = StereoVOEnv(**{**KWARGS, "render_mode": "rgb_array"})
+    first, _ = env.reset(seed=3)
+    env.step(np.zeros(120))
+    env.close()
+    assert env.sequence is None and env.current_frame is None and env.true_poses.shape == (0, 4, 4)
+    with pytest.raises(RuntimeError, match=r"^StereoVOEnv: call reset\(\) before step\(\)$"):
+        env.step(np.zeros(120))
+    with pytest.raises(RuntimeError, match=r"^StereoVOEnv: call reset\(\) before render\(\)$"):
+        env.render()
+    again, info = env.reset(seed=3)
+    assert info == {"frame": 1} and data_equivalence(again, first)
+    assert env.sequence is not None and env.current_frame.index == 1 and env.true_poses.shape == (1, 4, 4)

@@ -16,7 +16,8 @@ import pytest
 
 from stereovo.estimation.problem import StereoProblem
 from stereovo.simulation import SimulationConfig, simulate_frame
-from vo_gym.features import MAX_ANCHORS, compute_features, rigid_consistency_degree
+from vo_gym.features import (FEATURE_BOUND, FEATURE_NAMES, MAX_ANCHORS, N_FEATURES, compute_features,
+                             rigid_consistency_degree, usable_rows)
 
 
 def _reference(P, Q, spread, anchors, gate=3.0):
@@ -200,3 +201,31 @@ def test_two_and_one_matches_and_the_input_checks():
     with pytest.raises(ValueError, match=r"^problem must be built from the same prev, curr, camera and noise_sigma$"):
         compute_features(problem.prev, other_curr, frame.scores, cam, sigma, problem=problem)
     assert compute_features(frame.prev[:0], frame.curr[:0], np.zeros(0), cam, sigma).shape == (0, 14)
+
+
+def test_degree_compares_float32_points_in_double_precision():
+    # Two matches whose distance is 5 m at one frame and sqrt(25 + 2^-22) m, 5 + 2.4e-8 m, at the other (every
+    # coordinate exact in float32): the change^2, about 5.7e-16 m^2, is above gate^2 (s_0^2 + s_1^2) = 9 * 2e-18, so
+    # neither keeps the other, degree 0. In float32 arithmetic 25 + 2^-22 rounds to 25 and the pair would look
+    # rigid (degree 1): float32 points are read as float64, at either frame.
+    near = np.array([[0.0, 0.0, 0.0], [3.0, 4.0, 0.0]])
+    off = np.array([[0.0, 0.0, 0.0], [3.0, 4.0, 2.0**-11]])
+    spread = np.full(2, 1e-9)
+    assert (np.sqrt(25 + 2.0**-22) - 5) ** 2 > 9 * 2e-18
+    for P, Q in ((off, near), (near, off)):
+        for dtype in (np.float64, np.float32):
+            degree = rigid_consistency_degree(P.astype(dtype), Q.astype(dtype), spread)
+            assert degree.tolist() == [0.0, 0.0], (P, dtype)
+    # and a pair that keeps its distance within the gate stays consistent: degree 1
+    assert rigid_consistency_degree(near.astype(np.float32), near.astype(np.float32), spread).tolist() == [1.0, 1.0]
+
+
+def test_usable_rows_are_those_under_the_depth_flag():
+    # a row without a depth carries log_depth_prev = +FEATURE_BOUND exactly (the module doc); every other column
+    # is ignored, and a nested list is read as an array
+    col = FEATURE_NAMES.index("log_depth_prev")
+    features = np.zeros((4, N_FEATURES), dtype=np.float32)
+    features[:, [c for c in range(N_FEATURES) if c != col]] = FEATURE_BOUND  # the other columns at the flag
+    features[:, col] = [0.0, FEATURE_BOUND, np.nextafter(np.float32(FEATURE_BOUND), np.float32(0)), -FEATURE_BOUND]
+    assert usable_rows(features).tolist() == [True, False, True, True]
+    assert usable_rows(features.tolist()).tolist() == [True, False, True, True]
