@@ -515,3 +515,21 @@ def test_sprt_verifier_accepts_cheap_fits_and_single_point_chunks_and_designs_wi
         for _ in range(200):
             A = K + 1.0 + math.log(A)
         assert SprtVerification(50, m_s=m_s).current.A == pytest.approx(A, rel=1e-9)
+
+
+def test_sprt_bound_when_the_current_test_is_blind_and_the_past_ones_reached_the_confidence_exactly():
+    # The current test, designed for epsilon_i = 0.99 with delta_i = 0.5, rejects every good model of epsilon 0.5
+    # (h = 0, alpha = 1: P_find = 0; test_stopping_bounds). A guided q = 0.5 and one draw under a past test that was
+    # off (alpha 0): log eta = log(1 - 0.5), exactly log(1 - confidence) at confidence 0.5, so the confidence is
+    # reached (eta <= 1 - p): stop at the one draw done.
+    blind = SprtTest(epsilon=0.99, delta=0.5, A=4.0)
+    half = SimpleNamespace(all_inlier_probability=lambda inliers: 0.5)
+    term = SprtTermination(SimpleNamespace(history=[SprtTest(0.5, 0.05, math.inf, draws=1), blind]), confidence=0.5,
+                           max_iterations=10_000, sampler=half)
+    term.on_new_best(np.ones(100, bool), None)
+    assert term.required(50, 100) == 1
+    # Reached after 60 draws (P_g = 4/33, A = 4: 60 log(10/11) < log 0.01; test_stopping_bounds), with a cap of 50:
+    # the draws done are past the cap, the bound is the cap.
+    reached = [SprtTest(epsilon=0.5, delta=0.05, A=4.0, draws=60), blind]
+    assert SprtTermination(SimpleNamespace(history=reached), confidence=0.99, max_iterations=50).required(50, 100) == 50
+    assert SprtTermination(SimpleNamespace(history=reached), confidence=0.99, max_iterations=60).required(50, 100) == 60
