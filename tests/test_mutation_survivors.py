@@ -533,3 +533,27 @@ def test_sprt_bound_when_the_current_test_is_blind_and_the_past_ones_reached_the
     reached = [SprtTest(epsilon=0.5, delta=0.05, A=4.0, draws=60), blind]
     assert SprtTermination(SimpleNamespace(history=reached), confidence=0.99, max_iterations=50).required(50, 100) == 50
     assert SprtTermination(SimpleNamespace(history=reached), confidence=0.99, max_iterations=60).required(50, 100) == 60
+
+
+def test_sprt_verifier_hands_the_kernel_float64_motions_and_int64_samples():
+    # kernels_verification takes float64 / int64 arrays, which its wrappers ensure: motions in half precision and
+    # sample indices held as float16 (numba compiles no float16) or int32 give the verdicts, checks, scores and
+    # delta of their float64 / int64 copies on the compiled route.
+    from stereovo.geometry import random_rotation
+
+    frame, problem, ctx = _sprt_frame()
+    rng = np.random.default_rng(7)
+    R = np.stack([random_rotation(rng, np.radians(0.5)) @ frame.truth.rotation for _ in range(30)]).astype(np.float16)
+    t = (frame.truth.translation + rng.normal(0, 0.05, (30, 3))).astype(np.float16)
+    samples = np.stack([rng.choice(problem.n, 3, replace=False) for _ in range(30)])
+
+    def run(R, t, samples):
+        verifier = SprtVerification(problem.n, t_m=200.0, epsilon0=0.4, delta0=0.05)
+        scores, checks = verifier.verify(ctx, R, t, np.random.default_rng(3), samples=samples)
+        return scores.tolist(), checks, verifier.delta, verifier.n_accepted
+
+    expected = run(R.astype(float), t.astype(float), samples)
+    assert 0 < expected[3] < 30
+    assert run(R, t, samples) == expected
+    assert run(R.astype(float), t.astype(float), samples.astype(np.float16)) == expected
+    assert run(R.astype(float), t.astype(float), samples.astype(np.int32)) == expected
