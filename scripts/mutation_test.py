@@ -453,10 +453,42 @@ EQUIVALENT: dict[str, str] = {
        for name, i in (("se3_log", 10), ("se3_log", 12), ("make_transform", 3), ("make_transform", 5),
                        ("invert_transform", 3), ("invert_transform", 5), ("relative_motion", 4),
                        ("relative_motion", 6))},
+    **{_G + f"x_{name}__mutmut_{i}": "einsum labels in capitals (\"...IJ,...J->...I\"): the same contraction."
+       for name, i in (("se3_exp", 19), ("invert_transform", 31))},
+    **{_G + f"x_pose_update__mutmut_{i}":
+       "pose_prev read in its own dtype: its product with the float64 inverse casts integer or float32 entries "
+       "to float64 exactly before multiplying, so the same result." for i in (2, 4)},
+    _G + "x__rodrigues_coefficients__mutmut_11":
+        "th's placeholder 2.0 instead of 1.0 where theta < 1e-4: the closed forms computed there are discarded by "
+        "np.where, and sin(2) / 2, (1 - cos 2) / 4, (2 - sin 2) / 8 are as finite as at 1 (no 0 / 0 either way).",
+    _G + "x_so3_log__mutmut_85":
+        "the small angles' placeholder 2.0 instead of 1.0 for sin: theta / 4 is finite and discarded by the outer "
+        "np.where.",
+    _G + "x_so3_log__mutmut_148":
+        "the masked rows' divisor 2.0 instead of 1.0: rows away from pi are replaced by the outer np.where (and "
+        "stay finite); near-pi rows are divided by their norm either way.",
+    _G + "x_so3_log__mutmut_57":
+        "theta <= 1e-6 instead of <: theta is numpy's arccos of a float in [-1, 1], which never equals 1e-6 "
+        "(checked: over the floats around cos(1e-6) the monotone arccos steps from 9.99933e-07 to 1.0000444e-06).",
+    _G + "x_so3_log__mutmut_60":
+        "theta >= pi - 1e-3 instead of >: arccos of a float never equals fl(pi - 1e-3) = 3.1405926535897932 "
+        "(checked: over the floats around cos(pi - 1e-3) it steps from 3.14059265358969 to 3.140592653589801).",
 }
 
 # Survivors that are not equivalent but are left on purpose, with the reason (counted as survived).
-NOTED: dict[str, str] = {}
+NOTED: dict[str, str] = {
+    _G + "x__rodrigues_coefficients__mutmut_2":
+        "theta <= 1e-4 instead of <: differs only at theta = 1e-4 exactly, where the mutant takes the series, the "
+        "more accurate: the closed forms lose 5e-9 of b and 3e-8 of c to cancellation there (2.6e-13 |rho| in "
+        "se3_exp's t, 3e-17 in so3_exp's R), so only a test pinning the less accurate value would kill it. A "
+        "higher threshold with more series terms would keep every digit, but changes the outputs (and digests).",
+    _G + "x_so3_log__mutmut_62":
+        "the half turns' formula from pi - 1.001 (2.14 rad) instead of pi - 1e-3: both are exact in between, and the "
+        "mutant's (axis from the symmetric part, times theta) is the more accurate: theta / (2 sin theta) turns "
+        "arccos's 1e-16 / sin theta into 1e-16 theta / (pi - theta)^2, 1.5e-9 at pi - 1e-3 against 6e-13 (2e5 "
+        "random rotations), so only a test pinning the less accurate value would kill it. Moving the threshold "
+        "changes the outputs above 2.14 rad.",
+}
 
 
 # Survivors of the recorded run that a test added after it now targets (rerun to confirm).

@@ -242,10 +242,12 @@ def test_exactly_symmetric_half_turns_get_the_largest_component_positive():
 
 
 def test_so3_log_clips_traces_rounded_past_three_and_minus_one():
-    R = np.eye(3)
-    R[0, 0] = math.nextafter(1.0, 2.0)  # trace 3 + 4e-16: cos clipped to 1, not arccos(1 + 2e-16) = nan
+    up, down = math.nextafter(1.0, 2.0), math.nextafter(-1.0, -2.0)  # 1 + 2.2e-16, -1 - 2.2e-16
+    R = np.diag([up, up, 1.0])  # trace 3 + 4.4e-16: cos 1 + 2.2e-16 clipped to 1, not arccos(.) = nan
+    assert (np.trace(R) - 1) / 2 > 1.0
     np.testing.assert_array_equal(so3_log(R), [0.0, 0.0, 0.0])
-    R = np.diag([1.0, -1.0, math.nextafter(-1.0, -2.0)])  # trace -1 - 2e-16: cos clipped to -1
+    R = np.diag([1.0, down, down])  # trace -1 - 4.4e-16: cos -1 - 2.2e-16 clipped to -1
+    assert (np.trace(R) - 1) / 2 < -1.0
     np.testing.assert_array_equal(so3_log(R), [math.pi, 0.0, 0.0])
 
 
