@@ -557,3 +557,20 @@ def test_sprt_verifier_hands_the_kernel_float64_motions_and_int64_samples():
     assert run(R, t, samples) == expected
     assert run(R.astype(float), t.astype(float), samples.astype(np.float16)) == expected
     assert run(R.astype(float), t.astype(float), samples.astype(np.int32)) == expected
+
+
+def test_prosac_stop_past_the_cap_is_the_cap():
+    # test_stopping_bounds' maximality case: N = 500, 100 draws of which T'_20 = 23 lie in U_20, a best of the top
+    # 10: n* = 20, k_20 = 41.40 -> 42 draws from U_20, 19 more; the stop at draw 100 + 19 = 119. With a cap of 110
+    # draws the stop is the cap, even though the draws still needed from U_20 (19) are within it.
+    from stereovo.estimation.prosac import ProsacTermination
+
+    sampler = ProsacSampler(np.arange(500), t_n=200_000)
+    sampler.draw(100, np.random.default_rng(0))
+    assert sampler.drawn_within(20) == 23
+    inliers = np.zeros(500, dtype=bool)
+    inliers[:10] = True
+    for cap, expected in ((110, 110), (119, 119), (10_000, 119)):
+        stop = ProsacTermination(sampler, confidence=0.99, max_iterations=cap)
+        stop.on_new_best(inliers, None)
+        assert stop.n_star == 20 and stop.required(10, 500) == expected, cap
