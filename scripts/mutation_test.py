@@ -86,7 +86,7 @@ _NGRANSAC_TESTS = tuple(f"tests/test_agents_ngransac.py::{name}" for name in (
 MODULES: tuple[Module, ...] = (
     Module("rewards", "vo_gym/rewards.py", ("tests/test_rewards.py",)),
     Module("termination", "stereovo/estimation/termination.py", ("tests/test_stopping_bounds.py",)),
-    Module("prosac", "stereovo/estimation/prosac.py", ("tests/test_stopping_bounds.py",)),
+    Module("prosac", "stereovo/estimation/prosac.py", ("tests/test_stopping_bounds.py", "tests/test_mutation_survivors.py")),
     Module("mlesac", "stereovo/estimation/mlesac.py",
            ("tests/test_mlesac_densities.py", "tests/test_classical_mlesac.py", "tests/test_mutation_mlesac.py")),
     Module("env", "vo_gym/env.py", ("tests/test_env_honesty.py", "tests/test_rewards.py", *_ENV_TESTS)),
