@@ -487,7 +487,7 @@ NOTED: dict[str, str] = {
     _G + "x_so3_log__mutmut_62":
         "the half turns' formula from pi - 1.001 (2.14 rad) instead of pi - 1e-3: both are exact in between, and the "
         "mutant's (axis from the symmetric part, times theta) is the more accurate: theta / (2 sin theta) turns "
-        "arccos's 1e-16 / sin theta into 1e-16 theta / (pi - theta)^2, 1.5e-9 at pi - 1e-3 against 6e-13 (2e5 "
+        "arccos's 1e-16 / sin theta into 1e-16 theta / (pi - theta)^2, up to 1.6e-9 below pi - 1e-3 against 6e-13 (2e5 "
         "random rotations), so only a test pinning the less accurate value would kill it. Moving the threshold "
         "changes the outputs above 2.14 rad.",
 }
