@@ -1,24 +1,33 @@
 """The geometry helpers' contracts that the mutmut run of ``stereovo/geometry.py`` found untested
 (docs/mutation-testing.md): batched inputs (every helper takes a leading batch dimension, module
 doc), and rotations about each axis. Expected values are rotations by hand (about x, y, z by a
-given angle) and arithmetic on them.
+given angle) and arithmetic on them; at the rotation maps' branch edges, the coefficients' series
+summed exactly in rationals, Rodrigues' formula and scipy's matrix exponential.
 """
 
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
 import numpy as np
 import pytest
+import scipy.linalg
 
 from stereovo.geometry import (
     PoseChain,
+    _rodrigues_coefficients,
+    hat,
+    invert_transform,
     make_transform,
-    random_rotation,
     quaternion_from_rotation,
+    random_rotation,
     rotation_angle,
     rotation_error,
+    se3_exp,
     se3_log,
+    so3_exp,
+    so3_log,
     transform_points,
     translation_error,
 )
@@ -110,8 +119,6 @@ def test_random_rotation_angles_stay_within_the_maximum():
 def test_quaternions_keep_qw_non_negative_at_half_turns_and_drop_a_vanishing_axis():
     axes = np.random.default_rng(0).normal(size=(200, 3))
     axes /= np.linalg.norm(axes, axis=1, keepdims=True)
-    from stereovo.geometry import so3_exp
-
     q = quaternion_from_rotation(so3_exp(axes * math.pi))  # half turns: qw = cos(pi / 2) ~ 0 either sign
     assert np.all(q[:, 3] >= 0.0)
     np.testing.assert_allclose(np.abs(np.sum(q[:, :3] * axes, axis=1)), 1.0, rtol=1e-12)
@@ -123,19 +130,6 @@ def test_quaternions_keep_qw_non_negative_at_half_turns_and_drop_a_vanishing_axi
 # --- The rotation and twist maps at their branch edges (the Taylor series below 1e-4 rad, the small
 # angles below 1e-6 rad and the half turns above pi - 1e-3 rad), against independent values: the
 # coefficients' series summed exactly in rationals, Rodrigues' formula, scipy's matrix exponential.
-
-from fractions import Fraction
-
-import scipy.linalg
-
-from stereovo.geometry import (  # noqa: E402
-    _rodrigues_coefficients,
-    hat,
-    invert_transform,
-    se3_exp,
-    so3_exp,
-    so3_log,
-)
 
 _EPS = 2.0**-52
 
