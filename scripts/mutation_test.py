@@ -399,6 +399,9 @@ EQUIVALENT: dict[str, str] = {
        "another initial value of state that nothing reads before reset() sets it: step() and render() refuse to run "
        "while the current frame is None, and reset() assigns the sampler, the problem, the successes and the last "
        "step." for i in (273, 275, 279, 280)},
+    "vo_gym.env.xǁStereoVOEnvǁclose__mutmut_3":
+        "close() sets the problem to '' instead of None: the problem is released either way, and nothing reads it "
+        "before reset() builds the next one (step() and render() stop at the current frame, None after close()).",
     **{f"vo_gym.env.xǁStereoVOEnvǁreset__mutmut_{i}":
        "integers(2**63 - 1) instead of integers(0, 2**63 - 1): one argument is the exclusive high with low 0, the "
        "same draw." for i in (6, 18)},
