@@ -128,7 +128,7 @@ def test_quaternions_keep_qw_non_negative_at_half_turns_and_drop_a_vanishing_axi
 
 
 # --- The rotation and twist maps at their branch edges (the Taylor series below 1e-4 rad, the small
-# angles below 1e-6 rad and the half turns above pi - 1e-3 rad), against independent values: the
+# angles below 1e-6 rad and the obtuse angles above pi / 2), against independent values: the
 # coefficients' series summed exactly in rationals, Rodrigues' formula, scipy's matrix exponential.
 
 _EPS = 2.0**-52
@@ -155,14 +155,15 @@ def _rodrigues(axis, angle: float) -> np.ndarray:
 
 
 def test_rodrigues_coefficients_match_their_series_on_both_sides_of_1e_4():
-    taylor = [0.0, 1e-9, 1e-5, 5e-5, 9e-5, math.nextafter(1e-4, 0.0)]
-    closed = [1e-4, math.nextafter(1e-4, 1.0), 1e-3, 0.1, 1.0, 2.0, 3.0, math.pi]
+    # 1e-4 itself takes the series: its closed form of c would be 3e-8 off.
+    taylor = [0.0, 1e-9, 1e-5, 5e-5, 9e-5, math.nextafter(1e-4, 0.0), 1e-4]
+    closed = [math.nextafter(1e-4, 1.0), 1e-3, 0.1, 1.0, 2.0, 3.0, math.pi]
     theta = np.array(taylor + closed)
     a, b, c = _rodrigues_coefficients(theta)
     ref = {name: np.array([_series(t, offset) for t in theta]) for name, offset in (("a", 1), ("b", 2), ("c", 3))}
-    # Below 1e-4 the series' two terms are exact to an ulp; above, the closed forms lose what their
+    # Up to 1e-4 the series' two terms are exact to an ulp; above, the closed forms lose what their
     # cancellations lose: half an ulp of cos (of 1) over 1 - cos, half an ulp of sin (of theta) over theta - sin.
-    small = theta < 1e-4
+    small = theta <= 1e-4
     th = np.where(small, 1.0, theta)
     tol_b = np.where(small, 2 * _EPS, 2 * _EPS * (1 + 1 / (1 - np.cos(th))))
     tol_c = np.where(small, 2 * _EPS, 2 * _EPS * (1 + th / (th - np.sin(th))))
@@ -174,8 +175,8 @@ def test_rodrigues_coefficients_match_their_series_on_both_sides_of_1e_4():
         assert tuple(map(float, _rodrigues_coefficients(np.float64(t)))) == (ai, bi, ci)
 
 
-_ANGLES = [0.0, 1e-9, 1e-5, math.nextafter(1e-4, 0.0), 1e-4, math.nextafter(1e-4, 1.0), 1e-3, 1.0, 3.0,
-           math.pi - 2e-3, math.pi - 9e-4, math.pi - 1e-4]
+_ANGLES = [0.0, 1e-9, 1e-5, math.nextafter(1e-4, 0.0), 1e-4, math.nextafter(1e-4, 1.0), 1e-3, 1.0, 1.3,
+           math.pi / 2, 2.0, 3.0, math.pi - 2e-3, math.nextafter(math.pi - 1e-3, 0.0), math.pi - 9e-4, math.pi - 1e-4]
 # Unit axes: along z, with a zero and a negative component, the largest component negative in x,
 # in y, in z, and none above 1/sqrt(2) (two equal ones).
 _AXES = [(0.0, 0.0, 1.0), (0.6, 0.0, -0.8), (-0.8, 0.48, 0.36), (0.36, -0.8, -0.48), (0.48, 0.36, -0.8),
@@ -188,10 +189,11 @@ def test_so3_exp_and_log_against_rodrigues_formula_from_zero_to_near_pi():
             w = angle * np.array(axis)
             R = _rodrigues(axis, angle)
             np.testing.assert_allclose(so3_exp(w), R, rtol=0, atol=2e-16 * 4)
-            # The angle comes from arccos of the trace, off by ~1e-16 / sin(theta): the half turns' axis
-            # times it keeps that; below pi - 1e-3, theta / (2 sin theta) times the antisymmetric part
-            # turns it into ~1e-16 theta / (pi - theta)^2 (relative 1e-15 at small angles).
-            tol = 1e-15 * angle + (4e-16 / math.sin(angle) if angle > math.pi - 1e-3 else
+            # The angle comes from arccos of the trace, off by ~1e-16 / sin(theta): past pi / 2 the
+            # symmetric part's axis times it keeps that; below, theta / (2 sin theta) times the
+            # antisymmetric part turns it into ~1e-16 theta / (pi - theta)^2 (at most 2.6e-16 there,
+            # but 1.6e-9 just below pi - 1e-3, were it used up there).
+            tol = 1e-15 * angle + (4e-16 / math.sin(angle) if angle > math.pi / 2 else
                                    4e-16 * angle / (math.pi - angle) ** 2)
             np.testing.assert_allclose(so3_log(R), w, rtol=0, atol=tol, err_msg=f"{axis} {angle}")
             np.testing.assert_allclose(so3_log(so3_exp(w)), w, rtol=0, atol=tol + 4e-16)
