@@ -482,18 +482,6 @@ EQUIVALENT: dict[str, str] = {
 
 # Survivors that are not equivalent but are left on purpose, with the reason (counted as survived).
 NOTED: dict[str, str] = {
-    _G + "x__rodrigues_coefficients__mutmut_2":
-        "theta <= 1e-4 instead of <: differs only at theta = 1e-4 exactly, where the mutant takes the series, the "
-        "more accurate: the closed forms lose 5e-9 of b and 3e-8 of c to cancellation there (2.6e-13 |rho| in "
-        "se3_exp's t, 3e-17 in so3_exp's R), so only a test pinning the less accurate value would kill it. A "
-        "higher threshold with more series terms would keep every digit, but changes the outputs (1e-2 with the "
-        "theta^4 and theta^6 terms: the env digest, checked).",
-    _G + "x_so3_log__mutmut_62":
-        "the half turns' formula from pi - 1.001 (2.14 rad) instead of pi - 1e-3: both are exact in between, and the "
-        "mutant's (axis from the symmetric part, times theta) is the more accurate: theta / (2 sin theta) turns "
-        "arccos's 1e-16 / sin theta into 1e-16 theta / (pi - theta)^2, up to 1.6e-9 below pi - 1e-3 against 6e-13 (2e5 "
-        "random rotations), so only a test pinning the less accurate value would kill it. The threshold at pi / 2 "
-        "would keep the digests (checked) but changes so3_log's last digits above pi / 2: left for a decision.",
 }
 
 
