@@ -133,6 +133,14 @@ def test_termination_settings_are_validated():
     budget = FixedBudget(7)
     assert budget.required(0, 20) == budget.required(20, 20) == budget.max_iterations == 7
     assert FixedBudget(1).required(5, 5) == 1 and FixedBudget().budget == 32
+    # The stops of T(d,d) and SPRT check the same settings themselves, not only through EstimatorOptions.
+    for make in (lambda **kw: TddTermination(**kw), lambda **kw: SprtTermination(SprtVerification(20), **kw)):
+        for confidence in (0.0, 1.0, -0.5):
+            with pytest.raises(ValueError, match=rf"^confidence must be in \(0, 1\), got {confidence}$"):
+                make(confidence=confidence)
+        with pytest.raises(ValueError, match=r"^max_iterations must be >= 1, got 0$"):
+            make(max_iterations=0)
+        assert make(confidence=1e-9, max_iterations=1).required(5, 20) == 1  # the edges are allowed
 
 
 # ---------------------------------------------------------------------------- T(d,d)

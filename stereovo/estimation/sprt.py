@@ -347,6 +347,10 @@ class SprtTermination:
     sampler: object = None
 
     def __post_init__(self) -> None:
+        if not 0 < self.confidence < 1:
+            raise ValueError(f"confidence must be in (0, 1), got {self.confidence}")
+        if self.max_iterations < 1:
+            raise ValueError(f"max_iterations must be >= 1, got {self.max_iterations}")
         self.probability = SampleProbability(self.sampler)
         self._last_drawn = 0
         self._test_index = 0

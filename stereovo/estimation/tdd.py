@@ -310,6 +310,10 @@ class TddTermination:
     sampler: object = None
 
     def __post_init__(self) -> None:
+        if not 0 < self.confidence < 1:
+            raise ValueError(f"confidence must be in (0, 1), got {self.confidence}")
+        if self.max_iterations < 1:
+            raise ValueError(f"max_iterations must be >= 1, got {self.max_iterations}")
         self.probability = SampleProbability(self.sampler)
         self.last_alpha = float("nan")
         self._drawn = 0
