@@ -470,14 +470,22 @@ EQUIVALENT: dict[str, str] = {
         "the small angles' placeholder 2.0 instead of 1.0 for sin: theta / 4 is finite and discarded by the outer "
         "np.where.",
     _G + "x_so3_log__mutmut_148":
-        "the masked rows' divisor 2.0 instead of 1.0: rows away from pi are replaced by the outer np.where (and "
-        "stay finite); near-pi rows are divided by their norm either way.",
+        "the masked rows' divisor 2.0 instead of 1.0: rows under a quarter turn are replaced by the outer np.where (and "
+        "stay finite); obtuse rows are divided by their norm either way.",
     _G + "x_so3_log__mutmut_57":
         "theta <= 1e-6 instead of <: theta is numpy's arccos of a float in [-1, 1], which never equals 1e-6 "
         "(checked: over the floats around cos(1e-6) the monotone arccos steps from 9.99933e-07 to 1.0000444e-06).",
     _G + "x_so3_log__mutmut_60":
-        "theta >= pi - 1e-3 instead of >: arccos of a float never equals fl(pi - 1e-3) = 3.1405926535897932 "
-        "(checked: over the floats around cos(pi - 1e-3) it steps from 3.14059265358969 to 3.140592653589801).",
+        "theta >= pi / 2 instead of >: differs only at theta = fl(pi / 2) (a trace of 1 within an ulp), where both "
+        "formulas are exact to rounding: theta / (2 sin theta) = pi / 4 magnifies nothing there, and over 2e5 "
+        "random rotations within 1e-9 rad of pi / 2 the two agree to 6.7e-16 rad (3 ulps), each as close to the "
+        "true vector as the other (6.7e-16 and 8.9e-16).",
+    _G + "x_so3_log__mutmut_62":
+        "the symmetric part's axis from pi / 3 instead of pi / 2: between them both formulas are exact to rounding "
+        "(1 - cos >= 1/2 for the one, sin >= 0.87 for the other): over 2e5 random rotations in (pi / 3, pi / 2) "
+        "they agree to 6.7e-16 rad and both lie within 6.7e-16 of the true vector, so only a test pinning "
+        "rounding noise could tell them apart. (The threshold matters at pi - 1e-3, where the first formula "
+        "would be 1.6e-9 off: test_so3_exp_and_log_against_rodrigues_formula_from_zero_to_near_pi.)",
 }
 
 # Survivors that are not equivalent but are left on purpose, with the reason (counted as survived).
