@@ -784,7 +784,9 @@ def carry_from_report(report: Path, store: Path) -> list[str]:
         counts = dict(zip(columns, map(int, cells[3:9])))
         # Survivors (and equivalents) are listed by name below; only the other verdicts stay counts.
         counts["survived"] = counts["equivalent"] = 0
-        results[module.name] = {"note": f"{cells[10]}; carried from an earlier report", "status": {}, "diff": {},
+        carried = "; carried from an earlier report"
+        note = cells[10].replace(carried, "") + carried  # said once, however often it was carried
+        results[module.name] = {"note": note, "status": {}, "diff": {},
                                 "counts": {k: v for k, v in counts.items() if v}}
     prefixes = {m.name: f"{m.dotted}." for m in MODULES}
     i = 0
