@@ -155,7 +155,7 @@ EQUIVALENT: dict[str, str] = {
     **{_D + f"x_pass_probability__mutmut_{i}": (
         "pass_probability without the float dtype: integer counts and pools turn float at np.maximum(., 0.0) and "
         "np.maximum(., 1.0), and a factor c - j < 0 comes only after the factor c - c = 0.") for i in (3, 5, 8, 10)},
-    _D + "xǁTddTerminationǁ__post_init____mutmut_6": 'float("NAN") is NaN, as float("nan") is.',
+    _D + "xǁTddTerminationǁ__post_init____mutmut_15": 'float("NAN") is NaN, as float("nan") is.',
     _D + "xǁTddTerminationǁon_new_best__mutmut_2":
         "passes None for the loop state: SampleProbability.on_new_best never reads the state.",
     **{_D + f"xǁTddTerminationǁrequired__mutmut_{i}":
