@@ -264,10 +264,10 @@ EQUIVALENT: dict[str, str] = {
     _S + "x__design__mutmut_53": "A <= MIN_A instead of <: differs only at A = 2.0 exactly.",
     _S + "xǁSprtTerminationǁ_bound__mutmut_73":
         "clip(., None, max): done = 0 means log eta = 0, so k > 0 and ceil(k) >= 1 already (for a confidence in "
-        "(0, 1), as EstimatorOptions validates it: log(1 - p) < 0).",
+        "(0, 1), as SprtTermination and EstimatorOptions check: log(1 - p) < 0).",
     _S + "xǁSprtTerminationǁ_bound__mutmut_58":
         "clip(done, None, max) where the past tests reached the confidence: log eta <= log(1 - p) < 0 (a "
-        "confidence in (0, 1), as EstimatorOptions validates it) needs at least one past draw, so done >= 1 already.",
+        "confidence in (0, 1), as SprtTermination and EstimatorOptions check) needs at least one past draw, so done >= 1 already.",
     **{_S + f"xǁSprtTerminationǁrequired__mutmut_{i}":
        "a guided sampler's P_g read with another argument: SampleProbability.of returns the latest best's q, "
        "whatever the counts." for i in (2, 3)},
