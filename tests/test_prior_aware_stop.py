@@ -14,6 +14,8 @@ from stereovo import estimate_motion
 from stereovo.estimation.methods import EstimatorOptions, method_spec
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.samplers import ProsacSampler, UniformSampler, WeightedSampler, normalised_weights
+from stereovo.estimation.sprt import SprtTermination, SprtVerification
+from stereovo.estimation.tdd import TddTermination, TddVerification
 from stereovo.estimation.termination import (
     AdaptiveTermination,
     all_inlier_probability,
@@ -97,6 +99,111 @@ def test_prosac_sampler_q_is_that_of_its_next_draw():
     assert sampler.all_inlier_probability(inliers) == 0.0
     sampler.draw(5000, np.random.default_rng(0))  # past T'_N: three of all N
     assert sampler.all_inlier_probability(inliers) == pytest.approx(10 * 9 * 8 / (100 * 99 * 98))
+
+
+def schedule_by_hand(sampler: ProsacSampler, inliers: np.ndarray, confidence: float, draws: int = 60_000) -> float:
+    """The first T with ``prod_{t<=T} (1 - q_t) <= 1 - confidence``, each draw's q_t read off the
+    sampler's own schedule (``subset_sizes``, anchored while ``t <= T'_n``) one draw at a time."""
+    t = np.arange(1, draws + 1)
+    n = sampler.subset_sizes(t)
+    ranked = inliers[sampler.order]
+    count = np.r_[0, np.cumsum(ranked)]
+    q = np.empty(draws)
+    for k in range(draws):
+        m = int(n[k])
+        if t[k] <= sampler.growth[m] and m > 3:  # u_m plus two of the m - 1 above it
+            q[k] = ranked[m - 1] * count[m - 1] * (count[m - 1] - 1) / ((m - 1) * (m - 2))
+        else:  # three of U_m (m = 3: the top three themselves)
+            q[k] = count[m] * (count[m] - 1) * (count[m] - 2) / (m * (m - 1) * (m - 2))
+    with np.errstate(divide="ignore"):
+        missed = np.cumsum(np.log1p(-q))
+    reached = np.flatnonzero(missed <= np.log1p(-confidence))
+    return float(reached[0] + 1) if reached.size else np.inf
+
+
+def test_prosac_schedule_stop_is_the_product_over_its_draws():
+    """A PROSAC sampler's stop is the first T at which the chance that none of draws 1..T was
+    all-inlier falls to 1 - p, over its schedule (random, perfect and reversed orderings, a lowered
+    n_max); AdaptiveTermination stops there, and its q is the per-draw chance needing as many."""
+    g = np.random.default_rng(4)
+    for trial in range(24):
+        n = int(g.integers(6, 200))
+        inliers = g.random(n) > g.uniform(0.1, 0.9)
+        inliers[g.choice(n, 3, replace=False)] = True
+        kind = trial % 3
+        order = g.permutation(n)
+        if kind:  # inliers first (perfect) or last (adversarial)
+            first = np.flatnonzero(inliers if kind == 1 else ~inliers)
+            order = np.r_[g.permutation(first), g.permutation(np.setdiff1d(np.arange(n), first))]
+        sampler = ProsacSampler(order, t_n=float(g.choice([2_000, 200_000])))
+        if trial % 4 == 3:
+            sampler.n_max = int(g.integers(3, n + 1))
+        confidence = float(g.choice([0.5, 0.9, 0.99]))
+        expected = schedule_by_hand(sampler, inliers, confidence)
+        got = sampler.required_draws(inliers, confidence)
+        assert got == expected or (expected == np.inf and got > 60_000), (trial, got, expected)
+        stop = AdaptiveTermination(confidence, 10_000, sampler=sampler)
+        stop.on_new_best(inliers, None)
+        assert stop.required(int(inliers.sum()), n) == min(got, 10_000)
+        if got < np.inf:
+            assert (1 - stop.probability.q) ** got == pytest.approx(1 - confidence, rel=1e-9)
+    for rule in (SprtTermination(SprtVerification(sampler.n), 0.9, sampler=sampler),
+                 TddTermination(0.9, verifier=TddVerification(), sampler=sampler)):
+        rule.on_new_best(inliers, None)  # the early-rejection stops take the schedule's per-draw q too
+        assert rule.probability.scheduled and rule.probability.draws == sampler.required_draws(inliers, 0.9)
+    perfect = ProsacSampler(np.arange(50))
+    assert perfect.required_draws(np.arange(50) < 10, 0.99) == 1.0  # the first draw is the top three
+    assert ProsacSampler(np.arange(50)).required_draws(np.arange(50) < 2, 0.99) == np.inf  # no all-inlier triple
+
+
+@pytest.mark.slow
+def test_prosac_order_stop_is_calibrated_for_any_ordering():
+    """The calibration test for a PROSAC ordering with the adaptive stop (``ransac`` given order=):
+    told the true consensus, its draws miss every all-inlier sample in at most 1 - confidence of the
+    runs (and about that often: the bound is tight), whether the ordering is random, by match score
+    or adversarial (outliers first); a stationary bound on the next draw's q would stop at once or never."""
+    allowed = 1.0 - CALIBRATION_CONFIDENCE
+    options = EstimatorOptions(confidence=CALIBRATION_CONFIDENCE, max_iterations=1_000_000)
+    for kind in ("random", "score", "adversarial"):
+        misses = 0
+        frames = calibration_frames()
+        for seed, (frame, problem) in enumerate(frames):
+            truth = frame.truth.inlier
+            order = {"random": np.random.default_rng(seed).permutation(40), "score": np.argsort(-frame.scores),
+                     "adversarial": np.argsort(truth, kind="stable")}[kind]
+            components = method_spec("ransac").build(problem, options, None, order, {})
+            stop = components.termination
+            stop.on_new_best(truth, None)
+            k = stop.required(int(truth.sum()), 40)
+            assert k < options.max_iterations
+            samples = components.sampler.draw(k, np.random.default_rng(seed))
+            misses += not bool(np.any(np.all(truth[samples], axis=1)))
+        assert binom.sf(misses - 1, len(frames), allowed) > 1e-3, (kind, misses)
+        assert binom.cdf(misses, len(frames), allowed) > 1e-3, (kind, misses)
+
+
+def test_ransac_with_a_prosac_order_stops_by_its_schedule_not_at_the_cap():
+    """N 500: a perfect ordering stops after a median of one or two hypotheses, every frame right; a
+    random one at eps 0.8 stops near RANSAC's count (median within 1.5x) and never at the cap (the
+    next draw's q, 0 whenever its u_n is an outlier, kept such runs going to max_iterations)."""
+    config = SimulationConfig(n_correspondences=500, outlier_ratio=0.8, outlier_mix=(1.0, 0.0, 0.0))
+    perfect, random_order, uniform = [], [], []
+    for seed in range(10):
+        frame = simulate_frame(config, 900 + seed)
+        g = np.random.default_rng(seed)
+        inl = frame.truth.inlier
+        orders = {"perfect": np.r_[g.permutation(np.flatnonzero(inl)), g.permutation(np.flatnonzero(~inl))],
+                  "random": g.permutation(500), "uniform": None}
+        for kind, rows in (("perfect", perfect), ("random", random_order), ("uniform", uniform)):
+            est = estimate_motion(frame.prev, frame.curr, frame.camera, method="ransac", order=orders[kind], rng=seed,
+                                  noise_sigma=frame.noise_sigma, polish_iterations=2, local_refit=True,
+                                  batch_size=1 if kind == "perfect" else 32, first_batch_size=1 if kind == "perfect" else 8)
+            right = est.ok and np.degrees(rotation_error(est.rotation, frame.truth.rotation)) < 1.0
+            rows.append((est.n_hypotheses, right))
+    assert np.median([h for h, _ in perfect]) <= 2 and all(r for _, r in perfect), perfect
+    assert max(h for h, _ in random_order) < 10_000, random_order
+    assert np.median([h for h, _ in random_order]) <= 1.5 * np.median([h for h, _ in uniform]), (random_order, uniform)
+    assert sum(r for _, r in random_order) >= sum(r for _, r in uniform) - 1
 
 
 @pytest.mark.parametrize(

@@ -7,6 +7,7 @@ Priors and orderings are how the Gymnasium agents reach the estimator.
 
 from __future__ import annotations
 
+import math
 from typing import ClassVar, Protocol
 
 import numpy as np
@@ -255,6 +256,50 @@ class ProsacSampler:
             count = int(np.count_nonzero(ranked[: n - 1]))
             return float(uniform_all_inlier_probability(count, n - 1, SAMPLE_SIZE - 1))
         return float(uniform_all_inlier_probability(int(np.count_nonzero(ranked[:n])), n))
+
+    def required_draws(self, inliers: np.ndarray, confidence: float) -> float:
+        """Fewest draws ``T``, counted from the first, after which the chance that none of them was
+        all-inlier, ``prod_{t<=T} (1 - q_t)``, is at most ``1 - confidence`` (``inf`` if never).
+
+        PROSAC's draws are not alike: draw t's all-inlier chance ``q_t`` (for ``inliers (n,)`` bool)
+        is that of ``u_n`` plus two of ``U_{n-1}`` while anchored, ``n = g(t)``, then of three of
+        ``U_{n_max}``. The chance of the *next* draw alone can be 0 (its ``u_n`` an outlier) or 1,
+        so a stationary bound on it stops at once or never; the product over the schedule is what
+        "confidence of an all-inlier sample" means for a sampler that changes from draw to draw.
+        The schedule is the current one (``n_max`` as it stands). Piecewise constant in ``t``: one
+        term per prefix size, O(N).
+        """
+        ranked = _inlier_mask(inliers, self.n)[self.order]
+        count = np.concatenate([[0], np.cumsum(ranked)])  # count[n]: inliers among the top n
+        top = self.n_max
+        sizes = np.arange(SAMPLE_SIZE, top + 1)
+        first = self.growth[sizes - 1] + 1  # g(t) = n for t in [T'_{n-1} + 1, T'_n]
+        first[0] = 1
+        length = np.maximum(self.growth[sizes] - first + 1, 0)
+        q = ranked[sizes - 1].astype(float)  # u_n must be an inlier, and two of the n - 1 above it
+        for j in range(SAMPLE_SIZE - 1):
+            q = q * np.maximum(count[sizes - 1] - j, 0) / np.maximum(sizes - 1 - j, 1)
+        q[0] = float(count[SAMPLE_SIZE] == SAMPLE_SIZE)  # n = 3: the top three themselves
+        tail_q = float(uniform_all_inlier_probability(int(count[top]), top))  # past T'_{n_max}: three of U_{n_max}
+        target = math.log1p(-confidence)
+        with np.errstate(divide="ignore"):
+            step = np.log1p(-np.minimum(q, 1.0))  # log miss chance per draw, -inf at q = 1
+        spent = np.zeros(sizes.size)
+        live = length > 0
+        spent[live] = step[live] * length[live]
+        total = np.cumsum(spent)
+        reached = np.flatnonzero(total <= target)
+        if reached.size:
+            i = int(reached[0])
+            before = total[i - 1] if i else 0.0
+            if step[i] == -math.inf:
+                return float(first[i])
+            return float(first[i] - 1 + max(math.ceil((target - before) / step[i]), 1))
+        if tail_q <= 0.0:
+            return math.inf
+        if tail_q >= 1.0:
+            return float(self.growth[top] + 1)
+        return float(self.growth[top] + max(math.ceil((target - total[-1]) / math.log1p(-tail_q)), 1))
 
     def subset_sizes(self, t: np.ndarray) -> np.ndarray:
         """``n`` used at draws ``t`` (1-based): ``min(g(t), n_max)``."""

@@ -351,7 +351,7 @@ class SprtTermination:
             raise ValueError(f"confidence must be in (0, 1), got {self.confidence}")
         if self.max_iterations < 1:
             raise ValueError(f"max_iterations must be >= 1, got {self.max_iterations}")
-        self.probability = SampleProbability(self.sampler)
+        self.probability = SampleProbability(self.sampler, self.confidence)  # a PROSAC schedule needs it
         self._last_drawn = 0
         self._test_index = 0
         # alpha_i depends on the tests and on I_best only: cached per inlier count (the loop asks with

@@ -314,7 +314,7 @@ class TddTermination:
             raise ValueError(f"confidence must be in (0, 1), got {self.confidence}")
         if self.max_iterations < 1:
             raise ValueError(f"max_iterations must be >= 1, got {self.max_iterations}")
-        self.probability = SampleProbability(self.sampler)
+        self.probability = SampleProbability(self.sampler, self.confidence)  # a PROSAC schedule needs it
         self.last_alpha = float("nan")
         self._drawn = 0
         self._q_by_count: dict[tuple[int, int], float] = {}  # uniform sampling's q per (I, N): asked every batch

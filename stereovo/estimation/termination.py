@@ -71,19 +71,33 @@ class SampleProbability:
     formula :func:`all_inlier_probability`; any other sampler is asked, on every new best, for
     ``sampler.all_inlier_probability(inliers)``: guided weights, a learned policy's priors.
     Before the first best a guided sampler's ``q`` is 0 (keep drawing).
+
+    A sampler whose draws change along a known schedule (PROSAC's growing prefix) has no one ``q``:
+    given ``confidence``, ``draws`` is its ``required_draws(inliers, confidence)``, the fewest draws
+    from the first after which an all-inlier one was drawn with that confidence, and ``q`` the
+    per-draw chance that would need as many, ``1 - (1 - confidence)^(1 / draws)`` (the geometric
+    mean of the schedule's miss chances up to there). Without ``confidence``, ``q`` is the next
+    draw's chance.
     """
 
-    def __init__(self, sampler=None) -> None:
+    def __init__(self, sampler=None, confidence: float | None = None) -> None:
         self.sampler = sampler
         self.guided = (
             sampler is not None and not getattr(sampler, "uniform", False)
             and callable(getattr(sampler, "all_inlier_probability", None))
         )
+        self.confidence = confidence
+        self.scheduled = self.guided and confidence is not None and callable(getattr(sampler, "required_draws", None))
         self.q = 0.0  # the guided q of the latest best (unused for uniform sampling)
+        self.draws = math.inf  # a scheduled sampler's required draws for the latest best
         self.updates = 0
 
     def on_new_best(self, inliers: np.ndarray, state) -> None:
-        if self.guided:
+        if self.scheduled:
+            self.draws = float(self.sampler.required_draws(inliers, self.confidence))
+            self.q = -math.expm1(math.log1p(-self.confidence) / self.draws) if self.draws < math.inf else 0.0
+            self.updates += 1
+        elif self.guided:
             self.q = float(self.sampler.all_inlier_probability(inliers))
             self.updates += 1
 
@@ -99,9 +113,10 @@ class AdaptiveTermination:
     ``k = ceil(log(1 - p) / log(1 - q))`` with ``q`` the chance that one draw *of the sampler in
     use* is all-inlier given the best model's inliers: the without-replacement count formula for
     uniform sampling (bit for bit the bound without a sampler), the sampler's own
-    ``all_inlier_probability(inliers)`` otherwise. With a guided sampler the termination must be
-    a loop listener (``on_new_best``) to see the inlier mask; :func:`stereovo.estimation.methods`
-    recipes register it.
+    ``all_inlier_probability(inliers)`` otherwise. A sampler whose draws follow a schedule (PROSAC's
+    growing prefix: :class:`SampleProbability`) stops after its ``required_draws``, counted from the
+    first draw. With a guided sampler the termination must be a loop listener (``on_new_best``) to
+    see the inlier mask; :func:`stereovo.estimation.methods` recipes register it.
     """
 
     confidence: float = 0.99
@@ -116,7 +131,7 @@ class AdaptiveTermination:
             raise ValueError(
                 f"need 1 <= min_iterations <= max_iterations, got {self.min_iterations} and {self.max_iterations}"
             )
-        self.probability = SampleProbability(self.sampler)
+        self.probability = SampleProbability(self.sampler, self.confidence)
 
     def on_new_best(self, inliers: np.ndarray, state) -> None:
         self.probability.on_new_best(inliers, state)
@@ -124,7 +139,10 @@ class AdaptiveTermination:
     def required(self, n_inliers: int, n: int) -> int:
         if not self.probability.guided:
             return max(required_iterations(n_inliers, n, self.confidence, self.max_iterations), self.min_iterations)
-        k = iterations_for(self.probability.q, self.confidence, self.max_iterations)
+        if self.probability.scheduled:  # counted from the first draw, as the schedule's product is
+            k = self.max_iterations if self.probability.draws >= self.max_iterations else int(self.probability.draws)
+        else:
+            k = iterations_for(self.probability.q, self.confidence, self.max_iterations)
         return max(k, self.min_iterations)
 
     def counters(self) -> dict[str, int | float]:
