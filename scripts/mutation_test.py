@@ -85,18 +85,23 @@ _NGRANSAC_TESTS = tuple(f"tests/test_agents_ngransac.py::{name}" for name in (
     "test_smoothness_loss_prefers_the_motion_that_continues_the_previous_one"))
 MODULES: tuple[Module, ...] = (
     Module("rewards", "vo_gym/rewards.py", ("tests/test_rewards.py",)),
-    Module("termination", "stereovo/estimation/termination.py", ("tests/test_stopping_bounds.py",)),
+    Module("termination", "stereovo/estimation/termination.py",
+           ("tests/test_stopping_bounds.py", "tests/test_prior_aware_stop.py::test_prosac_schedule_stop_is_the_product_over_its_draws",
+            "tests/test_prior_aware_stop.py::test_guided_termination_follows_the_samplers_q")),
     Module("prosac", "stereovo/estimation/prosac.py", ("tests/test_stopping_bounds.py", "tests/test_mutation_survivors.py")),
     Module("mlesac", "stereovo/estimation/mlesac.py",
            ("tests/test_mlesac_densities.py", "tests/test_classical_mlesac.py", "tests/test_mutation_mlesac.py")),
     Module("env", "vo_gym/env.py", ("tests/test_env_honesty.py", "tests/test_rewards.py", *_ENV_TESTS)),
     Module("sprt", "stereovo/estimation/sprt.py",
-           ("tests/test_stopping_bounds.py", "tests/test_mutation_survivors.py", "tests/test_classical_verification.py")),
+           ("tests/test_stopping_bounds.py", "tests/test_mutation_survivors.py", "tests/test_classical_verification.py",
+            "tests/test_prior_aware_stop.py::test_prosac_schedule_stop_is_the_product_over_its_draws")),
     Module("tdd", "stereovo/estimation/tdd.py",
-           ("tests/test_stopping_bounds.py", "tests/test_classical_verification.py", "tests/test_mutation_tdd.py")),
+           ("tests/test_stopping_bounds.py", "tests/test_classical_verification.py", "tests/test_mutation_tdd.py",
+            "tests/test_prior_aware_stop.py::test_prosac_schedule_stop_is_the_product_over_its_draws")),
     Module("samplers", "stereovo/estimation/samplers.py",
            ("tests/test_stopping_bounds.py", "tests/test_mutation_survivors.py", "tests/test_mutation_samplers.py",
-            "tests/test_classical_prosac.py", "tests/test_estimation_core.py")),
+            "tests/test_classical_prosac.py", "tests/test_estimation_core.py",
+            "tests/test_prior_aware_stop.py::test_prosac_schedule_stop_is_the_product_over_its_draws")),
     Module("scoring", "stereovo/estimation/scoring.py",
            ("tests/test_estimation_core.py", "tests/test_classical_verification.py", "tests/test_mutation_scoring.py")),
     Module("features", "vo_gym/features.py",
@@ -216,6 +221,12 @@ EQUIVALENT: dict[str, str] = {
         "sum over axis=+1 instead of -1: the same axis of the (H, N) densities.",
     "stereovo.estimation.mlesac.x_mlesac_em__mutmut_65":
         "change <= tolerance instead of <: differs only when the largest change equals the tolerance exactly.",
+    _T + "xǁAdaptiveTerminationǁrequired__mutmut_17":
+        "> instead of >= against max_iterations: at draws == max_iterations both give max_iterations.",
+    _T + "xǁSampleProbabilityǁon_new_best__mutmut_15":
+        "<= inf instead of < inf: at draws = inf, -expm1(log1p(-p) / inf) = -expm1(-0.0) = 0.0, the else value.",
+    _T + "xǁSampleProbabilityǁon_new_best__mutmut_9":
+        "the finite test dropped (or True): at draws = inf the formula gives 0.0, the else value, as above.",
     _T + "xǁAdaptiveTerminationǁon_new_best__mutmut_2":
         "passes None for the loop state: SampleProbability.on_new_best never reads the state.",
     _S + "xǁSprtTerminationǁon_new_best__mutmut_2":

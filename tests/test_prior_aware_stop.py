@@ -143,8 +143,9 @@ def test_prosac_schedule_stop_is_the_product_over_its_draws():
         got = sampler.required_draws(inliers, confidence)
         assert got == expected or (expected == np.inf and got > 60_000), (trial, got, expected)
         stop = AdaptiveTermination(confidence, 10_000, sampler=sampler)
+        assert stop.required(int(inliers.sum()), n) == 10_000  # no best yet: keep drawing
         stop.on_new_best(inliers, None)
-        assert stop.required(int(inliers.sum()), n) == min(got, 10_000)
+        assert stop.required(int(inliers.sum()), n) == min(got, 10_000) and stop.probability.updates == 1
         if got < np.inf:
             assert (1 - stop.probability.q) ** got == pytest.approx(1 - confidence, rel=1e-9)
     for rule in (SprtTermination(SprtVerification(sampler.n), 0.9, sampler=sampler),
@@ -153,7 +154,11 @@ def test_prosac_schedule_stop_is_the_product_over_its_draws():
         assert rule.probability.scheduled and rule.probability.draws == sampler.required_draws(inliers, 0.9)
     perfect = ProsacSampler(np.arange(50))
     assert perfect.required_draws(np.arange(50) < 10, 0.99) == 1.0  # the first draw is the top three
-    assert ProsacSampler(np.arange(50)).required_draws(np.arange(50) < 2, 0.99) == np.inf  # no all-inlier triple
+    hopeless = AdaptiveTermination(0.99, 500, sampler=ProsacSampler(np.arange(50)))
+    for _ in range(2):
+        hopeless.on_new_best(np.arange(50) < 2, None)  # no all-inlier triple exists
+    assert hopeless.probability.draws == np.inf and hopeless.probability.q == 0.0 and hopeless.probability.updates == 2
+    assert hopeless.required(2, 50) == 500
 
 
 @pytest.mark.slow
