@@ -160,7 +160,7 @@ EQUIVALENT: dict[str, str] = {
     **{_D + f"x_pass_probability__mutmut_{i}": (
         "pass_probability without the float dtype: integer counts and pools turn float at np.maximum(., 0.0) and "
         "np.maximum(., 1.0), and a factor c - j < 0 comes only after the factor c - c = 0.") for i in (3, 5, 8, 10)},
-    _D + "xǁTddTerminationǁ__post_init____mutmut_15": 'float("NAN") is NaN, as float("nan") is.',
+    _D + "xǁTddTerminationǁ__post_init____mutmut_18": 'float("NAN") is NaN, as float("nan") is.',
     _D + "xǁTddTerminationǁon_new_best__mutmut_2":
         "passes None for the loop state: SampleProbability.on_new_best never reads the state.",
     **{_D + f"xǁTddTerminationǁrequired__mutmut_{i}":
@@ -324,6 +324,40 @@ EQUIVALENT: dict[str, str] = {
     **{_SA + f"xǁProsacSamplerǁdraw__mutmut_{i}":
        "a wider guard (anchored | pool < 3, or pool <= 3) before the fix of the n = 3 rows: the rows replaced are "
        "`first`, recomputed inside with the exact condition, so no row changes." for i in (42, 43)},
+    **{_SA + f"xǁProsacSamplerǁrequired_draws__mutmut_{i}":
+       "the tail_q >= 1 branch is unreachable: tail_q = 1 needs all of U_n_max inlier, and then the first "
+       "segment (the top three, q = 1) already reached the target" for i in (124, 125, 126, 127, 128)},
+    **{_SA + f"xǁProsacSamplerǁrequired_draws__mutmut_{i}":
+       "segment 0 (n = 3) has q 0 or 1: with q = 1 the -inf branch returns before `before` is read, with q = 0 "
+       "the target is not reached there, so `before` at i = 0 is never used" for i in (103, 106)},
+    _SA + "xǁProsacSamplerǁrequired_draws__mutmut_108":
+        "== +inf never holds; at step -inf the general formula gives ceil((target - before) / -inf) = 0, "
+        "max(0, 1) = 1, first[i]: the same draw.",
+    _SA + "xǁProsacSamplerǁrequired_draws__mutmut_14":
+        "sizes from 0: the extra sizes 0-2 have zero-length segments, and size 3's anchored formula "
+        "ranked[2] c_2 (c_2 - 1) / 2 is 1 exactly when the top three are inliers, as q[0] was.",
+    _SA + "xǁProsacSamplerǁrequired_draws__mutmut_8": "count[0] = 1: count is read at n - 1 >= 2 and at n_max >= 3 only.",
+    **{_SA + f"xǁProsacSamplerǁrequired_draws__mutmut_{i}":
+       "T'_n is strictly increasing (T'_(k+1) = T'_k + ceil of a positive step), so every segment has length "
+       ">= 1 and is live" for i in (34, 88, 89)},
+    _SA + "xǁProsacSamplerǁrequired_draws__mutmut_36": "astype(None) of a bool array is float64, as astype(float).",
+    _SA + "xǁProsacSamplerǁrequired_draws__mutmut_60":
+        "max(., 2) instead of 1 changes only size 3 at j = 1, whose q[0] is overwritten with the top-three flag.",
+    **{_SA + f"xǁProsacSamplerǁrequired_draws__mutmut_{i}":
+       "np.errstate left at its default: log1p(-1) = -inf either way, with a RuntimeWarning" for i in (75,)},
+    _SA + "xǁProsacSamplerǁrequired_draws__mutmut_85": "minimum(q, 2.0): q is a probability, never above 1.",
+    _SA + "xǁProsacSamplerǁrequired_draws__mutmut_97":
+        "< instead of <= the target: differs only when a cumulative log equals log(1 - p) exactly.",
+    **{_SA + f"xǁProsacSamplerǁdraw__mutmut_{i}":
+       "folding the pending batches at 65 instead of 64: drawn_within folds them first, so no answer changes"
+       for i in (50, 51)},
+    _SA + "xǁProsacSamplerǁdrawn_within__mutmut_7":
+        "max(n, 1) for n <= 0: _by_largest_rank[0] counts draws whose largest rank is 0, and there are none "
+        "(three distinct ranks).",
+    _SA + "xǁWeightedSamplerǁlog_probability__mutmut_21":
+        ">= instead of >: at 1 - taken == picked both branches are the same number.",
+    _SA + "xǁWeightedSamplerǁlog_probability__mutmut_9":
+        "np.errstate(invalid=None): only whether numpy warns changes; the masked values are replaced.",
     _SA + "xǁProsacSamplerǁsubset_sizes__mutmut_8": "drops side=\"left\": searchsorted's default is \"left\".",
     _SA + "xǁWeightedSamplerǁ__init____mutmut_22":
         "positive == positive[1] instead of [0]: all equal to one of them iff all equal (there are >= 3 positive).",

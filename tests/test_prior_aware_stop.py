@@ -135,7 +135,7 @@ def test_prosac_schedule_stop_is_the_product_over_its_draws():
         if kind:  # inliers first (perfect) or last (adversarial)
             first = np.flatnonzero(inliers if kind == 1 else ~inliers)
             order = np.r_[g.permutation(first), g.permutation(np.setdiff1d(np.arange(n), first))]
-        sampler = ProsacSampler(order, t_n=float(g.choice([2_000, 200_000])))
+        sampler = ProsacSampler(order, t_n=float(g.choice([20, 2_000, 200_000])))  # 20: the stop past T'_N
         if trial % 4 == 3:
             sampler.n_max = int(g.integers(3, n + 1))
         confidence = float(g.choice([0.5, 0.9, 0.99]))
@@ -152,6 +152,16 @@ def test_prosac_schedule_stop_is_the_product_over_its_draws():
                  TddTermination(0.9, verifier=TddVerification(), sampler=sampler)):
         rule.on_new_best(inliers, None)  # the early-rejection stops take the schedule's per-draw q too
         assert rule.probability.scheduled and rule.probability.draws == sampler.required_draws(inliers, 0.9)
+    # reached at the first draw of a segment whose q is below 1: u_5 an inlier after one outlier on top
+    first_draw = ProsacSampler(np.arange(12), t_n=12)
+    mask = np.arange(12) > 0
+    assert first_draw.required_draws(mask, 0.5) == schedule_by_hand(first_draw, mask, 0.5)
+    # reached one draw past T'_N: draws 1-4 (anchored, T'_n = 1, 2, 3, 4) miss with 1, 2/3, 1/2 and
+    # 2/5, 0.133 > 0.1; draw 5, three of U_6 (q = 1/2), brings it to 0.067
+    past_schedule = ProsacSampler(np.arange(6), t_n=1)
+    mask = np.array([True, True, False, True, True, True])
+    assert list(past_schedule.growth[3:]) == [1, 2, 3, 4]
+    assert past_schedule.required_draws(mask, 0.9) == 5.0 == schedule_by_hand(past_schedule, mask, 0.9, draws=10)
     perfect = ProsacSampler(np.arange(50))
     assert perfect.required_draws(np.arange(50) < 10, 0.99) == 1.0  # the first draw is the top three
     hopeless = AdaptiveTermination(0.99, 500, sampler=ProsacSampler(np.arange(50)))
