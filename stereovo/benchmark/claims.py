@@ -350,7 +350,9 @@ def check_claims(summary: BenchmarkSummary, diagnostics: Mapping[str, str] | Non
             summary, "guided-mlesac-iterations", "guided-mlesac", "mlesac",
             "Guided sampling cuts iterations: Guided-MLESAC draws fewer hypotheses than MLESAC.",
             "Tordoff & Murray 2002/2005",
-            "Priors are the raw match scores. Judged at the run's most informative AUC. The adaptive stop is"
+            "Priors gamma_i are the match scores calibrated to inlier probabilities (P(inlier | score) at an"
+            " uninformed inlier share of one half), as Tordoff & Murray's gamma_i are. Judged at the run's most"
+            " informative AUC. The adaptive stop is"
             " prior-aware (q is the probability that one draw of the guided sampler is all-inlier), so finding the"
             " best model sooner can cut the hypotheses drawn.",
         ),

@@ -36,12 +36,14 @@ Estimator = Callable[[Frame, np.random.Generator], Any]
 """``(frame, rng) -> estimate`` with the fields :func:`stereovo.metrics.frame_metrics` reads."""
 
 METHOD_INPUTS: dict[str, str] = {
-    "guided-mlesac": "priors",
+    "guided-mlesac": "probabilities",
     "prosac": "order",
     "usac": "order",
 }
-"""Registered methods that need the match scores, and how: ``priors`` = the scores
-themselves (gamma_i), ``order`` = ``argsort(-scores)`` (best match first)."""
+"""Registered methods that need the match scores, and how: ``probabilities`` = the scores as
+calibrated inlier probabilities (:attr:`~stereovo.simulation.Frame.match_probabilities`:
+Guided-MLESAC's gamma_i is the chance that a match is correct, which a raw score is not),
+``order`` = ``argsort(-scores)`` (best match first)."""
 
 GUIDED_VARIANTS: dict[str, tuple[str, str]] = {
     "ransac+guided": ("ransac", "priors"),
@@ -53,7 +55,7 @@ GUIDED_VARIANTS: dict[str, tuple[str, str]] = {
 """Extra benchmark entries: a registered method run with the match scores as
 sampling priors (guided sampling) or as a PROSAC order, everything else unchanged."""
 
-_INPUT_KINDS = ("priors", "order")
+_INPUT_KINDS = ("priors", "probabilities", "order")
 
 
 def _missing_input(err: ValueError) -> str | None:
@@ -67,11 +69,15 @@ def _missing_input(err: ValueError) -> str | None:
 
 
 def score_inputs(frame: Frame, kind: str | None) -> dict[str, np.ndarray]:
-    """The keyword arguments that hand a frame's match scores to ``estimate_motion``."""
+    """The keyword arguments that hand a frame's match scores to ``estimate_motion``: as sampling
+    weights (``priors``), as calibrated inlier probabilities (``probabilities``, passed as priors)
+    or as a PROSAC order (``order``)."""
     if kind is None:
         return {}
     if kind == "priors":
         return {"priors": np.asarray(frame.scores, dtype=float)}
+    if kind == "probabilities":
+        return {"priors": frame.match_probabilities}
     if kind == "order":
         return {"order": np.argsort(-np.asarray(frame.scores, dtype=float), kind="stable")}
     raise ValueError(f"unknown score input {kind!r}; expected one of {_INPUT_KINDS}")
@@ -83,7 +89,8 @@ class ClassicalEstimator:
 
     Args:
         method: a name from :func:`stereovo.estimation.available_methods`.
-        inputs: None, ``"priors"`` or ``"order"``: how the frame's match scores are passed.
+        inputs: None, ``"priors"``, ``"probabilities"`` or ``"order"``: how the frame's match scores
+            are passed (:func:`score_inputs`).
             With None, a method that raises ``ValueError`` naming priors or order is
             retried once with that input (same random stream).
         options: ``estimate_motion`` options as ``(name, value)`` pairs; the frame's
@@ -131,7 +138,8 @@ def describe_method(name: str) -> str:
         return f"{base} with the match scores as {how}"
     description = available_methods().get(name, "")
     kind = METHOD_INPUTS.get(name)
-    return description + (f"; match scores passed as {kind}" if kind else "")
+    passed = {"probabilities": "priors, calibrated to inlier probabilities"}.get(kind, kind)
+    return description + (f"; match scores passed as {passed}" if kind else "")
 
 
 def classical_estimators(

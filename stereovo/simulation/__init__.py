@@ -22,7 +22,9 @@ How a frame is made:
    by both images; rows shuffled.
 4. Scores. ``score = Phi(latent)`` with ``latent ~ N(mu, 1)`` for inliers and
    ``N(0, 1)`` for outliers, ``mu = sqrt(2) Phi^-1(auc)``: the ROC AUC of score
-   vs inlier is ``auc`` exactly in expectation.
+   vs inlier is ``auc`` exactly in expectation. A raw score is not a probability:
+   :attr:`Frame.match_probabilities` is the calibrated ``P(inlier | score)``
+   (:func:`score_inlier_probability`), what Guided-MLESAC's priors mean.
 
 Every outlier is a *detectable* outlier: its noise-free measurement at k lies
 at least ``max(4 px, 8 sigma)`` (norm over ``uL, v, uR``) from where the true
@@ -42,6 +44,7 @@ Where each part lives (this package re-exports the public names):
 - :mod:`~stereovo.simulation.config`: :class:`SimulationConfig`, :data:`WORLDS`;
 - :mod:`~stereovo.simulation.world`: the landmarks (step 2);
 - :mod:`~stereovo.simulation.outliers`: the three kinds of outliers (step 3);
+- :mod:`~stereovo.simulation.scores`: the match-score model and its calibrated inlier probability;
 - :mod:`~stereovo.simulation.pair`: one frame pair from two poses: noise, scores, row order;
 - :mod:`~stereovo.simulation.sequence`: :func:`simulate_frame` and :class:`Sequence`.
 """
@@ -51,6 +54,7 @@ from __future__ import annotations
 from stereovo.simulation.config import MAX_NOISE_SIGMA_PX, WORLDS, SimulationConfig
 from stereovo.simulation.frame import Frame, FrameTruth, OutlierKind
 from stereovo.simulation.motion import PRESETS, MotionPreset
+from stereovo.simulation.scores import score_inlier_probability
 from stereovo.simulation.sequence import Sequence, simulate_frame
 
 __all__ = [
@@ -63,4 +67,5 @@ __all__ = [
     "Frame",
     "simulate_frame",
     "Sequence",
+    "score_inlier_probability",
 ]

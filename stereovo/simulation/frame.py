@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stereovo.camera import StereoCamera
+from stereovo.simulation.scores import score_inlier_probability
 
 
 class OutlierKind(enum.IntEnum):
@@ -58,6 +59,8 @@ class Frame:
         scores: ``(N,)`` float64 match scores in (0, 1), higher = more likely an inlier.
         camera: the stereo rig.
         noise_sigma: the sensor's pixel noise std (px), a known sensor spec.
+        score_auc: the match score's ROC AUC as an inlier detector, a known spec of the matcher
+            (:mod:`stereovo.simulation.scores`).
         truth: ground truth; for benchmarks only.
     """
 
@@ -67,6 +70,7 @@ class Frame:
     scores: np.ndarray
     camera: StereoCamera
     noise_sigma: float
+    score_auc: float
     truth: FrameTruth
 
     def __post_init__(self) -> None:
@@ -83,6 +87,13 @@ class Frame:
     def n(self) -> int:
         """Number of putative matches N."""
         return int(self.prev.shape[0])
+
+    @property
+    def match_probabilities(self) -> np.ndarray:
+        """``(N,)`` the scores as calibrated inlier probabilities, ``P(inlier | score)`` at an
+        uninformed prior inlier share of one half: what a matcher calibrated on labelled matches
+        reports, and what Guided-MLESAC's ``gamma_i`` means (:func:`~stereovo.simulation.scores.score_inlier_probability`)."""
+        return score_inlier_probability(self.scores, self.score_auc)
 
     def __repr__(self) -> str:
         return (

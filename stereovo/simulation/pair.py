@@ -10,11 +10,9 @@ would leave the image), draws the scores and shuffles the rows.
 from __future__ import annotations
 
 import functools
-import math
 
 import numpy as np
 from numba import njit
-from scipy.special import ndtr, ndtri
 
 from stereovo.camera import StereoCamera
 from stereovo.geometry import invert_transform
@@ -22,6 +20,7 @@ from stereovo.seeding import seeded_generators
 from stereovo.simulation.config import SimulationConfig
 from stereovo.simulation.frame import Frame, FrameTruth, OutlierKind
 from stereovo.simulation.outliers import MAX_REDRAWS, moving_object, random_mismatches, stereo_mismatches
+from stereovo.simulation.scores import draw_scores
 from stereovo.simulation.world import visible_landmarks
 
 _STREAMS = 5  # landmarks, outliers, noise, scores, row order
@@ -157,9 +156,7 @@ def simulate_pair(
     curr = _add_noise(clean_curr, normal[1], config, noise_rng)
 
     inlier = kind == OutlierKind.INLIER
-    mu = math.sqrt(2.0) * float(ndtri(config.score_auc))
-    latent = score_rng.standard_normal(N) + mu * inlier
-    scores = np.clip(ndtr(latent), np.finfo(float).tiny, np.nextafter(1.0, 0.0))
+    scores = draw_scores(inlier, config.score_auc, score_rng)
 
     order = order_rng.permutation(N)
     truth = FrameTruth(
@@ -178,5 +175,6 @@ def simulate_pair(
         scores=scores[order],
         camera=cam,
         noise_sigma=config.noise_sigma,
+        score_auc=config.score_auc,
         truth=truth,
     )

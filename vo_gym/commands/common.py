@@ -176,7 +176,8 @@ def method_name(name: str = "--method") -> Callable[[str], str]:
 def score_inputs(method: str) -> dict[str, Any]:
     """``priors_fn`` / ``order_fn`` (``frame -> array``) that feed a method the frames' match scores
     when it needs them: PROSAC-style methods get the scores' ranking (best first), methods that need
-    priors (guided MLESAC) the scores as inlier probabilities; others get neither (uniform sampling)."""
+    priors (guided MLESAC's gamma_i) the scores calibrated to inlier probabilities
+    (``Frame.match_probabilities``); others get neither (uniform sampling)."""
     import numpy as np
 
     from stereovo.estimation import method_spec
@@ -185,7 +186,7 @@ def score_inputs(method: str) -> dict[str, Any]:
     if needs == "order":
         return {"order_fn": lambda frame: np.argsort(-frame.scores, kind="stable")}
     if needs == "priors":
-        return {"priors_fn": lambda frame: frame.scores}
+        return {"priors_fn": lambda frame: frame.match_probabilities}
     return {}
 
 
