@@ -124,7 +124,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--method", type=method_name("--method"), default="probabilistic",
                         help="our method to time (PROSAC-style methods get the match scores' order, "
-                             "guided MLESAC the scores as priors)")
+                             "guided MLESAC the scores calibrated to inlier probabilities)")
     parser.add_argument(
         "--outliers", choices=sorted(BENCH_OUTLIER_MIXES), default="random",
         help="outlier kinds: random mismatches (same contamination for every estimator) or a stereo blend",

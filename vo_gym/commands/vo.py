@@ -86,7 +86,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--method", default="probabilistic", choices=_LazyMethodChoices(),
         help="estimator; PROSAC-style methods sample by the match scores' order, guided MLESAC by the "
-             "scores as priors",
+             "scores calibrated to inlier probabilities (its gamma_i)",
     )
     parser.add_argument("--agent", default=None, metavar="NAME|PATH",
                         help="a learned sampler that sets the method's sampling weights each frame: a shipped "
