@@ -92,7 +92,8 @@ class ClassicalEstimator:
         inputs: None, ``"priors"``, ``"probabilities"`` or ``"order"``: how the frame's match scores
             are passed (:func:`score_inputs`).
             With None, a method that raises ``ValueError`` naming priors or order is
-            retried once with that input (same random stream).
+            retried once with that input, in the form :data:`METHOD_INPUTS` declares for it (same
+            random stream).
         options: ``estimate_motion`` options as ``(name, value)`` pairs; the frame's
             ``noise_sigma`` is always passed.
     """
@@ -119,6 +120,7 @@ class ClassicalEstimator:
             needed = _missing_input(err) if self.inputs is None else None
             if needed is None:
                 raise
+            needed = METHOD_INPUTS.get(self.method, needed)  # its declared form: guided MLESAC's calibrated priors
             rng.bit_generator.state = state
             return self._estimate(frame, rng, needed)
 

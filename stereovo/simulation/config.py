@@ -15,6 +15,7 @@ import numpy as np
 from stereovo.camera import StereoCamera
 from stereovo.options import Choice, Integer, Number, Option, is_real
 from stereovo.simulation.motion import PRESETS, MotionPreset
+from stereovo.simulation.scores import SCORE_AUC
 
 WORLDS: tuple[str, ...] = ("street", "open")
 """Landmark layouts: a street (ground, facades, clutter) or an open volume."""
@@ -32,7 +33,7 @@ _CONFIG_RULES: dict[str, Option] = {
     "n_frames": Integer(low=1, high=10**9),
     "n_correspondences": Integer(low=3, high=10**8),
     "noise_sigma": Number(low=0.0, high=MAX_NOISE_SIGMA_PX, unit="px"),
-    "score_auc": Number(low=0.5, high=1.0, high_open=True),
+    "score_auc": SCORE_AUC,
     "z_min": Number(low=0.0, high=1e6, low_open=True, unit="m"),
     "z_max": Number(low=0.0, high=1e6, low_open=True, unit="m"),
     "speed": Number(low=0.0, high=1e3, unit="m/frame", allow_none=True),

@@ -23,13 +23,14 @@ from scipy.special import expit, ndtr, ndtri
 
 from stereovo.options import Number
 
-AUC = Number(low=0.5, high=1.0, high_open=True)
-SHARE = Number(low=0.0, high=1.0, low_open=True, high_open=True)
+SCORE_AUC = Number(low=0.5, high=1.0, high_open=True)
+"""A score's ROC AUC as an inlier detector: 0.5 says nothing, 1 would separate perfectly."""
+INLIER_SHARE = Number(low=0.0, high=1.0, low_open=True, high_open=True)
 
 
 def latent_shift(auc: float) -> float:
     """``mu = sqrt(2) Phi^-1(auc)``: the inliers' latent mean for a score of ROC AUC ``auc``."""
-    return math.sqrt(2.0) * float(ndtri(AUC.check("auc", auc, prefix="")))
+    return math.sqrt(2.0) * float(ndtri(SCORE_AUC.check("auc", auc, prefix="")))
 
 
 def draw_scores(inlier: np.ndarray, auc: float, rng: np.random.Generator) -> np.ndarray:
@@ -57,9 +58,12 @@ def score_inlier_probability(scores: np.ndarray, auc: float, inlier_share: float
             ``inlier_share`` out of range.
     """
     s = np.asarray(scores, dtype=float)
-    if s.ndim != 1 or not np.all(np.isfinite(s)) or np.any((s < 0) | (s > 1)):
+    if s.ndim != 1:
         raise ValueError(f"scores must be a 1-D array of numbers in [0, 1], got shape {s.shape}")
+    bad = np.flatnonzero(~((s >= 0) & (s <= 1)))  # NaN fails both
+    if bad.size:
+        raise ValueError(f"scores must be a 1-D array of numbers in [0, 1], got {float(s[bad[0]])!r} at row {bad[0]}")
     mu = latent_shift(auc)
-    share = SHARE.check("inlier_share", inlier_share, prefix="")
+    share = INLIER_SHARE.check("inlier_share", inlier_share, prefix="")
     z = ndtri(np.clip(s, np.finfo(float).tiny, np.nextafter(1.0, 0.0)))
     return expit(mu * z - 0.5 * mu * mu + math.log(share / (1.0 - share)))
