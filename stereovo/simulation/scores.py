@@ -26,6 +26,7 @@ from stereovo.options import Number
 SCORE_AUC = Number(low=0.5, high=1.0, high_open=True)
 """A score's ROC AUC as an inlier detector: 0.5 says nothing, 1 would separate perfectly."""
 INLIER_SHARE = Number(low=0.0, high=1.0, low_open=True, high_open=True)
+_LOWEST, _HIGHEST = np.finfo(float).tiny, np.nextafter(1.0, 0.0)  # scores stay inside (0, 1): finite probits
 
 
 def latent_shift(auc: float) -> float:
@@ -36,7 +37,7 @@ def latent_shift(auc: float) -> float:
 def draw_scores(inlier: np.ndarray, auc: float, rng: np.random.Generator) -> np.ndarray:
     """``(N,)`` scores in ``(0, 1)`` for the rows' labels ``inlier (N,)`` bool, one standard normal each."""
     latent = rng.standard_normal(inlier.shape[0]) + latent_shift(auc) * inlier
-    return np.clip(ndtr(latent), np.finfo(float).tiny, np.nextafter(1.0, 0.0))
+    return np.clip(ndtr(latent), _LOWEST, _HIGHEST)
 
 
 def score_inlier_probability(scores: np.ndarray, auc: float, inlier_share: float = 0.5) -> np.ndarray:
@@ -65,5 +66,5 @@ def score_inlier_probability(scores: np.ndarray, auc: float, inlier_share: float
         raise ValueError(f"scores must be a 1-D array of numbers in [0, 1], got {float(s[bad[0]])!r} at row {bad[0]}")
     mu = latent_shift(auc)
     share = INLIER_SHARE.check("inlier_share", inlier_share, prefix="")
-    z = ndtri(np.clip(s, np.finfo(float).tiny, np.nextafter(1.0, 0.0)))
+    z = ndtri(np.clip(s, _LOWEST, _HIGHEST))
     return expit(mu * z - 0.5 * mu * mu + math.log(share / (1.0 - share)))
