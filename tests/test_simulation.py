@@ -254,12 +254,12 @@ def test_random_mismatches_are_far_from_where_the_landmark_went() -> None:
 def test_compiled_mismatches_equal_their_numpy_formulas(sigma: float) -> None:
     """The compiled outlier kernels draw what they always drew and compute it in the same order,
     so frames (and the checkpoints trained on them) do not change: checked against the formulas."""
-    from stereovo.simulation.outliers import _STEREO_FACTOR, _outlier_threshold
+    from stereovo.simulation.outliers import _STEREO_FACTOR, outlier_threshold
     from stereovo.simulation.outliers import random_mismatches as _random_mismatches
     from stereovo.simulation.outliers import stereo_mismatches as _stereo_mismatches
 
     config = SimulationConfig(noise_sigma=sigma, camera=StereoCamera(width=200, height=120))
-    cam, tau = config.camera, _outlier_threshold(sigma)
+    cam, tau = config.camera, outlier_threshold(sigma)
     rng = np.random.default_rng(3)
     d = rng.uniform(0.5, 150.0, 400)
     uL = rng.uniform(0.0, cam.width - 1, 400)

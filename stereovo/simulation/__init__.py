@@ -18,7 +18,8 @@ How a frame is made:
    frames: each frame pair is a fresh, seeded world patch.
 3. Correspondences. Exactly ``N`` rows: ``round(epsilon N)`` outliers split
    by ``outlier_mix`` (random mismatches, stereo mismatches, one moving
-   object), the rest inliers; Gaussian pixel noise with one ``v`` noise shared
+   object; with ``outliers="hostile"`` also the hostile kinds), the rest
+   inliers; Gaussian (or Student-t) pixel noise with one ``v`` noise shared
    by both images; rows shuffled.
 4. Scores. ``score = Phi(latent)`` with ``latent ~ N(mu, 1)`` for inliers and
    ``N(0, 1)`` for outliers, ``mu = sqrt(2) Phi^-1(auc)``: the ROC AUC of score
@@ -41,9 +42,11 @@ Where each part lives (this package re-exports the public names):
 
 - :mod:`~stereovo.simulation.frame`: :class:`Frame`, :class:`FrameTruth`, :class:`OutlierKind`;
 - :mod:`~stereovo.simulation.motion`: the velocity process, :class:`MotionPreset`, :data:`PRESETS`;
-- :mod:`~stereovo.simulation.config`: :class:`SimulationConfig`, :data:`WORLDS`;
+- :mod:`~stereovo.simulation.config`: :class:`SimulationConfig`, :data:`WORLDS`, :data:`OUTLIER_KINDS`, :data:`OUTLIER_PRESETS`;
 - :mod:`~stereovo.simulation.world`: the landmarks (step 2);
-- :mod:`~stereovo.simulation.outliers`: the three kinds of outliers (step 3);
+- :mod:`~stereovo.simulation.outliers`: the three default kinds of outliers (step 3);
+- :mod:`~stereovo.simulation.hostile`: the hostile kinds (``outliers="hostile"``): independent
+  left/right mismatches, duplicate matches, far clutter, repetitive texture; Student-t noise;
 - :mod:`~stereovo.simulation.scores`: the match-score model and its calibrated inlier probability;
 - :mod:`~stereovo.simulation.pair`: one frame pair from two poses: noise, scores, row order;
 - :mod:`~stereovo.simulation.sequence`: :func:`simulate_frame` and :class:`Sequence`.
@@ -51,7 +54,7 @@ Where each part lives (this package re-exports the public names):
 
 from __future__ import annotations
 
-from stereovo.simulation.config import MAX_NOISE_SIGMA_PX, WORLDS, SimulationConfig
+from stereovo.simulation.config import MAX_NOISE_SIGMA_PX, OUTLIER_KINDS, OUTLIER_PRESETS, WORLDS, SimulationConfig
 from stereovo.simulation.frame import Frame, FrameTruth, OutlierKind
 from stereovo.simulation.motion import PRESETS, MotionPreset
 from stereovo.simulation.scores import score_inlier_probability
@@ -62,6 +65,8 @@ __all__ = [
     "MotionPreset",
     "PRESETS",
     "WORLDS",
+    "OUTLIER_KINDS",
+    "OUTLIER_PRESETS",
     "SimulationConfig",
     "FrameTruth",
     "Frame",

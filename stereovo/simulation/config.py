@@ -17,6 +17,26 @@ from stereovo.options import Choice, Integer, Number, Option, is_real
 from stereovo.simulation.motion import PRESETS, MotionPreset
 from stereovo.simulation.scores import SCORE_AUC
 
+OUTLIER_KINDS: tuple[str, ...] = (
+    "random", "stereo", "moving", "independent", "duplicate", "far", "repetitive",
+)
+"""Names of the outlier kinds, in the order of :attr:`SimulationConfig.outlier_mix`'s weights: the
+default three (:mod:`stereovo.simulation.outliers`) and the hostile four
+(:mod:`stereovo.simulation.hostile`)."""
+
+OUTLIER_PRESETS: dict[str, dict] = {
+    "default": {"outlier_mix": (0.6, 0.2, 0.2), "noise_dof": None},
+    # Half the errors are the two a real front end makes most and the default never does
+    # (independent left/right moves and random points); the other half the remaining kinds.
+    "hostile": {
+        "outlier_mix": {"random": 0.25, "independent": 0.25, "duplicate": 0.1, "far": 0.15, "repetitive": 0.1,
+                        "stereo": 0.1, "moving": 0.05},
+        "noise_dof": 3.0,
+    },
+}
+"""``SimulationConfig.outliers`` presets: the outlier mix and the pixel noise's tail (Student-t
+degrees of freedom; None is Gaussian) that a config takes unless it sets them itself."""
+
 WORLDS: tuple[str, ...] = ("street", "open")
 """Landmark layouts: a street (ground, facades, clutter) or an open volume."""
 
@@ -37,6 +57,8 @@ _CONFIG_RULES: dict[str, Option] = {
     "z_min": Number(low=0.0, high=1e6, low_open=True, unit="m"),
     "z_max": Number(low=0.0, high=1e6, low_open=True, unit="m"),
     "speed": Number(low=0.0, high=1e3, unit="m/frame", allow_none=True),
+    "outliers": Choice(choices=tuple(OUTLIER_PRESETS)),
+    "noise_dof": Number(low=2.0, high=1e6, low_open=True, allow_none=True),
 }
 """Declarations (:mod:`stereovo.options`) of :class:`SimulationConfig`'s scalar fields."""
 
@@ -54,8 +76,15 @@ class SimulationConfig:
         noise_sigma: std of the Gaussian pixel noise on every coordinate (px, in [0, 1e3]).
         outlier_ratio: contamination epsilon in [0, 1), or ``(low, high)`` drawn
             uniformly per frame.
-        outlier_mix: non-negative weights of random mismatches, stereo mismatches
-            and moving-object points among the outliers (sum > 0).
+        outliers: a preset of :data:`OUTLIER_PRESETS`, ``"default"`` or ``"hostile"``: the
+            outlier mix and noise tail used where ``outlier_mix`` / ``noise_dof`` are None.
+        outlier_mix: non-negative weights (sum > 0) of the outlier kinds among the outliers: a
+            sequence in the order of :data:`OUTLIER_KINDS` (random mismatches, stereo mismatches,
+            moving-object points, then the hostile kinds; missing trailing weights are 0) or a
+            mapping from those names; None takes the ``outliers`` preset's. Stored as a tuple
+            without trailing zeros beyond the first three.
+        noise_dof: degrees of freedom (> 2) of Student-t pixel noise with scale ``noise_sigma``
+            (heavy-tailed errors); None takes the preset's (Gaussian for ``default``).
         score_auc: ROC AUC of the match score as an inlier detector, in [0.5, 1).
         z_min, z_max: depth range (m) of the landmarks in both frames.
         camera: the stereo rig.
@@ -72,12 +101,14 @@ class SimulationConfig:
     n_correspondences: int = 500
     noise_sigma: float = 0.5
     outlier_ratio: float | tuple[float, float] = 0.5
-    outlier_mix: tuple[float, float, float] = (0.6, 0.2, 0.2)
+    outlier_mix: tuple[float, ...] | dict[str, float] | None = None
     score_auc: float = 0.75
     z_min: float = 3.0
     z_max: float = 60.0
     camera: StereoCamera = StereoCamera()
     speed: float | None = None
+    outliers: str = "default"
+    noise_dof: float | None = None
 
     def __post_init__(self) -> None:
         def fail(name: str, requirement: str) -> None:
@@ -97,12 +128,24 @@ class SimulationConfig:
             fail("outlier_ratio", "in [0, 1) (a range needs 0 <= low <= high < 1)")
         object.__setattr__(self, "outlier_ratio", low if is_real(ratio) else (low, high))
 
-        mix = self.outlier_mix
-        mix_ok = isinstance(mix, (tuple, list, np.ndarray)) and len(mix) == 3
+        preset = OUTLIER_PRESETS[self.outliers]
+        if self.noise_dof is None and preset["noise_dof"] is not None:
+            object.__setattr__(self, "noise_dof", float(preset["noise_dof"]))
+        mix = preset["outlier_mix"] if self.outlier_mix is None else self.outlier_mix
+        if isinstance(mix, dict):
+            unknown = sorted(set(mix) - set(OUTLIER_KINDS))
+            if unknown:
+                fail("outlier_mix", f"a mapping from outlier kinds {OUTLIER_KINDS} (unknown: {unknown})")
+            mix = tuple(mix.get(kind, 0.0) for kind in OUTLIER_KINDS)
+        mix_ok = isinstance(mix, (tuple, list, np.ndarray)) and 3 <= len(mix) <= len(OUTLIER_KINDS)
         mix_ok = mix_ok and all(is_real(w) and math.isfinite(w) and w >= 0 for w in mix) and sum(mix) > 0
         if not mix_ok:
-            fail("outlier_mix", "3 finite weights >= 0 with a positive sum")
-        object.__setattr__(self, "outlier_mix", tuple(float(w) for w in mix))
+            fail("outlier_mix", f"3 to {len(OUTLIER_KINDS)} finite weights >= 0 with a positive sum "
+                 f"(kinds {', '.join(OUTLIER_KINDS)}), or a mapping from those names")
+        weights = [float(w) for w in mix]
+        while len(weights) > 3 and weights[-1] == 0.0:
+            weights.pop()
+        object.__setattr__(self, "outlier_mix", tuple(weights))
 
         object.__setattr__(self, "score_auc", float(self.score_auc))
 
@@ -118,6 +161,11 @@ class SimulationConfig:
 
         if self.speed is not None:
             object.__setattr__(self, "speed", float(self.speed))
+
+    @property
+    def outlier_weights(self) -> dict[str, float]:
+        """``outlier_mix`` as a mapping from every name of :data:`OUTLIER_KINDS` to its weight."""
+        return {kind: (self.outlier_mix[i] if i < len(self.outlier_mix) else 0.0) for i, kind in enumerate(OUTLIER_KINDS)}
 
     @property
     def resolved_world(self) -> str:

@@ -23,6 +23,10 @@ class OutlierKind(enum.IntEnum):
     RANDOM_MISMATCH = 1
     STEREO_MISMATCH = 2
     MOVING_OBJECT = 3
+    INDEPENDENT_MISMATCH = 4  # left and right pixels at k moved independently (hostile)
+    DUPLICATE_MATCH = 5  # a frame k-1 point matched a second time, to another landmark (hostile)
+    FAR_CLUTTER = 6  # a drifting sky-like point at very large depth (hostile)
+    REPETITIVE_TEXTURE = 7  # a cluster consistent with a wrong motion at a wrong depth (hostile)
 
 
 @dataclass(frozen=True, eq=False)

@@ -2,7 +2,7 @@
 
 Every outlier is detectable: its noise-free frame-k measurement lies at least
 ``max(4 px, 8 sigma)`` (norm over ``uL, v, uR``) from where the true motion would put
-it (:func:`_outlier_threshold`); draws that land nearer are redrawn. Stereo
+it (:func:`outlier_threshold`); draws that land nearer are redrawn. Stereo
 mismatches also carry a depth error of at least 20 %.
 """
 
@@ -23,7 +23,7 @@ _MIN_OUTLIER_PX = 4.0
 _STEREO_FACTOR = (1.25, 2.5)  # range of the disparity ratio of a stereo mismatch (>= 20 % depth error)
 
 
-def _outlier_threshold(sigma: float) -> float:
+def outlier_threshold(sigma: float) -> float:
     """Minimum pixel distance (px) between an outlier and where the true motion puts it."""
     return max(_MIN_OUTLIER_PX, 8.0 * sigma)
 
@@ -130,7 +130,7 @@ def random_mismatches(
     n, pool, cam = len(rows), len(meas_curr), config.camera
     fake = np.empty((n, 4))
     todo = np.arange(n)
-    tau = _outlier_threshold(config.noise_sigma)
+    tau = outlier_threshold(config.noise_sigma)
     rows = np.ascontiguousarray(rows, dtype=np.int64)
     meas_curr = np.ascontiguousarray(meas_curr, dtype=float)
     for _ in range(MAX_REDRAWS):
@@ -161,7 +161,7 @@ def stereo_mismatches(meas: np.ndarray, config: SimulationConfig, rng: np.random
     want_up = rng.random(n)
     out = np.array(meas, dtype=float)  # a C-ordered copy
     floor = cam.min_disparity + max(0.5, 3.0 * config.noise_sigma)
-    _move_right_points(out, factor, want_up, _outlier_threshold(config.noise_sigma), floor)
+    _move_right_points(out, factor, want_up, outlier_threshold(config.noise_sigma), floor)
     return out
 
 
@@ -201,7 +201,7 @@ def moving_object(
         return np.empty((0, 3)), np.empty((0, 3))
     cam = config.camera
     cam_vector = camera_vector(cam)
-    tau = _outlier_threshold(config.noise_sigma)
+    tau = outlier_threshold(config.noise_sigma)
     street = config.resolved_world == "street"
     z_lo, z_hi = max(5.0, config.z_min + 2.0), min(25.0, config.z_max - 2.0)
     if z_lo > z_hi:

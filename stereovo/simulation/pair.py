@@ -19,7 +19,21 @@ from stereovo.geometry import invert_transform
 from stereovo.seeding import seeded_generators
 from stereovo.simulation.config import SimulationConfig
 from stereovo.simulation.frame import Frame, FrameTruth, OutlierKind
-from stereovo.simulation.outliers import MAX_REDRAWS, moving_object, random_mismatches, stereo_mismatches
+from stereovo.simulation.hostile import (
+    duplicate_matches,
+    far_clutter,
+    independent_mismatches,
+    repetitive_cluster_size,
+    repetitive_texture,
+    student_t_scale,
+)
+from stereovo.simulation.outliers import (
+    MAX_REDRAWS,
+    moving_object,
+    outlier_threshold,
+    random_mismatches,
+    stereo_mismatches,
+)
 from stereovo.simulation.scores import draw_scores
 from stereovo.simulation.world import visible_landmarks
 
@@ -78,14 +92,15 @@ def _noisy_rows(meas, z, sigma, out):
 
 
 def _add_noise(
-    meas: np.ndarray, normal: np.ndarray, config: SimulationConfig, rng: np.random.Generator
+    meas: np.ndarray, normal: np.ndarray, config: SimulationConfig, rng: np.random.Generator, free: int = 0
 ) -> np.ndarray:
     """Noisy copies of valid noise-free measurements ``(N, 4)``.
 
-    ``normal`` ``(N, 3)`` are standard-normal draws for ``(uL, v, uR)``; the
+    ``normal`` ``(N, 3)`` are standard-normal (or Student-t) draws for ``(uL, v, uR)``; the
     ``v`` draw is shared by both images (rectified pair). Rows that leave the
     image or lose their disparity are redrawn (a truncated Gaussian), so every
-    measurement stays usable.
+    measurement stays usable, except the last ``free`` rows (the hostile kinds), which keep
+    their first draw: losing the depth is what they are for.
     """
     sigma, cam = config.noise_sigma, config.camera
 
@@ -94,6 +109,11 @@ def _add_noise(
         _noisy_rows(np.ascontiguousarray(rows, dtype=float), np.ascontiguousarray(z, dtype=float), float(sigma), out)
         return out
 
+    if free:
+        out = noisy(meas, normal)
+        if free < len(meas):
+            out[:-free] = _add_noise(meas[:-free], normal[:-free], config, rng)
+        return out
     out = noisy(meas, normal)
     for _ in range(MAX_REDRAWS):
         bad = np.flatnonzero(~_valid(out, cam))
@@ -120,7 +140,11 @@ def simulate_pair(
     epsilon = low if low == high else float(rng.uniform(low, high))
     n_out = int(round(epsilon * N))
     n_in = N - n_out
-    n_random, n_stereo, n_moving = _apportion(n_out, config.outlier_mix)
+    counts = _apportion(n_out, config.outlier_mix)
+    n_random, n_stereo, n_moving = counts[:3]
+    n_indep, n_dup, n_far, n_rep = (tuple(counts[3:]) + (0, 0, 0, 0))[:4]
+    if n_dup and n_in < 2:  # a duplicate needs two inliers to copy: those rows become random mismatches
+        n_random, n_dup = n_random + n_dup, 0
 
     # World-to-camera @ camera-k-1-to-world: how cameras k-1 and k see points given in camera k-1's
     # frame. The second is the relative motion itself (geometry.relative_motion's product).
@@ -129,31 +153,60 @@ def simulate_pair(
     rotation, translation = to_curr[:3, :3].copy(), to_curr[:3, 3].copy()
 
     # Two spare landmarks guarantee that a random mismatch always has another landmark to borrow.
+    # The hostile kinds that start from a landmark take theirs after those (none by default).
     n_pool = n_in + n_random + n_stereo
-    X_prev, X_curr = visible_landmarks(n_pool + 2, config, to_prev, to_curr, landmark_rng)
+    n_landmarks = n_pool + n_indep + n_rep
+    X_prev, X_curr = visible_landmarks(n_landmarks + 2, config, to_prev, to_curr, landmark_rng)
+    if n_landmarks > n_pool:  # the two spares stay at rows n_pool, n_pool + 1, as by default
+        X_prev = np.concatenate([X_prev[:n_pool], X_prev[n_landmarks:], X_prev[n_pool:n_landmarks]])
+        X_curr = np.concatenate([X_curr[:n_pool], X_curr[n_landmarks:], X_curr[n_pool:n_landmarks]])
     meas_prev, meas_curr = cam.project(X_prev), cam.project(X_curr)
     O_prev, O_curr = moving_object(n_moving, config, to_prev, to_curr, outlier_rng)
 
     random_rows = np.arange(n_in, n_in + n_random)
     stereo_rows = np.arange(n_in + n_random, n_pool)
-    clean_prev = np.concatenate([meas_prev[:n_pool], cam.project(O_prev).reshape(-1, 4)])
-    clean_curr = np.concatenate([
+    parts_prev = [meas_prev[:n_pool], cam.project(O_prev).reshape(-1, 4)]
+    parts_curr = [
         meas_curr[:n_in],
         random_mismatches(random_rows, meas_curr, config, outlier_rng),
         stereo_mismatches(meas_curr[stereo_rows], config, outlier_rng),
         cam.project(O_curr).reshape(-1, 4),
-    ])
+    ]
+    # The hostile rows come last and are "free" (not redrawn to keep a depth); duplicates are copied
+    # from the inlier rows after the noise, so they hold a placeholder until then.
+    n_free = n_indep + n_dup + n_far + n_rep
+    if n_free:
+        tau = outlier_threshold(config.noise_sigma)
+        indep = slice(n_pool + 2, n_pool + 2 + n_indep)
+        rep = slice(n_pool + 2 + n_indep, n_landmarks + 2)
+        far_prev, far_curr = far_clutter(n_far, cam, rotation, translation, tau, outlier_rng)
+        rep_prev, rep_curr = repetitive_texture(
+            X_prev[rep], meas_curr[rep], repetitive_cluster_size(n_in), cam, rotation, translation, tau, outlier_rng
+        )
+        parts_prev += [meas_prev[indep], np.zeros((n_dup, 4)), far_prev, rep_prev]
+        parts_curr += [
+            independent_mismatches(meas_curr[indep], cam, tau, outlier_rng), np.zeros((n_dup, 4)), far_curr, rep_curr,
+        ]
+    clean_prev, clean_curr = np.concatenate(parts_prev), np.concatenate(parts_curr)
     kind = np.repeat(
         np.array([OutlierKind.INLIER, OutlierKind.RANDOM_MISMATCH, OutlierKind.STEREO_MISMATCH,
-                  OutlierKind.MOVING_OBJECT], dtype=np.int8),
-        [n_in, n_random, n_stereo, n_moving],
+                  OutlierKind.MOVING_OBJECT, OutlierKind.INDEPENDENT_MISMATCH, OutlierKind.DUPLICATE_MATCH,
+                  OutlierKind.FAR_CLUTTER, OutlierKind.REPETITIVE_TEXTURE], dtype=np.int8),
+        [n_in, n_random, n_stereo, n_moving, n_indep, n_dup, n_far, n_rep],
     )
     assert clean_prev.shape == clean_curr.shape == (N, 4)
 
     # One (2, N, 3) draw in row order, so the same seed gives the same standard-normal noise at any sigma.
     normal = noise_rng.standard_normal((2, N, 3))
-    prev = _add_noise(clean_prev, normal[0], config, noise_rng)
-    curr = _add_noise(clean_curr, normal[1], config, noise_rng)
+    if config.noise_dof is not None:
+        normal = normal * student_t_scale(config.noise_dof, normal.shape, noise_rng)
+    prev = _add_noise(clean_prev, normal[0], config, noise_rng, free=n_free)
+    curr = _add_noise(clean_curr, normal[1], config, noise_rng, free=n_free)
+    if n_dup:
+        dup = slice(N - n_far - n_rep - n_dup, N - n_far - n_rep)
+        prev[dup], curr[dup] = duplicate_matches(
+            prev[:n_in], curr[:n_in], clean_curr[:n_in], n_dup, outlier_threshold(config.noise_sigma), outlier_rng
+        )
 
     inlier = kind == OutlierKind.INLIER
     scores = draw_scores(inlier, config.score_auc, score_rng)
