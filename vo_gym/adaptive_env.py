@@ -171,7 +171,7 @@ class StereoVOAdaptiveEnv(gym.Env):
     ``reward_mode``, ``hypothesis_cost`` (default 0.002), ``success_bonus``, ``failure_reward``,
     ``action_bound`` (default 10), ``logit_scale`` (default 1), ``max_correspondences``; the
     simulator's settings as :class:`vo_gym.StereoVOEnv` (``n_frames``, ``n_correspondences``,
-    ``outlier_ratio``, ``outlier_mix``, ``score_auc``, ...); ``method`` (the judge, default
+    ``outlier_ratio``, ``outliers`` (``"default"`` / ``"hostile"``), ``outlier_mix``, ``noise_dof``, ``score_auc``, ...); ``method`` (the judge, default
     ``"msac"``) and further estimator options (defaults :data:`vo_gym.env.DEFAULT_ESTIMATOR_OPTIONS`).
     Invalid values raise ``ValueError`` naming the argument.
 
@@ -199,12 +199,14 @@ class StereoVOAdaptiveEnv(gym.Env):
         n_correspondences: int = 500,
         noise_sigma: float = 0.5,
         outlier_ratio: float | tuple[float, float] = 0.5,
-        outlier_mix: tuple[float, float, float] = (0.6, 0.2, 0.2),
+        outlier_mix: tuple[float, ...] | dict[str, float] | None = None,
         score_auc: float = 0.75,
         z_min: float = 3.0,
         z_max: float = 60.0,
         camera: StereoCamera | None = None,
         speed: float | None = None,
+        outliers: str = "default",
+        noise_dof: float | None = None,
         method: str = "msac",
         **estimator_options: Any,
     ) -> None:
@@ -227,6 +229,7 @@ class StereoVOAdaptiveEnv(gym.Env):
                 noise_sigma=noise_sigma, outlier_ratio=outlier_ratio, outlier_mix=outlier_mix,
                 score_auc=score_auc, z_min=z_min, z_max=z_max,
                 camera=StereoCamera() if camera is None else camera, speed=speed,
+                outliers=outliers, noise_dof=noise_dof,
             )
         except (TypeError, ValueError) as err:
             raise ValueError(f"StereoVOAdaptiveEnv: invalid simulator setting: {err}") from None

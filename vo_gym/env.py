@@ -188,8 +188,10 @@ class StereoVOEnv(gym.Env):
     ``preset`` (``"car"``/``"free"``), ``world`` (None, ``"street"``,
     ``"open"``), ``n_frames`` (steps per episode), ``n_correspondences``,
     ``noise_sigma`` (px), ``outlier_ratio`` (a number or a ``(low, high)`` range
-    drawn per frame), ``outlier_mix`` (weights of random / stereo / moving-object
-    outliers), ``score_auc`` (match-score informativeness, 0.5 = useless),
+    drawn per frame), ``outliers`` (``"default"`` or ``"hostile"``: the preset of
+    outlier kinds and noise tail, :data:`stereovo.simulation.OUTLIER_PRESETS`), ``outlier_mix``
+    (weights of the outlier kinds; None = the preset's), ``noise_dof`` (Student-t noise; None =
+    the preset's), ``score_auc`` (match-score informativeness, 0.5 = useless),
     ``z_min``, ``z_max`` (m), ``camera`` (a StereoCamera; None = KITTI-like),
     ``speed`` (m/frame; None = the preset's).
 
@@ -235,12 +237,14 @@ class StereoVOEnv(gym.Env):
         n_correspondences: int = 500,
         noise_sigma: float = 0.5,
         outlier_ratio: float | tuple[float, float] = 0.5,
-        outlier_mix: tuple[float, float, float] = (0.6, 0.2, 0.2),
+        outlier_mix: tuple[float, ...] | dict[str, float] | None = None,
         score_auc: float = 0.75,
         z_min: float = 3.0,
         z_max: float = 60.0,
         camera: StereoCamera | None = None,
         speed: float | None = None,
+        outliers: str = "default",
+        noise_dof: float | None = None,
         # estimator
         method: str = "msac",
         budget: int | None = 32,
@@ -282,6 +286,7 @@ class StereoVOEnv(gym.Env):
                 noise_sigma=noise_sigma, outlier_ratio=outlier_ratio, outlier_mix=outlier_mix,
                 score_auc=score_auc, z_min=z_min, z_max=z_max,
                 camera=StereoCamera() if camera is None else camera, speed=speed,
+                outliers=outliers, noise_dof=noise_dof,
             )
         except (TypeError, ValueError) as err:
             raise ValueError(f"StereoVOEnv: invalid simulator setting: {err}") from None
