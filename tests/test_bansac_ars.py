@@ -255,6 +255,6 @@ def test_feedback_hook_sees_every_verified_batch_and_counters_are_merged():
     seen = components.sampler.seen
     assert [s[4] for s in seen] == [4, 8, 12]
     assert all(s[1] == (s[0], problem.n) and s[2] == (s[0], problem.n) and s[3] == (s[0], 3) for s in seen)
-    assert hooked.counters == {"batches_seen": 3}
+    assert hooked.counters == {"batches_seen": 3, "refine_rolled_back": 0}
     # the hook's residuals are counted: full residuals of every scored hypothesis once more
     assert hooked.n_point_checks == plain.n_point_checks + hooked.n_scored * problem.n

@@ -65,6 +65,7 @@ def test_inputs_carry_no_label():
     assert {f.name for f in dataclasses.fields(StereoProblem)} == {
         "prev", "curr", "camera", "noise_sigma", "points_prev", "points_curr", "cov_prev", "cov_curr",
         "usable",  # which rows have depth: computed from the measurements
+        "min_disparity_sigmas",  # the rule for that: a setting, not a label
     }
 
 
@@ -151,9 +152,9 @@ def test_malformed_input(sequence, camera):
     with pytest.raises(ValueError, match="same number of rows"):
         compute_features(frame.prev, frame.curr[:-1], *args[2:])
     bad = frame.curr.copy()
-    bad[3, 0] = np.nan
-    with pytest.raises(ValueError, match="NaN"):
-        compute_features(frame.prev, bad, *args[2:])
+    bad[3, 0] = np.nan  # a front end's failed match: an unusable row, flagged, not an error
+    flagged = compute_features(frame.prev, bad, *args[2:])
+    assert np.all(np.isfinite(flagged)) and flagged[3, 8] == FEATURE_BOUND and flagged[3, 13] == 0.0
     with pytest.raises(ValueError, match="scores"):
         compute_features(frame.prev, frame.curr, frame.scores[:-1], camera, 0.5)
     with pytest.raises(ValueError, match="noise_sigma"):

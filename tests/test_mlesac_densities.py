@@ -28,11 +28,13 @@ CAMERA = StereoCamera(fx=500.0, fy=400.0, cx=320.0, cy=240.0, baseline=0.25, wid
 
 
 def problem_at_depths(depths_curr=(5.0, 10.0, 25.0)) -> StereoProblem:
-    """Points on and off the optical axis at known depths at k (disparity fx b / Z = 125 / Z px)."""
+    """Points on and off the optical axis at known depths at k (disparity fx b / Z = 125 / Z px);
+    every row kept (min_disparity_sigmas 0), so that very far rows reach the density's floor."""
     depths = np.asarray(depths_curr)
     curr_points = np.stack([np.linspace(-1.0, 1.0, depths.size), np.linspace(0.5, -0.5, depths.size), depths], 1)
     prev_points = curr_points + [0.0, 0.0, 1.0]
-    return StereoProblem.build(CAMERA.project(prev_points), CAMERA.project(curr_points), CAMERA, 0.5)
+    return StereoProblem.build(CAMERA.project(prev_points), CAMERA.project(curr_points), CAMERA, 0.5,
+                               min_disparity_sigmas=0.0)
 
 
 def test_outlier_density_in_measurement_space_mapped_to_metres():

@@ -346,7 +346,10 @@ class StereoVOAdaptiveEnv(gym.Env):
 
     def _start_frame(self) -> None:
         frame = self._frame = self._sequence.frame(self._k)
-        self._problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, self.estimator_options.noise_sigma)
+        self._problem = StereoProblem.build(
+            frame.prev, frame.curr, frame.camera, self.estimator_options.noise_sigma,
+            self.estimator_options.min_disparity_sigmas,
+        )
         components = self._spec.build(self._problem, self.estimator_options, None, None, {})
         self._sampler = components.sampler = AgentPriorSampler(frame.n)
         components.termination = FixedBudget(self.max_hypotheses)

@@ -528,7 +528,9 @@ class StereoVOEnv(gym.Env):
     def _observation(self) -> dict[str, np.ndarray]:
         frame = self._frame
         # Built once per frame: the features read its triangulated points, the step's estimate reuses it.
-        self._problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, self.estimator_noise_sigma)
+        self._problem = StereoProblem.build(
+            frame.prev, frame.curr, frame.camera, self.estimator_noise_sigma, self.estimator_options.min_disparity_sigmas
+        )
         feats = compute_features(
             frame.prev, frame.curr, frame.scores, frame.camera, self.estimator_noise_sigma, self._chain.last_motion,
             problem=self._problem,

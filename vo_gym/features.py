@@ -287,10 +287,11 @@ def compute_features(
         points_prev, points_curr = problem.points_prev, problem.points_curr
         cov_prev, cov_curr = problem.cov_prev, problem.cov_curr
         usable = problem.usable  # None: every row has depth
-    else:
-        points_prev, cov_prev, usable_prev = camera.triangulate_usable(prev, noise_sigma)
-        points_curr, cov_curr, usable_curr = camera.triangulate_usable(curr, noise_sigma)
-        usable = None if (usable_prev.all() and usable_curr.all()) else usable_prev & usable_curr
+    else:  # the estimator's own rule for which rows have a depth (NaN rows and unresolvable disparities too)
+        problem = StereoProblem.build(prev, curr, camera, noise_sigma)
+        points_prev, points_curr = problem.points_prev, problem.points_curr
+        cov_prev, cov_curr = problem.cov_prev, problem.cov_curr
+        usable = problem.usable
 
     out[:, 0] = scores
     by_score = np.argsort(-scores, kind="stable")  # best first; also picks the consistency anchors
@@ -326,5 +327,6 @@ def compute_features(
         out[~usable, 8:11] = FEATURE_BOUND
         out[~usable, 11] = 0.0
         out[~usable, 13] = 0.0
+        out[~usable, 2:8] = np.nan_to_num(out[~usable, 2:8], nan=0.0)  # a NaN row's pixels say nothing
     np.clip(out, -FEATURE_BOUND, FEATURE_BOUND, out=out)
     return out

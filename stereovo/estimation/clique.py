@@ -50,7 +50,7 @@ import time
 
 import numpy as np
 
-from stereovo.estimation.loop import RansacComponents, RansacReport, run_ransac
+from stereovo.estimation.loop import RansacComponents, RansacReport, final_report, run_ransac
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.refinement import ReprojectionRefiner
 from stereovo.estimation.reprojection import gauss_newton_steps
@@ -324,13 +324,11 @@ def detect_inliers(
             return failed(f"all samples degenerate (the consistent set of {clique.size} matches is collinear)",
                           n_scored=0, n_degenerate=1)
         return failed(f"no consensus (the fit on the consistent set of {clique.size} matches: {inner.status})")
+    # Howard's re-gating under the fit, then the shared end (refinement, post-condition) of every method
     residual_model = ReprojectionResidual(threshold_sq)
     inliers = residual_model.squared(problem, R[None], t[None])[0] < threshold_sq
     checks += n
-    if refiner is not None and np.count_nonzero(inliers) >= SAMPLE_SIZE:
-        R, t, inliers = refiner.refine(problem, R, t, inliers, residual_model, threshold_sq)
-        checks += n * refiner.rounds
-    count = int(np.count_nonzero(inliers))
-    if count < max(min_inliers, SAMPLE_SIZE):
-        return failed(f"no consensus (clique fit has {count} inliers, need {min_inliers})", float(count))
-    return RansacReport(R, t, inliers, float(count), "ok", n_point_checks=checks, counters=counters, **counts)
+    return final_report(
+        problem, R, t, inliers, float(np.count_nonzero(inliers)), refiner, residual_model, InlierCount(),
+        threshold_sq, max(min_inliers, SAMPLE_SIZE), counters, n_point_checks=checks, **counts,
+    )

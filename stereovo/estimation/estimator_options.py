@@ -43,6 +43,7 @@ ESTIMATOR_OPTION_RULES: dict[str, Option] = {
     "local_refit": Boolean(),
     "least_squares_refit": Boolean(),
     "min_inliers": Integer(low=SAMPLE_SIZE, high=MAX_COUNT),
+    "min_disparity_sigmas": Number(low=0.0, high=1e3),
 }
 """The declaration of every :class:`EstimatorOptions` field (:mod:`stereovo.options`), by name."""
 
@@ -89,6 +90,10 @@ class EstimatorOptions:
             reprojection error, one round) and re-select the inliers once under the method's gate;
             False keeps the best hypothesis as it is.
         min_inliers: fewer inliers in the final model is reported as "no consensus".
+        min_disparity_sigmas: a row whose disparity at k-1 or k is at or below this many standard
+            deviations of the disparity noise (``sqrt(2) noise_sigma``) has no resolvable depth and
+            is unusable (:mod:`stereovo.estimation.problem`); 0 keeps every row with a disparity
+            above ``camera.min_disparity``.
 
     The defaults are the papers' recipes. Each registered method may declare its own defaults
     (:attr:`MethodSpec.defaults`, applied by :func:`estimate_motion` unless the caller gives the
@@ -114,6 +119,7 @@ class EstimatorOptions:
     local_refit: bool = False
     least_squares_refit: bool = True
     min_inliers: int = 6
+    min_disparity_sigmas: float = 2.0
 
     def __post_init__(self) -> None:
         # One contract (stereovo.options): integers only, bools only, finite numbers in range;

@@ -127,6 +127,9 @@ class RansacReport:
     # The components' own counts (``counters()`` of the sampler, verifier, termination, local
     # optimiser, sample check and refiner, merged by name); a direct runner fills it itself.
     counters: dict = field(default_factory=dict)
+    # (residual model, threshold_sq) that selected ``inliers`` under the returned pose: the
+    # method's own final judge (:func:`final_report`); None where no model was judged
+    gate: tuple | None = None
 
 
 @dataclass
@@ -268,10 +271,9 @@ class RansacSearch:
         self.best_R, self.best_t, self.best_inliers, self.best_score = R, t, inliers, float(score)
 
     def finish(self) -> RansacReport:
-        """The final refinement of the best model and the run's report."""
+        """The final refinement of the best model and the run's report (:func:`final_report`)."""
         c, n = self.components, self.n
-        best_R, best_t, best_inliers, best_score = self.best_R, self.best_t, self.best_inliers, self.best_score
-        report = dict(
+        counts = dict(
             n_hypotheses=self.drawn,
             n_scored=self.scored,
             n_point_checks=self.checks,
@@ -281,28 +283,89 @@ class RansacSearch:
             best_found_at=self.found_at,
         )
         if self.scored == 0:
-            report["counters"] = component_counters(c)
             reason = "all samples degenerate" if self.rejected == 0 else (
                 f"no sample passed the sample check ({self.rejected} of {self.drawn} rejected, "
                 f"{self.degenerate} degenerate)"
             )
-            return RansacReport(np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), -np.inf, f"failed: {reason}", **report)
-        if c.refiner is not None and np.count_nonzero(best_inliers) >= 3:
-            best_R, best_t, best_inliers, residual_sq = c.refiner.refine_with_residuals(
-                self.problem, best_R, best_t, best_inliers, c.residual_model, c.threshold_sq
-            )
-            if residual_sq is None:  # not computed in the loop's own model: score anew
-                residual_sq = self.ctx.residuals(best_R[None], best_t[None])[0]
-            best_score = float(c.quality.score(residual_sq[None], c.threshold_sq)[0])
-        report["counters"] = component_counters(c)
-        if np.count_nonzero(best_inliers) < max(c.min_inliers, 3):
-            return RansacReport(
-                np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), best_score,
-                f"failed: no consensus (best model has {int(np.count_nonzero(best_inliers))} inliers, "
-                f"need {c.min_inliers})",
-                **report,
-            )
-        return RansacReport(best_R, best_t, best_inliers, best_score, "ok", **report)
+            return RansacReport(np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), -np.inf, f"failed: {reason}",
+                                counters=component_counters(c), **counts)
+        return final_report(
+            self.problem, self.best_R, self.best_t, self.best_inliers, self.best_score, c.refiner,
+            c.residual_model, c.quality, c.threshold_sq, c.min_inliers, component_counters(c), **counts,
+        )
+
+
+def final_report(
+    problem: StereoProblem,
+    R: np.ndarray,
+    t: np.ndarray,
+    inliers: np.ndarray,
+    score: float,
+    refiner: ReprojectionRefiner | None,
+    residual_model: ResidualModel,
+    quality: Quality,
+    threshold_sq: float,
+    min_inliers: int,
+    counters: dict,
+    **counts: int,
+) -> RansacReport:
+    """Refine the best model ``(R (3, 3), t (3,))`` with consensus ``inliers (N,)`` and score
+    ``score`` (under ``residual_model`` / ``quality`` / ``threshold_sq``), and report it.
+
+    This is where every method's final model and status are decided (the loop's
+    :meth:`RansacSearch.finish` and the direct estimators end here), so the post-condition holds
+    for all of them: status ``"ok"`` only if the returned pose is finite and at least
+    ``max(min_inliers, 3)`` rows pass the method's own final gate under it, and the returned
+    inliers are exactly those rows, selected anew under the returned pose (never carried over
+    from an earlier hypothesis). The gate is the refiner's where it carries one (``probabilistic``
+    selects its final inliers in pixels), else the method's residual model and threshold.
+
+    The refinement replaces the best model only if its score under that gate, on the same rows,
+    is no worse (ties go to the refined pose, the least-squares fit on the same consensus); one
+    that diverges (non-finite values) or loses support is rolled back to the model it started
+    from (``counters["refine_rolled_back"]``). ``counts``: the :class:`RansacReport` counts; the
+    point checks spent here are added to ``n_point_checks``.
+    """
+    n = problem.n
+    gate = None if refiner is None else refiner.gate
+    gate_model, gate_sq = (residual_model, threshold_sq) if gate is None else gate
+    checks = 0
+    residual_sq = None  # the gate's residuals of (R, t), once computed
+    if gate is not None or not np.isfinite(score):
+        residual_sq = gate_model.squared(problem, R[None], t[None])[0]
+        score = float(quality.score(residual_sq[None], gate_sq)[0])
+        checks += n
+    if refiner is not None:
+        counters = {**counters, "refine_rolled_back": 0}
+    if refiner is not None and np.count_nonzero(inliers) >= 3:
+        R_new, t_new, _, new_sq = refiner.refine_with_residuals(problem, R, t, inliers, residual_model, threshold_sq)
+        checks += n * refiner.rounds
+        new_score = -np.inf
+        if np.all(np.isfinite(R_new)) and np.all(np.isfinite(t_new)):
+            if new_sq is None:  # not computed in the gate's model: score anew
+                new_sq = gate_model.squared(problem, R_new[None], t_new[None])[0]
+                checks += n
+            new_score = float(quality.score(new_sq[None], gate_sq)[0])
+        if new_score >= score:
+            R, t, score, residual_sq = R_new, t_new, new_score, new_sq
+        else:
+            counters["refine_rolled_back"] = 1
+    if residual_sq is None:
+        residual_sq = gate_model.squared(problem, R[None], t[None])[0]
+        checks += n
+    counts["n_point_checks"] = counts.get("n_point_checks", 0) + checks
+    final = np.asarray(residual_sq < gate_sq)
+    count = int(np.count_nonzero(final))
+    need = max(int(min_inliers), 3)
+    if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
+        reason = "the best model is not finite"
+    elif count < need:
+        reason = f"no consensus (best model has {count} inliers under its final gate, need {need})"
+    else:
+        return RansacReport(np.array(R, dtype=float), np.array(t, dtype=float), final, score, "ok",
+                            counters=counters, gate=(gate_model, gate_sq), **counts)
+    return RansacReport(np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), score, f"failed: {reason}",
+                        counters=counters, gate=(gate_model, gate_sq), **counts)
 
 
 def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.random.Generator) -> RansacReport:

@@ -106,8 +106,9 @@ class MotionEstimate:
         score: the final model's quality under the method's own measure.
         report: the loop's full report on the usable rows (None when the frame failed before the
             loop); its masks have one entry per usable row.
-        unusable: ``(N,)`` bool, the rows without depth (disparity at or below
-            ``camera.min_disparity`` at k-1 or k, or no finite triangulation). They were never
+        unusable: ``(N,)`` bool, the rows without a resolvable depth (NaN or inf, disparity at or
+            below ``camera.min_disparity`` or within ``min_disparity_sigmas`` noise standard
+            deviations at k-1 or k, or no finite triangulation: :mod:`stereovo.estimation.problem`). They were never
             sampled and are never inliers; see :attr:`n_unusable`.
         covariance: ``(6, 6)`` covariance of the motion's error vector
             ``e = (log(R_est R_true^T), t_est - t_true)`` (rotation first, rad, in the world-side,
@@ -261,21 +262,25 @@ def estimate_motion(
         **options: fields of :class:`EstimatorOptions` and the method's own options.
 
     Returns:
-        A :class:`MotionEstimate`. Rows without depth (disparity at or below
-        ``camera.min_disparity`` at k-1 or k) are outliers: the method runs on the other rows and
-        the estimate names them (``unusable``, ``n_unusable``). A hopeless frame (fewer than 3
-        or ``min_inliers`` usable rows, every sample degenerate, no consensus) gives
-        ``status="failed: ..."`` with identity motion; it never raises.
+        A :class:`MotionEstimate`. Rows without a resolvable depth (NaN or inf; disparity at or
+        below ``camera.min_disparity``, or at or below ``min_disparity_sigmas`` standard deviations
+        of its noise, at k-1 or k) are outliers: the method runs on the other rows and the
+        estimate names them (``unusable``, ``n_unusable``). A hopeless frame (fewer than 3 or
+        ``min_inliers`` usable rows, every sample degenerate, no consensus) gives
+        ``status="failed: ..."`` with identity motion; it never raises. ``"ok"`` means the
+        returned pose is finite and the returned inliers are exactly the rows that pass the
+        method's own final gate under it, at least ``min_inliers`` of them
+        (:func:`stereovo.estimation.loop.final_report`).
 
     Raises:
-        ValueError: malformed input (shapes, NaN/inf, mismatched N, complex or non-numeric
-            values), bad priors/order, an unknown method or option.
+        ValueError: malformed input (shapes, mismatched N, complex or non-numeric values), bad
+            priors/order, an unknown method or option.
     """
     announce_compiling()  # one line on the first run after installing, else nothing
     start = time.perf_counter()
     spec = method_spec(method)
     shared, extra = _split_options(spec, options)
-    problem = StereoProblem.build(prev, curr, camera, shared.noise_sigma)
+    problem = StereoProblem.build(prev, curr, camera, shared.noise_sigma, shared.min_disparity_sigmas)
     return _estimate(problem, spec, shared, extra, priors, order, rng, start)
 
 
@@ -308,7 +313,14 @@ def estimate_problem(
             f"noise_sigma={options['noise_sigma']!r} differs from the problem's {problem.noise_sigma!r}, "
             "with which its covariances were computed"
         )
-    shared, extra = _split_options(spec, {**options, "noise_sigma": problem.noise_sigma})
+    if "min_disparity_sigmas" in options and options["min_disparity_sigmas"] != problem.min_disparity_sigmas:
+        raise ValueError(
+            f"min_disparity_sigmas={options['min_disparity_sigmas']!r} differs from the problem's "
+            f"{problem.min_disparity_sigmas!r}, with which its unusable rows were chosen"
+        )
+    shared, extra = _split_options(
+        spec, {**options, "noise_sigma": problem.noise_sigma, "min_disparity_sigmas": problem.min_disparity_sigmas}
+    )
     return _estimate(problem, spec, shared, extra, priors, order, rng, start)
 
 

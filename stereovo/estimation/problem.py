@@ -9,11 +9,23 @@ C-contiguous float64, so the compiled kernels see one layout whatever the
 caller passed (a Fortran-order, strided or float32 array would otherwise be a
 new compilation).
 
-A row without depth (disparity at or below ``camera.min_disparity`` at k-1 or
-k, or no finite triangulation) is not malformed: real front ends emit such
-mismatches. It is an *unusable row*: flagged in :attr:`StereoProblem.usable`,
-its points and covariances NaN. The estimator runs on
-:meth:`StereoProblem.usable_subproblem` and reports those rows as outliers.
+A row without a resolvable depth is not malformed: real front ends emit such
+mismatches, and NaN rows. It is an *unusable row*: flagged in
+:attr:`StereoProblem.usable`, its points and covariances NaN. The estimator runs
+on :meth:`StereoProblem.usable_subproblem` and reports those rows as outliers.
+A row is unusable where, at k-1 or at k, a coordinate is not finite, the
+disparity is at or below ``camera.min_disparity``, or the disparity is at or below
+``min_disparity_sigmas`` standard deviations of its noise (``sqrt(2) sigma``:
+``uL`` and ``uR`` are measured apart).
+
+Why the last rule (derived in docs/algorithms.md, "Rows without a resolvable
+depth"): the triangulation covariance is a linearisation in the disparity ``d``,
+and the depth ``fb / d`` is far from Gaussian once ``sigma_d / d`` is not small.
+At ``d <= 2 sigma_d`` the two-sigma interval of ``d`` reaches zero, so the depth is
+unbounded at 95 %, and the covariance (growing as ``z^4``) spans kilometres: under
+a 3-D Mahalanobis gate such a row agrees with almost any motion that sends its
+point far away, and in a minimal sample it makes the fit meaningless. Such a row
+carries no depth evidence, so it is not a measurement of the motion in 3-D.
 """
 
 from __future__ import annotations
@@ -26,13 +38,19 @@ import numpy as np
 from stereovo.camera import StereoCamera
 
 
-def as_measurements(name: str, value: np.ndarray) -> np.ndarray:
-    """``value`` as a C-contiguous float64 ``(N, 4)`` array of finite stereo measurements.
+MIN_DISPARITY_SIGMAS = 2.0
+"""Default disparity-to-noise ratio at or below which a row has no resolvable depth (see the module
+docstring): the two-sigma interval of the disparity then reaches infinite depth."""
 
-    The input is returned itself when it already is one (no copy on the common path).
+
+def as_measurements(name: str, value: np.ndarray) -> np.ndarray:
+    """``value`` as a C-contiguous float64 ``(N, 4)`` array of stereo measurements.
+
+    The input is returned itself when it already is one (no copy on the common path). NaN and inf
+    are accepted: such rows become unusable rows of the problem (a front end's failed matches).
 
     Raises:
-        ValueError: naming ``name``: not numeric, complex, wrong shape, NaN or inf.
+        ValueError: naming ``name``: not numeric, complex, or wrong shape.
     """
     if np.iscomplexobj(value):
         raise ValueError(f"{name} must be real (uL, vL, uR, vR) pixels, got complex dtype {np.asarray(value).dtype}")
@@ -44,10 +62,14 @@ def as_measurements(name: str, value: np.ndarray) -> np.ndarray:
         ) from None
     if array.ndim != 2 or array.shape[1] != 4:
         raise ValueError(f"{name} must have shape (N, 4) of (uL, vL, uR, vR) pixels, got shape {array.shape}")
-    if not np.all(np.isfinite(array)):
-        bad = int(np.count_nonzero(~np.all(np.isfinite(array), axis=1)))
-        raise ValueError(f"{name} contains NaN or inf in {bad} row(s)")
     return array
+
+
+def resolvable_depth(measurements: np.ndarray, noise_sigma: float, sigmas: float) -> np.ndarray:
+    """``(N,)`` bool: the disparity ``uL - uR`` of ``measurements (N, 4)`` exceeds ``sigmas``
+    standard deviations of its noise, ``sqrt(2) noise_sigma`` px (False on non-finite rows)."""
+    with np.errstate(invalid="ignore"):
+        return (measurements[:, 0] - measurements[:, 2]) > sigmas * np.sqrt(2.0) * noise_sigma
 
 
 @dataclass(frozen=True)
@@ -61,8 +83,9 @@ class StereoProblem:
         points_prev, points_curr: ``(N, 3)`` triangulated points (metres), camera frames k-1 and k;
             NaN on unusable rows.
         cov_prev, cov_curr: ``(N, 3, 3)`` triangulation covariances (m^2); NaN on unusable rows.
-        usable: ``(N,)`` bool, True where both frames give the match a depth; None when every row
-            is usable (the common case, which then costs nothing).
+        usable: ``(N,)`` bool, True where both frames give the match a resolvable depth; None when
+            every row is usable (the common case, which then costs nothing).
+        min_disparity_sigmas: the disparity-to-noise ratio at or below which a row was made unusable.
     """
 
     prev: np.ndarray
@@ -74,16 +97,20 @@ class StereoProblem:
     cov_prev: np.ndarray
     cov_curr: np.ndarray
     usable: np.ndarray | None = None
+    min_disparity_sigmas: float = MIN_DISPARITY_SIGMAS
 
     @classmethod
     def build(
-        cls, prev: np.ndarray, curr: np.ndarray, camera: StereoCamera, noise_sigma: float = 0.5
+        cls, prev: np.ndarray, curr: np.ndarray, camera: StereoCamera, noise_sigma: float = 0.5,
+        min_disparity_sigmas: float = MIN_DISPARITY_SIGMAS,
     ) -> "StereoProblem":
-        """Validate the measurements and triangulate them; rows without depth are flagged, not refused.
+        """Validate the measurements and triangulate them; rows without a resolvable depth (NaN or
+        inf, no disparity, or a disparity within ``min_disparity_sigmas`` of its noise: see the
+        module docstring) are flagged, not refused.
 
         Raises:
-            ValueError: wrong shapes, mismatched N, NaN/inf, complex or non-numeric values, or a
-                non-positive noise.
+            ValueError: wrong shapes, mismatched N, complex or non-numeric values, a non-positive
+                noise or a negative ``min_disparity_sigmas``.
         """
         if not isinstance(camera, StereoCamera):
             raise ValueError(f"camera must be a StereoCamera, got {type(camera).__name__}")
@@ -95,8 +122,14 @@ class StereoProblem:
             raise ValueError(f"noise_sigma must be a positive pixel noise, got {noise_sigma!r}")
         if not np.isfinite(noise_sigma) or noise_sigma <= 0:
             raise ValueError(f"noise_sigma must be a positive pixel noise, got {noise_sigma!r}")
+        if (isinstance(min_disparity_sigmas, (bool, np.bool_)) or not isinstance(min_disparity_sigmas, (int, float, np.integer, np.floating))
+                or not np.isfinite(min_disparity_sigmas) or min_disparity_sigmas < 0):
+            raise ValueError(f"min_disparity_sigmas must be a finite number >= 0, got {min_disparity_sigmas!r}")
         points_prev, cov_prev, usable_prev = camera.triangulate_usable(prev, noise_sigma)
         points_curr, cov_curr, usable_curr = camera.triangulate_usable(curr, noise_sigma)
+        if min_disparity_sigmas > 0:
+            usable_prev &= resolvable_depth(prev, noise_sigma, min_disparity_sigmas)
+            usable_curr &= resolvable_depth(curr, noise_sigma, min_disparity_sigmas)
         usable = None
         if not (usable_prev.all() and usable_curr.all()):
             usable = usable_prev & usable_curr
@@ -114,6 +147,7 @@ class StereoProblem:
             cov_prev=cov_prev,
             cov_curr=cov_curr,
             usable=usable,
+            min_disparity_sigmas=float(min_disparity_sigmas),
         )
 
     @property
