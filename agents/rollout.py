@@ -1,9 +1,8 @@
 """Rolling a sampling policy through the environment: the small loop that trainers and evaluation share.
 
 :func:`success_rate` is what the PPO trainer's evaluation callback
-(:mod:`agents.ppo`) measures on its held-out seeds, and what
-:mod:`agents.evaluation` re-exports; it sits below both so that neither
-imports the other for it.
+(:mod:`agents.ppo.train`) measures on its held-out seeds, and :func:`make_env` what
+:mod:`agents.evaluation.run` steps; it sits below both so that neither imports the other for it.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from stereovo.benchmark import PLOT_FILES, TIME_COLUMNS, benchmark_methods
-from vo_gym.cli import main
+from vo_gym_cli.main import main
 
 TINY = ["--methods", "ransac,msac", "--epsilons", "0.2,0.6", "--aucs", "0.9", "--ns", "80", "--frames-per-cell", "2",
         "--max-iterations", "300", "--seed", "11", "--no-progress"]
@@ -234,7 +234,7 @@ def _start(argv: list[str], **popen):
     import subprocess
     import sys
 
-    return subprocess.Popen([sys.executable, "-m", "vo_gym.cli", *argv], stdout=subprocess.PIPE,
+    return subprocess.Popen([sys.executable, "-m", "vo_gym_cli", *argv], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL), **popen)
 

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from stereovo.io import read_kitti, read_tum
-from vo_gym.cli import main
-from vo_gym.commands.vo import parse_outliers
+from vo_gym_cli.main import main
+from vo_gym_cli.commands.vo import parse_outliers
 
 OUTPUTS = [
     "trajectory_est.tum", "trajectory_true.tum", "trajectory_est.kitti.txt",

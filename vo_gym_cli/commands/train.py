@@ -14,7 +14,7 @@ import argparse
 import json
 from pathlib import Path
 
-from vo_gym.commands.common import (
+from vo_gym_cli.commands.common import (
     UsageError,
     bounded_int,
     check_output_dir,
@@ -58,7 +58,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     ppo.add_argument("--timesteps", type=positive_int("--timesteps"), default=20_000, help="PPO environment steps")
     ppo.add_argument("--env-id", default="vo_gym/StereoVO-v0", help="registered environment id to train in")
     ppo.add_argument("--n-envs", type=positive_int("--n-envs"), default=2, help="environments stepped in parallel")
-    # PPO-specific settings (None: agents.ppo.PPOConfig's default); --seed, --budget, --epsilon,
+    # PPO-specific settings (None: agents.ppo.config.PPOConfig's default); --seed, --budget, --epsilon,
     # --eval-frames and --eval-every (environment steps here; default 2000) apply to PPO too.
     ppo.add_argument("--vec-env", choices=("dummy", "subproc"), default=None,
                      help="SB3 vectorised env: DummyVecEnv (default) or SubprocVecEnv")
@@ -162,7 +162,7 @@ def _train_ngransac(args: argparse.Namespace, out: Path) -> int:
     return 0
 
 
-# ``vo-gym train`` option -> agents.ppo.PPOConfig field; None (not given) keeps PPOConfig's default.
+# ``vo-gym train`` option -> agents.ppo.config.PPOConfig field; None (not given) keeps PPOConfig's default.
 _PPO_OPTIONS = {
     "env_id": "env_id", "n_envs": "n_envs", "seed": "seed", "timesteps": "timesteps", "budget": "budget",
     "eval_frames": "eval_frames", "eval_every": "eval_every", "vec_env": "vec_env",
@@ -175,12 +175,12 @@ _PPO_OPTIONS = {
 
 
 def ppo_config_from_args(args: argparse.Namespace):
-    """The :class:`agents.ppo.PPOConfig` of ``vo-gym train --algo ppo`` arguments.
+    """The :class:`agents.ppo.config.PPOConfig` of ``vo-gym train --algo ppo`` arguments.
 
     ``--eval-every`` counts environment steps here; an option left out keeps PPOConfig's default
     (``--eval-every``: 2000), and a given value is taken as given (``--eval-every 250`` is 250).
     """
-    from agents.ppo import PPOConfig
+    from agents.ppo.config import PPOConfig
 
     values = {key: getattr(args, arg) for arg, key in _PPO_OPTIONS.items() if getattr(args, arg, None) is not None}
     if getattr(args, "max_minutes", None) is not None:
@@ -191,7 +191,7 @@ def ppo_config_from_args(args: argparse.Namespace):
 
 
 def _train_ppo(args: argparse.Namespace, out: Path) -> int:
-    from agents.ppo import train_ppo
+    from agents.ppo.train import train_ppo
 
     try:
         config = ppo_config_from_args(args)

@@ -18,7 +18,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from vo_gym.commands.common import EXIT_INTERRUPTED, EXIT_USAGE, UsageError, check_output_dir, positive_int
+from vo_gym_cli.commands.common import EXIT_INTERRUPTED, EXIT_USAGE, UsageError, check_output_dir, positive_int
 
 
 def add_parser(parser: argparse.ArgumentParser) -> None:

@@ -19,7 +19,8 @@ import math
 from pathlib import Path
 from typing import Any, Iterator
 
-from vo_gym.commands.common import (
+from agents.catalog import ONE_SHOT_SAMPLERS
+from vo_gym_cli.commands.common import (
     UsageError,
     bounded_int,
     check_output_dir,
@@ -90,7 +91,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--agent", default=None, metavar="NAME|PATH",
                         help="a learned sampler that sets the method's sampling weights each frame: a shipped "
-                             f"one ({', '.join(_SHIPPED)}) or a .pt checkpoint (default: none)")
+                             f"one ({', '.join(ONE_SHOT_SAMPLERS)}) or a .pt checkpoint (default: none)")
     parser.add_argument("--seed", type=seed, default=0, help="seed of the simulation and of the estimator stream")
     parser.add_argument(
         "--out", type=Path, default=Path("runs/vo"),
@@ -98,10 +99,6 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
         "per frame, rotation rad then translation m; NaN where the estimate failed), odometry.png, summary.json",
     )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-
-
-# Mirrors agents.checkpoint.SHIPPED_SAMPLERS without importing torch to build the parser (a test checks they agree).
-_SHIPPED = ("ngransac-supervised", "ngransac-self-supervised", "ngransac-self-supervised-smooth", "ppo")
 
 
 class _LearnedSampling:

@@ -5,7 +5,7 @@ worker process; :func:`resolve_agent` turns a command-line name into one, loadin
 so that a bad file is refused before anything runs. :class:`EvalConfig` holds the settings of both
 sweeps and the classical methods (:func:`normalize_methods`). :data:`ROW_COLUMNS` are the columns
 of a per-frame row, ``KIND_*`` the kinds a row can have, :func:`parse_row_value` reads a stored
-``frames.csv`` cell back. The protocol itself is in :mod:`agents.evaluation`.
+``frames.csv`` cell back. The protocol itself is in :mod:`agents.evaluation.run`.
 """
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ def load_agent_checkpoint(path: str | os.PathLike, name: str | None = None):
 
     path = Path(path)
     if path.suffix == ".zip":
-        from agents.ppo import load_ppo_actor
+        from agents.ppo.archive import load_ppo_actor
 
         return LearnedPolicy(load_ppo_actor(path), name or path.stem)
     return LearnedPolicy.from_checkpoint(path, name)
@@ -255,8 +255,8 @@ def normalize_methods(names: Iterable[str]) -> list[str]:
 
 @dataclass
 class EvaluationResult:
-    """What :func:`agents.evaluation.run_evaluation` returns: its inputs, the per-frame rows, their summary
-    (:func:`agents.evaluation_report.summarize_evaluation`) and the wall time in seconds."""
+    """What :func:`agents.evaluation.run.run_evaluation` returns: its inputs, the per-frame rows, their summary
+    (:func:`agents.evaluation.report.summarize_evaluation`) and the wall time in seconds."""
 
     config: EvalConfig
     agents: list[AgentSpec]

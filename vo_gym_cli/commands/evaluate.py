@@ -27,11 +27,11 @@ import json
 import sys
 from pathlib import Path
 
-from vo_gym.commands.baselines import PLOT_FORMATS, add_backend_options, backend_from_args, open_run_folder
-from vo_gym.commands.common import EXIT_INTERRUPTED, EXIT_USAGE, UsageError
-from vo_gym.commands.common import csv_list as _csv_list
-from vo_gym.commands.common import positive_int as _positive_int
-from vo_gym.commands.common import seed as _seed
+from vo_gym_cli.commands.baselines import PLOT_FORMATS, add_backend_options, backend_from_args, open_run_folder
+from vo_gym_cli.commands.common import EXIT_INTERRUPTED, EXIT_USAGE, UsageError
+from vo_gym_cli.commands.common import csv_list as _csv_list
+from vo_gym_cli.commands.common import positive_int as _positive_int
+from vo_gym_cli.commands.common import seed as _seed
 
 DEFAULT_AGENTS = ("uniform", "match-score", "consistency", "constant-velocity", "oracle")
 
@@ -79,7 +79,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                         help="file format of the figures (default: png)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument("--adaptive", action="store_true",
-                        help="run the in-frame adaptive comparison instead (agents.adaptive_evaluation): the learned"
+                        help="run the in-frame adaptive comparison instead (agents.evaluation.in_frame): the learned"
                              " in-frame sampler, BANSAC, ARS, one-shot samplers, uniform and PROSAC by score on"
                              " identical held-out frames at eps 0.9 and on the hard id at eps 0.8; uses --episodes,"
                              " --frames-per-episode, --seed, --n and --out")
@@ -110,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _run_adaptive(args: argparse.Namespace) -> int:
     from agents.adaptive import load_adaptive
-    from agents.adaptive_evaluation import AdaptiveComparison, comparison_markdown, run_comparison, write_comparison
+    from agents.evaluation.in_frame import AdaptiveComparison, comparison_markdown, run_comparison, write_comparison
 
     try:
         load_adaptive(args.adaptive_sampler)  # a bad checkpoint is named before any computing
@@ -134,18 +134,10 @@ def _run(args: argparse.Namespace) -> int:
         return _run_adaptive(args)
     from dataclasses import asdict
 
-    from agents.evaluation import (
-        DEFAULT_METHODS,
-        ROW_COLUMNS,
-        EvalConfig,
-        EvaluationResult,
-        evaluation_markdown,
-        evaluation_units,
-        parse_row_value,
-        resolve_agents,
-        run_evaluation,
-        summarize_evaluation,
-        write_evaluation,
+    from agents.evaluation.report import evaluation_markdown, summarize_evaluation, write_evaluation
+    from agents.evaluation.run import evaluation_units, run_evaluation
+    from agents.evaluation.setup import (
+        DEFAULT_METHODS, ROW_COLUMNS, EvalConfig, EvaluationResult, parse_row_value, resolve_agents,
     )
     from stereovo.trials import RunInterrupted, TrialJournal
     from stereovo.trials.runner import interrupted_message

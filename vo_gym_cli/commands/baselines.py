@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 
-from vo_gym.commands.common import (
+from vo_gym_cli.commands.common import (
     EXIT_INTERRUPTED,
     EXIT_USAGE,
     UsageError,
