@@ -24,12 +24,15 @@ def make_env(env_id: str, **kwargs: Any):
     """
     import gymnasium as gym
 
-    import vo_gym  # noqa: F401  (registers the ids)
+    import vo_gym  # registers the ids
+    from vo_gym.names import did_you_mean
 
     try:
         return gym.make(env_id, **kwargs)
     except gym.error.Error as err:
-        raise ValueError(f"environment {env_id!r}: {err}") from None
+        known = env_id in vo_gym.ENV_IDS or "did you mean" in str(err).lower()
+        hint = "" if known else did_you_mean(env_id, vo_gym.ENV_IDS)
+        raise ValueError(f"environment {env_id!r}: {err}{hint}") from None
 
 
 def success_rate(

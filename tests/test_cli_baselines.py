@@ -83,8 +83,11 @@ def test_unknown_method_exits_nonzero_and_names_it(tmp_path, capsys):
 @pytest.mark.parametrize(
     "argv, needle",
     [
-        (["--epsilons", "0.2,1.5"], "outlier_ratio"),
-        (["--outlier-kinds", "ghosts"], "unknown outlier kind"),
+        (["--epsilons", "0.2,1.5"], "error: --epsilons must be in [0, 1)"),
+        (["--sigmas", "-1"], "error: --sigmas must be > 0 px"),
+        (["--aucs", "1.2"], "error: --aucs must be a finite number in [0.5, 1), got 1.2"),
+        (["--ns", "2"], "error: --ns must be an integer >= 3"),
+        (["--outlier-kinds", "ghosts"], "error: --outlier-kinds: unknown outlier kind"),
     ],
 )
 def test_bad_grid_values_exit_nonzero(tmp_path, capsys, argv, needle):

@@ -81,7 +81,7 @@ def test_config_error_is_reported_not_raised(tmp_path, capsys):
     code = main(["vo", "--auc", "0.3", "--frames", "2", "--out", str(tmp_path / "x"), "--no-progress"])
     assert code == 2
     err = capsys.readouterr().err
-    assert "score_auc" in err and "Traceback" not in err
+    assert "error: --auc must be a finite number in [0.5, 1), got 0.3" in err and "Traceback" not in err
     assert not (tmp_path / "x").exists()
 
 

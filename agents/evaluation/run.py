@@ -62,6 +62,7 @@ from agents.rollout import make_env
 from stereovo.options import Integer
 
 __all__ = [
+    "check_environments",
     "episode_frames",
     "run_agent_episode",
     "run_classical_episode",
@@ -69,6 +70,27 @@ __all__ = [
     "evaluation_units",
     "warm_up_worker",
 ]
+
+
+def check_environments(config: EvalConfig) -> None:
+    """Build (and close) the environment of every setting of ``config`` once, running nothing.
+
+    Raises:
+        ValueError: an unknown id (with the closest registered one) or a keyword argument the
+            environment refuses; the message starts with ``environment 'ID':``.
+    """
+    import vo_gym
+    from vo_gym.names import did_you_mean
+
+    if config.env_id not in vo_gym.ENV_IDS:
+        make_env(config.env_id).close()  # Gymnasium's own message first, when it refuses the id
+        raise ValueError(f"environment {config.env_id!r} is not a vo_gym id{did_you_mean(config.env_id, vo_gym.ENV_IDS)}")
+    for epsilon, budget in config.settings():
+        try:
+            make_env(config.env_id, **config.env_kwargs_for(epsilon, budget)).close()
+        except (TypeError, ValueError) as err:
+            text = str(err).split(" was raised from the environment creator")[0]
+            raise ValueError(text if text.startswith("environment ") else f"environment {config.env_id!r}: {text}") from None
 
 
 def episode_frames(env, seed: int) -> list:
@@ -275,7 +297,7 @@ def run_evaluation(
     from stereovo.trials import Task, make_backend, run_tasks
 
     workers = Integer(low=1).check("workers", workers, prefix="")
-    make_env(config.env_id, **config.env_kwargs_for(config.sweep_epsilon, config.budget)).close()  # validates
+    check_environments(config)
     units = evaluation_units(config, agents)
     owned = backend is None
     backend = make_backend("local", int(workers)) if owned else backend

@@ -20,6 +20,7 @@ from vo_gym_cli.commands.common import (
     check_output_dir,
     finite_float,
     positive_int,
+    require_extras,
     seed,
 )
 
@@ -229,6 +230,7 @@ def _check_env_id(env_id: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    require_extras("torch", "tensorboard", *(("stable_baselines3",) if args.algo == "ppo" else ()))
     out = check_output_dir(args.out, "--out")  # before any computing: a bad --out loses no training
     if args.resume is not None and not Path(args.resume).is_file():
         raise UsageError(f"--resume: no checkpoint at {args.resume}")

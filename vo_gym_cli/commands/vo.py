@@ -25,6 +25,7 @@ from vo_gym_cli.commands.common import (
     bounded_int,
     check_output_dir,
     finite_float,
+    flag_error,
     positive_int,
     score_inputs,
     seed,
@@ -192,6 +193,11 @@ def _sampling(args: argparse.Namespace) -> dict[str, Any]:
     return {key: sampling, "on_estimate": sampling.observe}
 
 
+# SimulationConfig's field -> the flag that sets it.
+_CONFIG_FLAGS = {"preset": "--preset", "n_frames": "--frames", "n_correspondences": "--n", "noise_sigma": "--noise",
+                 "outlier_ratio": "--outliers", "score_auc": "--auc"}
+
+
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -211,8 +217,9 @@ def run(args: argparse.Namespace) -> int:
         )
         sequence = Sequence(config, seed=args.seed)
     except ValueError as err:
-        # Invalid settings (the config validates them, naming the field): a message, not a traceback.
-        raise UsageError(str(err)) from None
+        # Invalid settings (the config validates them, naming its field): the message names the flag.
+        field = next((f for f in _CONFIG_FLAGS if str(err).startswith(f"SimulationConfig.{f} ")), None)
+        raise (flag_error(_CONFIG_FLAGS[field], err) if field else UsageError(str(err))) from None
     sampling = _sampling(args)
     out: Path = check_output_dir(args.out)  # before computing: a bad --out loses no result
     result = run_odometry(sequence, method=args.method, seed=args.seed, progress=not args.no_progress, **sampling)
