@@ -27,6 +27,7 @@ from typing import Any, Iterator
 import numpy as np
 import torch
 
+from agents.catalog import SHIPPED_FOLDER, SHIPPED_PACKAGE, SHIPPED_SAMPLERS
 from agents.network import CorrespondenceNet
 from vo_gym.features import FEATURE_LAYOUT_VERSION, FEATURE_NAMES, check_feature_layout
 
@@ -54,12 +55,6 @@ def save_checkpoint(path: str | Path, net: CorrespondenceNet, config: dict[str, 
 
 REQUIRED_KEYS = ("format_version", "network", "state_dict", "feature_names", "feature_layout_version")
 NETWORK_KEYS = ("n_features", "width", "blocks")
-SHIPPED_PACKAGE = "agents"
-SHIPPED_FOLDER = "checkpoints"
-SHIPPED_SAMPLERS: tuple[str, ...] = (
-    "ngransac-supervised", "ngransac-self-supervised", "ngransac-self-supervised-smooth", "ppo",
-)
-"""Names of the samplers shipped inside the package (``agents/checkpoints/NAME.pt``)."""
 
 
 class CheckpointError(ValueError):

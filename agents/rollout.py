@@ -1,9 +1,8 @@
 """Rolling a sampling policy through the environment: the small loop that trainers and evaluation share.
 
 :func:`success_rate` is what the PPO trainer's evaluation callback
-(:mod:`agents.ppo`) measures on its held-out seeds, and what
-:mod:`agents.evaluation` re-exports; it sits below both so that neither
-imports the other for it.
+(:mod:`agents.ppo.train`) measures on its held-out seeds, and :func:`make_env` what
+:mod:`agents.evaluation.run` steps; it sits below both so that neither imports the other for it.
 """
 
 from __future__ import annotations
@@ -25,12 +24,15 @@ def make_env(env_id: str, **kwargs: Any):
     """
     import gymnasium as gym
 
-    import vo_gym  # noqa: F401  (registers the ids)
+    import vo_gym  # registers the ids
+    from vo_gym.names import did_you_mean
 
     try:
         return gym.make(env_id, **kwargs)
     except gym.error.Error as err:
-        raise ValueError(f"environment {env_id!r}: {err}") from None
+        known = env_id in vo_gym.ENV_IDS or "did you mean" in str(err).lower()
+        hint = "" if known else did_you_mean(env_id, vo_gym.ENV_IDS)
+        raise ValueError(f"environment {env_id!r}: {err}{hint}") from None
 
 
 def success_rate(

@@ -125,7 +125,7 @@ class SweepSpec:
             values.setdefault("eval_every", self.report_every)
             values.setdefault("eval_frames", 10)
             return _build(NGRansacConfig, values)
-        from agents.ppo import PPOConfig
+        from agents.ppo.config import PPOConfig
 
         values.setdefault("eval_every", 10 ** 9)  # the sweep's metric is the evaluation; SB3's own is not needed
         values.setdefault("checkpoint_every", 10 ** 9)
@@ -330,7 +330,9 @@ def _train_ngransac(spec: SweepSpec, params: Mapping[str, Any]) -> None:
 def _train_ppo(spec: SweepSpec, params: Mapping[str, Any]) -> None:
     from ray import tune
 
-    from agents.ppo import build_model, export_actor, load_ppo, make_training_env
+    from agents.ppo.archive import load_ppo
+    from agents.ppo.config import build_model, make_training_env
+    from agents.ppo.train import export_actor
 
     config = spec.trainer_config(params)
     env = make_training_env(config)

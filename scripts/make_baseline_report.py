@@ -202,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
 
     run_dir = args.run_dir
     if run_dir is None:
-        from vo_gym.cli import main as vo_gym
+        from vo_gym_cli.main import main as vo_gym
 
         cli = ["baselines", "--out", str(args.out), "--seed", str(args.seed)]
         if args.workers:

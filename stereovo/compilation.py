@@ -34,6 +34,9 @@ MESSAGE = ("vo-gym: compiling the numba kernels on this first run (about 30 s on
 
 _announced = False  # once per process: a second line would only repeat the first
 
+QUIET_ENV = "VO_GYM_COMPILE_NOTICE_SHOWN"
+"""Set (to any value) in a worker's environment when the process that started it printed the notice."""
+
 
 def cache_index_path(kernel: Dispatcher) -> Path | None:
     """Where numba keeps ``kernel``'s cache index; None when the kernel is not cached (``cache=False``)."""
@@ -87,13 +90,14 @@ def uncached_kernels(kernels: Iterable[Dispatcher] | None = None) -> list[str]:
 
 
 def announce_compiling(kernels: Iterable[Dispatcher] | None = None, stream: TextIO | None = None) -> bool:
-    """Print :data:`MESSAGE` once per process if any of ``kernels`` (default: the package's) is not cached.
+    """Print :data:`MESSAGE` once per process if any of ``kernels`` (default: the package's) is not cached,
+    and not in a worker whose parent printed it (:data:`QUIET_ENV`).
 
     Returns whether it printed. Cheap (a few hundred ``stat`` calls), so the first estimate and the
     first environment reset call it unconditionally.
     """
     global _announced
-    if _announced:
+    if _announced or os.environ.get(QUIET_ENV):
         return False
     _announced = True
     if not uncached_kernels(kernels):
@@ -106,3 +110,4 @@ def reset_announcement() -> None:
     """Let :func:`announce_compiling` speak again (for tests)."""
     global _announced
     _announced = False
+    os.environ.pop(QUIET_ENV, None)

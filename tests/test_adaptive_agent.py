@@ -15,7 +15,7 @@ from agents.adaptive import (
     save_adaptive,
     train_adaptive,
 )
-from agents.adaptive_evaluation import (
+from agents.evaluation.in_frame import (
     ArsPolicy,
     BansacPolicy,
     BudgetPolicy,
@@ -165,7 +165,7 @@ def test_the_summary_carries_the_wilson_interval_of_its_success_rate():
 
 
 def test_the_comparison_figure_has_two_panels_of_at_most_eight_lines_with_every_family():
-    from agents.adaptive_evaluation import AdaptiveComparison, figure_panels, policies
+    from agents.evaluation.in_frame import AdaptiveComparison, figure_panels, policies
     from stereovo.reporting import MAX_LINES_PER_PANEL
 
     families = list(dict.fromkeys(family for family, _, _ in policies(AdaptiveComparison())))

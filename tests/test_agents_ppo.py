@@ -11,8 +11,10 @@ pytest.importorskip("stable_baselines3")
 from stable_baselines3.common.utils import obs_as_tensor  # noqa: E402
 
 from agents.checkpoint import LearnedPolicy, load_checkpoint  # noqa: E402
-from agents.ppo import PPOConfig, load_ppo, load_ppo_actor, read_ppo_config, train_ppo  # noqa: E402
-from agents.sb3_policy import EquivariantActorCriticPolicy  # noqa: E402
+from agents.ppo.archive import load_ppo, load_ppo_actor, read_ppo_config  # noqa: E402
+from agents.ppo.config import PPOConfig  # noqa: E402
+from agents.ppo.train import train_ppo  # noqa: E402
+from agents.ppo.policy import EquivariantActorCriticPolicy  # noqa: E402
 from vo_gym import FEATURE_LAYOUT_VERSION, FEATURE_NAMES, StereoVOEnv  # noqa: E402
 
 
@@ -123,7 +125,7 @@ def test_tiny_ppo_run_writes_checkpoints_that_load_and_resume(tmp_path, capsys):
     assert read_ppo_config(tmp_path / "ppo.zip") == result.config
 
     # --resume continues the SB3 model to the new total.
-    from vo_gym.cli import main
+    from vo_gym_cli.main import main
 
     code = main(["train", "--algo", "ppo", "--out", str(tmp_path), "--resume", str(tmp_path / "ppo.zip"),
                  "--timesteps", "192", "--no-progress"])

@@ -25,7 +25,7 @@ from agents.checkpoint import (  # noqa: E402
     save_checkpoint,
 )
 from agents.network import CorrespondenceNet  # noqa: E402
-from vo_gym.cli import main  # noqa: E402
+from vo_gym_cli.main import main  # noqa: E402
 from vo_gym.features import N_FEATURES  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

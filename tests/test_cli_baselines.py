@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from stereovo.benchmark import PLOT_FILES, TIME_COLUMNS, benchmark_methods
-from vo_gym.cli import main
+from vo_gym_cli.main import main
 
 TINY = ["--methods", "ransac,msac", "--epsilons", "0.2,0.6", "--aucs", "0.9", "--ns", "80", "--frames-per-cell", "2",
         "--max-iterations", "300", "--seed", "11", "--no-progress"]
@@ -83,8 +83,11 @@ def test_unknown_method_exits_nonzero_and_names_it(tmp_path, capsys):
 @pytest.mark.parametrize(
     "argv, needle",
     [
-        (["--epsilons", "0.2,1.5"], "outlier_ratio"),
-        (["--outlier-kinds", "ghosts"], "unknown outlier kind"),
+        (["--epsilons", "0.2,1.5"], "error: --epsilons must be in [0, 1)"),
+        (["--sigmas", "-1"], "error: --sigmas must be > 0 px"),
+        (["--aucs", "1.2"], "error: --aucs must be a finite number in [0.5, 1), got 1.2"),
+        (["--ns", "2"], "error: --ns must be an integer >= 3"),
+        (["--outlier-kinds", "ghosts"], "error: --outlier-kinds: unknown outlier kind"),
     ],
 )
 def test_bad_grid_values_exit_nonzero(tmp_path, capsys, argv, needle):
@@ -234,7 +237,7 @@ def _start(argv: list[str], **popen):
     import subprocess
     import sys
 
-    return subprocess.Popen([sys.executable, "-m", "vo_gym.cli", *argv], stdout=subprocess.PIPE,
+    return subprocess.Popen([sys.executable, "-m", "vo_gym_cli", *argv], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL), **popen)
 

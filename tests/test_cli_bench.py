@@ -7,7 +7,7 @@ import importlib.util
 
 import pytest
 
-from vo_gym.cli import main
+from vo_gym_cli.main import main
 
 PEERS = [name for name, module in (("opencv", "cv2"), ("poselib", "poselib")) if importlib.util.find_spec(module)]
 

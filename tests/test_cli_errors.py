@@ -6,11 +6,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
-from vo_gym import cli
-from vo_gym.cli import main
+from vo_gym_cli import main as cli
+from vo_gym_cli.main import main
 
 
 def _one_line(capsys, command: str) -> str:
@@ -67,7 +70,7 @@ def test_unusable_out_is_refused_before_computing(tmp_path, capsys, monkeypatch,
 
 
 def test_ctrl_c_is_one_line_and_exit_130(monkeypatch, capsys):
-    from vo_gym.commands import vo
+    from vo_gym_cli.commands import vo
 
     def interrupted(args: argparse.Namespace) -> int:
         raise KeyboardInterrupt
@@ -103,11 +106,23 @@ def test_every_option_has_help_with_its_default(command):
             assert "default" in text, f"{command} {action.option_strings}: no default in {text!r}"
 
 
-def test_shipped_names_of_vo_match_the_package():
-    from agents.checkpoint import SHIPPED_SAMPLERS
-    from vo_gym.commands import vo
+def test_the_catalog_names_every_shipped_file_and_loads_no_torch():
+    code = (
+        "import sys; from agents import catalog\n"
+        "names = catalog.ONE_SHOT_SAMPLERS + catalog.IN_FRAME_SAMPLERS\n"
+        "print(all(catalog.shipped_file(n).is_file() for n in names), [catalog.sampler_kind(n) for n in names],"
+        " 'torch' in sys.modules)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split(None, 1)[0] == "True" and out.stdout.rstrip().endswith("False")
+    assert out.stdout.count("'one-shot'") == 4 and out.stdout.count("'in-frame'") == 2
+    shipped = {p.stem for p in (Path(__file__).resolve().parents[1] / "agents" / "checkpoints").glob("*.pt")}
+    from agents import catalog
 
-    assert tuple(vo._SHIPPED) == tuple(SHIPPED_SAMPLERS)
+    assert shipped == set(catalog.ONE_SHOT_SAMPLERS + catalog.IN_FRAME_SAMPLERS)
+    with pytest.raises(ValueError, match="unknown shipped sampler 'nope'; shipped: ngransac-supervised"):
+        catalog.sampler_kind("nope")
 
 
 @pytest.mark.parametrize("argv", [["--method", "prosac"], ["--method", "guided-mlesac"],
@@ -129,7 +144,7 @@ def test_vo_agent_errors_are_one_line(tmp_path, capsys):
 
 
 def test_evaluate_finds_a_shipped_sampler_by_name():
-    from agents.evaluation import resolve_agent
+    from agents.evaluation.setup import resolve_agent
 
     spec = resolve_agent("ngransac-supervised")
     assert spec.kind == "checkpoint" and spec.label == "ngransac-supervised"
@@ -151,7 +166,7 @@ def test_only_the_pool_exit_race_is_silenced_after_an_interrupt(monkeypatch):
     """After Ctrl-C, CPython 3.11's process-pool exit hook may hit its closed pipe; that, and only that, stays quiet."""
     import types
 
-    from vo_gym.commands.common import quiet_pool_exit
+    from vo_gym_cli.commands.common import quiet_pool_exit
 
     def unraisable(filename, error):
         code = compile("def boom(e):\n    raise e\n", filename, "exec")

@@ -6,7 +6,7 @@ import pytest
 
 from agents.checkpoint import load_checkpoint
 from agents.ngransac import NGRansacConfig
-from vo_gym.cli import main
+from vo_gym_cli.main import main
 
 TINY = ["--frames", "4", "--budget", "4", "--pools", "2", "--eval-every", "2", "--eval-frames", "2",
         "--frames-per-sequence", "3", "--no-progress"]

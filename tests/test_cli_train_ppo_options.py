@@ -1,4 +1,4 @@
-"""``vo-gym train --algo ppo`` options reach agents.ppo.PPOConfig as given (no hidden defaults)."""
+"""``vo-gym train --algo ppo`` options reach agents.ppo.config.PPOConfig as given (no hidden defaults)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents.ppo import PPOConfig  # noqa: E402
-from vo_gym.commands import train  # noqa: E402
+from agents.ppo.config import PPOConfig  # noqa: E402
+from vo_gym_cli.commands import train  # noqa: E402
 
 
 def _config(*argv: str) -> PPOConfig:

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from stereovo.io import read_kitti, read_tum
-from vo_gym.cli import main
-from vo_gym.commands.vo import parse_outliers
+from vo_gym_cli.main import main
+from vo_gym_cli.commands.vo import parse_outliers
 
 OUTPUTS = [
     "trajectory_est.tum", "trajectory_true.tum", "trajectory_est.kitti.txt",
@@ -81,7 +81,7 @@ def test_config_error_is_reported_not_raised(tmp_path, capsys):
     code = main(["vo", "--auc", "0.3", "--frames", "2", "--out", str(tmp_path / "x"), "--no-progress"])
     assert code == 2
     err = capsys.readouterr().err
-    assert "score_auc" in err and "Traceback" not in err
+    assert "error: --auc must be a finite number in [0.5, 1), got 0.3" in err and "Traceback" not in err
     assert not (tmp_path / "x").exists()
 
 

@@ -146,7 +146,7 @@ def test_the_rl_zoo3_hyperparameters_build_the_equivariant_ppo():
     from stable_baselines3 import PPO
 
     import vo_gym  # noqa: F401
-    from agents.sb3_policy import EquivariantActorCriticPolicy
+    from agents.ppo.policy import EquivariantActorCriticPolicy
 
     config = yaml.safe_load((ROOT / "configs" / "rl-zoo3" / "ppo.yml").read_text())
     assert set(config) == {"vo_gym/StereoVO-v0"}

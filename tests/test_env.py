@@ -21,7 +21,8 @@ import vo_gym
 import vo_gym.env as env_module
 from stereovo.estimation import available_methods
 from stereovo.simulation import Sequence, SimulationConfig
-from vo_gym import ENV_IDS, FEATURE_NAMES, N_FEATURES, StereoVOEnv
+from vo_gym import FEATURE_NAMES, N_FEATURES, StereoVOEnv
+from vo_gym.registration import ENV_IDS
 
 SHORT = dict(n_frames=4)  # short episodes: the checkers then also cross an episode end
 

@@ -9,11 +9,13 @@ import pytest
 import torch
 
 from agents.checkpoint import save_checkpoint
-from agents.evaluation import EvalConfig, episode_frames, make_env, resolve_agent
+from agents.evaluation.run import episode_frames
+from agents.evaluation.setup import EvalConfig, resolve_agent
 from agents.network import CorrespondenceNet
 from agents.policies import make_heuristic
+from agents.rollout import make_env
 from vo_gym import N_FEATURES, StereoVOEnv
-from vo_gym.cli import main
+from vo_gym_cli.main import main
 
 TINY = ["--episodes", "2", "--frames-per-episode", "3", "--n", "100", "--epsilons", "0.5,0.85", "--budget", "8",
         "--budgets", "2,8", "--sweep-epsilon", "0.85", "--methods", "msac,guided", "--no-progress"]
@@ -101,7 +103,8 @@ def test_evaluate_heuristics_writes_tables_and_plots_and_is_reproducible(tmp_pat
 
 
 def test_classical_rows_use_the_agents_frames():
-    from agents.evaluation import AgentSpec, run_agent_episode, run_classical_episode, classical_estimators_for
+    from agents.evaluation.run import run_agent_episode, run_classical_episode, classical_estimators_for
+    from agents.evaluation.setup import AgentSpec
 
     config = EvalConfig(episodes=1, frames_per_episode=2, n=60, methods=("msac",))
     kwargs = config.env_kwargs_for(0.5, 4)
@@ -140,7 +143,7 @@ def test_unknown_agent_and_missing_checkpoint_exit_non_zero(tmp_path, capsys):
 
 
 def test_interrupt_then_resume_writes_the_uninterrupted_files(tmp_path, capsys, monkeypatch):
-    import agents.evaluation as evaluation
+    import agents.evaluation.run as evaluation
 
     argv = ["evaluate", "--agent", "uniform", *TINY, "--methods", "msac", "--workers", "1", "--no-plots"]
     whole, out = tmp_path / "whole", tmp_path / "run"

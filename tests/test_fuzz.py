@@ -25,7 +25,7 @@ import vo_gym  # noqa: F401
 from stereovo.camera import StereoCamera
 from stereovo.estimation import available_methods, estimate_motion, method_spec
 from stereovo.simulation import SimulationConfig, simulate_frame
-from vo_gym import cli
+from vo_gym_cli import main as cli
 from vo_gym.features import FEATURE_BOUND, N_FEATURES, compute_features
 
 CAMERA = StereoCamera()

@@ -168,7 +168,7 @@ def test_env_learns_validity_without_running_the_method(monkeypatch):
 @pytest.mark.parametrize("value", [0, -1, 1.5, math.nan, True, "2"])
 def test_worker_counts_and_seeds_of_every_layer_follow_the_contract(value):
     """One rule for counts everywhere: the backends, the benchmark grid, the agents' evaluation and sweeps."""
-    from agents.evaluation import EvalConfig
+    from agents.evaluation.setup import EvalConfig
     from agents.sweep import MetricSpec
     import dataclasses
 

@@ -115,7 +115,7 @@ def test_direct_and_loop_methods_both_carry_covariances(method):
 
 
 def test_vo_command_writes_one_covariance_per_frame(tmp_path):
-    from vo_gym.cli import main
+    from vo_gym_cli.main import main
 
     out = tmp_path / "run"
     assert main(["vo", "--frames", "6", "--n", "200", "--outliers", "0.4", "--seed", "2", "--out", str(out),

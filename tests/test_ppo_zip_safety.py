@@ -1,7 +1,7 @@
 """A PPO ``.zip`` runs no code, and every unusable zip is one line naming it (Python, evaluate, train --resume).
 
 stable-baselines3 stores what JSON cannot hold as base64 cloudpickle under ":serialized:" in the
-zip's ``data`` entry, and its own ``PPO.load`` unpickles it; :func:`agents.ppo.load_ppo` never does.
+zip's ``data`` entry, and its own ``PPO.load`` unpickles it; :func:`agents.ppo.archive.load_ppo` never does.
 """
 
 from __future__ import annotations
@@ -21,10 +21,11 @@ torch = pytest.importorskip("torch")
 pytest.importorskip("stable_baselines3")
 
 from agents.checkpoint import CheckpointError, LearnedPolicy  # noqa: E402
-from agents.evaluation import resolve_agent  # noqa: E402
-from agents.ppo import PPOConfig, build_model, load_ppo, load_ppo_actor, make_training_env, read_ppo_config  # noqa: E402
+from agents.evaluation.setup import resolve_agent  # noqa: E402
+from agents.ppo.archive import load_ppo, load_ppo_actor, read_ppo_config  # noqa: E402
+from agents.ppo.config import PPOConfig, build_model, make_training_env  # noqa: E402
 from vo_gym import StereoVOEnv  # noqa: E402
-from vo_gym.cli import main  # noqa: E402
+from vo_gym_cli.main import main  # noqa: E402
 
 CONFIG = dict(
     timesteps=64, n_envs=2, n_steps=32, batch_size=32, n_epochs=1, n_frames=4, n_correspondences=64, budget=8,

@@ -336,7 +336,8 @@ def test_guided_ransac_draws_fewer_hypotheses_with_informative_priors():
 
 
 def test_evaluate_runs_agents_adaptively_beside_the_classical_adaptive_rows():
-    from agents.evaluation import KIND_AGENT_ADAPTIVE, EvalConfig, resolve_agents, run_evaluation
+    from agents.evaluation.run import run_evaluation
+    from agents.evaluation.setup import KIND_AGENT_ADAPTIVE, EvalConfig, resolve_agents
 
     config = EvalConfig(episodes=1, frames_per_episode=3, epsilons=(0.7,), budgets=(16,), budget=16,
                         sweep_epsilon=0.7, n=200, methods=("prosac",), max_iterations=500, adaptive_agents=True)

@@ -125,8 +125,8 @@ def test_write_outputs_refuses_an_unknown_format_before_writing(tmp_path):
 
 def test_the_command_line_offers_exactly_the_library_formats(tmp_path):
     from stereovo.reporting import PLOT_FORMATS
-    from vo_gym.cli import main
-    from vo_gym.commands import baselines
+    from vo_gym_cli.main import main
+    from vo_gym_cli.commands import baselines
 
     assert baselines.PLOT_FORMATS == PLOT_FORMATS
     with pytest.raises(SystemExit) as exit_info:
@@ -135,7 +135,7 @@ def test_the_command_line_offers_exactly_the_library_formats(tmp_path):
 
 
 def test_baselines_writes_its_figures_in_the_chosen_format(tmp_path, capsys):
-    from vo_gym.cli import main
+    from vo_gym_cli.main import main
 
     out = tmp_path / "run"
     argv = ["baselines", "--methods", "ransac,msac", "--frames-per-cell", "1", "--epsilons", "0.5", "--aucs", "0.75",
@@ -150,8 +150,8 @@ def test_baselines_writes_its_figures_in_the_chosen_format(tmp_path, capsys):
 
 def test_evaluate_writes_its_figures_in_the_chosen_format(tmp_path):
     pytest.importorskip("torch")
-    from agents.evaluation import PLOT_NAMES
-    from vo_gym.cli import main
+    from agents.evaluation.report import PLOT_NAMES
+    from vo_gym_cli.main import main
 
     out = tmp_path / "eval"
     assert main(["evaluate", "--agent", "uniform", "--episodes", "1", "--frames-per-episode", "2", "--epsilons", "0.8",

@@ -102,7 +102,7 @@ ADAPTIVE_CHECKPOINTS = sorted(SHIPPED.glob("adaptive-*.pt"))
 
 def adaptive_rate(policy) -> tuple[float, float]:
     """(success rate, mean hypotheses) of an adaptive-env policy over the fixed episodes."""
-    from agents.adaptive_evaluation import run_policy
+    from agents.evaluation.in_frame import run_policy
     from vo_gym.adaptive_env import StereoVOAdaptiveEnv
 
     rows = []
@@ -114,14 +114,14 @@ def adaptive_rate(policy) -> tuple[float, float]:
 
 def learned_adaptive(net, name: str):
     from agents.adaptive import AdaptiveSamplerPolicy
-    from agents.adaptive_evaluation import LearnedAdaptivePolicy
+    from agents.evaluation.in_frame import LearnedAdaptivePolicy
 
     return LearnedAdaptivePolicy(AdaptiveSamplerPolicy(net, confidence=0.9), name)
 
 
 @lru_cache(maxsize=1)
 def adaptive_uniform_rate() -> float:
-    from agents.adaptive_evaluation import BudgetPolicy
+    from agents.evaluation.in_frame import BudgetPolicy
 
     return adaptive_rate(BudgetPolicy("uniform", 16, lambda obs: np.zeros(len(obs["mask"]))))[0]
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from agents.sweep import load_sweep, parse_sweep
-from vo_gym.cli import main
+from vo_gym_cli.main import main
 
 ROOT = Path(__file__).resolve().parent.parent
 

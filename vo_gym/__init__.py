@@ -1,6 +1,6 @@
 """vo-gym: stereo visual odometry as a Gymnasium environment for learning RANSAC sampling priors.
 
-Importing the package registers the environment ids (:data:`vo_gym.registration.ENV_IDS`)::
+Importing the package registers the environment ids (:data:`ENV_IDS`: every one)::
 
     import gymnasium as gym
     import vo_gym
@@ -8,7 +8,7 @@ Importing the package registers the environment ids (:data:`vo_gym.registration.
     env = gym.make("vo_gym/StereoVO-v0")
 
 The exports below load on first use, so ``import vo_gym`` (and the ``vo-gym``
-command line, which lives in this package) stays light: only Gymnasium is
+command line above it, ``vo_gym_cli``) stays light: only Gymnasium is
 imported to register the ids; the simulator and the estimator core load with
 the environment.
 """
@@ -18,9 +18,12 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from vo_gym.registration import ENV_IDS, register_envs
+from vo_gym.registration import register_envs, registered_ids
 
 register_envs()
+
+ENV_IDS: tuple[str, ...] = registered_ids()
+"""Every registered ``vo_gym/`` id, sorted (the step, hard, PROSAC and in-frame adaptive ids)."""
 
 _LAZY = {
     "StereoVOEnv": "vo_gym.env",

@@ -43,6 +43,7 @@ from stereovo.simulation import Frame, Sequence, SimulationConfig
 from vo_gym.env import DEFAULT_ESTIMATOR_OPTIONS
 from vo_gym.features import FEATURE_BOUND, FEATURE_NAMES, N_FEATURES, compute_features
 from vo_gym.rewards import REWARD_MODES, inlier_reward, msac_reward, pose_error_ratio, supervised_reward
+from vo_gym.names import keyword_hint
 
 __all__ = ["StereoVOAdaptiveEnv", "LOOP_FEATURE_NAMES", "GLOBAL_FEATURE_NAMES", "ADAPTIVE_FEATURE_NAMES"]
 
@@ -245,7 +246,8 @@ class StereoVOAdaptiveEnv(gym.Env):
             options = {**DEFAULT_ESTIMATOR_OPTIONS, **estimator_options}
             self.estimator_options = EstimatorOptions(noise_sigma=self.sim_config.noise_sigma, **options)
         except (TypeError, ValueError) as err:
-            raise ValueError(f"StereoVOAdaptiveEnv: invalid estimator setting: {err}") from None
+            hint = keyword_hint(estimator_options, StereoVOAdaptiveEnv, [f.name for f in dataclasses.fields(EstimatorOptions)])
+            raise ValueError(f"StereoVOAdaptiveEnv: invalid estimator setting: {err}{hint}") from None
         self.method = method
         F = N_FEATURES + len(LOOP_FEATURE_NAMES)
         self.observation_space = spaces.Dict({

@@ -25,6 +25,7 @@ from stereovo.geometry import PoseChain
 from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, frame_metrics, trajectory_metrics
 from stereovo.options import Choice, Integer, Number, Option, check_options
 from stereovo.simulation import Frame, Sequence, SimulationConfig
+from vo_gym.names import keyword_hint
 from vo_gym.features import FEATURE_BOUND, FEATURE_LAYOUT_VERSION, FEATURE_NAMES, N_FEATURES, compute_features
 from vo_gym.rewards import REWARD_MODES, inlier_reward, msac_reward, pose_error_ratio, supervised_reward
 
@@ -327,6 +328,7 @@ class StereoVOEnv(gym.Env):
             raise TypeError(
                 f"StereoVOEnv got unexpected keyword argument(s) {unknown}: not an environment or simulator "
                 f"argument nor an option of estimator method {method!r} (its options: {allowed})"
+                f"{keyword_hint(unknown, StereoVOEnv, allowed)}"
             )
         options = {**DEFAULT_ESTIMATOR_OPTIONS, **estimator_options}
         # Validity comes from the options' declarations (the one contract), never from running the

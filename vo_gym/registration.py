@@ -18,7 +18,7 @@ from typing import Any
 
 import gymnasium
 
-__all__ = ["ENV_IDS", "ADAPTIVE_ENV_IDS", "HARD_SETTINGS", "register_envs"]
+__all__ = ["ENV_IDS", "ADAPTIVE_ENV_IDS", "HARD_SETTINGS", "register_envs", "registered_ids"]
 
 ENTRY_POINT = "vo_gym.env:StereoVOEnv"
 
@@ -40,7 +40,8 @@ ENV_IDS: dict[str, dict[str, Any]] = {
     "vo_gym/StereoVOHard-v0": {"sampling": "guided", **HARD_SETTINGS},
     "vo_gym/StereoVOProsacHard-v0": {"sampling": "prosac", **HARD_SETTINGS},
 }
-"""Registered ids and their keyword arguments."""
+"""The step environments' ids (:class:`vo_gym.env.StereoVOEnv`) and their keyword arguments;
+``vo_gym.ENV_IDS`` lists every registered id (:func:`registered_ids`)."""
 
 ADAPTIVE_ENTRY_POINT = "vo_gym.adaptive_env:StereoVOAdaptiveEnv"
 
@@ -52,9 +53,26 @@ ADAPTIVE_ENV_IDS: dict[str, dict[str, Any]] = {
 """Ids of :class:`vo_gym.adaptive_env.StereoVOAdaptiveEnv` and their keyword arguments."""
 
 
+MISSING_NAMESPACE_ENTRY_POINT = "vo_gym.names:missing_namespace"
+
+
 def register_envs() -> None:
-    """Register every id of :data:`ENV_IDS` (idempotent)."""
+    """Register every id of :data:`ENV_IDS` and :data:`ADAPTIVE_ENV_IDS` (idempotent).
+
+    Each id's bare name (``StereoVO-v0``, without ``vo_gym/``) is registered too, to an entry
+    point that only raises an error naming the full id (:func:`vo_gym.names.missing_namespace`):
+    Gymnasium suggests near names only within one namespace.
+    """
     for ids, entry_point in ((ENV_IDS, ENTRY_POINT), (ADAPTIVE_ENV_IDS, ADAPTIVE_ENTRY_POINT)):
         for env_id, kwargs in ids.items():
             if env_id not in gymnasium.registry:
                 gymnasium.register(id=env_id, entry_point=entry_point, kwargs=dict(kwargs))
+    for env_id in registered_ids():
+        bare = env_id.partition("/")[2]
+        if bare not in gymnasium.registry:
+            gymnasium.register(id=bare, entry_point=MISSING_NAMESPACE_ENTRY_POINT, kwargs={"full_id": env_id})
+
+
+def registered_ids() -> tuple[str, ...]:
+    """Every id registered in Gymnasium's ``vo_gym/`` namespace, sorted (whoever registered it)."""
+    return tuple(sorted(env_id for env_id in gymnasium.registry if env_id.startswith("vo_gym/")))

@@ -8,6 +8,7 @@ order or on how many interrupts and resumes it took.
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 import time
@@ -73,13 +74,32 @@ class RunResult:
     wall_s: float  # of this call
 
 
-def progress_bar(total: float, initial: float, desc: str, unit: str, enabled: bool):
-    """A tqdm bar on stderr with the remaining-time estimate; sparse updates when stderr is a file."""
+COMPILING_FORMAT = "{desc}: compiling the kernels (first run), {n_fmt}/{total_fmt} {unit} [{elapsed}]"
+"""The bar while the kernels compile: elapsed time, no rate and no remaining-time estimate."""
+
+
+def progress_bar(total: float, initial: float, desc: str, unit: str, enabled: bool, compiling: bool = False):
+    """A tqdm bar on stderr with the remaining-time estimate (``compiling``: :data:`COMPILING_FORMAT`,
+    without one); sparse updates when stderr is a file."""
     from tqdm.auto import tqdm
 
     interactive = hasattr(sys.stderr, "isatty") and sys.stderr.isatty()
     return tqdm(total=total, initial=initial, desc=desc, unit=unit, disable=not enabled, dynamic_ncols=True,
-                mininterval=0.5 if interactive else 30.0, smoothing=0.05)
+                mininterval=0.5 if interactive else 30.0, smoothing=0.05,
+                bar_format=COMPILING_FORMAT if compiling else None)
+
+
+def announce_once_for_workers() -> bool:
+    """Print the compile notice here if kernels are not cached, and silence it in worker processes
+    started from now on (they inherit :data:`stereovo.compilation.QUIET_ENV`). Returns whether the
+    kernels will compile."""
+    from stereovo.compilation import QUIET_ENV, announce_compiling, uncached_kernels
+
+    if not uncached_kernels():
+        return False
+    announce_compiling()
+    os.environ[QUIET_ENV] = "1"
+    return True
 
 
 def _saved(journal: TrialJournal | None, results: dict[int, Any]) -> int:
@@ -121,7 +141,10 @@ def run_tasks(
     todo = [t for t in tasks if t.key not in results]
     weights = {t.key: t.weight for t in tasks}
     total_weight = sum(weights.values())
-    bar = progress_bar(total_weight, sum(weights[k] for k in results), desc, unit, progress)
+    # A first run compiles the kernels in every worker before its first trial: the bar says so instead
+    # of an ETA that extrapolates the compile time, and the notice prints here, once for the run.
+    compiling = bool(todo) and announce_once_for_workers()
+    bar = progress_bar(total_weight, sum(weights[k] for k in results), desc, unit, progress, compiling=compiling)
     start = time.perf_counter()
     computed = 0
     folder = journal.folder if journal is not None else None
@@ -133,6 +156,10 @@ def run_tasks(
                 results[key] = result
                 computed += 1
                 bar.update(weights[key])
+            if compiling:  # compiled: a fresh bar, whose rate and ETA start from here
+                compiling = False
+                bar.close()
+                bar = progress_bar(total_weight, sum(weights[k] for k in results), desc, unit, progress)
     except KeyboardInterrupt:
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the clean-up short
         try:

@@ -3,7 +3,7 @@
 :class:`PPOConfig` holds every setting (it is stored in the SB3 zip and the exported
 checkpoint); :func:`make_training_env` builds the vectorised environments and
 :func:`build_model` a fresh SB3 ``PPO`` with the equivariant policy. Training:
-:mod:`agents.ppo`; reading a zip back: :mod:`agents.ppo_zip`.
+:mod:`agents.ppo.train`; reading a zip back: :mod:`agents.ppo.archive`.
 """
 
 from __future__ import annotations
@@ -162,14 +162,14 @@ def policy_kwargs(config: PPOConfig) -> dict[str, Any]:
 
 
 def build_model(config: PPOConfig, env, tensorboard_log: str | None = None, verbose: int = 0, setup: bool = True):
-    """A fresh SB3 ``PPO`` with :class:`agents.sb3_policy.EquivariantActorCriticPolicy`.
+    """A fresh SB3 ``PPO`` with :class:`agents.ppo.policy.EquivariantActorCriticPolicy`.
 
     ``setup=False``: the object without its policy and buffers yet (SB3's ``_init_setup_model``), for
     :func:`load_ppo` to set the spaces first when there is no ``env``.
     """
     from stable_baselines3 import PPO
 
-    from agents.sb3_policy import EquivariantActorCriticPolicy
+    from agents.ppo.policy import EquivariantActorCriticPolicy
 
     return PPO(
         EquivariantActorCriticPolicy, env, learning_rate=config.learning_rate, n_steps=config.n_steps,

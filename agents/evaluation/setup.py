@@ -5,7 +5,7 @@ worker process; :func:`resolve_agent` turns a command-line name into one, loadin
 so that a bad file is refused before anything runs. :class:`EvalConfig` holds the settings of both
 sweeps and the classical methods (:func:`normalize_methods`). :data:`ROW_COLUMNS` are the columns
 of a per-frame row, ``KIND_*`` the kinds a row can have, :func:`parse_row_value` reads a stored
-``frames.csv`` cell back. The protocol itself is in :mod:`agents.evaluation`.
+``frames.csv`` cell back. The protocol itself is in :mod:`agents.evaluation.run`.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
+from agents.catalog import IN_FRAME_SAMPLERS, SHIPPED_SAMPLERS, shipped_file
 from agents.policies import HEURISTICS, OraclePolicy, Policy, make_heuristic
 from stereovo.benchmark import typed_value
 from stereovo.options import Integer
@@ -85,7 +86,7 @@ def load_agent_checkpoint(path: str | os.PathLike, name: str | None = None):
 
     path = Path(path)
     if path.suffix == ".zip":
-        from agents.ppo import load_ppo_actor
+        from agents.ppo.archive import load_ppo_actor
 
         return LearnedPolicy(load_ppo_actor(path), name or path.stem)
     return LearnedPolicy.from_checkpoint(path, name)
@@ -93,7 +94,7 @@ def load_agent_checkpoint(path: str | os.PathLike, name: str | None = None):
 
 def resolve_agent(text: str) -> AgentSpec:
     """``uniform``/``match-score``/``consistency``/``constant-velocity``, ``oracle``, a shipped sampler's
-    name (:data:`agents.checkpoint.SHIPPED_SAMPLERS`) or a checkpoint path.
+    name (:data:`agents.catalog.SHIPPED_SAMPLERS`) or a checkpoint path.
 
     A checkpoint is loaded once here, so a missing file, a foreign file or another feature
     layout is reported before anything runs.
@@ -102,14 +103,14 @@ def resolve_agent(text: str) -> AgentSpec:
         ValueError: an unknown name, or a checkpoint that cannot be used (the message says why).
         FileNotFoundError: a checkpoint path that does not exist.
     """
-    from agents.checkpoint import SHIPPED_SAMPLERS, shipped_checkpoint
-
     name = text.strip()
     if name in HEURISTICS:
         return AgentSpec(name, "heuristic", name)
     if name == ORACLE:
         return AgentSpec(ORACLE_LABEL, "oracle", ORACLE)
     if name in SHIPPED_SAMPLERS:  # a packaged sampler by name, found wherever the package is installed
+        from agents.checkpoint import shipped_checkpoint
+
         with shipped_checkpoint(name) as shipped:
             load_agent_checkpoint(shipped)
             return AgentSpec(name, "checkpoint", str(shipped))
@@ -123,7 +124,22 @@ def resolve_agent(text: str) -> AgentSpec:
     if not path.is_file():
         raise FileNotFoundError(f"agent {name!r}: no checkpoint at {path}")
     load_agent_checkpoint(path)  # raises with a clear message on a foreign file or feature layout
-    return AgentSpec(path.stem, "checkpoint", str(path))
+    return AgentSpec(checkpoint_label(path), "checkpoint", str(path))
+
+
+def checkpoint_label(path: Path) -> str:
+    """A checkpoint's row label: its file name's stem, or its path when the stem is a shipped sampler's
+    name and the file is not that shipped file (a user's own ``ngransac-supervised.pt`` must not pass
+    for the shipped sampler)."""
+    if path.stem in SHIPPED_SAMPLERS + IN_FRAME_SAMPLERS:
+        shipped = shipped_file(path.stem)
+        try:
+            same = shipped.is_file() and path.resolve() == Path(str(shipped)).resolve()
+        except OSError:
+            same = False
+        if not same:
+            return str(path)
+    return path.stem
 
 
 def resolve_agents(texts: Sequence[str]) -> list[AgentSpec]:
@@ -255,8 +271,8 @@ def normalize_methods(names: Iterable[str]) -> list[str]:
 
 @dataclass
 class EvaluationResult:
-    """What :func:`agents.evaluation.run_evaluation` returns: its inputs, the per-frame rows, their summary
-    (:func:`agents.evaluation_report.summarize_evaluation`) and the wall time in seconds."""
+    """What :func:`agents.evaluation.run.run_evaluation` returns: its inputs, the per-frame rows, their summary
+    (:func:`agents.evaluation.report.summarize_evaluation`) and the wall time in seconds."""
 
     config: EvalConfig
     agents: list[AgentSpec]

@@ -9,6 +9,7 @@ naming the argument and exits 2; Ctrl-C prints one line and exits 130.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import re
@@ -144,6 +145,44 @@ def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
     return out
 
 
+class RunStart:
+    """What ``--out`` held before a run started, so that a start that fails leaves it as it was.
+
+    Construct it before anything is written; :meth:`undo` removes every entry that was not there
+    (the journal and manifest a failed start opened, the folder itself if it was created).
+    """
+
+    def __init__(self, out: str | os.PathLike) -> None:
+        self.out = Path(out)
+        self.existed = self.out.is_dir()
+        self.before = {p.name for p in self.out.iterdir()} if self.existed else set()
+
+    def undo(self) -> None:
+        import shutil
+
+        if not self.out.is_dir():
+            return
+        for entry in self.out.iterdir():
+            if entry.name not in self.before:
+                if entry.is_dir() and not entry.is_symlink():
+                    shutil.rmtree(entry, ignore_errors=True)
+                else:
+                    entry.unlink(missing_ok=True)
+        if not self.existed:
+            with contextlib.suppress(OSError):
+                self.out.rmdir()
+
+
+def flag_error(flag: str, err: Exception) -> UsageError:
+    """A library's range error as a usage error naming ``flag``: its leading field name
+    (``SimulationConfig.outlier_ratio must ...``, ``epsilons must ...``) becomes the flag."""
+    text = str(err)
+    if text.startswith(flag):
+        return UsageError(text)
+    rule = re.sub(r"^(?:[A-Za-z_]+\.)?[a-z_ ]+? (?=must |needs )", "", text, count=1)
+    return UsageError(f"{flag} {rule}" if rule != text else f"{flag}: {text}")
+
+
 def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:
     """Prove a file can be written at ``path`` (its folder created if needed), before any computing.
 
@@ -210,12 +249,53 @@ def quiet_pool_exit(unraisable) -> None:
     sys.__unraisablehook__(unraisable)
 
 
+EXTRAS = {
+    "torch": "train", "stable_baselines3": "train", "tensorboard": "train", "rich": "train",
+    "ray": "distributed", "yaml": "distributed",
+    "cv2": "peers", "poselib": "peers",
+}
+"""Top-level module -> the ``pip install 'vo-gym[EXTRA]'`` extra that provides it (pyproject.toml)."""
+
+
+def missing_extra(err: ModuleNotFoundError) -> str | None:
+    """The one-line hint for a module of an optional extra that is not installed, or None (not ours)."""
+    root = (err.name or "").partition(".")[0]
+    extra = EXTRAS.get(root)
+    if extra is None:
+        return None
+    return f"this needs the '{extra}' extra ({root} is not installed): pip install 'vo-gym[{extra}]'"
+
+
+def require_extras(*modules: str) -> None:
+    """Check, before anything is written, that the optional modules a command will import are installed.
+
+    Raises:
+        UsageError: the one-line ``pip install 'vo-gym[EXTRA]'`` hint of the first one missing.
+    """
+    import importlib.util
+
+    for module in modules:
+        try:
+            found = importlib.util.find_spec(module) is not None
+        except (ImportError, ValueError):
+            found = False
+        if not found:
+            raise UsageError(missing_extra(ModuleNotFoundError(name=module)) or f"{module} is not installed")
+
+
 def guarded(command: str, run: Callable[[], int]) -> int:
-    """Run a command body; usage errors and Ctrl-C become one line and exit codes 2 / 130."""
+    """Run a command body; usage errors and Ctrl-C become one line and exit codes 2 / 130, and so
+    does a missing optional extra (its ``pip install`` line, exit 2)."""
     try:
         code = int(run() or 0)
     except UsageError as err:
         print(f"vo-gym {command}: error: {err}", file=sys.stderr)
+        return EXIT_USAGE
+    except ModuleNotFoundError as err:
+        hint = missing_extra(err)
+        if hint is None:
+            raise
+        print(f"vo-gym {command}: error: {hint}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         print(f"vo-gym {command}: interrupted", file=sys.stderr)

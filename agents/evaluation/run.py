@@ -1,7 +1,7 @@
 """Evaluation of sampling agents side by side with classical methods, on the same held-out frames.
 
-What ``vo-gym evaluate`` runs, reusable from Python (:func:`success_rate` is
-:func:`agents.rollout.success_rate`, what the PPO trainer's callback measures).
+What ``vo-gym evaluate`` runs, reusable from Python (the success rate the PPO trainer's callback
+measures is :func:`agents.rollout.success_rate`).
 
 Protocol:
 
@@ -30,9 +30,9 @@ aggregated with :func:`stereovo.benchmark.aggregate`. Everything except the
 wall-time column ``time_s`` (and the time statistics) is a function of the
 seed: worker count and completion order change nothing.
 
-Layout: :mod:`agents.evaluation_setup` holds the agents, the settings and the rows' format;
-this module runs the protocol; :mod:`agents.evaluation_report` summarizes the rows and writes the
-tables, figures and files. Every public name of the three is importable from here.
+Layout: :mod:`agents.evaluation.setup` holds the agents, the settings and the rows' format;
+this module runs the protocol; :mod:`agents.evaluation.report` summarizes the rows and writes the
+tables, figures and files. Import each name from the module that defines it.
 """
 
 from __future__ import annotations
@@ -46,65 +46,51 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-# The setup's and the report's public names are re-exported: callers import them from here.
-from agents.evaluation_report import (
-    PLOT_FILES,
-    PLOT_NAMES,
-    STAT_KEYS,
-    TIME_KEYS,
-    evaluation_markdown,
-    hypotheses_label,
-    summarize_evaluation,
-    write_evaluation,
-    write_plots,
-)
-from agents.evaluation_setup import (
-    CHECKPOINT_SUFFIXES,
-    DEFAULT_METHODS,
+from agents.evaluation.report import summarize_evaluation
+from agents.evaluation.setup import (
     KIND_ADAPTIVE,
     KIND_AGENT,
     KIND_AGENT_ADAPTIVE,
     KIND_FIXED,
-    KIND_ORACLE,
-    METHOD_ALIASES,
-    ORACLE,
-    ORACLE_LABEL,
     ROW_COLUMNS,
     AgentSpec,
     EvalConfig,
     EvaluationResult,
-    load_agent_checkpoint,
-    normalize_methods,
-    parse_row_value,
-    resolve_agent,
-    resolve_agents,
 )
 from agents.policies import Policy
-from agents.rollout import make_env, success_rate
+from agents.rollout import make_env
 from stereovo.options import Integer
 
 __all__ = [
-    "ORACLE",
-    "ORACLE_LABEL",
-    "DEFAULT_METHODS",
-    "METHOD_ALIASES",
-    "AgentSpec",
-    "resolve_agent",
-    "resolve_agents",
-    "EvalConfig",
+    "check_environments",
     "episode_frames",
     "run_agent_episode",
     "run_classical_episode",
-    "success_rate",
-    "EvaluationResult",
     "run_evaluation",
     "evaluation_units",
     "warm_up_worker",
-    "parse_row_value",
-    "summarize_evaluation",
-    "evaluation_markdown",
-    "write_evaluation",
 ]
+
+
+def check_environments(config: EvalConfig) -> None:
+    """Build (and close) the environment of every setting of ``config`` once, running nothing.
+
+    Raises:
+        ValueError: an unknown id (with the closest registered one) or a keyword argument the
+            environment refuses; the message starts with ``environment 'ID':``.
+    """
+    import vo_gym
+    from vo_gym.names import did_you_mean
+
+    if config.env_id not in vo_gym.ENV_IDS:
+        make_env(config.env_id).close()  # Gymnasium's own message first, when it refuses the id
+        raise ValueError(f"environment {config.env_id!r} is not a vo_gym id{did_you_mean(config.env_id, vo_gym.ENV_IDS)}")
+    for epsilon, budget in config.settings():
+        try:
+            make_env(config.env_id, **config.env_kwargs_for(epsilon, budget)).close()
+        except (TypeError, ValueError) as err:
+            text = str(err).split(" was raised from the environment creator")[0]
+            raise ValueError(text if text.startswith("environment ") else f"environment {config.env_id!r}: {text}") from None
 
 
 def episode_frames(env, seed: int) -> list:
@@ -311,7 +297,7 @@ def run_evaluation(
     from stereovo.trials import Task, make_backend, run_tasks
 
     workers = Integer(low=1).check("workers", workers, prefix="")
-    make_env(config.env_id, **config.env_kwargs_for(config.sweep_epsilon, config.budget)).close()  # validates
+    check_environments(config)
     units = evaluation_units(config, agents)
     owned = backend is None
     backend = make_backend("local", int(workers)) if owned else backend

@@ -2,7 +2,7 @@
 
 The actor is :class:`agents.network.CorrespondenceNet` (per-correspondence
 Gaussian means = its logits, one learned log-std), the critic pools its
-global feature through a small MLP (:mod:`agents.sb3_policy`). Training runs on
+global feature through a small MLP (:mod:`agents.ppo.policy`). Training runs on
 SB3 vectorised envs (``DummyVecEnv`` or ``SubprocVecEnv`` via ``make_vec_env``)
 with three callbacks: a progress bar, :class:`SuccessEvalCallback` (success
 rate of the deterministic policy on held-out seeds at ``eval_epsilon``, logged
@@ -25,8 +25,8 @@ The deterministic action is the mean, i.e. the logits centred on the valid
 slots, which the guided env softmaxes: exactly what ``LearnedPolicy`` returns
 for the exported actor.
 
-The settings and model building live in :mod:`agents.ppo_config`, the safe reading of a
-zip in :mod:`agents.ppo_zip`; this module holds the callbacks and :func:`train_ppo`, and
+The settings and model building live in :mod:`agents.ppo.config`, the safe reading of a
+zip in :mod:`agents.ppo.archive`; this module holds the callbacks and :func:`train_ppo`, and
 re-exports the public names of both.
 """
 
@@ -44,19 +44,12 @@ import torch
 from stable_baselines3.common.callbacks import BaseCallback
 
 from agents.checkpoint import LearnedPolicy, save_checkpoint
-# VEC_ENVS and policy_kwargs only re-exported, so that agents.ppo.<name> keeps reaching them
-from agents.ppo_config import VEC_ENVS, PPOConfig, build_model, make_training_env, policy_kwargs, stored_config  # noqa: F401
-from agents.ppo_zip import first_line, load_ppo, load_ppo_actor, read_ppo_config, zip_failure
+from agents.ppo.archive import first_line, load_ppo, read_ppo_config, zip_failure
+from agents.ppo.config import PPOConfig, build_model, make_training_env, stored_config
 from agents.rollout import success_rate
 
 __all__ = [
-    "PPOConfig",
-    "make_training_env",
-    "build_model",
     "export_actor",
-    "load_ppo",
-    "load_ppo_actor",
-    "read_ppo_config",
     "SuccessEvalCallback",
     "train_ppo",
 ]

@@ -1,6 +1,6 @@
-"""Reading a PPO zip written by :mod:`agents.ppo` without running anything stored in it.
+"""Reading a PPO zip written by :mod:`agents.ppo.train` without running anything stored in it.
 
-:func:`read_ppo_config` reads the stored :class:`~agents.ppo_config.PPOConfig`,
+:func:`read_ppo_config` reads the stored :class:`~agents.ppo.config.PPOConfig`,
 :func:`load_ppo` rebuilds the model (to predict or to continue training) and
 :func:`load_ppo_actor` returns its actor net; every unusable file is one
 :class:`~agents.checkpoint.CheckpointError` line naming it (:func:`zip_failure`).
@@ -21,7 +21,7 @@ import torch
 
 from agents.checkpoint import CheckpointError
 from agents.network import CorrespondenceNet
-from agents.ppo_config import PPOConfig, build_model
+from agents.ppo.config import PPOConfig, build_model
 from vo_gym.features import check_feature_layout
 
 # An SB3 zip's ``data`` entry is JSON, but SB3 stores what JSON cannot hold (the policy class,

@@ -18,7 +18,7 @@ from typing import Callable
 
 import numpy as np
 
-from vo_gym.commands.common import (
+from vo_gym_cli.commands.common import (
     bounded_int,
     check_output_file,
     csv_list,
@@ -27,7 +27,7 @@ from vo_gym.commands.common import (
     positive_int,
     score_inputs,
 )
-from vo_gym.commands.common import seed as seed_type
+from vo_gym_cli.commands.common import seed as seed_type
 
 DEFAULT_NS = (200, 500, 1000)
 DEFAULT_EPSILONS = (0.2, 0.5, 0.8)

@@ -19,11 +19,13 @@ import math
 from pathlib import Path
 from typing import Any, Iterator
 
-from vo_gym.commands.common import (
+from agents.catalog import ONE_SHOT_SAMPLERS
+from vo_gym_cli.commands.common import (
     UsageError,
     bounded_int,
     check_output_dir,
     finite_float,
+    flag_error,
     positive_int,
     score_inputs,
     seed,
@@ -90,7 +92,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--agent", default=None, metavar="NAME|PATH",
                         help="a learned sampler that sets the method's sampling weights each frame: a shipped "
-                             f"one ({', '.join(_SHIPPED)}) or a .pt checkpoint (default: none)")
+                             f"one ({', '.join(ONE_SHOT_SAMPLERS)}) or a .pt checkpoint (default: none)")
     parser.add_argument("--seed", type=seed, default=0, help="seed of the simulation and of the estimator stream")
     parser.add_argument(
         "--out", type=Path, default=Path("runs/vo"),
@@ -98,10 +100,6 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
         "per frame, rotation rad then translation m; NaN where the estimate failed), odometry.png, summary.json",
     )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-
-
-# Mirrors agents.checkpoint.SHIPPED_SAMPLERS without importing torch to build the parser (a test checks they agree).
-_SHIPPED = ("ngransac-supervised", "ngransac-self-supervised", "ngransac-self-supervised-smooth", "ppo")
 
 
 class _LearnedSampling:
@@ -195,6 +193,11 @@ def _sampling(args: argparse.Namespace) -> dict[str, Any]:
     return {key: sampling, "on_estimate": sampling.observe}
 
 
+# SimulationConfig's field -> the flag that sets it.
+_CONFIG_FLAGS = {"preset": "--preset", "n_frames": "--frames", "n_correspondences": "--n", "noise_sigma": "--noise",
+                 "outlier_ratio": "--outliers", "score_auc": "--auc"}
+
+
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -214,8 +217,9 @@ def run(args: argparse.Namespace) -> int:
         )
         sequence = Sequence(config, seed=args.seed)
     except ValueError as err:
-        # Invalid settings (the config validates them, naming the field): a message, not a traceback.
-        raise UsageError(str(err)) from None
+        # Invalid settings (the config validates them, naming its field): the message names the flag.
+        field = next((f for f in _CONFIG_FLAGS if str(err).startswith(f"SimulationConfig.{f} ")), None)
+        raise (flag_error(_CONFIG_FLAGS[field], err) if field else UsageError(str(err))) from None
     sampling = _sampling(args)
     out: Path = check_output_dir(args.out)  # before computing: a bad --out loses no result
     result = run_odometry(sequence, method=args.method, seed=args.seed, progress=not args.no_progress, **sampling)

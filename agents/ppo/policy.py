@@ -26,7 +26,7 @@ entropies are summed over the *valid* slots only, so padding
 
 The deterministic action (the mean) equals
 :meth:`agents.checkpoint.LearnedPolicy.act` of the same actor net on the
-valid slots, so an exported actor (:func:`agents.ppo.export_actor`)
+valid slots, so an exported actor (:func:`agents.ppo.train.export_actor`)
 evaluates exactly as the SB3 model does.
 """
 

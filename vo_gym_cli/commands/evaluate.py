@@ -27,11 +27,12 @@ import json
 import sys
 from pathlib import Path
 
-from vo_gym.commands.baselines import PLOT_FORMATS, add_backend_options, backend_from_args, open_run_folder
-from vo_gym.commands.common import EXIT_INTERRUPTED, EXIT_USAGE, UsageError
-from vo_gym.commands.common import csv_list as _csv_list
-from vo_gym.commands.common import positive_int as _positive_int
-from vo_gym.commands.common import seed as _seed
+from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
+from vo_gym_cli.commands.baselines import PLOT_FORMATS, add_backend_options, backend_from_args, open_run_folder
+from vo_gym_cli.commands.common import EXIT_INTERRUPTED, EXIT_USAGE, RunStart, UsageError, flag_error
+from vo_gym_cli.commands.common import csv_list as _csv_list
+from vo_gym_cli.commands.common import positive_int as _positive_int
+from vo_gym_cli.commands.common import seed as _seed
 
 DEFAULT_AGENTS = ("uniform", "match-score", "consistency", "constant-velocity", "oracle")
 
@@ -39,12 +40,17 @@ DEFAULT_AGENTS = ("uniform", "match-score", "consistency", "constant-velocity", 
 def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = (
-        "agents: uniform, match-score, consistency, constant-velocity, oracle (upper bound, reads labels),"
+        "agents: heuristics uniform, match-score, consistency, constant-velocity (no torch needed);"
+        " oracle (upper bound, reads labels);\n"
+        f"        shipped learned samplers {', '.join(ONE_SHOT_SAMPLERS)} (needs the train extra);"
         " or a checkpoint path (.pt, PPO .zip)\n"
+        f"--adaptive: shipped in-frame samplers {', '.join(IN_FRAME_SAMPLERS)}\n"
         "default: 10 episodes x 10 frames per setting, 5 contaminations + 7 budgets, N 500 (a few minutes on 2 cores)"
     )
     parser.add_argument("--agent", action="append", default=None, metavar="NAME|CHECKPOINT",
-                        help=f"agent to evaluate, repeatable (default: {', '.join(DEFAULT_AGENTS)})")
+                        help=f"agent to evaluate, repeatable: a heuristic, oracle, a shipped sampler"
+                             f" ({', '.join(ONE_SHOT_SAMPLERS)}) or a checkpoint path"
+                             f" (default: {', '.join(DEFAULT_AGENTS)})")
     parser.add_argument("--env-id", default="vo_gym/StereoVO-v0", help="environment id (default: vo_gym/StereoVO-v0)")
     parser.add_argument("--episodes", type=_positive_int("--episodes"), default=10,
                         help="episodes per setting (default: 10)")
@@ -79,13 +85,13 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                         help="file format of the figures (default: png)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument("--adaptive", action="store_true",
-                        help="run the in-frame adaptive comparison instead (agents.adaptive_evaluation): the learned"
+                        help="run the in-frame adaptive comparison instead (agents.evaluation.in_frame): the learned"
                              " in-frame sampler, BANSAC, ARS, one-shot samplers, uniform and PROSAC by score on"
                              " identical held-out frames at eps 0.9 and on the hard id at eps 0.8; uses --episodes,"
                              " --frames-per-episode, --seed, --n and --out")
     parser.add_argument("--adaptive-sampler", default="adaptive-pg-prior", metavar="NAME|PATH",
-                        help="with --adaptive: the learned in-frame sampler, a shipped name or a checkpoint file"
-                             " (default: adaptive-pg-prior)")
+                        help=f"with --adaptive: the learned in-frame sampler, a shipped name"
+                             f" ({', '.join(IN_FRAME_SAMPLERS)}) or a checkpoint file (default: adaptive-pg-prior)")
     parser.add_argument("--adaptive-agents", action="store_true",
                         help="also run each agent without a budget: its priors with the prior-aware adaptive stop"
                              " (capped at --max-iterations), reported beside the adaptive classical methods"
@@ -108,9 +114,38 @@ def run(args: argparse.Namespace) -> int:
         return _error(str(err))
 
 
+# EvalConfig's field (how its errors start) -> the flag that sets it.
+_CONFIG_FLAGS = {
+    "episodes": "--episodes", "frames_per_episode": "--frames-per-episode", "seed": "--seed", "budget": "--budget",
+    "epsilons": "--epsilons", "every budget": "--budgets", "budgets": "--budgets", "sweep_epsilon": "--sweep-epsilon",
+    "n": "--n", "max_iterations": "--max-iterations", "unknown classical method": "--methods",
+    "env_kwargs": "--env-kwargs",
+}
+
+
+def _config_error(err: ValueError) -> UsageError:
+    text = str(err)
+    for field, flag in _CONFIG_FLAGS.items():
+        if text.startswith(field + " ") or text.startswith(field + "("):
+            return flag_error(flag, err)
+    return UsageError(text)
+
+
+def _environment_error(err: ValueError, args: argparse.Namespace) -> UsageError:
+    """An environment's refusal, named by the flag that set the value it refuses."""
+    text = str(err)
+    if "score_auc" in text and args.auc is not None:
+        return UsageError(f"--auc {args.auc}: {text}")
+    if "outlier_ratio" in text:
+        return UsageError(f"--epsilons / --sweep-epsilon: {text}")
+    if args.env_kwargs and ("keyword" in text or "setting" in text or "must" in text):
+        return UsageError(f"--env-kwargs: {text}")
+    return UsageError(f"--env-id: {text}")
+
+
 def _run_adaptive(args: argparse.Namespace) -> int:
     from agents.adaptive import load_adaptive
-    from agents.adaptive_evaluation import AdaptiveComparison, comparison_markdown, run_comparison, write_comparison
+    from agents.evaluation.in_frame import AdaptiveComparison, comparison_markdown, run_comparison, write_comparison
 
     try:
         load_adaptive(args.adaptive_sampler)  # a bad checkpoint is named before any computing
@@ -132,25 +167,9 @@ def _run_adaptive(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace) -> int:
     if args.adaptive:
         return _run_adaptive(args)
-    from dataclasses import asdict
-
-    from agents.evaluation import (
-        DEFAULT_METHODS,
-        ROW_COLUMNS,
-        EvalConfig,
-        EvaluationResult,
-        evaluation_markdown,
-        evaluation_units,
-        parse_row_value,
-        resolve_agents,
-        run_evaluation,
-        summarize_evaluation,
-        write_evaluation,
-    )
-    from stereovo.trials import RunInterrupted, TrialJournal
-    from stereovo.trials.runner import interrupted_message
-    from stereovo.trials.store import RunFolderError
-    from stereovo.benchmark import default_workers
+    from agents.evaluation.run import check_environments
+    from agents.evaluation.setup import DEFAULT_METHODS, ROW_COLUMNS, EvalConfig, parse_row_value, resolve_agents
+    from stereovo.trials import TrialJournal
 
     env_kwargs = {}
     if args.env_kwargs:
@@ -164,7 +183,7 @@ def _run(args: argparse.Namespace) -> int:
     try:
         agents = resolve_agents(args.agent or DEFAULT_AGENTS)
     except (ValueError, FileNotFoundError) as err:
-        return _error(str(err))
+        return _error(f"--agent: {err}")
     try:
         config = EvalConfig(
             env_id=args.env_id, episodes=args.episodes, frames_per_episode=args.frames_per_episode, seed=args.seed,
@@ -173,10 +192,36 @@ def _run(args: argparse.Namespace) -> int:
             max_iterations=args.max_iterations, env_kwargs=env_kwargs, adaptive_agents=args.adaptive_agents,
         )
     except ValueError as err:
-        return _error(str(err))
+        raise _config_error(err) from None
+    try:
+        check_environments(config)  # the id and every keyword, before anything is written
+    except ValueError as err:
+        raise _environment_error(err, args) from None
     if args.address is not None and args.backend != "ray":
         raise UsageError(f"--address {args.address!r} needs --backend ray")
+    start = RunStart(args.out)
     out = open_run_folder(args)  # before any computing
+    journal = TrialJournal(out, ROW_COLUMNS, parse_row_value)
+    try:
+        return _evaluate(args, config, agents, out, journal)
+    except (UsageError, ValueError, TypeError, ModuleNotFoundError):
+        journal.close()
+        if not args.resume and not journal.read():  # nothing finished: leave --out as it was
+            start.undo()
+        raise
+
+
+def _evaluate(args, config, agents, out, journal) -> int:
+    from dataclasses import asdict
+
+    from agents.evaluation.report import evaluation_markdown, summarize_evaluation, write_evaluation
+    from agents.evaluation.run import evaluation_units, run_evaluation
+    from agents.evaluation.setup import EvaluationResult
+    from stereovo.benchmark import default_workers
+    from stereovo.trials import RunInterrupted
+    from stereovo.trials.runner import interrupted_message
+    from stereovo.trials.store import RunFolderError
+
     workers = args.workers or default_workers()
     if any(a.kind == "checkpoint" for a in agents):
         import torch
@@ -186,7 +231,6 @@ def _run(args: argparse.Namespace) -> int:
         torch.set_num_threads(1)
     units = evaluation_units(config, agents)
     manifest = {"command": "evaluate", "config": config.as_dict(), "agents": [asdict(a) for a in agents]}
-    journal = TrialJournal(out, ROW_COLUMNS, parse_row_value)
     try:
         done = journal.open(manifest, resume=args.resume)
     except RunFolderError as err:
@@ -214,8 +258,7 @@ def _run(args: argparse.Namespace) -> int:
         print(interrupted_message(len(journal.read()), len(units), out), file=sys.stderr)
         return EXIT_INTERRUPTED
     except (ValueError, TypeError) as err:
-        journal.close()
-        return _error(str(err))
+        raise UsageError(str(err)) from None
     journal.close()
     # The final files come from the journal, so a resumed run writes exactly what an uninterrupted one does.
     stored = journal.read()

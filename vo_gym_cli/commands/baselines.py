@@ -38,11 +38,13 @@ from pathlib import Path
 from typing import Any, Callable
 
 
-from vo_gym.commands.common import (
+from vo_gym_cli.commands.common import (
     EXIT_INTERRUPTED,
     EXIT_USAGE,
+    RunStart,
     UsageError,
     check_output_dir,
+    flag_error,
     csv_list,
     positive_int,
     seed as parse_seed,
@@ -215,6 +217,17 @@ def _run(args: argparse.Namespace) -> int:
         return _report_only(args)
 
     base = bm.FULL_GRID if args.full else bm.DEFAULT_GRID
+    # Each axis alone first, so that a value out of range is named by its flag.
+    for flag, axis, value in (("--epsilons", "epsilons", args.epsilons), ("--sigmas", "noise_sigmas", args.sigmas),
+                              ("--aucs", "score_aucs", args.aucs), ("--ns", "ns", args.ns),
+                              ("--outlier-kinds", "outlier_kinds", args.outlier_kinds),
+                              ("--frames-per-cell", "frames_per_cell", args.frames_per_cell),
+                              ("--max-iterations", "max_iterations", args.max_iterations)):
+        if value is not None:
+            try:
+                base.with_axes(**{axis: value})
+            except ValueError as err:
+                raise flag_error(flag, err) from None
     try:
         grid = base.with_axes(
             epsilons=args.epsilons, noise_sigmas=args.sigmas, score_aucs=args.aucs, ns=args.ns,
@@ -230,17 +243,30 @@ def _run(args: argparse.Namespace) -> int:
         return _error(f"--methods: {err}")
     if args.address is not None and args.backend != "ray":
         raise UsageError(f"--address {args.address!r} needs --backend ray")
+    from stereovo.trials import TrialJournal
+
+    start = RunStart(args.out)
     out = open_run_folder(args)  # before any computing
+    journal = TrialJournal(out, bm.TRIAL_COLUMNS, bm.parse_trial_value)
+    try:
+        return _benchmark(args, grid, estimators, options, out, journal)
+    except (UsageError, ValueError, TypeError, ModuleNotFoundError):
+        journal.close()
+        if not args.resume and not journal.read():  # nothing finished: leave --out as it was
+            start.undo()
+        raise
+
+
+def _benchmark(args, grid, estimators, options, out, journal) -> int:
+    from stereovo import benchmark as bm
+    from stereovo.trials import RunInterrupted
+    from stereovo.trials.store import RunFolderError, atomic_write_text
+
     workers = args.workers or bm.default_workers()
     trials = grid.trials()
     names = [name for name, _ in estimators]
-
-    from stereovo.trials import RunInterrupted, TrialJournal
-    from stereovo.trials.store import RunFolderError, atomic_write_text
-
     manifest = {"command": "baselines", "grid_axes": grid.as_dict(), "methods": names, "seed": args.seed,
                 "options": _json_safe(options)}
-    journal = TrialJournal(out, bm.TRIAL_COLUMNS, bm.parse_trial_value)
     try:
         done = journal.open(manifest, resume=args.resume)
     except RunFolderError as err:

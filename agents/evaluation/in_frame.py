@@ -406,7 +406,7 @@ def write_comparison(result: dict[str, Any], out: str | Path) -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m agents.adaptive_evaluation --out runs/adaptive``."""
+    """``python -m agents.evaluation.in_frame --out runs/adaptive``."""
     import argparse
 
     parser = argparse.ArgumentParser(description="in-frame adaptive sampling comparison")

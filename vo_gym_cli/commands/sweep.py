@@ -18,7 +18,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from vo_gym.commands.common import EXIT_INTERRUPTED, EXIT_USAGE, UsageError, check_output_dir, positive_int
+from vo_gym_cli.commands.common import (
+    EXIT_INTERRUPTED, EXIT_USAGE, UsageError, check_output_dir, positive_int, require_extras,
+)
 
 
 def add_parser(parser: argparse.ArgumentParser) -> None:
@@ -48,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    require_extras("yaml", "ray", "torch")
     from agents.sweep import load_sweep, run_sweep, write_sweep_outputs
     from stereovo.benchmark import default_workers
     from stereovo.trials import RunFolderError, prepare_run_folder

@@ -14,12 +14,13 @@ import argparse
 import json
 from pathlib import Path
 
-from vo_gym.commands.common import (
+from vo_gym_cli.commands.common import (
     UsageError,
     bounded_int,
     check_output_dir,
     finite_float,
     positive_int,
+    require_extras,
     seed,
 )
 
@@ -58,7 +59,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     ppo.add_argument("--timesteps", type=positive_int("--timesteps"), default=20_000, help="PPO environment steps")
     ppo.add_argument("--env-id", default="vo_gym/StereoVO-v0", help="registered environment id to train in")
     ppo.add_argument("--n-envs", type=positive_int("--n-envs"), default=2, help="environments stepped in parallel")
-    # PPO-specific settings (None: agents.ppo.PPOConfig's default); --seed, --budget, --epsilon,
+    # PPO-specific settings (None: agents.ppo.config.PPOConfig's default); --seed, --budget, --epsilon,
     # --eval-frames and --eval-every (environment steps here; default 2000) apply to PPO too.
     ppo.add_argument("--vec-env", choices=("dummy", "subproc"), default=None,
                      help="SB3 vectorised env: DummyVecEnv (default) or SubprocVecEnv")
@@ -162,7 +163,7 @@ def _train_ngransac(args: argparse.Namespace, out: Path) -> int:
     return 0
 
 
-# ``vo-gym train`` option -> agents.ppo.PPOConfig field; None (not given) keeps PPOConfig's default.
+# ``vo-gym train`` option -> agents.ppo.config.PPOConfig field; None (not given) keeps PPOConfig's default.
 _PPO_OPTIONS = {
     "env_id": "env_id", "n_envs": "n_envs", "seed": "seed", "timesteps": "timesteps", "budget": "budget",
     "eval_frames": "eval_frames", "eval_every": "eval_every", "vec_env": "vec_env",
@@ -175,12 +176,12 @@ _PPO_OPTIONS = {
 
 
 def ppo_config_from_args(args: argparse.Namespace):
-    """The :class:`agents.ppo.PPOConfig` of ``vo-gym train --algo ppo`` arguments.
+    """The :class:`agents.ppo.config.PPOConfig` of ``vo-gym train --algo ppo`` arguments.
 
     ``--eval-every`` counts environment steps here; an option left out keeps PPOConfig's default
     (``--eval-every``: 2000), and a given value is taken as given (``--eval-every 250`` is 250).
     """
-    from agents.ppo import PPOConfig
+    from agents.ppo.config import PPOConfig
 
     values = {key: getattr(args, arg) for arg, key in _PPO_OPTIONS.items() if getattr(args, arg, None) is not None}
     if getattr(args, "max_minutes", None) is not None:
@@ -191,7 +192,7 @@ def ppo_config_from_args(args: argparse.Namespace):
 
 
 def _train_ppo(args: argparse.Namespace, out: Path) -> int:
-    from agents.ppo import train_ppo
+    from agents.ppo.train import train_ppo
 
     try:
         config = ppo_config_from_args(args)
@@ -229,6 +230,7 @@ def _check_env_id(env_id: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    require_extras("torch", "tensorboard", *(("stable_baselines3",) if args.algo == "ppo" else ()))
     out = check_output_dir(args.out, "--out")  # before any computing: a bad --out loses no training
     if args.resume is not None and not Path(args.resume).is_file():
         raise UsageError(f"--resume: no checkpoint at {args.resume}")

@@ -17,7 +17,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from agents.evaluation_setup import (
+from agents.evaluation.setup import (
     KIND_ADAPTIVE,
     KIND_AGENT,
     KIND_AGENT_ADAPTIVE,

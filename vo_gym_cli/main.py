@@ -1,10 +1,10 @@
-"""The ``vo-gym`` console script: one subcommand a module under ``vo_gym.commands``.
+"""The ``vo-gym`` console script: one subcommand a module under ``vo_gym_cli.commands``.
 
 Each command module exposes ``add_parser(subparsers)`` (declares its options)
 and ``run(args) -> int`` (does the work, returns the exit code). Modules are
 imported lazily so that ``vo-gym --help`` stays fast and a command's heavy
 imports (torch, matplotlib) load only when it runs. Every command runs inside
-:func:`vo_gym.commands.common.guarded`: a usage error is one line and exit 2,
+:func:`vo_gym_cli.commands.common.guarded`: a usage error is one line and exit 2,
 Ctrl-C one line and exit 130.
 """
 
@@ -14,7 +14,7 @@ import argparse
 import importlib
 import sys
 
-from vo_gym.commands.common import ArgumentParser, HelpFormatter, guarded
+from vo_gym_cli.commands.common import ArgumentParser, HelpFormatter, guarded
 
 COMMANDS = {
     "vo": "Run stereo visual odometry over a simulated sequence and write its trajectory.",
@@ -51,7 +51,7 @@ def version() -> str:
 
 
 def _command_module(name: str):
-    return importlib.import_module(f"vo_gym.commands.{name}")
+    return importlib.import_module(f"vo_gym_cli.commands.{name}")
 
 
 def build_parser(names: list[str] | None = None) -> argparse.ArgumentParser:
@@ -64,7 +64,7 @@ def build_parser(names: list[str] | None = None) -> argparse.ArgumentParser:
         try:
             module = _command_module(name)
         except ModuleNotFoundError as err:
-            if err.name != f"vo_gym.commands.{name}":
+            if err.name != f"vo_gym_cli.commands.{name}":
                 raise
             continue
         command = sub.add_parser(name, help=COMMANDS[name], description=COMMANDS[name])
