@@ -195,13 +195,7 @@ class BansacSampler:
         return self._arrays
 
     def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
-        _, w, cdf, before = self._draw_arrays()
-        u = rng.random((batch, SAMPLE_SIZE))
-        samples, suspect = kernels.weighted_triplets(u, w, cdf, before)
-        if suspect.any():
-            for row in np.flatnonzero(suspect):
-                samples[row] = exact_weighted_draw(w, u[row])
-        return samples
+        return WeightedDraw.from_arrays(*self._draw_arrays()[1:]).draw(batch, rng)
 
     def apply(self, verdicts: np.ndarray) -> None:
         """One hypothesis' update from its ``(N,)`` bool inlier mask."""
@@ -241,6 +235,38 @@ class BansacSampler:
 
     def counters(self) -> dict[str, int]:
         return {"bansac_updates": self.updates, "bansac_outlier_beliefs": self.outlier_count()}
+
+
+class WeightedDraw:
+    """:class:`~stereovo.estimation.samplers.WeightedSampler`'s draw for weights that change between
+    batches (BANSAC's beliefs, the adaptive environment's agent): the same samples from the same
+    generator, without the sampler's validation and with its normalisation compiled.
+
+    Args:
+        weights: ``(N,)`` finite weights, each positive and normal (at least
+            ``numpy.finfo(float).tiny`` after division by their sum: then ``WeightedSampler`` takes
+            the plain quotient ``weights / sum``, computed here in numpy's order); the caller
+            guarantees it (this class is for per-batch weights that are valid by construction).
+    """
+
+    def __init__(self, weights: np.ndarray) -> None:
+        weights = np.ascontiguousarray(weights, dtype=float)
+        self.w, self.cdf, self.before = belief_kernels.cumulative_weights(weights, belief_kernels.numpy_sum(weights))
+
+    @classmethod
+    def from_arrays(cls, w: np.ndarray, cdf: np.ndarray, before: np.ndarray) -> "WeightedDraw":
+        draw = cls.__new__(cls)
+        draw.w, draw.cdf, draw.before = w, cdf, before
+        return draw
+
+    def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
+        """``(batch, 3)`` ordered draws without replacement, P(i) proportional to the weights."""
+        u = rng.random((batch, SAMPLE_SIZE))
+        samples, suspect = kernels.weighted_triplets(u, self.w, self.cdf, self.before)
+        if suspect.any():
+            for row in np.flatnonzero(suspect):
+                samples[row] = exact_weighted_draw(self.w, u[row])
+        return samples
 
 
 def exact_weighted_draw(w: np.ndarray, u: np.ndarray) -> np.ndarray:
