@@ -93,16 +93,20 @@ def main() -> int:
         single = sorted(benchmark_step(env, target_duration=args.seconds, seed=0) for _ in range(args.repeats))
         cpu = sorted(cpu_rate(env, args.seconds) for _ in range(args.repeats))
         env.close()
-        venv = gym.make_vec(env_id, num_envs=args.num_envs, vectorization_mode="sync")
-        vector = sorted(benchmark_vector_step(venv, target_duration=args.seconds, seed=0) for _ in range(args.repeats))
-        venv.close()
         mid = args.repeats // 2
+        venv = gym.make_vec(env_id, num_envs=args.num_envs, vectorization_mode="sync")
+        try:
+            vector = sorted(benchmark_vector_step(venv, target_duration=args.seconds, seed=0) for _ in range(args.repeats))
+            vector_text = f"{vector[mid]:8.0f} steps/s"
+        except ValueError as exc:  # Gymnasium cannot stack infos whose arrays change shape between steps
+            vector, vector_text = [float("nan")] * args.repeats, f"not measured ({exc})"
+        venv.close()
         result[env_id] = {"steps_per_s": single[mid], "steps_per_s_runs": single,
                           "vector_sync_steps_per_s": vector[mid], "steps_per_cpu_s": cpu[mid][0],
                           "frames_per_cpu_minute": 60 * cpu[mid][1]}
         print(f"{env_id:<28} benchmark_step {single[mid]:8.0f} steps/s (runs {', '.join(f'{x:.0f}' for x in single)}); "
-              f"sync x{args.num_envs} {vector[mid]:8.0f} steps/s; {cpu[mid][0]:8.0f} steps per CPU-s; "
-              f"{60 * cpu[mid][1]:8.0f} frames per CPU-minute")
+              f"{cpu[mid][0]:8.0f} steps per CPU-s; {60 * cpu[mid][1]:8.0f} frames per CPU-minute; "
+              f"sync x{args.num_envs} {vector_text}")
     if args.digest:
         result["adaptive_digest"] = adaptive_digest()
         print("adaptive digest", result["adaptive_digest"])

@@ -52,7 +52,17 @@ def main() -> int:
     parser.add_argument("--prior-table", action="store_true", help="the score-quality table instead of the curves")
     parser.add_argument("--figure", default=None, help="figure path (default docs/img/speed-accuracy-<preset>.png)")
     parser.add_argument("--json", default=None, help="also write the points / rows as JSON here")
+    parser.add_argument("--from-json", default=None, metavar="JSON",
+                        help="redraw the figure from the points a run wrote with --json, measuring nothing")
     args = parser.parse_args()
+    if args.from_json:
+        points = [sa.CurvePoint(**row) for row in json.loads(Path(args.from_json).read_text())]
+        figure = Path(args.figure or ROOT / "docs" / "img" / f"speed-accuracy-{args.preset}.png")
+        frames = max(p.frames for p in points)
+        sa.plot_curves(points, figure, f"N {args.n}, preset {args.preset}, {frames} frames per point, confidence swept "
+                                       f"{min(p.setting for p in points)}-{max(p.setting for p in points)}, {args.clock} time")
+        print(f"wrote {figure}")
+        return 0
     if not superansac_available():
         print("note: SupeRANSAC is not installed (pip install -e '.[superansac]'); its rows are left out")
     set_clock(args.clock)

@@ -184,6 +184,8 @@ def prior_table_markdown(rows: list[dict]) -> str:
 def plot_curves(points: list[CurvePoint], path, title: str):
     """Success (with 95 % Wilson bands) and median rotation error against median time per frame,
     one column per epsilon, one line per estimator (points in order of time)."""
+    from matplotlib.ticker import FuncFormatter, NullFormatter
+
     from stereovo.reporting import figure, line_style, plot_success, save_figure
 
     epsilons = sorted({p.epsilon for p in points})
@@ -202,6 +204,8 @@ def plot_curves(points: list[CurvePoint], path, title: str):
             bottom.plot(xs, [p.median_rot_deg for p in pts], label=name, lw=1.3, ms=4, **style)
         for ax in (top, bottom):
             ax.set_xscale("log")
+            ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
+            ax.xaxis.set_minor_formatter(NullFormatter())  # log minor labels collide on a narrow range
             ax.grid(True, which="both", alpha=0.3)
         bottom.set_yscale("log")
         top.set_title(f"eps {eps:g}")
