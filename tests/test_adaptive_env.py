@@ -11,6 +11,7 @@ from vo_gym.adaptive_env import GLOBAL_FEATURE_NAMES, LOOP_FEATURE_NAMES, AgentP
 from vo_gym.features import N_FEATURES
 from vo_gym.registration import HARD_SETTINGS
 from vo_gym.rewards import supervised_reward
+from stereovo.estimation.loop import LoopState
 from stereovo.metrics import FrameMetrics
 
 
@@ -104,7 +105,10 @@ def test_selection_weights_consensus_by_the_agents_beliefs():
     sampler = AgentPriorSampler(6)
     big = np.array([[1, 1, 1, 1, 0, 0]], dtype=bool)  # a larger consensus (e.g. a moving object)
     small_ = np.array([[0, 0, 0, 0, 1, 1]], dtype=bool)
-    sampler.masks = [big, small_]
+    for mask in (big, small_):  # two scored hypotheses, reported through the loop's feedback hook
+        state = LoopState(1, 0.0, samples=np.zeros((1, 3), dtype=np.int64))
+        sampler.on_hypotheses(np.eye(3)[None], np.zeros((1, 3)), mask, None, state)
+    np.testing.assert_array_equal(sampler.scored_masks, np.concatenate([big, small_]))
     assert sampler.select(np.full(6, 1 / 6)) == 0  # uniform beliefs: the larger consensus
     assert sampler.select(np.array([0.01, 0.01, 0.01, 0.01, 0.48, 0.48])) == 1
 

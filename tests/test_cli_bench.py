@@ -9,7 +9,8 @@ import pytest
 
 from vo_gym_cli.main import main
 
-PEERS = [name for name, module in (("opencv", "cv2"), ("poselib", "poselib")) if importlib.util.find_spec(module)]
+PEERS = [name for name, module in (("opencv", "cv2"), ("poselib", "poselib"), ("superansac:uniform", "pysuperansac"))
+         if importlib.util.find_spec(module)]
 
 
 def test_tiny_bench_prints_every_estimator_and_writes_the_csv(tmp_path, capsys):

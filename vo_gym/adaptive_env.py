@@ -34,7 +34,7 @@ from stereovo.compilation import announce_compiling
 from stereovo.estimation import EstimatorOptions, StereoProblem, method_spec
 from stereovo.estimation.loop import LoopState, RansacSearch
 from stereovo.estimation.methods import MotionEstimate
-from stereovo.estimation.samplers import WeightedSampler
+from stereovo.estimation.bansac import WeightedDraw
 from stereovo.estimation.termination import FixedBudget
 from stereovo.geometry import PoseChain
 from stereovo.metrics import frame_metrics
@@ -66,6 +66,9 @@ was scored; ``log(1 + angle / 0.1 deg)`` and ``log(1 + |dt| / 5 cm)`` of the bes
 the previous frame's (constant-velocity prediction; 0 without one); 1 when a previous motion is known;
 the belief-weighted support of the hypothesis the frame would end on now, under the last action."""
 
+MASK_ROWS_START = 64  # rows of a frame's mask buffer at first (doubled when a frame scores more)
+
+
 def _check(rule, name: str, value: Any):
     return rule.check(name, value, prefix="StereoVOAdaptiveEnv: ")
 
@@ -78,8 +81,11 @@ class AgentPriorSampler:
     def __init__(self, n: int) -> None:
         self.n = n
         self.weights = np.full(n, 1.0 / n)
-        self._sampler = WeightedSampler(self.weights)
+        self._sampler = WeightedDraw(self.weights)
         self.votes = np.zeros(n, dtype=np.int64)
+        # every scored hypothesis' inlier mask, in order (rows [0, scored)): select() reads them each step
+        self._all_masks = np.zeros((MASK_ROWS_START, n), dtype=bool)
+        self._scored = 0
         self.R: list[np.ndarray] = []
         self.t: list[np.ndarray] = []
         self.masks: list[np.ndarray] = []
@@ -88,8 +94,10 @@ class AgentPriorSampler:
         self.last_masks = np.zeros((0, n), dtype=bool)
 
     def set_weights(self, weights: np.ndarray) -> None:
+        """``weights (N,)``: a softmax of bounded logits (all positive and normal), so the draw skips
+        ``WeightedSampler``'s validation and gives its samples (:class:`WeightedDraw`)."""
         self.weights = weights
-        self._sampler = WeightedSampler(weights)
+        self._sampler = WeightedDraw(weights)
 
     def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
         return self._sampler.draw(batch, rng)
@@ -101,6 +109,13 @@ class AgentPriorSampler:
         self.masks.append(inlier_masks)
         self.samples.append(state.samples)
         self.last_samples, self.last_masks = state.samples, inlier_masks
+        end = self._scored + inlier_masks.shape[0]
+        if end > self._all_masks.shape[0]:
+            grown = np.zeros((max(2 * self._all_masks.shape[0], end), self.n), dtype=bool)
+            grown[: self._scored] = self._all_masks[: self._scored]
+            self._all_masks = grown
+        self._all_masks[self._scored:end] = inlier_masks
+        self._scored = end
 
     def all_inlier_probability(self, inliers: np.ndarray) -> float:
         w = self.weights / self.weights.sum()
@@ -108,14 +123,18 @@ class AgentPriorSampler:
         return inside**3
 
     def n_scored(self) -> int:
-        return sum(m.shape[0] for m in self.masks)
+        return self._scored
+
+    @property
+    def scored_masks(self) -> np.ndarray:
+        """``(H, N)`` bool, the inlier masks of every hypothesis scored in this frame, in order."""
+        return self._all_masks[: self._scored]
 
     def select(self, weights: np.ndarray) -> int | None:
         """Index of the scored hypothesis with the largest ``weights``-weighted support."""
-        if not self.masks:
+        if not self._scored:
             return None
-        masks = np.concatenate(self.masks)
-        return int(np.argmax(masks @ weights))
+        return int(np.argmax(self.scored_masks @ weights))
 
 
 class StereoVOAdaptiveEnv(gym.Env):
@@ -369,8 +388,8 @@ class StereoVOAdaptiveEnv(gym.Env):
         frame, search, sampler = self._frame, self._search, self._sampler
         chosen = sampler.select(self._weights)
         if chosen is not None:
-            masks = np.concatenate(sampler.masks)
-            search.choose(np.concatenate(sampler.R)[chosen], np.concatenate(sampler.t)[chosen], masks[chosen],
+            masks = sampler.scored_masks
+            search.choose(np.concatenate(sampler.R)[chosen], np.concatenate(sampler.t)[chosen], masks[chosen].copy(),
                           float(np.count_nonzero(masks[chosen])))
         report = search.finish()
         est = MotionEstimate.from_report(report, self.method, 0.0)
@@ -438,7 +457,7 @@ class StereoVOAdaptiveEnv(gym.Env):
                 g[4] = math.log1p(float(np.linalg.norm(search.best_t - t_prev)) / 0.05)
         chosen = sampler.select(self._weights)
         if chosen is not None:
-            g[6] = float(np.concatenate(sampler.masks)[chosen] @ self._weights)
+            g[6] = float(sampler.scored_masks[chosen] @ self._weights)
         g = np.clip(g, -FEATURE_BOUND, FEATURE_BOUND).astype(np.float32)
         return {"features": features, "mask": mask, "globals": g}
 

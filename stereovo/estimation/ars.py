@@ -29,11 +29,13 @@ import itertools
 import numpy as np
 
 from stereovo.estimation.bansac import BELIEF_FLOOR, PRIOR_CEILING, initial_beliefs
+from stereovo.estimation.kernels import beliefs as belief_kernels
 from stereovo.estimation.loop import LoopState
 from stereovo.estimation.samplers import SAMPLE_SIZE
 
 CANDIDATES = 8
-_TRIPLES = np.array(list(itertools.combinations(range(CANDIDATES), SAMPLE_SIZE)), dtype=np.int64)
+CANDIDATE_TRIPLES = np.array(list(itertools.combinations(range(CANDIDATES), SAMPLE_SIZE)), dtype=np.int64)
+TABLE_START = 1024  # slots of the tried-sample table at the start (doubled whenever it would pass half full)
 
 
 def baysac_failure_update(p: np.ndarray, sample: np.ndarray) -> np.ndarray:
@@ -49,6 +51,10 @@ def baysac_failure_update(p: np.ndarray, sample: np.ndarray) -> np.ndarray:
 class ArsSampler:
     """Most probable untried sample, BaySAC update after every failure (module docstring).
 
+    The draw, its update and the feedback run compiled (:mod:`stereovo.estimation.kernels.beliefs`),
+    the tried samples in a hash table of int64 codes; the draws are bit for bit those of the numpy
+    formulation (:func:`baysac_failure_update` on a set of tuples).
+
     Attributes:
         beliefs: ``(N,)`` current inlier probabilities.
     """
@@ -61,58 +67,59 @@ class ArsSampler:
             if not 0 < value < 1:
                 raise ValueError(f"ArsSampler: {name} must be in (0, 1), got {value!r}")
         self.n = n
-        self.beliefs = initial_beliefs(n, priors, initial_probability, prior_ceiling)
+        self.beliefs = np.ascontiguousarray(initial_beliefs(n, priors, initial_probability, prior_ceiling))
         self._tie_break: np.ndarray | None = None
-        self._tried: set[tuple[int, int, int]] = set()
-        self._pending: dict[tuple[int, int, int], np.ndarray] = {}
+        self._table = np.full(TABLE_START, belief_kernels.EMPTY, dtype=np.int64)
+        self._tried = 0
+        # draws since the last feedback, in order: their codes and beliefs before their update
+        self._pending_codes: list[np.ndarray] = []
+        self._pending_before: list[np.ndarray] = []
         self._best_support = -1
         self.successes = 0
 
-    def _most_probable_untried(self) -> np.ndarray:
-        p = self.beliefs
-        k = min(CANDIDATES, self.n)
-        # the k most probable points, equal beliefs in the run's random order
-        top = np.lexsort((self._tie_break, -p))[:k]
-        triples = top[_TRIPLES[np.all(_TRIPLES < k, axis=1)]]
-        value = np.prod(p[triples], axis=1)
-        for j in np.argsort(-value, kind="stable"):
-            key = tuple(sorted(int(i) for i in triples[j]))
-            if key not in self._tried:
-                return triples[j]
-        # every candidate triple tried: the best one again (its beliefs keep falling, others rise past)
-        return triples[int(np.argmax(value))]
+    def _room_for(self, batch: int) -> None:
+        """Keep the tried-sample table at most half full after ``batch`` more codes."""
+        size = self._table.shape[0]
+        while 2 * (self._tried + batch) > size:
+            size *= 2
+        if size != self._table.shape[0]:
+            self._table = belief_kernels.rehashed(self._table, size)
 
     def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
         if self._tie_break is None:
-            self._tie_break = rng.permutation(self.n)
-        out = np.empty((batch, SAMPLE_SIZE), dtype=np.int64)
-        for row in range(batch):
-            sample = self._most_probable_untried()
-            key = tuple(sorted(int(i) for i in sample))
-            self._tried.add(key)
-            self._pending[key] = self.beliefs[sample].copy()
-            self.beliefs = baysac_failure_update(self.beliefs, sample)
-            out[row] = sample
-        return out
+            self._tie_break = np.ascontiguousarray(rng.permutation(self.n), dtype=np.int64)
+        self._room_for(batch)
+        samples, codes, before, added = belief_kernels.ars_draw(
+            self.beliefs, self._tie_break, CANDIDATE_TRIPLES, self._table, min(CANDIDATES, self.n), int(batch), BELIEF_FLOOR
+        )
+        self._tried += int(added)
+        self._pending_codes.append(codes)
+        self._pending_before.append(before)
+        return samples
 
     def on_hypotheses(self, R, t, inlier_masks: np.ndarray, residual_sq: np.ndarray, state: LoopState) -> None:
-        support = np.count_nonzero(inlier_masks, axis=1)
-        for sample, count in zip(state.samples, support):
-            key = tuple(sorted(int(i) for i in sample))
-            before = self._pending.pop(key, None)
-            if count > self._best_support:
-                self._best_support = int(count)
-                if before is not None:  # a success: the failure update assumed at the draw is undone
-                    self.beliefs[sample] = before
-                    self.successes += 1
-        self._pending.clear()
+        support = np.count_nonzero(inlier_masks, axis=1).astype(np.int64)
+        if self._pending_codes:
+            codes, before = np.concatenate(self._pending_codes), np.concatenate(self._pending_before)
+        else:
+            codes, before = np.zeros(0, dtype=np.int64), np.zeros((0, SAMPLE_SIZE))
+        self._best_support, successes = belief_kernels.ars_feedback(
+            self.beliefs, np.ascontiguousarray(state.samples, dtype=np.int64), support, codes, before,
+            self._best_support,
+        )
+        self._best_support = int(self._best_support)
+        self.successes += int(successes)
+        self._pending_codes, self._pending_before = [], []
 
     def all_inlier_probability(self, inliers: np.ndarray) -> float:
         """Whether the next (deterministic) draw lies in ``inliers (N,)`` bool: 1.0 or 0.0."""
-        return float(np.all(inliers[self._most_probable_untried()]))
+        if self._tie_break is None:
+            raise RuntimeError("ArsSampler: the next draw is defined only after the first draw (its tie-break)")
+        sample = belief_kernels.ars_next(self.beliefs, self._tie_break, CANDIDATE_TRIPLES, self._table, min(CANDIDATES, self.n))
+        return float(np.all(inliers[sample]))
 
     def counters(self) -> dict[str, int]:
-        return {"ars_successes": self.successes, "ars_tried": len(self._tried)}
+        return {"ars_successes": self.successes, "ars_tried": self._tried}
 
 
 # ----------------------------------------------------------------------------- the method

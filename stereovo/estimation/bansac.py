@@ -64,6 +64,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from stereovo.estimation import kernels
+from stereovo.estimation.kernels import beliefs as belief_kernels
 from stereovo.estimation.local_optimization import ConsensusRefit
 from stereovo.estimation.loop import LoopState
 from stereovo.estimation.samplers import SAMPLE_SIZE, WeightedSampler
@@ -79,6 +81,7 @@ WEIGHTINGS = ("discretised", "belief")  # sampling weights ceil(100 p) (the pape
 WEIGHT_FLOOR = 1e-12  # "belief" weights: a belief that underflowed to 0 can still be drawn
 # c = 1 (every point an inlier, r = 1) would send every log-odds to +inf; one part in 1e12 below keeps them finite.
 C_MAX = 1.0 - 1e-12
+LOG_GATED_IN, LOG_GATED_OUT = math.log(0.2), math.log(0.8)  # the table's split of a gated point's outlier weight
 
 DEFAULT_RECALL = 0.5
 PRIOR_CEILING = 0.6  # the largest prior's belief: at 0.95 the verdict-likelihood beliefs lock onto the first consensus (eps 0.5, 20 frames: 85 % success; 0.6: 95 %)
@@ -139,6 +142,11 @@ def prior_beliefs(n: int, priors: np.ndarray | None, initial_probability: float,
 class BansacSampler:
     """The paper's beliefs, sampling weights and stop count (module docstring).
 
+    The update, the weights and their cumulative sums are compiled
+    (:mod:`stereovo.estimation.kernels.beliefs`) and kept between draws: the numpy formulation
+    (:func:`log_odds_update`, then a fresh :class:`~stereovo.estimation.samplers.WeightedSampler`
+    per hypothesis) gives the same draws bit for bit at several times the cost.
+
     Attributes:
         log_odds: ``(N,)`` ``log(phi_in / phi_out)`` per point.
         threshold: ``tau`` of the stopping rule.
@@ -160,46 +168,61 @@ class BansacSampler:
             raise ValueError(f"BansacSampler: weights must be one of {WEIGHTINGS}, got {weights!r}")
         self.n, self.threshold, self.weighting = n, float(threshold), weights
         p = prior_beliefs(n, priors, initial_probability, prior_ceiling)
-        self.log_odds = np.log(p) - np.log1p(-p)
+        self.log_odds = np.ascontiguousarray(np.log(p) - np.log1p(-p))
+        self._outlier_log_odds = math.log(self.threshold) - math.log1p(-self.threshold)
         self.updates = self.best_inliers_seen = 0
         self.best_support = 0  # the best consensus' size at the latest update
-        self._sampler: WeightedSampler | None = None
+        self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
 
     @property
     def beliefs(self) -> np.ndarray:
         """``(N,)`` inlier beliefs ``phi_in / (phi_in + phi_out)``."""
-        return np.exp(-np.logaddexp(0.0, -self.log_odds))  # the logistic, without overflow at large |log-odds|
+        return belief_kernels.logistic_beliefs(self.log_odds)  # the logistic, without overflow at large |log-odds|
 
     @property
     def sampling_weights(self) -> np.ndarray:
         """``(N,)`` ``ceil(100 p)``, at least 1 (the paper's); ``p`` with ``weights="belief"``."""
-        if self.weighting == "belief":
-            return np.maximum(self.beliefs, WEIGHT_FLOOR)
-        return np.maximum(np.ceil(WEIGHT_LEVELS * self.beliefs), 1.0)
+        return self._draw_arrays()[0]
+
+    def _draw_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The weights, and what the weighted draw inverts: the weights over their sum (every weight
+        is >= 1e-12, so that is :func:`~stereovo.estimation.samplers.normalised_weights`' direct
+        quotient) and its inclusive and exclusive cumulative sums; kept until the next update."""
+        if self._arrays is None:
+            self._arrays = belief_kernels.bansac_draw_arrays(
+                self.log_odds, self.weighting == "discretised", float(WEIGHT_LEVELS), WEIGHT_FLOOR
+            )
+        return self._arrays
 
     def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
-        if self._sampler is None:
-            self._sampler = WeightedSampler(self.sampling_weights)
-        return self._sampler.draw(batch, rng)
+        return WeightedDraw.from_arrays(*self._draw_arrays()[1:]).draw(batch, rng)
 
     def apply(self, verdicts: np.ndarray) -> None:
         """One hypothesis' update from its ``(N,)`` bool inlier mask."""
+        self._apply(np.ascontiguousarray(verdicts, dtype=bool))
+
+    def _apply(self, verdicts: np.ndarray) -> None:
         k = int(np.count_nonzero(verdicts))
-        self.log_odds = log_odds_update(self.log_odds, verdicts, k / self.n)
+        c = min(classification_parameter(k / self.n), C_MAX)
+        log_c, log_1mc = math.log(c), math.log1p(-c)
+        belief_kernels.bansac_log_odds_update(
+            self.log_odds, verdicts, log_c, LOG_GATED_IN + log_1mc, LOG_GATED_OUT + log_1mc, log_1mc - log_c
+        )
         self.best_inliers_seen = max(self.best_inliers_seen, k)
         self.updates += 1
-        self._sampler = None
+        self._arrays = None
 
     def on_hypotheses(self, R, t, inlier_masks: np.ndarray, residual_sq, state: LoopState) -> None:
-        for verdicts in inlier_masks:
-            self.apply(verdicts)
+        masks = np.ascontiguousarray(inlier_masks, dtype=bool)
+        for verdicts in masks:
+            self._apply(verdicts)
         best = state.best_inliers
         self.best_support = self.best_inliers_seen if best is None else int(np.count_nonzero(best))
 
     def outlier_count(self) -> int:
         """Points whose belief is under ``tau``."""
         # p < tau  <=>  log-odds < log(tau / (1 - tau))
-        return int(np.count_nonzero(self.log_odds < math.log(self.threshold) - math.log1p(-self.threshold)))
+        return int(np.count_nonzero(self.log_odds < self._outlier_log_odds))
 
     def stop_rule_met(self, n_best_inliers: int) -> bool:
         """BANSAC's stop: after at least one update, ``#(p < tau) >= N - n_best_inliers``."""
@@ -212,6 +235,54 @@ class BansacSampler:
 
     def counters(self) -> dict[str, int]:
         return {"bansac_updates": self.updates, "bansac_outlier_beliefs": self.outlier_count()}
+
+
+class WeightedDraw:
+    """:class:`~stereovo.estimation.samplers.WeightedSampler`'s draw for weights that change between
+    batches (BANSAC's beliefs, the adaptive environment's agent): the same samples from the same
+    generator, without the sampler's validation and with its normalisation compiled.
+
+    Args:
+        weights: ``(N,)`` finite weights, each positive and normal (at least
+            ``numpy.finfo(float).tiny`` after division by their sum: then ``WeightedSampler`` takes
+            the plain quotient ``weights / sum``, computed here in numpy's order); the caller
+            guarantees it (this class is for per-batch weights that are valid by construction).
+    """
+
+    def __init__(self, weights: np.ndarray) -> None:
+        weights = np.ascontiguousarray(weights, dtype=float)
+        self.w, self.cdf, self.before = belief_kernels.cumulative_weights(weights, belief_kernels.numpy_sum(weights))
+
+    @classmethod
+    def from_arrays(cls, w: np.ndarray, cdf: np.ndarray, before: np.ndarray) -> "WeightedDraw":
+        draw = cls.__new__(cls)
+        draw.w, draw.cdf, draw.before = w, cdf, before
+        return draw
+
+    def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
+        """``(batch, 3)`` ordered draws without replacement, P(i) proportional to the weights."""
+        u = rng.random((batch, SAMPLE_SIZE))
+        samples, suspect = kernels.weighted_triplets(u, self.w, self.cdf, self.before)
+        if suspect.any():
+            for row in np.flatnonzero(suspect):
+                samples[row] = exact_weighted_draw(self.w, u[row])
+        return samples
+
+
+def exact_weighted_draw(w: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """One ordered draw of three from weights ``w (N,)`` (normalised) and uniforms ``u (3,)``, each
+    inverted on the explicitly renormalised weights: the rare fix-up of a draw that rounding put on
+    an interval's edge (as :class:`~stereovo.estimation.samplers.WeightedSampler` fixes its own)."""
+    w = w.copy()
+    picked = np.empty(SAMPLE_SIZE, dtype=np.int64)
+    for k in range(SAMPLE_SIZE):
+        cdf = np.cumsum(w)
+        i = int(np.searchsorted(cdf, u[k] * cdf[-1], side="right"))
+        positive = np.flatnonzero(w > 0)
+        i = i if i < w.shape[0] and w[i] > 0 else int(positive[np.argmin(np.abs(positive - i))])
+        picked[k] = i
+        w[i] = 0.0
+    return picked
 
 
 def sequential_all_inlier_probability(w: np.ndarray, inliers: np.ndarray) -> float:

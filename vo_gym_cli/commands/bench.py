@@ -2,8 +2,9 @@
 
 For every (N, epsilon) cell the same simulated frames go to our core and, when
 the ``peers`` extra is installed, to OpenCV's ``solvePnPRansac`` and PoseLib's
-``estimate_absolute_pose`` (3-D points triangulated at k-1, left-image pixels
-at k). It prints per-frame median time, hypotheses per second, success rate
+``estimate_absolute_pose``, and with the ``superansac`` extra to SupeRANSAC's PnP
+(3-D points triangulated at k-1, left-image pixels at k; optionally its 3-D-3-D
+rigid transform). The runners are :mod:`stereovo.benchmark.peers`. It prints per-frame median time, hypotheses per second, success rate
 and median rotation error, and the ratio of our median time to each peer's.
 Speed is measured here, never asserted in tests.
 """
@@ -12,8 +13,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import time
-from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -31,8 +30,6 @@ from vo_gym_cli.commands.common import seed as seed_type
 
 DEFAULT_NS = (200, 500, 1000)
 DEFAULT_EPSILONS = (0.2, 0.5, 0.8)
-PEER_REPROJECTION_PX = 2.0  # peers judge one image; 2 px at sigma 0.5 is their usual setting
-PEER_MAX_ITERATIONS = 10_000
 # Outlier kinds (random, stereo, moving-object weights). "random" is the default because a random
 # mismatch corrupts the left pixel at k, which every estimator here uses, so the peers and we face
 # the same contamination. A stereo mismatch at k corrupts only the right pixel at k: an outlier for
@@ -40,76 +37,27 @@ PEER_MAX_ITERATIONS = 10_000
 BENCH_OUTLIER_MIXES = {"random": (1.0, 0.0, 0.0), "random+stereo": (0.8, 0.2, 0.0)}
 
 
-@dataclass
-class Outcome:
-    rotation: np.ndarray
-    translation: np.ndarray
-    hypotheses: int
-    seconds: float
+def _runners(args: argparse.Namespace) -> dict[str, Callable]:
+    """Our method and, unless ``--no-peers``, every installed peer (one line for each missing one)."""
+    from stereovo.benchmark import peers
 
-
-def _ours(method: str) -> Callable:
-    from stereovo import estimate_motion
-
-    inputs = score_inputs(method)  # PROSAC / guided MLESAC sample by the match scores
-
-    def run(frame, seed: int) -> Outcome:
-        given = {key.removesuffix("_fn"): fn(frame) for key, fn in inputs.items()}
-        start = time.perf_counter()
-        est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=seed, noise_sigma=frame.noise_sigma,
-                              **given)
-        elapsed = time.perf_counter() - start
-        return Outcome(est.rotation, est.translation, est.n_hypotheses, elapsed)
-
-    return run
-
-
-def _opencv() -> Callable | None:
-    try:
-        import cv2
-    except ImportError:
-        return None
-    cv2.setNumThreads(1)
-
-    def run(frame, seed: int) -> Outcome:
-        cv2.setRNGSeed(seed)
-        X = frame.camera.triangulate(frame.prev)
-        start = time.perf_counter()
-        ok, rvec, tvec, inliers = cv2.solvePnPRansac(
-            X, frame.curr[:, :2].copy(), frame.camera.intrinsics, None,
-            iterationsCount=PEER_MAX_ITERATIONS, reprojectionError=PEER_REPROJECTION_PX,
-            confidence=0.99, flags=cv2.SOLVEPNP_AP3P,
-        )
-        elapsed = time.perf_counter() - start
-        if not ok:
-            return Outcome(np.eye(3), np.zeros(3), 0, elapsed)
-        R, _ = cv2.Rodrigues(rvec)
-        # OpenCV does not report its iteration count; -1 marks it unknown.
-        return Outcome(R, tvec.ravel(), -1, elapsed)
-
-    return run
-
-
-def _poselib() -> Callable | None:
-    try:
-        import poselib
-    except ImportError:
-        return None
-
-    def run(frame, seed: int) -> Outcome:
-        cam = frame.camera
-        camera = {"model": "PINHOLE", "width": cam.width, "height": cam.height, "params": [cam.fx, cam.fy, cam.cx, cam.cy]}
-        X = cam.triangulate(frame.prev)
-        start = time.perf_counter()
-        pose, info = poselib.estimate_absolute_pose(
-            frame.curr[:, :2].copy(), X, camera,
-            {"max_reproj_error": PEER_REPROJECTION_PX, "max_iterations": PEER_MAX_ITERATIONS, "success_prob": 0.99, "seed": seed},
-            {},
-        )
-        elapsed = time.perf_counter() - start
-        return Outcome(pose.R, np.asarray(pose.t), int(info.get("iterations", -1)), elapsed)
-
-    return run
+    inputs = score_inputs(args.method)  # PROSAC-style methods get the scores' order, guided MLESAC the probabilities
+    sampling = "prosac" if "order_fn" in inputs else "guided" if "priors_fn" in inputs else "uniform"
+    runners: dict[str, Callable] = {f"ours:{args.method}": peers.ours(args.method, sampling)}
+    if args.no_peers:
+        return runners
+    sampler = args.superansac_sampler
+    factories = [("opencv", peers.opencv, "peers"), ("poselib", peers.poselib, "peers"),
+                 (f"superansac:{sampler}", lambda: peers.superansac(sampler), "superansac")]
+    if args.superansac_rigid:
+        factories.append((f"superansac-rigid:{sampler}", lambda: peers.superansac(sampler, rigid=True), "superansac"))
+    for name, factory, extra in factories:
+        runner = factory()
+        if runner is None:
+            print(f"note: {name.split(':')[0]} is not installed (pip install -e '.[{extra}]'); skipping it")
+        else:
+            runners[name] = runner
+    return runners
 
 
 def add_parser(parser: argparse.ArgumentParser) -> None:
@@ -132,7 +80,12 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--noise", type=finite_float("--noise", 1e-3, 1e3), default=0.5,
                         help="pixel noise sigma (px), in [0.001, 1000]")
     parser.add_argument("--seed", type=seed_type, default=0, help="seed of the frames and of the estimators (>= 0)")
-    parser.add_argument("--no-peers", action="store_true", help="skip OpenCV and PoseLib even if installed")
+    parser.add_argument("--no-peers", action="store_true", help="skip OpenCV, PoseLib and SupeRANSAC even if installed")
+    parser.add_argument("--superansac-sampler", choices=("uniform", "prosac", "importance", "ar"), default="uniform",
+                        help="SupeRANSAC's sampler (the 'superansac' extra, CPython 3.11 on Linux); importance and ar "
+                             "get the scores calibrated to inlier probabilities, prosac the matches by score")
+    parser.add_argument("--superansac-rigid", action="store_true",
+                        help="also run SupeRANSAC's 3-D-3-D rigid transform on the points triangulated in both frames")
     parser.add_argument("--out", default=None, metavar="CSV",
                         help="optional CSV path for the per-cell table (default: none)")
 
@@ -140,21 +93,13 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from stereovo.geometry import rotation_error
-    from stereovo.metrics import is_success
+    from stereovo.benchmark.peers import frame_errors
     from stereovo.simulation import SimulationConfig, simulate_frame
 
     if args.out:
         check_output_file(args.out, "--out")  # before any computing, so no result is lost
     ns, epsilons = list(args.ns), list(args.epsilons)
-    runners: dict[str, Callable] = {f"ours:{args.method}": _ours(args.method)}
-    if not args.no_peers:
-        for name, factory in (("opencv", _opencv), ("poselib", _poselib)):
-            runner = factory()
-            if runner is None:
-                print(f"note: {name} is not installed (pip install -e '.[peers]'); skipping it")
-            else:
-                runners[name] = runner
+    runners = _runners(args)
     print(f"threads: OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}; times are wall-clock per frame")
 
     rows = []
@@ -170,12 +115,11 @@ def run(args: argparse.Namespace) -> int:
                 times, hyps, rot, ok = [], [], [], []
                 for i, frame in enumerate(frames):
                     out = runner(frame, args.seed + i)
-                    r_err = float(rotation_error(out.rotation, frame.truth.rotation))
-                    t_err = float(np.linalg.norm(out.translation - frame.truth.translation))
-                    ok.append(bool(is_success(r_err, t_err, np.linalg.norm(frame.truth.translation))))
+                    rot_deg, _, success = frame_errors(out, frame)
+                    ok.append(success)
                     times.append(out.seconds)
                     hyps.append(out.hypotheses)
-                    rot.append(np.degrees(r_err))
+                    rot.append(rot_deg)
                     bar.update()
                 hyps_known = [h for h in hyps if h >= 0]
                 rows.append(

@@ -32,7 +32,9 @@ The kernels by role (this package re-exports every public name, so
 - :mod:`~stereovo.estimation.kernels.mahalanobis`: the 3D and the pixel Mahalanobis residuals;
 - :mod:`~stereovo.estimation.kernels.fitting`: rigid fits, minimal-sample fits, degeneracy;
 - :mod:`~stereovo.estimation.kernels.sampling`: drawing minimal samples and their rigidity check;
-- :mod:`~stereovo.estimation.kernels.refinement`: the refine / re-gate rounds.
+- :mod:`~stereovo.estimation.kernels.refinement`: the refine / re-gate rounds;
+- :mod:`~stereovo.estimation.kernels.beliefs`: BANSAC's and ARS's belief updates and draws (imported
+  as a module by :mod:`stereovo.estimation.bansac` and :mod:`stereovo.estimation.ars`, not re-exported).
 
 The early-rejection verification kernels are :mod:`stereovo.estimation.kernels_verification`.
 """
