@@ -44,12 +44,13 @@ import numpy as np
 import torch
 from torch import nn
 
+from agents.checkpoint import IN_FRAME, IN_FRAME_FORMAT, CheckpointError, read_payload, shipped_checkpoint
 from agents.network import PAD_LOGIT, CorrespondenceNet
 from agents.ngransac import ordered_triplet_log_prob
 from vo_gym.adaptive_env import ADAPTIVE_FEATURE_NAMES, GLOBAL_FEATURE_NAMES, StereoVOAdaptiveEnv
 from vo_gym.registration import HARD_SETTINGS
 
-FORMAT = "vo-gym adaptive sampler v1"
+FORMAT = IN_FRAME_FORMAT
 LOGIT_BOUND = 10.0
 STOP_ACTION = 1.0
 
@@ -77,7 +78,7 @@ class AdaptiveSamplerNet(nn.Module):
     @classmethod
     def with_prior(cls, sampler: str, width: int = 48, blocks: int = 3) -> "AdaptiveSamplerNet":
         """A fresh network over the shipped one-shot ``sampler`` (a name of ``agents.checkpoint.SHIPPED_SAMPLERS``)."""
-        from agents.checkpoint import load_checkpoint, shipped_checkpoint
+        from agents.checkpoint import load_checkpoint
 
         with shipped_checkpoint(sampler) as path:
             one_shot, _ = load_checkpoint(path)
@@ -121,7 +122,13 @@ def make_action(logits: np.ndarray, mask: np.ndarray, stop: bool) -> np.ndarray:
 
 
 class AdaptiveSamplerPolicy:
-    """The learned in-frame sampler as a policy of the adaptive env: ``act(obs, info) -> action``."""
+    """The learned in-frame sampler as a policy of the adaptive env: ``act(obs, info) -> action``.
+
+    ``obs`` is the adaptive observation (:meth:`vo_gym.in_frame.InFrameSearch.observation`); the action
+    is the next batch's logits and the stop slot, stop once the stop belief reaches ``confidence``.
+    """
+
+    kind = IN_FRAME
 
     def __init__(self, net: AdaptiveSamplerNet, confidence: float = 0.9, name: str = "adaptive") -> None:
         if not 0 < confidence < 1:
@@ -134,6 +141,19 @@ class AdaptiveSamplerPolicy:
 
     @torch.no_grad()
     def act(self, obs: dict, info: dict | None = None) -> np.ndarray:
+        """The action ``(M + 1,)`` float32 (:func:`make_action`) for the adaptive observation ``obs``.
+
+        Raises:
+            ValueError: ``obs`` is not the adaptive observation dict (``features``, ``mask``, ``globals``).
+        """
+        if not isinstance(obs, dict) or not {"features", "mask", "globals"} <= set(obs):
+            got = sorted(obs) if isinstance(obs, dict) else type(obs).__name__
+            raise ValueError(f"{self.name}: an in-frame sampler acts on the adaptive observation "
+                             f"{{'features', 'mask', 'globals'}} of a running search, got {got}; "
+                             "on raw matches use agents.LearnedEstimator")
+        width = np.shape(obs["features"])[-1]
+        if width != self.net.n_features:
+            raise ValueError(f"{self.name}: expected {self.net.n_features} adaptive features per correspondence, got {width}")
         logits, stop = self.net(*_tensors(obs))
         self.last_stop_belief = float(torch.sigmoid(stop)[0])
         return make_action(logits[0].numpy(), obs["mask"], self.last_stop_belief >= self.confidence)
@@ -166,25 +186,33 @@ def shipped_adaptive_path(name: str) -> Path:
 def load_adaptive(name_or_path: str | Path) -> tuple[AdaptiveSamplerNet, dict[str, Any]]:
     """Load by shipped name (``"adaptive-pg"``) or by path; returns the network (eval mode) and payload.
 
+    Nothing in the file runs (``weights_only``). Every error is one line naming the file.
+
     Raises:
         FileNotFoundError: no such file or shipped name.
-        ValueError: not an adaptive-sampler checkpoint, or another feature layout.
+        ValueError (:class:`agents.checkpoint.CheckpointError` for an unusable file): not an
+            adaptive-sampler checkpoint, another feature layout, weights that do not fit.
     """
     path = Path(name_or_path)
     if not path.is_file() and str(name_or_path).startswith("adaptive-"):
         path = shipped_adaptive_path(str(name_or_path))
     if not path.is_file():
-        raise FileNotFoundError(f"no adaptive-sampler checkpoint {name_or_path!r} (neither a file nor a shipped name)")
-    try:
-        payload = torch.load(path, map_location="cpu", weights_only=True)  # never runs code from the file
-    except Exception as err:  # noqa: BLE001 - torch reports a non-checkpoint in many ways, over many lines
-        raise ValueError(f"{path} is not a readable adaptive-sampler checkpoint ({type(err).__name__})") from None
+        raise FileNotFoundError(f"no adaptive-sampler checkpoint {str(name_or_path)!r} (neither a file nor a shipped name)")
+    payload = read_payload(path)
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:
-        raise ValueError(f"{path} is not an adaptive-sampler checkpoint")
+        hint = " (a one-shot sampler: agents.checkpoint.load_sampler)" if isinstance(payload, dict) and "format_version" in payload else ""
+        raise CheckpointError(f"checkpoint {path}: is not an adaptive-sampler checkpoint{hint}")
+    for key in ("network", "feature_names", "global_names", "state_dict"):
+        if key not in payload:
+            raise CheckpointError(f"checkpoint {path}: is not an adaptive-sampler checkpoint (missing key {key})")
     if tuple(payload["feature_names"]) != ADAPTIVE_FEATURE_NAMES or tuple(payload["global_names"]) != GLOBAL_FEATURE_NAMES:
-        raise ValueError(f"checkpoint {path} was trained on another adaptive feature layout")
-    net = AdaptiveSamplerNet(**payload["network"])  # a checkpoint from before ``prior`` has no such key
-    net.load_state_dict(payload["state_dict"])
+        raise CheckpointError(f"checkpoint {path} was trained on another adaptive feature layout")
+    try:
+        net = AdaptiveSamplerNet(**payload["network"])  # a checkpoint from before ``prior`` has no such key
+        net.load_state_dict(payload["state_dict"])
+    except (TypeError, ValueError, RuntimeError) as err:
+        first = (str(err).strip().splitlines() or [type(err).__name__])[0]
+        raise CheckpointError(f"checkpoint {path}: its weights do not fit the network it declares ({first[:160]})") from None
     return net.eval(), payload
 
 
