@@ -241,6 +241,8 @@ class AdaptiveTrainConfig:
             training time adds to this run's in the budget of the result.
         prior: shipped one-shot sampler whose logits a fresh network adds to its own (``None``: none;
             see :class:`AdaptiveSamplerNet`); that sampler's training time is its own.
+        max_episodes: stop after this many episodes if the time budget lasts that long (None: the
+            budget alone).
     """
 
     minutes: float = 25.0
@@ -266,7 +268,28 @@ class AdaptiveTrainConfig:
     clock: str = "wall"
     init: str | None = None
     prior: str | None = None
+    max_episodes: int | None = None
     extra: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.minutes, bool) or not isinstance(self.minutes, (int, float)) or not (
+                math.isfinite(self.minutes) and self.minutes > 0):
+            raise ValueError(f"minutes must be a positive number, got {self.minutes!r}")
+        if self.clock not in ("wall", "cpu"):
+            raise ValueError(f"clock must be 'wall' or 'cpu', got {self.clock!r}")
+        if self.max_episodes is not None and (isinstance(self.max_episodes, bool) or not isinstance(self.max_episodes, int)
+                                              or self.max_episodes < 1):
+            raise ValueError(f"max_episodes must be None or an integer >= 1, got {self.max_episodes!r}")
+        for name in ("frames_per_episode", "batch_size", "max_hypotheses", "n", "width", "blocks", "frames_per_update"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+        for name in ("epsilons", "hard_epsilons"):
+            low, high = getattr(self, name)
+            if not 0 <= low <= high < 1:
+                raise ValueError(f"{name} must satisfy 0 <= low <= high < 1, got {getattr(self, name)!r}")
+        if self.prior is not None and self.init is not None:
+            raise ValueError("prior starts a fresh network; init continues a checkpoint (which keeps its own prior)")
 
 
 def _training_env(config: AdaptiveTrainConfig, episode: int) -> tuple[StereoVOAdaptiveEnv, dict]:
@@ -291,8 +314,52 @@ def right_hypothesis(masks: np.ndarray, weights: np.ndarray, inlier: np.ndarray,
     return found >= precision * max(np.count_nonzero(chosen), 1) and found >= recall * np.count_nonzero(inlier)
 
 
-def train_adaptive(config: AdaptiveTrainConfig, out: str | Path, log_path: str | Path | None = None) -> Path:
+@dataclass
+class AdaptiveTrainResult:
+    """What :func:`train_in_frame` wrote and how long it took."""
+
+    checkpoint: Path
+    log: list[dict[str, Any]]
+    episodes: int
+    frames: int
+    wall_s: float
+    cpu_s: float
+
+
+def train_in_frame(config: AdaptiveTrainConfig, out: str | Path, progress: bool = True) -> AdaptiveTrainResult:
+    """Train the in-frame sampler within ``config.minutes`` (of ``config.clock``) into the folder ``out``.
+
+    The library side of ``vo-gym train --algo adaptive``, laid out as the PPO trainer's folder:
+    ``out/adaptive.pt`` (the checkpoint, rewritten at every log window, so an interrupted run leaves
+    its latest weights), ``out/training.jsonl`` (one line per log window: minutes, episodes, frames,
+    success, mean hypotheses, stop share, baseline) and ``out/training.json`` (the config and the
+    totals). ``progress`` shows a bar over the time budget.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    log_path = out / "training.jsonl"
+    log_path.write_text("")
+    wall, cpu = time.time(), time.process_time()
+    checkpoint, totals = _train(config, out / "adaptive.pt", log_path, progress)
+    result = AdaptiveTrainResult(checkpoint, totals["log"], totals["episodes"], totals["frames"],
+                                 time.time() - wall, time.process_time() - cpu)
+    summary = {"algo": "adaptive", "config": asdict(config), "episodes": result.episodes, "frames": result.frames,
+               "wall_s": round(result.wall_s, 1), "cpu_s": round(result.cpu_s, 1), "checkpoint": str(checkpoint),
+               "log": result.log}
+    (out / "training.json").write_text(json.dumps(summary, indent=2) + "\n")
+    return result
+
+
+def train_adaptive(config: AdaptiveTrainConfig, out: str | Path, log_path: str | Path | None = None,
+                   progress: bool = False) -> Path:
     """Train :class:`AdaptiveSamplerNet` in the adaptive env for ``config.minutes``; write ``out``."""
+    return _train(config, out, log_path, progress)[0]
+
+
+def _train(config: AdaptiveTrainConfig, out: str | Path, log_path: str | Path | None,
+           progress: bool) -> tuple[Path, dict[str, Any]]:
+    from tqdm import tqdm
+
     torch.manual_seed(config.seed)
     torch.set_num_threads(1)  # small per-step batches: more threads only contend on a shared machine
     if config.clock not in ("wall", "cpu"):
@@ -314,7 +381,12 @@ def train_adaptive(config: AdaptiveTrainConfig, out: str | Path, log_path: str |
     stats = {"frames": 0, "success": 0, "hypotheses": 0, "stops": 0}
     episode, pending = 0, []
     log_file = open(log_path, "a") if log_path else None
-    while clock() - start < 60 * config.minutes:
+    budget_s = 60 * config.minutes
+    bar = tqdm(total=round(budget_s), desc=f"in-frame sampler ({config.clock} s)", unit="s", disable=not progress)
+    total_frames = 0
+    while clock() - start < budget_s and (config.max_episodes is None or episode < config.max_episodes):
+        bar.n = min(round(clock() - start), bar.total)
+        bar.refresh()
         env, setting = _training_env(config, episode)
         obs, info = env.reset(seed=config.seed * 1_000_003 + episode)
         episode += 1
@@ -354,6 +426,7 @@ def train_adaptive(config: AdaptiveTrainConfig, out: str | Path, log_path: str |
                 pg = -advantage * torch.stack(frame_terms).sum() if frame_terms else torch.zeros(())
                 pending.append(config.pg_weight * pg + torch.stack(frame_aux).mean())
                 stats["frames"] += 1
+                total_frames += 1
                 stats["success"] += int(info["success"])
                 stats["hypotheses"] += int(info["n_hypotheses"])
                 stats["stops"] += int(info["stopped"])
@@ -372,14 +445,16 @@ def train_adaptive(config: AdaptiveTrainConfig, out: str | Path, log_path: str |
                    "success": round(stats["success"] / frames, 3), "mean_hypotheses": round(stats["hypotheses"] / frames, 1),
                    "stopped": round(stats["stops"] / frames, 3), "baseline": round(baseline, 3)}
             log.append(row)
+            bar.set_postfix(success=row["success"], hypotheses=row["mean_hypotheses"])
             if log_file:
                 log_file.write(json.dumps(row) + "\n")
                 log_file.flush()
             stats = {"frames": 0, "success": 0, "hypotheses": 0, "stops": 0}
             save_adaptive(out, net, asdict(config), log)
+    bar.close()
     if log_file:
         log_file.close()
-    return save_adaptive(out, net, asdict(config), log)
+    return save_adaptive(out, net, asdict(config), log), {"log": log, "episodes": episode, "frames": total_frames}
 
 
 def main(argv: list[str] | None = None) -> int:
