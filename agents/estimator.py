@@ -151,7 +151,6 @@ class LearnedEstimator:
             self._shared, _ = validate_options(method, options, priors=True)
             self._options = {k: v for k, v in options.items() if k != "noise_sigma"}
         else:
-            self.policy.confidence = self.confidence
             self.batch_size = IN_FRAME_BATCH if batch_size is None else int(batch_size)
             self.max_hypotheses = max(int(max_hypotheses), self.budget or 0)
             self._shared, self._extra = validate_options(method, options)
@@ -249,7 +248,8 @@ class LearnedEstimator:
         limit = self.max_hypotheses if self.budget is None else self.budget
         while True:
             action = self.policy.act(search.observation())
-            stop = self.budget is None and bool(action[-1] > 0)
+            # the stop belief against this estimator's confidence (a shared policy keeps its own)
+            stop = self.budget is None and self.policy.last_stop_belief >= self.confidence
             batch = min(self.batch_size, limit - search.drawn)
             _, _, done = search.step(np.asarray(action[:-1], dtype=np.float64), stop, batch)
             if done or search.drawn >= limit:
