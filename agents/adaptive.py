@@ -44,12 +44,13 @@ import numpy as np
 import torch
 from torch import nn
 
+from agents.checkpoint import IN_FRAME, IN_FRAME_FORMAT, CheckpointError, read_payload, shipped_checkpoint
 from agents.network import PAD_LOGIT, CorrespondenceNet
 from agents.ngransac import ordered_triplet_log_prob
 from vo_gym.adaptive_env import ADAPTIVE_FEATURE_NAMES, GLOBAL_FEATURE_NAMES, StereoVOAdaptiveEnv
 from vo_gym.registration import HARD_SETTINGS
 
-FORMAT = "vo-gym adaptive sampler v1"
+FORMAT = IN_FRAME_FORMAT
 LOGIT_BOUND = 10.0
 STOP_ACTION = 1.0
 
@@ -77,7 +78,7 @@ class AdaptiveSamplerNet(nn.Module):
     @classmethod
     def with_prior(cls, sampler: str, width: int = 48, blocks: int = 3) -> "AdaptiveSamplerNet":
         """A fresh network over the shipped one-shot ``sampler`` (a name of ``agents.checkpoint.SHIPPED_SAMPLERS``)."""
-        from agents.checkpoint import load_checkpoint, shipped_checkpoint
+        from agents.checkpoint import load_checkpoint
 
         with shipped_checkpoint(sampler) as path:
             one_shot, _ = load_checkpoint(path)
@@ -121,7 +122,13 @@ def make_action(logits: np.ndarray, mask: np.ndarray, stop: bool) -> np.ndarray:
 
 
 class AdaptiveSamplerPolicy:
-    """The learned in-frame sampler as a policy of the adaptive env: ``act(obs, info) -> action``."""
+    """The learned in-frame sampler as a policy of the adaptive env: ``act(obs, info) -> action``.
+
+    ``obs`` is the adaptive observation (:meth:`vo_gym.in_frame.InFrameSearch.observation`); the action
+    is the next batch's logits and the stop slot, stop once the stop belief reaches ``confidence``.
+    """
+
+    kind = IN_FRAME
 
     def __init__(self, net: AdaptiveSamplerNet, confidence: float = 0.9, name: str = "adaptive") -> None:
         if not 0 < confidence < 1:
@@ -134,6 +141,19 @@ class AdaptiveSamplerPolicy:
 
     @torch.no_grad()
     def act(self, obs: dict, info: dict | None = None) -> np.ndarray:
+        """The action ``(M + 1,)`` float32 (:func:`make_action`) for the adaptive observation ``obs``.
+
+        Raises:
+            ValueError: ``obs`` is not the adaptive observation dict (``features``, ``mask``, ``globals``).
+        """
+        if not isinstance(obs, dict) or not {"features", "mask", "globals"} <= set(obs):
+            got = sorted(obs) if isinstance(obs, dict) else type(obs).__name__
+            raise ValueError(f"{self.name}: an in-frame sampler acts on the adaptive observation "
+                             f"{{'features', 'mask', 'globals'}} of a running search, got {got}; "
+                             "on raw matches use agents.LearnedEstimator")
+        width = np.shape(obs["features"])[-1]
+        if width != self.net.n_features:
+            raise ValueError(f"{self.name}: expected {self.net.n_features} adaptive features per correspondence, got {width}")
         logits, stop = self.net(*_tensors(obs))
         self.last_stop_belief = float(torch.sigmoid(stop)[0])
         return make_action(logits[0].numpy(), obs["mask"], self.last_stop_belief >= self.confidence)
@@ -166,25 +186,33 @@ def shipped_adaptive_path(name: str) -> Path:
 def load_adaptive(name_or_path: str | Path) -> tuple[AdaptiveSamplerNet, dict[str, Any]]:
     """Load by shipped name (``"adaptive-pg"``) or by path; returns the network (eval mode) and payload.
 
+    Nothing in the file runs (``weights_only``). Every error is one line naming the file.
+
     Raises:
         FileNotFoundError: no such file or shipped name.
-        ValueError: not an adaptive-sampler checkpoint, or another feature layout.
+        ValueError (:class:`agents.checkpoint.CheckpointError` for an unusable file): not an
+            adaptive-sampler checkpoint, another feature layout, weights that do not fit.
     """
     path = Path(name_or_path)
     if not path.is_file() and str(name_or_path).startswith("adaptive-"):
         path = shipped_adaptive_path(str(name_or_path))
     if not path.is_file():
-        raise FileNotFoundError(f"no adaptive-sampler checkpoint {name_or_path!r} (neither a file nor a shipped name)")
-    try:
-        payload = torch.load(path, map_location="cpu", weights_only=True)  # never runs code from the file
-    except Exception as err:  # noqa: BLE001 - torch reports a non-checkpoint in many ways, over many lines
-        raise ValueError(f"{path} is not a readable adaptive-sampler checkpoint ({type(err).__name__})") from None
+        raise FileNotFoundError(f"no adaptive-sampler checkpoint {str(name_or_path)!r} (neither a file nor a shipped name)")
+    payload = read_payload(path)
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:
-        raise ValueError(f"{path} is not an adaptive-sampler checkpoint")
+        hint = " (a one-shot sampler: agents.checkpoint.load_sampler)" if isinstance(payload, dict) and "format_version" in payload else ""
+        raise CheckpointError(f"checkpoint {path}: is not an adaptive-sampler checkpoint{hint}")
+    for key in ("network", "feature_names", "global_names", "state_dict"):
+        if key not in payload:
+            raise CheckpointError(f"checkpoint {path}: is not an adaptive-sampler checkpoint (missing key {key})")
     if tuple(payload["feature_names"]) != ADAPTIVE_FEATURE_NAMES or tuple(payload["global_names"]) != GLOBAL_FEATURE_NAMES:
-        raise ValueError(f"checkpoint {path} was trained on another adaptive feature layout")
-    net = AdaptiveSamplerNet(**payload["network"])  # a checkpoint from before ``prior`` has no such key
-    net.load_state_dict(payload["state_dict"])
+        raise CheckpointError(f"checkpoint {path} was trained on another adaptive feature layout")
+    try:
+        net = AdaptiveSamplerNet(**payload["network"])  # a checkpoint from before ``prior`` has no such key
+        net.load_state_dict(payload["state_dict"])
+    except (TypeError, ValueError, RuntimeError) as err:
+        first = (str(err).strip().splitlines() or [type(err).__name__])[0]
+        raise CheckpointError(f"checkpoint {path}: its weights do not fit the network it declares ({first[:160]})") from None
     return net.eval(), payload
 
 
@@ -213,6 +241,8 @@ class AdaptiveTrainConfig:
             training time adds to this run's in the budget of the result.
         prior: shipped one-shot sampler whose logits a fresh network adds to its own (``None``: none;
             see :class:`AdaptiveSamplerNet`); that sampler's training time is its own.
+        max_episodes: stop after this many episodes if the time budget lasts that long (None: the
+            budget alone).
     """
 
     minutes: float = 25.0
@@ -238,7 +268,28 @@ class AdaptiveTrainConfig:
     clock: str = "wall"
     init: str | None = None
     prior: str | None = None
+    max_episodes: int | None = None
     extra: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.minutes, bool) or not isinstance(self.minutes, (int, float)) or not (
+                math.isfinite(self.minutes) and self.minutes > 0):
+            raise ValueError(f"minutes must be a positive number, got {self.minutes!r}")
+        if self.clock not in ("wall", "cpu"):
+            raise ValueError(f"clock must be 'wall' or 'cpu', got {self.clock!r}")
+        if self.max_episodes is not None and (isinstance(self.max_episodes, bool) or not isinstance(self.max_episodes, int)
+                                              or self.max_episodes < 1):
+            raise ValueError(f"max_episodes must be None or an integer >= 1, got {self.max_episodes!r}")
+        for name in ("frames_per_episode", "batch_size", "max_hypotheses", "n", "width", "blocks", "frames_per_update"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+        for name in ("epsilons", "hard_epsilons"):
+            low, high = getattr(self, name)
+            if not 0 <= low <= high < 1:
+                raise ValueError(f"{name} must satisfy 0 <= low <= high < 1, got {getattr(self, name)!r}")
+        if self.prior is not None and self.init is not None:
+            raise ValueError("prior starts a fresh network; init continues a checkpoint (which keeps its own prior)")
 
 
 def _training_env(config: AdaptiveTrainConfig, episode: int) -> tuple[StereoVOAdaptiveEnv, dict]:
@@ -263,8 +314,52 @@ def right_hypothesis(masks: np.ndarray, weights: np.ndarray, inlier: np.ndarray,
     return found >= precision * max(np.count_nonzero(chosen), 1) and found >= recall * np.count_nonzero(inlier)
 
 
-def train_adaptive(config: AdaptiveTrainConfig, out: str | Path, log_path: str | Path | None = None) -> Path:
+@dataclass
+class AdaptiveTrainResult:
+    """What :func:`train_in_frame` wrote and how long it took."""
+
+    checkpoint: Path
+    log: list[dict[str, Any]]
+    episodes: int
+    frames: int
+    wall_s: float
+    cpu_s: float
+
+
+def train_in_frame(config: AdaptiveTrainConfig, out: str | Path, progress: bool = True) -> AdaptiveTrainResult:
+    """Train the in-frame sampler within ``config.minutes`` (of ``config.clock``) into the folder ``out``.
+
+    The library side of ``vo-gym train --algo adaptive``, laid out as the PPO trainer's folder:
+    ``out/adaptive.pt`` (the checkpoint, rewritten at every log window, so an interrupted run leaves
+    its latest weights), ``out/training.jsonl`` (one line per log window: minutes, episodes, frames,
+    success, mean hypotheses, stop share, baseline) and ``out/training.json`` (the config and the
+    totals). ``progress`` shows a bar over the time budget.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    log_path = out / "training.jsonl"
+    log_path.write_text("")
+    wall, cpu = time.time(), time.process_time()
+    checkpoint, totals = _train(config, out / "adaptive.pt", log_path, progress)
+    result = AdaptiveTrainResult(checkpoint, totals["log"], totals["episodes"], totals["frames"],
+                                 time.time() - wall, time.process_time() - cpu)
+    summary = {"algo": "adaptive", "config": asdict(config), "episodes": result.episodes, "frames": result.frames,
+               "wall_s": round(result.wall_s, 1), "cpu_s": round(result.cpu_s, 1), "checkpoint": str(checkpoint),
+               "log": result.log}
+    (out / "training.json").write_text(json.dumps(summary, indent=2) + "\n")
+    return result
+
+
+def train_adaptive(config: AdaptiveTrainConfig, out: str | Path, log_path: str | Path | None = None,
+                   progress: bool = False) -> Path:
     """Train :class:`AdaptiveSamplerNet` in the adaptive env for ``config.minutes``; write ``out``."""
+    return _train(config, out, log_path, progress)[0]
+
+
+def _train(config: AdaptiveTrainConfig, out: str | Path, log_path: str | Path | None,
+           progress: bool) -> tuple[Path, dict[str, Any]]:
+    from tqdm import tqdm
+
     torch.manual_seed(config.seed)
     torch.set_num_threads(1)  # small per-step batches: more threads only contend on a shared machine
     if config.clock not in ("wall", "cpu"):
@@ -286,7 +381,12 @@ def train_adaptive(config: AdaptiveTrainConfig, out: str | Path, log_path: str |
     stats = {"frames": 0, "success": 0, "hypotheses": 0, "stops": 0}
     episode, pending = 0, []
     log_file = open(log_path, "a") if log_path else None
-    while clock() - start < 60 * config.minutes:
+    budget_s = 60 * config.minutes
+    bar = tqdm(total=round(budget_s), desc=f"in-frame sampler ({config.clock} s)", unit="s", disable=not progress)
+    total_frames = 0
+    while clock() - start < budget_s and (config.max_episodes is None or episode < config.max_episodes):
+        bar.n = min(round(clock() - start), bar.total)
+        bar.refresh()
         env, setting = _training_env(config, episode)
         obs, info = env.reset(seed=config.seed * 1_000_003 + episode)
         episode += 1
@@ -326,6 +426,7 @@ def train_adaptive(config: AdaptiveTrainConfig, out: str | Path, log_path: str |
                 pg = -advantage * torch.stack(frame_terms).sum() if frame_terms else torch.zeros(())
                 pending.append(config.pg_weight * pg + torch.stack(frame_aux).mean())
                 stats["frames"] += 1
+                total_frames += 1
                 stats["success"] += int(info["success"])
                 stats["hypotheses"] += int(info["n_hypotheses"])
                 stats["stops"] += int(info["stopped"])
@@ -344,14 +445,16 @@ def train_adaptive(config: AdaptiveTrainConfig, out: str | Path, log_path: str |
                    "success": round(stats["success"] / frames, 3), "mean_hypotheses": round(stats["hypotheses"] / frames, 1),
                    "stopped": round(stats["stops"] / frames, 3), "baseline": round(baseline, 3)}
             log.append(row)
+            bar.set_postfix(success=row["success"], hypotheses=row["mean_hypotheses"])
             if log_file:
                 log_file.write(json.dumps(row) + "\n")
                 log_file.flush()
             stats = {"frames": 0, "success": 0, "hypotheses": 0, "stops": 0}
             save_adaptive(out, net, asdict(config), log)
+    bar.close()
     if log_file:
         log_file.close()
-    return save_adaptive(out, net, asdict(config), log)
+    return save_adaptive(out, net, asdict(config), log), {"log": log, "episodes": episode, "frames": total_frames}
 
 
 def main(argv: list[str] | None = None) -> int:

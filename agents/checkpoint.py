@@ -8,9 +8,14 @@ feature layout) raises :class:`CheckpointError`, one line naming the file and wh
 a checkpoint from another feature layout is refused because a network fed columns in a
 different meaning would still run and silently sample nonsense.
 
-The samplers shipped with the package (:data:`SHIPPED_SAMPLERS`) are found by name through
-``importlib.resources``, from any directory and any kind of install: :func:`load_sampler`,
-:func:`shipped_checkpoint`.
+The samplers shipped with the package are found by name through ``importlib.resources``, from
+any directory and any kind of install: :func:`load_sampler`, :func:`shipped_checkpoint`. Two kinds
+ship: one-shot samplers (:data:`SHIPPED_SAMPLERS`, this module's format: priors for a whole frame,
+:class:`LearnedPolicy`) and in-frame samplers (:data:`SHIPPED_IN_FRAME_SAMPLERS`,
+:mod:`agents.adaptive`'s format: priors batch by batch and a stop,
+:class:`agents.adaptive.AdaptiveSamplerPolicy`). :func:`load_sampler` loads the one-shot ones and
+names the loader of the others; :func:`agents.load_sampler` loads either and
+:class:`agents.LearnedEstimator` runs either on a user's own matches.
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ from typing import Any, Iterator
 import numpy as np
 import torch
 
-from agents.catalog import SHIPPED_FOLDER, SHIPPED_PACKAGE, SHIPPED_SAMPLERS
+from agents.catalog import IN_FRAME, IN_FRAME_SAMPLERS, ONE_SHOT, SHIPPED_FOLDER, SHIPPED_PACKAGE, SHIPPED_SAMPLERS
 from agents.network import CorrespondenceNet
 from vo_gym.features import FEATURE_LAYOUT_VERSION, FEATURE_NAMES, check_feature_layout
 
@@ -55,6 +60,11 @@ def save_checkpoint(path: str | Path, net: CorrespondenceNet, config: dict[str, 
 
 REQUIRED_KEYS = ("format_version", "network", "state_dict", "feature_names", "feature_layout_version")
 NETWORK_KEYS = ("n_features", "width", "blocks")
+SHIPPED_IN_FRAME_SAMPLERS = IN_FRAME_SAMPLERS
+"""Names of the in-frame samplers shipped inside the package (:mod:`agents.adaptive`'s format)."""
+SAMPLER_KINDS: tuple[str, ...] = (ONE_SHOT, IN_FRAME)
+IN_FRAME_FORMAT = "vo-gym adaptive sampler v1"
+"""The ``format`` entry of an in-frame sampler's checkpoint (:func:`agents.adaptive.save_adaptive`)."""
 
 
 class CheckpointError(ValueError):
@@ -93,6 +103,21 @@ def _torch_load(path: Path) -> Any:
                 raise _fail(path, "is a zip archive but not a torch checkpoint") from None
             raise _fail(path, "is truncated or corrupt (its zip archive is incomplete)") from None
         raise _fail(path, f"is not a torch checkpoint torch can read ({type(err).__name__}: {first[:160]})") from None
+
+
+def read_payload(path: str | os.PathLike) -> Any:
+    """The unpickled content of a checkpoint file, tensors and plain data only (nothing in it runs).
+
+    Raises:
+        FileNotFoundError: no such file.
+        CheckpointError: a directory, or a file torch cannot read as data (one line naming it).
+    """
+    path = Path(path)
+    if not path.is_file():
+        if path.exists():
+            raise _fail(path, "is not a file")
+        raise FileNotFoundError(f"no checkpoint at {path}")
+    return _torch_load(path)
 
 
 def _check_payload(path: Path, payload: Any) -> None:
@@ -136,11 +161,7 @@ def load_checkpoint(path: str | os.PathLike) -> tuple[CorrespondenceNet, dict[st
             this version's; one line naming the file and what is wrong.
     """
     path = Path(path)
-    if not path.is_file():
-        if path.exists():
-            raise _fail(path, "is not a file")
-        raise FileNotFoundError(f"no checkpoint at {path}")
-    payload = _torch_load(path)
+    payload = read_payload(path)
     _check_payload(path, payload)
     try:
         check_feature_layout(payload["feature_names"], payload["feature_layout_version"])
@@ -159,7 +180,8 @@ def load_checkpoint(path: str | os.PathLike) -> tuple[CorrespondenceNet, dict[st
 
 @contextlib.contextmanager
 def shipped_checkpoint(name: str) -> Iterator[Path]:
-    """A file path of the shipped sampler ``name`` (one of :data:`SHIPPED_SAMPLERS`), for a ``with`` block.
+    """A file path of the shipped sampler ``name`` (one of :data:`SHIPPED_SAMPLERS` or
+    :data:`SHIPPED_IN_FRAME_SAMPLERS`), for a ``with`` block.
 
     Found with ``importlib.resources`` inside the installed ``agents`` package, so it works from
     any directory, editable or not (a zipped install gets a temporary copy for the block).
@@ -168,8 +190,8 @@ def shipped_checkpoint(name: str) -> Iterator[Path]:
         ValueError: an unknown name (listing the shipped ones).
         FileNotFoundError: the install lacks the file (a build that left out the package data).
     """
-    if name not in SHIPPED_SAMPLERS:
-        raise ValueError(f"unknown shipped sampler {name!r}; shipped: {', '.join(SHIPPED_SAMPLERS)}")
+    if name not in SHIPPED_SAMPLERS + SHIPPED_IN_FRAME_SAMPLERS:
+        raise ValueError(f"unknown shipped sampler {name!r}; shipped: {', '.join(SHIPPED_SAMPLERS + SHIPPED_IN_FRAME_SAMPLERS)}")
     resource = importlib.resources.files(SHIPPED_PACKAGE).joinpath(SHIPPED_FOLDER, f"{name}.pt")
     if not resource.is_file():
         raise FileNotFoundError(f"shipped sampler {name!r} is missing from this install ({resource})")
@@ -177,31 +199,77 @@ def shipped_checkpoint(name: str) -> Iterator[Path]:
         yield Path(file)
 
 
-def load_sampler(name_or_path: str | os.PathLike, temperature: float = 1.0) -> "LearnedPolicy":
-    """A learned sampler as a policy: a shipped one by name (:data:`SHIPPED_SAMPLERS`) or a ``.pt`` path.
+def sampler_kind(payload: Any) -> str | None:
+    """:data:`ONE_SHOT` or :data:`IN_FRAME` for a checkpoint payload of either format, else None."""
+    if not isinstance(payload, dict):
+        return None
+    if payload.get("format") == IN_FRAME_FORMAT:
+        return IN_FRAME
+    if "format_version" in payload:
+        return ONE_SHOT
+    return None
 
-    Example: ``policy = load_sampler("ngransac-supervised"); logits = policy.act(observation)``.
+
+def resolve_sampler(name_or_path: str | os.PathLike) -> tuple[str, str, Path | None]:
+    """``(kind, name, path)`` of a shipped sampler name (``path`` None) or a checkpoint file of either kind.
 
     Raises:
-        ValueError: an unknown name; CheckpointError: an unusable file; FileNotFoundError: no such file.
+        ValueError: an unknown name; CheckpointError: a file of neither format (naming what is
+        wrong); FileNotFoundError: no such file.
     """
     text = os.fspath(name_or_path)
     if text in SHIPPED_SAMPLERS:
-        with shipped_checkpoint(text) as path:
-            net, _ = load_checkpoint(path)
-        return LearnedPolicy(net, text, temperature)
+        return ONE_SHOT, text, None
+    if text in SHIPPED_IN_FRAME_SAMPLERS:
+        return IN_FRAME, text, None
     path = Path(text).expanduser()
     if not path.exists() and path.suffix != ".pt" and os.sep not in text:
-        raise ValueError(f"unknown sampler {text!r}: not a shipped one ({', '.join(SHIPPED_SAMPLERS)}) "
-                         "and not a checkpoint file")
-    net, _ = load_checkpoint(path)
-    return LearnedPolicy(net, path.stem, temperature)
+        shipped = ", ".join(SHIPPED_SAMPLERS + SHIPPED_IN_FRAME_SAMPLERS)
+        raise ValueError(f"unknown sampler {text!r}: not a shipped one ({shipped}) and not a checkpoint file")
+    payload = read_payload(path)
+    kind = sampler_kind(payload)
+    if kind is None:
+        _check_payload(path, payload)  # names what is wrong with the file
+    return kind, path.stem, path
+
+
+def load_sampler(name_or_path: str | os.PathLike, temperature: float = 1.0) -> "LearnedPolicy":
+    """A one-shot learned sampler as a policy: a shipped one by name (:data:`SHIPPED_SAMPLERS`) or a ``.pt`` path.
+
+    Example: ``policy = load_sampler("ngransac-supervised"); logits = policy.act(observation)``;
+    ``weights = policy.priors(prev, curr, camera, scores)`` on raw matches. In-frame samplers
+    (:data:`SHIPPED_IN_FRAME_SAMPLERS`) load with :func:`agents.load_sampler` (either kind) or
+    :func:`agents.adaptive.load_adaptive`; :class:`agents.LearnedEstimator` runs either.
+
+    Raises:
+        ValueError: an unknown name, or an in-frame sampler (naming the loader that takes it);
+        CheckpointError: an unusable file; FileNotFoundError: no such file.
+    """
+    kind, name, path = resolve_sampler(name_or_path)
+    if kind == IN_FRAME:
+        raise ValueError(f"sampler {os.fspath(name_or_path)!r} is an in-frame sampler: load it with agents.load_sampler "
+                         "(either kind) or agents.adaptive.load_adaptive, or run it with agents.LearnedEstimator")
+    if path is None:
+        with shipped_checkpoint(name) as shipped:
+            net, _ = load_checkpoint(shipped)
+    else:
+        net, _ = load_checkpoint(path)
+    return LearnedPolicy(net, name, temperature)
 
 
 class LearnedPolicy:
-    """A trained network as a policy: observation ``{"features", "mask"}`` in, logits out."""
+    """A trained one-shot network as a policy: observation ``{"features", "mask"}`` in, logits out.
+
+    ``act`` reads the environment's observation (``features (N, F)`` or ``(B, N, F)`` of
+    :data:`vo_gym.features.FEATURE_NAMES`, ``mask`` ``(N,)`` or ``(B, N)``); ``priors`` goes from
+    raw stereo matches to the guided-sampling weights ``estimate_motion(..., priors=)`` takes.
+    """
+
+    kind = ONE_SHOT
 
     def __init__(self, net: CorrespondenceNet, name: str = "learned", temperature: float = 1.0) -> None:
+        if not (isinstance(temperature, numbers.Real) and np.isfinite(temperature) and temperature > 0):
+            raise ValueError(f"temperature must be a finite number > 0, got {temperature!r}")
         self.net = net.eval()
         self.name = name
         self.temperature = temperature
@@ -213,8 +281,22 @@ class LearnedPolicy:
 
     @torch.no_grad()
     def act(self, observation: dict) -> np.ndarray:
+        """Logits ``(N,)`` or ``(B, N)`` float32, centred on the valid slots and clipped to
+        ``[-LOGIT_BOUND, LOGIT_BOUND]``; padded slots ``-LOGIT_BOUND``.
+
+        Raises:
+            ValueError: ``observation`` is not a dict with ``features`` and ``mask`` of matching shapes.
+        """
+        if not isinstance(observation, dict) or "features" not in observation or "mask" not in observation:
+            raise ValueError(
+                f"{self.name}: act() takes the observation dict {{'features': (N, {self.net.n_features}), 'mask': (N,)}}, "
+                f"got {type(observation).__name__}; for raw matches use priors(prev, curr, camera, scores)"
+            )
         features = torch.as_tensor(np.asarray(observation["features"], dtype=np.float32))
         mask = torch.as_tensor(np.asarray(observation["mask"]).astype(bool))
+        if features.ndim not in (2, 3) or tuple(mask.shape) != tuple(features.shape[:-1]):
+            raise ValueError(f"{self.name}: observation features must be (N, F) or (B, N, F) with a mask of the "
+                             f"leading shape, got {tuple(features.shape)} and {tuple(mask.shape)}")
         single = features.ndim == 2
         if single:
             features, mask = features[None], mask[None]
@@ -227,6 +309,39 @@ class LearnedPolicy:
         out = torch.where(mask, (logits - mean).clamp(-LOGIT_BOUND, LOGIT_BOUND), torch.tensor(-LOGIT_BOUND))
         out = out.numpy().astype(np.float32)
         return out[0] if single else out
+
+    def weights(self, features: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """Guided-sampling weights ``(N,)`` float64 in (0, 1] (``exp`` of :meth:`act`'s logits,
+        max-normalised) from ``features (N, F)``; 0 where ``mask`` is 0."""
+        logits = np.asarray(self.act({"features": features, "mask": mask}), dtype=np.float64)
+        valid = np.asarray(mask, dtype=bool)
+        out = np.zeros(valid.shape[0])
+        if valid.any():
+            out[valid] = np.exp(logits[valid] - logits[valid].max())
+        return out
+
+    def priors(self, prev: np.ndarray, curr: np.ndarray, camera, scores: np.ndarray,
+               previous_motion: tuple[np.ndarray, np.ndarray] | None = None, noise_sigma: float = 0.5) -> np.ndarray:
+        """The sampler's guided-sampling weights ``(N,)`` for N stereo matches, ready for
+        ``stereovo.estimate_motion(prev, curr, camera, method="msac", priors=...)``.
+
+        Args:
+            prev, curr: ``(N, 4)`` measurements ``(uL, vL, uR, vR)`` in pixels at k-1 and k.
+            camera: the :class:`stereovo.StereoCamera`.
+            scores: ``(N,)`` match scores in (0, 1), higher = better.
+            previous_motion: ``(R (3, 3), t (3,) m)`` estimated for the previous frame pair
+                (``x_k = R x_{k-1} + t``), the constant-velocity feature; None if unknown.
+            noise_sigma: the pixel noise (px) the features assume.
+
+        Rows without depth get weight 0 (the estimator never samples them).
+
+        Raises:
+            ValueError: malformed input (as :func:`vo_gym.features.compute_features`).
+        """
+        from vo_gym.features import compute_features, usable_rows
+
+        features = compute_features(prev, curr, scores, camera, noise_sigma, previous_motion)
+        return self.weights(features, usable_rows(features))
 
 
 def export_checkpoint(source: str | Path, destination: str | Path) -> Path:

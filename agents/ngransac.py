@@ -42,7 +42,7 @@ from stereovo.estimation import (
 )
 from stereovo.geometry import rotation_error
 from stereovo.metrics import pose_error_ratio
-from stereovo.simulation import Frame, Sequence, SimulationConfig
+from stereovo.simulation import OUTLIER_KINDS, Frame, Sequence, SimulationConfig
 from vo_gym.env import DEFAULT_ESTIMATOR_OPTIONS
 from vo_gym.features import N_FEATURES, compute_features
 
@@ -69,6 +69,9 @@ class NGRansacConfig:
             every pool has the same loss, the advantage is zero and training never recovers.
         entropy_weight: weight of the sampling distribution's entropy (normalised by log N)
             subtracted from the objective, which keeps the mass from collapsing onto a few points.
+        domain_randomisation: each training sequence draws its own outlier process, noise tail
+            and score AUC (:func:`randomised_frame_stream`) instead of ``outlier_mix`` and
+            ``score_auc``; the held-out evaluations stay on the fixed setting.
     """
 
     loss: str = "supervised"
@@ -94,6 +97,7 @@ class NGRansacConfig:
     keep_best: bool = True  # end with the weights that evaluated best, not the last ones
     max_grad_norm: float | None = 5.0
     entropy_weight: float = 0.0
+    domain_randomisation: bool = False
 
     def __post_init__(self) -> None:
         if self.loss not in LOSSES:
@@ -127,6 +131,27 @@ def frame_stream(config: SimulationConfig, seed: int) -> Iterator[Frame]:
     """Frames of consecutive sequences (the episode structure the environment uses)."""
     for i in itertools.count():
         yield from Sequence(config, seed=np.random.SeedSequence([seed, i]))
+
+
+RANDOMISED_AUC = (0.55, 0.9)
+RANDOMISED_DOF = (3.0, 12.0)
+
+
+def randomised_frame_stream(config: "NGRansacConfig", seed: int) -> Iterator[Frame]:
+    """Frames of consecutive sequences, each sequence with its own match-error process (domain
+    randomisation): the outlier kinds' weights drawn from a flat Dirichlet over every kind of
+    :data:`stereovo.simulation.OUTLIER_KINDS` (the hostile preset's kinds included), Student-t
+    pixel noise with ``dof ~ U(3, 12)`` on half the sequences (Gaussian on the others, scale
+    ``config.noise_sigma`` throughout: the features and gates assume a known sensor noise) and the
+    score AUC from ``U(0.55, 0.9)``; contamination from ``config.epsilon_range`` per frame."""
+    rng = np.random.default_rng([seed, 17])
+    base = config.simulation()
+    for i in itertools.count():
+        mix = dict(zip(OUTLIER_KINDS, rng.dirichlet(np.ones(len(OUTLIER_KINDS))).tolist()))
+        dof = float(rng.uniform(*RANDOMISED_DOF)) if rng.random() < 0.5 else None
+        auc = float(rng.uniform(*RANDOMISED_AUC))
+        sim = dataclasses.replace(base, outlier_mix=mix, noise_dof=dof, score_auc=auc)
+        yield from Sequence(sim, seed=np.random.SeedSequence([seed, i]))
 
 
 def pose_loss(estimate: MotionEstimate, frame: Frame) -> float:
@@ -249,7 +274,11 @@ class NGRansacTrainer:
         from tqdm import tqdm
 
         frames = self.config.frames if frames is None else frames
-        stream = frame_stream(self.config.simulation(), self.config.seed * 7919 + self.step)
+        seed = self.config.seed * 7919 + self.step
+        if self.config.domain_randomisation:
+            stream = randomised_frame_stream(self.config, seed)
+        else:
+            stream = frame_stream(self.config.simulation(), seed)
         previous_motion = None
         window_loss, window_success, window_norm = [], [], []
         self.net.train()

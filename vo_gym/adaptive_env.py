@@ -22,7 +22,6 @@ globally, how far the best model's motion lies from that prediction.
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import Any
 
 import gymnasium as gym
@@ -32,109 +31,27 @@ from gymnasium import spaces
 from stereovo.camera import StereoCamera
 from stereovo.compilation import announce_compiling
 from stereovo.estimation import EstimatorOptions, StereoProblem, method_spec
-from stereovo.estimation.loop import LoopState, RansacSearch
-from stereovo.estimation.methods import MotionEstimate
-from stereovo.estimation.bansac import WeightedDraw
-from stereovo.estimation.termination import FixedBudget
 from stereovo.geometry import PoseChain
 from stereovo.metrics import frame_metrics
 from stereovo.options import Integer, Number
 from stereovo.simulation import Frame, Sequence, SimulationConfig
 from vo_gym.env import DEFAULT_ESTIMATOR_OPTIONS
-from vo_gym.features import FEATURE_BOUND, FEATURE_NAMES, N_FEATURES, compute_features
-from vo_gym.rewards import REWARD_MODES, inlier_reward, msac_reward, pose_error_ratio, supervised_reward
-from vo_gym.names import keyword_hint
-
-__all__ = ["StereoVOAdaptiveEnv", "LOOP_FEATURE_NAMES", "GLOBAL_FEATURE_NAMES", "ADAPTIVE_FEATURE_NAMES"]
-
-LOOP_FEATURE_NAMES: tuple[str, ...] = ("best_residual", "vote_fraction", "log_votes", "in_best")
-"""Per-correspondence columns appended to the frame features (:data:`vo_gym.features.FEATURE_NAMES`):
-
-- ``best_residual``: ``log(1 + e^2 / T^2)`` of the match's squared residual ``e^2`` under the current
-  best model, ``T^2`` the estimator's gate (0 before the first hypothesis);
-- ``vote_fraction``: share of the frame's scored hypotheses that counted it an inlier;
-- ``log_votes``: ``log(1 + count)`` of the same;
-- ``in_best``: 1 if it is in the current best model's consensus."""
-
-ADAPTIVE_FEATURE_NAMES: tuple[str, ...] = FEATURE_NAMES + LOOP_FEATURE_NAMES
-
-GLOBAL_FEATURE_NAMES: tuple[str, ...] = (
-    "spent", "best_support", "scored_any", "best_cv_rotation", "best_cv_translation", "cv_available", "weighted_best",
+from vo_gym.features import FEATURE_BOUND, N_FEATURES, compute_features
+from vo_gym.in_frame import (
+    ADAPTIVE_FEATURE_NAMES,
+    GLOBAL_FEATURE_NAMES,
+    LOOP_FEATURE_NAMES,
+    AgentPriorSampler,
+    InFrameSearch,
 )
-"""The ``globals`` vector: hypotheses spent / cap; the best model's support / N; 1 once a hypothesis
-was scored; ``log(1 + angle / 0.1 deg)`` and ``log(1 + |dt| / 5 cm)`` of the best model's motion against
-the previous frame's (constant-velocity prediction; 0 without one); 1 when a previous motion is known;
-the belief-weighted support of the hypothesis the frame would end on now, under the last action."""
+from vo_gym.rewards import REWARD_MODES, inlier_reward, msac_reward, pose_error_ratio, supervised_reward
 
-MASK_ROWS_START = 64  # rows of a frame's mask buffer at first (doubled when a frame scores more)
-
+__all__ = [
+    "StereoVOAdaptiveEnv", "LOOP_FEATURE_NAMES", "GLOBAL_FEATURE_NAMES", "ADAPTIVE_FEATURE_NAMES", "AgentPriorSampler",
+]
 
 def _check(rule, name: str, value: Any):
     return rule.check(name, value, prefix="StereoVOAdaptiveEnv: ")
-
-
-class AgentPriorSampler:
-    """The loop's sampler in the adaptive env: guided draws from the agent's current priors; the
-    feedback hook records every verified hypothesis of the frame for the observation and the final
-    selection."""
-
-    def __init__(self, n: int) -> None:
-        self.n = n
-        self.weights = np.full(n, 1.0 / n)
-        self._sampler = WeightedDraw(self.weights)
-        self.votes = np.zeros(n, dtype=np.int64)
-        # every scored hypothesis' inlier mask, in order (rows [0, scored)): select() reads them each step
-        self._all_masks = np.zeros((MASK_ROWS_START, n), dtype=bool)
-        self._scored = 0
-        self.R: list[np.ndarray] = []
-        self.t: list[np.ndarray] = []
-        self.masks: list[np.ndarray] = []
-        self.samples: list[np.ndarray] = []
-        self.last_samples = np.zeros((0, 3), dtype=np.int64)
-        self.last_masks = np.zeros((0, n), dtype=bool)
-
-    def set_weights(self, weights: np.ndarray) -> None:
-        """``weights (N,)``: a softmax of bounded logits (all positive and normal), so the draw skips
-        ``WeightedSampler``'s validation and gives its samples (:class:`WeightedDraw`)."""
-        self.weights = weights
-        self._sampler = WeightedDraw(weights)
-
-    def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
-        return self._sampler.draw(batch, rng)
-
-    def on_hypotheses(self, R, t, inlier_masks, residual_sq, state: LoopState) -> None:
-        self.votes += np.count_nonzero(inlier_masks, axis=0)
-        self.R.append(R)
-        self.t.append(t)
-        self.masks.append(inlier_masks)
-        self.samples.append(state.samples)
-        self.last_samples, self.last_masks = state.samples, inlier_masks
-        end = self._scored + inlier_masks.shape[0]
-        if end > self._all_masks.shape[0]:
-            grown = np.zeros((max(2 * self._all_masks.shape[0], end), self.n), dtype=bool)
-            grown[: self._scored] = self._all_masks[: self._scored]
-            self._all_masks = grown
-        self._all_masks[self._scored:end] = inlier_masks
-        self._scored = end
-
-    def all_inlier_probability(self, inliers: np.ndarray) -> float:
-        w = self.weights / self.weights.sum()
-        inside = float(w[inliers].sum())
-        return inside**3
-
-    def n_scored(self) -> int:
-        return self._scored
-
-    @property
-    def scored_masks(self) -> np.ndarray:
-        """``(H, N)`` bool, the inlier masks of every hypothesis scored in this frame, in order."""
-        return self._all_masks[: self._scored]
-
-    def select(self, weights: np.ndarray) -> int | None:
-        """Index of the scored hypothesis with the largest ``weights``-weighted support."""
-        if not self._scored:
-            return None
-        return int(np.argmax(self.scored_masks @ weights))
 
 
 class StereoVOAdaptiveEnv(gym.Env):
@@ -265,8 +182,7 @@ class StereoVOAdaptiveEnv(gym.Env):
             options = {**DEFAULT_ESTIMATOR_OPTIONS, **estimator_options}
             self.estimator_options = EstimatorOptions(noise_sigma=self.sim_config.noise_sigma, **options)
         except (TypeError, ValueError) as err:
-            hint = keyword_hint(estimator_options, StereoVOAdaptiveEnv, [f.name for f in dataclasses.fields(EstimatorOptions)])
-            raise ValueError(f"StereoVOAdaptiveEnv: invalid estimator setting: {err}{hint}") from None
+            raise ValueError(f"StereoVOAdaptiveEnv: invalid estimator setting: {err}") from None
         self.method = method
         F = N_FEATURES + len(LOOP_FEATURE_NAMES)
         self.observation_space = spaces.Dict({
@@ -278,7 +194,7 @@ class StereoVOAdaptiveEnv(gym.Env):
         self.feature_names = ADAPTIVE_FEATURE_NAMES
         self._sequence: Sequence | None = None
         self._frame: Frame | None = None
-        self._search: RansacSearch | None = None
+        self._search: InFrameSearch | None = None
         self._k = 0
 
     # ------------------------------------------------------------------ properties
@@ -301,9 +217,9 @@ class StereoVOAdaptiveEnv(gym.Env):
     def scored_inliers(self) -> np.ndarray:
         """``(H, N)`` bool inlier masks of the current frame's scored hypotheses, in drawing order:
         the frame ends on ``argmax_h scored_inliers[h] @ w`` for the last action's weights ``w``."""
-        if self._search is None or not self._sampler.masks:
+        if self._search is None:
             return np.zeros((0, 0 if self._frame is None else self._frame.n), dtype=bool)
-        return np.concatenate(self._sampler.masks)
+        return self._search.scored_inliers
 
     @property
     def frame_hypotheses(self) -> int:
@@ -329,27 +245,13 @@ class StereoVOAdaptiveEnv(gym.Env):
         if self._k > self.sim_config.n_frames:
             raise RuntimeError("StereoVOAdaptiveEnv: the episode is over (truncated); call reset()")
         logits, stop = self._validate_action(action)
-        weights = np.exp(logits - logits.max())
-        weights /= weights.sum()
-        self._weights = weights
-        search, sampler = self._search, self._sampler
-        drawn = 0
-        stopping = stop and search.scored > 0  # a stop before any scored hypothesis is ignored
-        sampler.last_samples, sampler.last_masks = np.zeros((0, 3), dtype=np.int64), np.zeros((0, self._frame.n), bool)
-        if not stopping:
-            batch = min(self.batch_size, self.max_hypotheses - search.drawn)
-            sampler.set_weights(weights)
-            before = search.best_score
-            search.step(batch)
-            drawn = batch
-            if search.best_score != before:
-                self._best_residual = search.ctx.residuals(search.best_R[None], search.best_t[None])[0]
+        search = self._search
+        drawn, stopping, done = search.step(logits, stop, self.batch_size)
         reward = -self.hypothesis_cost * drawn
         info: dict[str, Any] = {
             "frame": int(self._frame.index), "frame_hypotheses": int(search.drawn),
-            "batch_samples": sampler.last_samples.copy(), "batch_inliers": sampler.last_masks.copy(),
+            "batch_samples": search.sampler.last_samples.copy(), "batch_inliers": search.sampler.last_masks.copy(),
         }
-        done = stopping or search.drawn >= self.max_hypotheses
         info["frame_done"] = bool(done)
         truncated = False
         if done:
@@ -367,32 +269,20 @@ class StereoVOAdaptiveEnv(gym.Env):
 
     def _start_frame(self) -> None:
         frame = self._frame = self._sequence.frame(self._k)
-        self._problem = StereoProblem.build(
+        problem = StereoProblem.build(
             frame.prev, frame.curr, frame.camera, self.estimator_options.noise_sigma,
             self.estimator_options.min_disparity_sigmas,
         )
-        components = self._spec.build(self._problem, self.estimator_options, None, None, {})
-        self._sampler = components.sampler = AgentPriorSampler(frame.n)
-        components.termination = FixedBudget(self.max_hypotheses)
-        # the agent decides when to stop: no stopping rule of the method listens in
-        components.listeners = [x for x in components.listeners if not hasattr(x, "required")]
-        self._search = RansacSearch(self._problem, components, self._rng)
-        self._frame_features = compute_features(
+        features = compute_features(
             frame.prev, frame.curr, frame.scores, frame.camera, self.estimator_options.noise_sigma,
-            self._chain.last_motion, problem=self._problem,
+            self._chain.last_motion, problem=problem,
         )
-        self._best_residual = None
-        self._weights = np.full(frame.n, 1.0 / frame.n)
+        self._search = InFrameSearch(problem, features, self._spec, self.estimator_options, self.max_hypotheses,
+                                     self._chain.last_motion, self._rng)
 
     def _finish_frame(self, info: dict[str, Any], stopped: bool) -> float:
-        frame, search, sampler = self._frame, self._search, self._sampler
-        chosen = sampler.select(self._weights)
-        if chosen is not None:
-            masks = sampler.scored_masks
-            search.choose(np.concatenate(sampler.R)[chosen], np.concatenate(sampler.t)[chosen], masks[chosen].copy(),
-                          float(np.count_nonzero(masks[chosen])))
-        report = search.finish()
-        est = MotionEstimate.from_report(report, self.method, 0.0)
+        frame, search = self._frame, self._search
+        est = search.finish(self.method)
         metrics = frame_metrics(est, frame.truth)
         self._chain.append(est.ok, est.rotation, est.translation)
         self._successes.append(metrics.success)
@@ -401,7 +291,7 @@ class StereoVOAdaptiveEnv(gym.Env):
         info["fallback"] = not est.ok
         info["outlier_ratio"] = float(frame.truth.outlier_ratio)
         info["stopped"] = stopped
-        samples = np.concatenate(sampler.samples) if sampler.samples else np.zeros((0, 3), dtype=np.int64)
+        samples = search.all_samples()
         info["all_inlier_drawn"] = bool(samples.shape[0] and np.any(np.all(frame.truth.inlier[samples], axis=1)))
         if self._k == self.sim_config.n_frames:
             info["success_rate"] = float(np.mean(self._successes))
@@ -430,34 +320,4 @@ class StereoVOAdaptiveEnv(gym.Env):
         return a[:n] * self.logit_scale, bool(a[M] > 0)
 
     def _observation(self) -> dict[str, np.ndarray]:
-        frame, search, sampler = self._frame, self._search, self._sampler
-        n, M = frame.n, self.max_correspondences
-        scored = sampler.n_scored()
-        loop = np.zeros((n, len(LOOP_FEATURE_NAMES)), dtype=np.float64)
-        if self._best_residual is not None:
-            loop[:, 0] = np.log1p(self._best_residual / search.components.threshold_sq)
-            loop[:, 3] = search.best_inliers
-        loop[:, 1] = sampler.votes / max(scored, 1)
-        loop[:, 2] = np.log1p(sampler.votes)
-        features = np.zeros((M, N_FEATURES + len(LOOP_FEATURE_NAMES)), dtype=np.float32)
-        features[:n, :N_FEATURES] = self._frame_features
-        features[:n, N_FEATURES:] = np.clip(loop, -FEATURE_BOUND, FEATURE_BOUND)
-        mask = np.zeros(M, dtype=np.int8)
-        mask[:n] = 1
-        g = np.zeros(len(GLOBAL_FEATURE_NAMES))
-        g[0] = search.drawn / self.max_hypotheses
-        g[1] = np.count_nonzero(search.best_inliers) / n
-        g[2] = float(scored > 0)
-        if self._chain.last_motion is not None:
-            g[5] = 1.0
-            if scored:
-                R_prev, t_prev = self._chain.last_motion
-                cos = (np.trace(search.best_R @ R_prev.T) - 1) / 2
-                g[3] = math.log1p(math.degrees(math.acos(min(max(cos, -1.0), 1.0))) / 0.1)
-                g[4] = math.log1p(float(np.linalg.norm(search.best_t - t_prev)) / 0.05)
-        chosen = sampler.select(self._weights)
-        if chosen is not None:
-            g[6] = float(sampler.scored_masks[chosen] @ self._weights)
-        g = np.clip(g, -FEATURE_BOUND, FEATURE_BOUND).astype(np.float32)
-        return {"features": features, "mask": mask, "globals": g}
-
+        return self._search.observation(self.max_correspondences)

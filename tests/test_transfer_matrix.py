@@ -1,0 +1,98 @@
+"""agents.transfer: the transfer matrix's cells, reports and domain hook, on a tiny configuration."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from agents import transfer
+from agents.transfer import (
+    DOMAINS,
+    OWN_STOP,
+    TransferConfig,
+    build_rows,
+    model_card_block,
+    read_results,
+    regenerate_command,
+    register_domain,
+    replace_block,
+    run_cell,
+    simulator_domain,
+    transfer_markdown,
+    write_csv,
+)
+
+TINY = TransferConfig(budgets=(4,), sequences=1, cap=24, samplers=("ngransac-supervised", "adaptive-pg-prior"))
+
+
+@pytest.fixture(scope="module")
+def cell():
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        return run_cell("hostile", 0.5, TINY, build_rows(TINY))
+    finally:
+        torch.set_num_threads(threads)
+
+
+def test_a_cell_has_every_row_and_point_with_its_interval(cell):
+    keys = {(r["sampler"], r["point"]) for r in cell}
+    names = {"ngransac-supervised", "adaptive-pg-prior", "BANSAC (score priors)", "ARS (score priors)",
+             "PROSAC (by score)", "uniform (MSAC)"}
+    assert keys == {(n, p) for n in names for p in ("4", OWN_STOP)}
+    for r in cell:
+        assert r["frames"] == 10 and 0 <= r["successes"] <= 10
+        assert r["ci_low"] <= r["success"] <= r["ci_high"]
+        if r["point"] == "4":
+            assert r["mean_hypotheses"] == 4
+        elif r["kind"] == "in-frame":
+            assert r["mean_hypotheses"] <= 64
+        else:
+            assert r["mean_hypotheses"] <= TINY.cap
+    learned = {r["sampler"]: r for r in cell if r["point"] == "4"}
+    assert learned["ngransac-supervised"]["kind"] == "one-shot" and learned["adaptive-pg-prior"]["kind"] == "in-frame"
+
+
+def test_a_cells_frames_depend_on_the_seed_domain_and_contamination_alone():
+    a = next(DOMAINS["default"](0.8, 3, 1))
+    b = next(DOMAINS["default"](0.8, 3, 1))
+    c = next(DOMAINS["hostile"](0.8, 3, 1))
+    np.testing.assert_array_equal(a[0].prev, b[0].prev)
+    assert not np.array_equal(a[0].curr, c[0].curr)
+    assert len(a) == 10 and [f.index for f in a] == list(range(1, 11))
+
+
+def test_reports_round_trip_through_the_csv(cell, tmp_path):
+    path = write_csv(cell, tmp_path / "t.csv")
+    back = read_results(path)
+    assert len(back) == len(cell) and back[0]["frames"] == 10 and back[0]["seed"] == TINY.seed
+    command = regenerate_command(back)
+    assert command == "python -m agents.transfer --jobs 2 --publish --frames 10 --domains hostile --epsilons 0.5 " \
+                      "--budgets 4 --cap 24"
+    table = transfer_markdown(back, command)
+    assert f"Regenerate: `{command}`" in table and "#### hostile (transfer)" in table
+    card = model_card_block(back, "ngransac-supervised", command)
+    assert card.count("| hostile (transfer) | 0.5 |") == 1
+    assert "Not in the transfer matrix" in model_card_block(back, "no-such", command)
+
+
+def test_replace_block_needs_one_block():
+    text = f"a\n{transfer.BEGIN}\nold\n{transfer.END}\nb"
+    assert replace_block(text, "new", "x") == f"a\n{transfer.BEGIN}\nnew\n{transfer.END}\nb"
+    with pytest.raises(ValueError, match="needs one"):
+        replace_block("no block", "new", "x.md")
+
+
+def test_a_registered_domain_joins_the_matrix(monkeypatch):
+    monkeypatch.setitem(DOMAINS, "weak-scores", simulator_domain(score_auc=0.55))
+    with pytest.raises(ValueError, match="new non-empty string"):
+        register_domain("default", simulator_domain())
+    with pytest.raises(ValueError, match="callable"):
+        register_domain("other", 3)
+    config = TransferConfig(domains=("weak-scores",), budgets=(4,), sequences=1, samplers=("ppo",), classical=False)
+    rows = run_cell("weak-scores", 0.5, config, build_rows(config))
+    assert {r["point"] for r in rows} == {"4", OWN_STOP} and all(r["domain"] == "weak-scores" for r in rows)
+    with pytest.raises(ValueError, match="unknown domain 'rendered'"):
+        run_cell("rendered", 0.5, config, [])

@@ -1,0 +1,233 @@
+"""One frame's in-frame search, steered batch by batch: what the adaptive environment and
+:class:`agents.LearnedEstimator` both run.
+
+:class:`InFrameSearch` holds the shared loop of one frame pair
+(:class:`stereovo.estimation.loop.RansacSearch`, the method's judge under a fixed cap) with a
+sampler that draws from the caller's priors and records every verified hypothesis
+(:class:`AgentPriorSampler`). The caller reads :meth:`InFrameSearch.observation` (the frame
+features plus the loop's evidence per correspondence, and the global loop state), answers with
+logits and a stop flag (:meth:`InFrameSearch.step`), and ends the frame with
+:meth:`InFrameSearch.finish`: the hypothesis with the largest belief-weighted support
+``sum_i w_i [i inlier]`` under the last answer's weights ``w = softmax(logits)`` is refined and
+reported. No ground truth is read anywhere here.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from stereovo.estimation import EstimatorOptions, StereoProblem
+from stereovo.estimation.loop import LoopState, RansacSearch
+from stereovo.estimation.methods import MotionEstimate
+from stereovo.estimation.registry import MethodSpec
+from stereovo.estimation.bansac import WeightedDraw
+from stereovo.estimation.termination import FixedBudget
+from vo_gym.features import FEATURE_BOUND, FEATURE_NAMES, N_FEATURES
+
+__all__ = [
+    "LOOP_FEATURE_NAMES", "GLOBAL_FEATURE_NAMES", "ADAPTIVE_FEATURE_NAMES", "AgentPriorSampler", "InFrameSearch",
+]
+
+LOOP_FEATURE_NAMES: tuple[str, ...] = ("best_residual", "vote_fraction", "log_votes", "in_best")
+"""Per-correspondence columns appended to the frame features (:data:`vo_gym.features.FEATURE_NAMES`):
+
+- ``best_residual``: ``log(1 + e^2 / T^2)`` of the match's squared residual ``e^2`` under the current
+  best model, ``T^2`` the estimator's gate (0 before the first hypothesis);
+- ``vote_fraction``: share of the frame's scored hypotheses that counted it an inlier;
+- ``log_votes``: ``log(1 + count)`` of the same;
+- ``in_best``: 1 if it is in the current best model's consensus."""
+
+ADAPTIVE_FEATURE_NAMES: tuple[str, ...] = FEATURE_NAMES + LOOP_FEATURE_NAMES
+
+GLOBAL_FEATURE_NAMES: tuple[str, ...] = (
+    "spent", "best_support", "scored_any", "best_cv_rotation", "best_cv_translation", "cv_available", "weighted_best",
+)
+"""The ``globals`` vector: hypotheses spent / cap; the best model's support / N; 1 once a hypothesis
+was scored; ``log(1 + angle / 0.1 deg)`` and ``log(1 + |dt| / 5 cm)`` of the best model's motion against
+the previous frame's (constant-velocity prediction; 0 without one); 1 when a previous motion is known;
+the belief-weighted support of the hypothesis the frame would end on now, under the last action."""
+
+
+MASK_ROWS_START = 64  # rows of a frame's mask buffer at first (doubled when a frame scores more)
+
+
+class AgentPriorSampler:
+    """The loop's sampler of an in-frame search: guided draws from the caller's current priors; the
+    feedback hook records every verified hypothesis of the frame for the observation and the final
+    selection."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self.weights = np.full(n, 1.0 / n)
+        self._sampler = WeightedDraw(self.weights)
+        self.votes = np.zeros(n, dtype=np.int64)
+        # every scored hypothesis' inlier mask, in order (rows [0, scored)): select() reads them each step
+        self._all_masks = np.zeros((MASK_ROWS_START, n), dtype=bool)
+        self._scored = 0
+        self.R: list[np.ndarray] = []
+        self.t: list[np.ndarray] = []
+        self.samples: list[np.ndarray] = []
+        self.last_samples = np.zeros((0, 3), dtype=np.int64)
+        self.last_masks = np.zeros((0, n), dtype=bool)
+
+    def set_weights(self, weights: np.ndarray) -> None:
+        """``weights (N,)``: a softmax of bounded logits (all positive and normal), so the draw skips
+        ``WeightedSampler``'s validation and gives its samples (:class:`WeightedDraw`)."""
+        self.weights = weights
+        self._sampler = WeightedDraw(weights)
+
+    def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
+        return self._sampler.draw(batch, rng)
+
+    def on_hypotheses(self, R, t, inlier_masks, residual_sq, state: LoopState) -> None:
+        self.votes += np.count_nonzero(inlier_masks, axis=0)
+        self.R.append(R)
+        self.t.append(t)
+        self.samples.append(state.samples)
+        self.last_samples, self.last_masks = state.samples, inlier_masks
+        end = self._scored + inlier_masks.shape[0]
+        if end > self._all_masks.shape[0]:
+            grown = np.zeros((max(2 * self._all_masks.shape[0], end), self.n), dtype=bool)
+            grown[: self._scored] = self._all_masks[: self._scored]
+            self._all_masks = grown
+        self._all_masks[self._scored:end] = inlier_masks
+        self._scored = end
+
+    def all_inlier_probability(self, inliers: np.ndarray) -> float:
+        w = self.weights / self.weights.sum()
+        inside = float(w[inliers].sum())
+        return inside**3
+
+    def n_scored(self) -> int:
+        return self._scored
+
+    @property
+    def scored_masks(self) -> np.ndarray:
+        """``(H, N)`` bool, the inlier masks of every hypothesis scored in this frame, in order."""
+        return self._all_masks[: self._scored]
+
+    def select(self, weights: np.ndarray) -> int | None:
+        """Index of the scored hypothesis with the largest ``weights``-weighted support."""
+        if not self._scored:
+            return None
+        return int(np.argmax(self.scored_masks @ weights))
+
+
+class InFrameSearch:
+    """The search of one frame pair, stepped by the caller's logits and stop (module doc).
+
+    Args:
+        problem: the frame's :class:`StereoProblem` (every row usable: the caller restricts a frame
+            with rows without depth to its usable sub-problem first).
+        features: ``(N, N_FEATURES)`` frame features of the same rows (:func:`vo_gym.features.compute_features`).
+        spec: the judging method's :class:`MethodSpec` (``method_spec("msac")`` in the environment).
+        options: its :class:`EstimatorOptions`; their stopping rule is replaced by the caller's stop
+            under the cap ``max_hypotheses``.
+        previous_motion: ``(R, t)`` of the previous frame pair (the constant-velocity prediction the
+            globals compare the best model with), None if unknown.
+        rng: the generator of the loop's draws.
+        extra: the method's own options (validated, :func:`stereovo.estimation.validate_options`).
+    """
+
+    def __init__(self, problem: StereoProblem, features: np.ndarray, spec: MethodSpec, options: EstimatorOptions,
+                 max_hypotheses: int, previous_motion: tuple[np.ndarray, np.ndarray] | None,
+                 rng: np.random.Generator, extra: dict | None = None) -> None:
+        self.problem, self.features, self.max_hypotheses = problem, features, int(max_hypotheses)
+        self.previous_motion = previous_motion
+        components = spec.build(problem, options, None, None, dict(extra or {}))
+        self.sampler = components.sampler = AgentPriorSampler(problem.n)
+        components.termination = FixedBudget(self.max_hypotheses)
+        # the caller decides when to stop: no stopping rule of the method listens in
+        components.listeners = [x for x in components.listeners if not hasattr(x, "required")]
+        self.search = RansacSearch(problem, components, rng)
+        self.best_residual: np.ndarray | None = None
+        self.weights = np.full(problem.n, 1.0 / problem.n)
+
+    @property
+    def drawn(self) -> int:
+        """Hypotheses drawn so far in this frame."""
+        return self.search.drawn
+
+    @property
+    def scored_inliers(self) -> np.ndarray:
+        """``(H, N)`` bool inlier masks of the scored hypotheses, in drawing order."""
+        return self.sampler.scored_masks.copy()
+
+    def step(self, logits: np.ndarray, stop: bool, batch_size: int) -> tuple[int, bool, bool]:
+        """Set the priors ``softmax(logits)`` (``(N,)`` finite) and draw a batch unless ``stop``.
+
+        A stop before any scored hypothesis is ignored; the batch is cut at the cap.
+
+        Returns:
+            ``(drawn in this step, stopped, done)``: ``done`` when the caller stopped or the cap is reached.
+        """
+        weights = np.exp(logits - logits.max())
+        weights /= weights.sum()
+        self.weights = weights
+        search, sampler = self.search, self.sampler
+        drawn = 0
+        stopping = bool(stop) and search.scored > 0
+        sampler.last_samples, sampler.last_masks = np.zeros((0, 3), dtype=np.int64), np.zeros((0, self.problem.n), bool)
+        if not stopping:
+            batch = min(int(batch_size), self.max_hypotheses - search.drawn)
+            sampler.set_weights(weights)
+            before = search.best_score
+            search.step(batch)
+            drawn = batch
+            if search.best_score != before:
+                self.best_residual = search.ctx.residuals(search.best_R[None], search.best_t[None])[0]
+        return drawn, stopping, stopping or search.drawn >= self.max_hypotheses
+
+    def finish(self, method: str) -> MotionEstimate:
+        """Select the hypothesis of largest belief-weighted support, refine it, report it (``time_s`` 0)."""
+        search, sampler = self.search, self.sampler
+        chosen = sampler.select(self.weights)
+        if chosen is not None:
+            masks = sampler.scored_masks
+            search.choose(np.concatenate(sampler.R)[chosen], np.concatenate(sampler.t)[chosen], masks[chosen].copy(),
+                          float(np.count_nonzero(masks[chosen])))
+        return MotionEstimate.from_report(search.finish(), method, 0.0)
+
+    def all_samples(self) -> np.ndarray:
+        """``(H, 3)`` every minimal sample scored in this frame, in drawing order."""
+        return np.concatenate(self.sampler.samples) if self.sampler.samples else np.zeros((0, 3), dtype=np.int64)
+
+    def observation(self, max_correspondences: int | None = None) -> dict[str, np.ndarray]:
+        """``{"features" (M, F + 4), "mask" (M,), "globals" (7,)}``, float32 / int8, rows past N padded with 0.
+
+        ``M`` is ``max_correspondences`` (default N); layout :data:`ADAPTIVE_FEATURE_NAMES` and
+        :data:`GLOBAL_FEATURE_NAMES`, every value clipped to ``[-FEATURE_BOUND, FEATURE_BOUND]``.
+        """
+        search, sampler = self.search, self.sampler
+        n = self.problem.n
+        M = n if max_correspondences is None else int(max_correspondences)
+        scored = sampler.n_scored()
+        loop = np.zeros((n, len(LOOP_FEATURE_NAMES)), dtype=np.float64)
+        if self.best_residual is not None:
+            loop[:, 0] = np.log1p(self.best_residual / search.components.threshold_sq)
+            loop[:, 3] = search.best_inliers
+        loop[:, 1] = sampler.votes / max(scored, 1)
+        loop[:, 2] = np.log1p(sampler.votes)
+        features = np.zeros((M, N_FEATURES + len(LOOP_FEATURE_NAMES)), dtype=np.float32)
+        features[:n, :N_FEATURES] = self.features
+        features[:n, N_FEATURES:] = np.clip(loop, -FEATURE_BOUND, FEATURE_BOUND)
+        mask = np.zeros(M, dtype=np.int8)
+        mask[:n] = 1
+        g = np.zeros(len(GLOBAL_FEATURE_NAMES))
+        g[0] = search.drawn / self.max_hypotheses
+        g[1] = np.count_nonzero(search.best_inliers) / n
+        g[2] = float(scored > 0)
+        if self.previous_motion is not None:
+            g[5] = 1.0
+            if scored:
+                R_prev, t_prev = self.previous_motion
+                cos = (np.trace(search.best_R @ R_prev.T) - 1) / 2
+                g[3] = math.log1p(math.degrees(math.acos(min(max(cos, -1.0), 1.0))) / 0.1)
+                g[4] = math.log1p(float(np.linalg.norm(search.best_t - t_prev)) / 0.05)
+        chosen = sampler.select(self.weights)
+        if chosen is not None:
+            g[6] = float(sampler.scored_masks[chosen] @ self.weights)
+        g = np.clip(g, -FEATURE_BOUND, FEATURE_BOUND).astype(np.float32)
+        return {"features": features, "mask": mask, "globals": g}
