@@ -65,6 +65,18 @@ def set_clock(name: str) -> None:
     clock = CLOCKS[name]
 
 
+def with_depth(frame, both: bool = False) -> np.ndarray:
+    """``(M,)`` the rows a peer can be handed: finite, with a disparity above ``camera.min_disparity``
+    at k-1 (and at k with ``both``), in their order. A PnP user drops the others before calling a
+    library (it cannot triangulate them); the hostile preset's far clutter and independent
+    mismatches make such rows."""
+    cam = frame.camera
+    ok = np.all(np.isfinite(frame.prev), axis=1) & (cam.disparity(frame.prev) > cam.min_disparity)
+    if both:
+        ok &= np.all(np.isfinite(frame.curr), axis=1) & (cam.disparity(frame.curr) > cam.min_disparity)
+    return np.flatnonzero(ok)
+
+
 def score_order(frame) -> np.ndarray:
     """``(N,)`` the matches by descending score (what PROSAC samples by), ties in index order."""
     return np.argsort(-frame.scores, kind="stable")
@@ -106,8 +118,9 @@ def opencv(usac: bool = False, max_iterations: int = PEER_MAX_ITERATIONS, confid
 
     def run(frame, seed: int) -> Outcome:
         cv2.setRNGSeed(seed)
-        X = frame.camera.triangulate(frame.prev)
-        pixels = frame.curr[:, :2].copy()
+        rows = with_depth(frame)
+        X = frame.camera.triangulate(frame.prev[rows])
+        pixels = frame.curr[rows, :2].copy()
         start = clock()
         ok, rvec, tvec, _ = cv2.solvePnPRansac(
             X, pixels, frame.camera.intrinsics, None, iterationsCount=int(max_iterations),
@@ -134,8 +147,9 @@ def poselib(max_iterations: int = PEER_MAX_ITERATIONS, confidence: float = PEER_
     def run(frame, seed: int) -> Outcome:
         cam = frame.camera
         camera = {"model": "PINHOLE", "width": cam.width, "height": cam.height, "params": [cam.fx, cam.fy, cam.cx, cam.cy]}
-        X = cam.triangulate(frame.prev)
-        pixels = frame.curr[:, :2].copy()
+        rows = with_depth(frame)
+        X = cam.triangulate(frame.prev[rows])
+        pixels = frame.curr[rows, :2].copy()
         options = {"max_reproj_error": threshold_px, "max_iterations": int(max_iterations), "success_prob": confidence,
                    "seed": seed}
         if min_iterations is not None:
@@ -192,12 +206,13 @@ def superansac(sampler: str = "uniform", rigid: bool = False, max_iterations: in
         cam = frame.camera
         if not rigid and cam.fx != cam.fy:
             raise ValueError(f"superansac: its PnP takes one focal length, got fx {cam.fx} and fy {cam.fy}")
-        rows = score_order(frame) if sampler == "prosac" else np.arange(frame.n)
-        X = cam.triangulate(frame.prev)[rows]
+        usable = with_depth(frame, both=rigid)
+        rows = usable[np.argsort(-frame.scores[usable], kind="stable")] if sampler == "prosac" else usable
+        X = cam.triangulate(frame.prev[rows])
         probabilities = list(frame.match_probabilities[rows]) if sampler in ("importance", "ar") else []
         config = settings()
         if rigid:
-            Y = cam.triangulate(frame.curr)[rows]
+            Y = cam.triangulate(frame.curr[rows])
             corr = np.ascontiguousarray(np.hstack([X, Y]))
             extent = list(np.ptp(corr, axis=0))
             start = clock()

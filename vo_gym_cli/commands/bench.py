@@ -34,7 +34,9 @@ DEFAULT_EPSILONS = (0.2, 0.5, 0.8)
 # mismatch corrupts the left pixel at k, which every estimator here uses, so the peers and we face
 # the same contamination. A stereo mismatch at k corrupts only the right pixel at k: an outlier for
 # our two-image core but invisible to a one-image PnP peer, which then faces a lower epsilon.
-BENCH_OUTLIER_MIXES = {"random": (1.0, 0.0, 0.0), "random+stereo": (0.8, 0.2, 0.0)}
+# "hostile": the simulator's hostile preset (SimulationConfig(outliers="hostile")): the match errors of
+# real front ends, several of which leave rows without a depth (peers get the rows with one at k-1).
+BENCH_OUTLIER_MIXES = {"random": (1.0, 0.0, 0.0), "random+stereo": (0.8, 0.2, 0.0), "hostile": None}
 
 
 def _runners(args: argparse.Namespace) -> dict[str, Callable]:
@@ -75,7 +77,9 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                              "guided MLESAC the scores calibrated to inlier probabilities)")
     parser.add_argument(
         "--outliers", choices=sorted(BENCH_OUTLIER_MIXES), default="random",
-        help="outlier kinds: random mismatches (same contamination for every estimator) or a stereo blend",
+        help="outlier kinds: random mismatches (same contamination for every estimator), a stereo blend, "
+             "or the simulator's hostile preset (independent left/right mismatches, duplicates, far clutter, "
+             "repetitive texture, Student-t noise)",
     )
     parser.add_argument("--noise", type=finite_float("--noise", 1e-3, 1e3), default=0.5,
                         help="pixel noise sigma (px), in [0.001, 1000]")
@@ -106,8 +110,10 @@ def run(args: argparse.Namespace) -> int:
     cells = [(n, eps) for n in ns for eps in epsilons]
     with tqdm(total=len(cells) * args.frames * len(runners), desc="bench", unit="est") as bar:
         for n, eps in cells:
+            mix = BENCH_OUTLIER_MIXES[args.outliers]
             config = SimulationConfig(
-                n_correspondences=n, outlier_ratio=eps, noise_sigma=args.noise, outlier_mix=BENCH_OUTLIER_MIXES[args.outliers]
+                n_correspondences=n, outlier_ratio=eps, noise_sigma=args.noise, outlier_mix=mix,
+                outliers="hostile" if args.outliers == "hostile" else "default",
             )
             seq = np.random.SeedSequence([args.seed, n, int(round(eps * 1000))])
             frames = [simulate_frame(config, np.random.default_rng(s)) for s in seq.spawn(args.frames)]
