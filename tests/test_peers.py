@@ -11,7 +11,7 @@ import pytest
 
 from stereovo.benchmark import peers
 from stereovo.simulation import SimulationConfig, simulate_frame
-from vo_gym.cli import main
+from vo_gym_cli.main import main
 
 HAS_SUPERANSAC = importlib.util.find_spec("pysuperansac") is not None
 HAS_CV2 = importlib.util.find_spec("cv2") is not None

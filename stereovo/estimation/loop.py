@@ -309,8 +309,9 @@ def final_report(
     counters: dict,
     **counts: int,
 ) -> RansacReport:
-    """Refine the best model ``(R (3, 3), t (3,))`` with consensus ``inliers (N,)`` and score
-    ``score`` (under ``residual_model`` / ``quality`` / ``threshold_sq``), and report it.
+    """Refine the best model ``(R (3, 3), t (3,))`` with consensus ``inliers (N,)`` and report it.
+    ``score`` is the caller's score of it; the model is scored anew under the final gate, so that
+    the refinement is compared with it on one scale.
 
     This is where every method's final model and status are decided (the loop's
     :meth:`RansacSearch.finish` and the direct estimators end here), so the post-condition holds
@@ -329,12 +330,11 @@ def final_report(
     n = problem.n
     gate = None if refiner is None else refiner.gate
     gate_model, gate_sq = (residual_model, threshold_sq) if gate is None else gate
-    checks = 0
-    residual_sq = None  # the gate's residuals of (R, t), once computed
-    if gate is not None or not np.isfinite(score):
-        residual_sq = gate_model.squared(problem, R[None], t[None])[0]
-        score = float(quality.score(residual_sq[None], gate_sq)[0])
-        checks += n
+    # The starting model is scored here, under the gate, whatever score the caller holds: a caller
+    # that chose the model by its own measure (the in-frame search's agent) passes another scale.
+    residual_sq = gate_model.squared(problem, R[None], t[None])[0]
+    score = float(quality.score(residual_sq[None], gate_sq)[0])
+    checks = n
     if refiner is not None:
         counters = {**counters, "refine_rolled_back": 0}
     if refiner is not None and np.count_nonzero(inliers) >= 3:
@@ -350,9 +350,6 @@ def final_report(
             R, t, score, residual_sq = R_new, t_new, new_score, new_sq
         else:
             counters["refine_rolled_back"] = 1
-    if residual_sq is None:
-        residual_sq = gate_model.squared(problem, R[None], t[None])[0]
-        checks += n
     counts["n_point_checks"] = counts.get("n_point_checks", 0) + checks
     final = np.asarray(residual_sq < gate_sq)
     count = int(np.count_nonzero(final))
