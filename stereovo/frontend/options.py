@@ -26,6 +26,8 @@ _RULES: dict[str, Option] = {
     "n_features": Integer(low=8, high=200_000),
     "fast_threshold": Integer(low=1, high=254),
     "pyramid_levels": Integer(low=1, high=16),
+    "grid_rows": Integer(low=1, high=64),
+    "grid_cols": Integer(low=1, high=64),
     "stereo_ratio": Number(low=0.0, high=1.0, low_open=True),
     "temporal_ratio": Number(low=0.0, high=1.0, low_open=True),
     "max_distance": Number(low=0.0, high=1.0, low_open=True),
@@ -49,6 +51,9 @@ class FrontendOptions:
         n_features: keypoints kept per image (ORB's and SIFT's budget; AKAZE keeps its strongest).
         fast_threshold: ORB's FAST corner threshold (grey levels).
         pyramid_levels: ORB's pyramid levels (scale factor 1.2 between levels).
+        grid_rows, grid_cols: bucketing grid: the detector proposes three times ``n_features``
+            keypoints and each cell keeps its strongest share, so one strong (often repetitive)
+            patch cannot take every feature; ``1 x 1`` keeps the strongest overall.
         stereo_ratio: Lowe's ratio test along the row band: a stereo match is kept when its
             descriptor distance is below ``stereo_ratio`` times the second best candidate's.
         temporal_ratio: the same test for the temporal match (``temporal_check`` ``"ratio"`` or ``"both"``).
@@ -75,6 +80,8 @@ class FrontendOptions:
     n_features: int = 2000
     fast_threshold: int = 12
     pyramid_levels: int = 4
+    grid_rows: int = 4
+    grid_cols: int = 12
     stereo_ratio: float = 0.9
     temporal_ratio: float = 0.8
     max_distance: float = 0.3

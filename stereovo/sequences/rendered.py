@@ -10,6 +10,7 @@ same seed renders the same images (on one machine and Mesa build) and gives the 
 
 from __future__ import annotations
 
+import functools
 from collections import OrderedDict
 from typing import Any
 
@@ -40,7 +41,16 @@ _RULES = {
     "moving_objects": Integer(low=0, high=32),
     "image_noise": Number(low=0.0, high=50.0, unit="grey levels"),
     "speed": Number(low=0.0, high=10.0, low_open=True, unit="m/frame", allow_none=True),
+    "texture_seed": Integer(low=0, allow_none=True),
 }
+@functools.lru_cache(maxsize=4)
+def shared_textures(texture_seed: int) -> np.ndarray:
+    """The texture layers of ``texture_seed``, made once per process (read-only)."""
+    textures = make_textures(np.random.default_rng(texture_seed))
+    textures.setflags(write=False)
+    return textures
+
+
 _NAMESPACE = 0x5245  # keeps the renderer's child seeds apart from other users of the same seed
 _NOISE_MARGIN = 64
 
@@ -60,6 +70,8 @@ class RenderedSequence(ImageSequence):
         speed: mean speed (m/frame) overriding the preset's.
         camera: a rig overriding ``resolution``.
         noise_sigma: the pixel noise (px) the frames declare to the estimator.
+        texture_seed: None draws the textures from ``seed``; an int draws them from it instead, once
+            per process (worlds of many seeds then share one texture set, and skip its ~0.5 s).
         **frontend_options: :class:`~stereovo.frontend.FrontendOptions` fields.
 
     Attributes:
@@ -74,9 +86,10 @@ class RenderedSequence(ImageSequence):
     def __init__(self, preset: str = "car", n_frames: int = 100, resolution: str = "kitti",
                  seed: int | np.random.SeedSequence | None = 0, moving_objects: int = 0, world: str | None = None,
                  image_noise: float = 2.0, speed: float | None = None, camera: StereoCamera | None = None,
-                 noise_sigma: float = 0.5, **frontend_options: Any) -> None:
+                 noise_sigma: float = 0.5, texture_seed: int | None = None, **frontend_options: Any) -> None:
         checked = check_options(_RULES, dict(preset=preset, world=world, n_frames=n_frames, resolution=resolution,
-                                             moving_objects=moving_objects, image_noise=image_noise, speed=speed),
+                                             moving_objects=moving_objects, image_noise=image_noise, speed=speed,
+                                             texture_seed=texture_seed),
                                 prefix="RenderedSequence: ")
         if camera is not None and not isinstance(camera, StereoCamera):
             raise ValueError(f"RenderedSequence: camera must be a StereoCamera or None, got {type(camera).__name__}")
@@ -95,7 +108,9 @@ class RenderedSequence(ImageSequence):
         build = street_world if self.world == "street" else open_world
         vertices, objects = build(self.true_poses, world_rng, checked["moving_objects"])
         self.object_poses = np.array([o.poses for o in objects]).reshape(len(objects), self.n_images(), 4, 4)
-        self._renderer = Renderer(camera, vertices, [o.mesh for o in objects], make_textures(texture_rng))
+        seeded = checked["texture_seed"]
+        textures = make_textures(texture_rng) if seeded is None else shared_textures(seeded)
+        self._renderer = Renderer(camera, vertices, [o.mesh for o in objects], textures)
         h, w = int(camera.height), int(camera.width)
         self._noise = (noise_rng.standard_normal((h + _NOISE_MARGIN, w + _NOISE_MARGIN)) * self.image_noise).astype(
             np.float32)
