@@ -198,7 +198,7 @@ def open_world(poses: np.ndarray, rng: np.random.Generator, n_moving: int) -> tu
     low, high = path.min(axis=0) - 25.0, path.max(axis=0) + 25.0
     meshes = []
     centre, half = (low + high) / 2, (high - low) / 2 + 15.0
-    room = box_mesh(2 * half, _LAYER["sky_box"], tile=6.0)
+    room = box_mesh(2 * half, _LAYER["sky_box"], tile=30.0)  # large tiles: far walls keep coarse, distinct texture
     meshes.append(_placed(room, np.eye(3), centre))
     count = int(min(4000, 0.004 * np.prod(high - low) + 150))
     centres = rng.uniform(low, high, (count, 3))
