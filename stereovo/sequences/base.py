@@ -29,11 +29,12 @@ from stereovo.frontend.stereo import StereoFeatures
 from stereovo.options import Number, is_integer
 from stereovo.simulation import Frame, FrameTruth, Sequence
 
-FRONTEND_SCORE_AUC = 0.75
+FRONTEND_SCORE_AUC = 0.70
 """The ROC AUC the image frames declare for their scores (``Frame.score_auc``: Guided-MLESAC's
 calibration of scores into inlier probabilities reads it). Measured on rendered ``car`` sequences
-with ground-truth labels (docs/images.md; ``tests/test_sequences.py`` checks the measured value
-stays within 0.1 of it)."""
+with ground-truth labels: mean per-frame AUC 0.693 and 0.695 over two 500-frame sequences
+(``scripts/bench_image_odometry.py``, docs/images.md; ``tests/test_frontend.py`` checks the AUC
+of a few rendered frames stays within 0.15 of it)."""
 
 NOISE_SIGMA = Number(low=0.0, high=100.0, low_open=True, unit="px")
 
