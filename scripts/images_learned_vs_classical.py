@@ -10,7 +10,9 @@ the heuristics of ``agents.policies`` (``match-score``: the front end's score; `
 rigid consistency), and the shipped learned samplers (``agents.checkpoint.load_sampler``).
 ``prosac``: the front end's score as PROSAC's order (``vo_gym/StereoVOProsac``-style sampling).
 
-    PYTHONPATH=. python scripts/images_learned_vs_classical.py [--frames 120] [--budgets 1,2,4,8,16]
+    PYTHONPATH=. python scripts/images_learned_vs_classical.py [--frames 120] [--budgets 1,2,4,8,16] \
+        [--json rows.json] [--plot success_vs_budget.png]
+    PYTHONPATH=. python scripts/images_learned_vs_classical.py --from-json rows.json --plot out.png  # plot only
 """
 
 from __future__ import annotations
@@ -52,7 +54,13 @@ def main() -> None:
     parser.add_argument("--moving-objects", type=int, default=3)
     parser.add_argument("--budgets", default="1,2,4,8,16")
     parser.add_argument("--json", default=None)
+    parser.add_argument("--plot", default=None, help="success against budget with the Wilson intervals")
+    parser.add_argument("--from-json", default=None, help="plot the rows of an earlier run instead of running")
     args = parser.parse_args()
+    if args.from_json:
+        with open(args.from_json) as handle:
+            plot(json.load(handle), args.plot)
+        return
     from tqdm.auto import tqdm
 
     from agents.checkpoint import SHIPPED_SAMPLERS, load_sampler
@@ -104,6 +112,34 @@ def main() -> None:
     if args.json:
         with open(args.json, "w") as handle:
             json.dump(rows, handle, indent=1)
+    if args.plot:
+        plot(rows, args.plot)
+
+
+def plot(rows: list[dict], path: str | None) -> None:
+    """Success (%) against the fixed budgets, one line per sampler, Wilson 95 % intervals as bars."""
+    if not path:
+        return
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    for name in dict.fromkeys(r["sampler"] for r in rows):
+        own = [r for r in rows if r["sampler"] == name and r["budget"] != "adaptive"]
+        b = np.array([r["budget"] for r in own], float)
+        p = np.array([r["success"] for r in own]) * 100
+        err = np.array([[r["success"] - r["ci_low"], r["ci_high"] - r["success"]] for r in own]).T * 100
+        ax.errorbar(b, p, yerr=err, marker="o", capsize=3, label=name)
+    ax.set_xscale("log", base=2)
+    ax.set_xlabel("hypotheses per frame (fixed budget)")
+    ax.set_ylabel("frames within 1 deg / 5 cm (%)")
+    ax.set_title("rendered car drives with moving cars: success vs budget (95 % Wilson CI)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
 
 
 if __name__ == "__main__":

@@ -12,9 +12,11 @@ EGL_PACKAGES="libegl1 libegl-mesa0 libgl1-mesa-dri"
 if command -v dpkg-query >/dev/null 2>&1 && command -v apt-get >/dev/null 2>&1; then
     missing=""
     for package in $EGL_PACKAGES; do
-        if ! dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed"; then
-            missing="$missing $package"
-        fi
+        status=$(dpkg-query -W -f='${Status}' "$package" 2>/dev/null || true)
+        case "$status" in
+            *"install ok installed"*) ;;
+            *) missing="$missing $package" ;;
+        esac
     done
     if [ -n "$missing" ]; then
         if [ "$(id -u)" = "0" ]; then
