@@ -132,3 +132,16 @@ def test_bad_arguments_are_named(kwargs, error, message):
     with pytest.raises(error) as err:
         StereoVOImagesEnv(**{**SMALL, **kwargs})
     assert message in str(err.value)
+
+
+def test_frames_beyond_the_rows_keep_their_best_scored_matches():
+    wide = StereoVOImagesEnv(n_frames=1, resolution="vga", max_correspondences=1000)
+    narrow = StereoVOImagesEnv(n_frames=1, resolution="vga", max_correspondences=50)
+    wide.reset(seed=4)
+    obs, _ = narrow.reset(seed=4)
+    full, cut = wide.current_frame, narrow.current_frame
+    assert full.n > 50 and cut.n == 50 and obs["mask"].sum() <= 50
+    best = np.sort(np.argsort(-full.scores, kind="stable")[:50])
+    assert np.array_equal(cut.prev, full.prev[best]) and np.array_equal(cut.truth.inlier, full.truth.inlier[best])
+    wide.close()
+    narrow.close()
