@@ -223,6 +223,23 @@ def test_hamming_kernel_counts_bits_and_best_two_picks_the_nearest():
     assert np.array_equal(table[np.arange(20), best], d1)
 
 
+def test_the_fused_window_kernel_equals_the_pair_path():
+    rng = np.random.default_rng(5)
+    pa, pb = rng.uniform(0, 100, (300, 2)), rng.uniform(0, 100, (280, 2))
+    da = rng.integers(0, 2**63, (300, 4), dtype=np.int64).astype(np.uint64)
+    db = da[rng.integers(0, 300, 280)] ^ (rng.random((280, 4)) < 0.05).astype(np.uint64)  # near copies: ties
+    order = np.argsort(pb[:, 1], kind="stable")
+    vb = np.ascontiguousarray(pb[order, 1])
+    ia, jb = kernels.window_pairs(pa, pb, order, vb, 6.0, -10.0, 25.0)
+    dist = kernels.hamming_pairs(da, db, ia, jb)
+    best, d1, d2 = kernels.best_two(ia, jb, dist, 300)
+    back, _, _ = kernels.best_two(jb, ia, dist, 280)
+    fused = kernels.window_best_two_hamming(pa, pb, order, vb, da, db, 6.0, -10.0, 25.0)
+    for want, got in zip((best, d1, d2, back), fused):
+        assert np.array_equal(want, got)
+    assert ia.size > 300 and np.all(np.abs(pa[ia, 1] - pb[jb, 1]) <= 6) and np.all((pa[ia, 0] - pb[jb, 0]) <= 25)
+
+
 def test_roc_auc_counts_pairs_with_ties_as_halves():
     rng = np.random.default_rng(4)
     scores = rng.integers(0, 5, 200).astype(float)

@@ -57,7 +57,8 @@ def _popcount64(x):
 
 @njit(cache=True, nogil=True)
 def hamming_pairs(da, db, ia, jb):
-    """Hamming distances ``(P,)`` (bits) between binary descriptors ``da[ia]`` and ``db[jb]`` (uint64 words)."""
+    """Hamming distances ``(P,)`` (bits) between binary descriptors ``da[ia]`` and ``db[jb]`` (uint64 words):
+    the pair path's distance, which :func:`window_best_two_hamming` fuses (the tests compare the two)."""
     out = np.empty(ia.shape[0])
     words = da.shape[1]
     for p in range(ia.shape[0]):
@@ -67,6 +68,46 @@ def hamming_pairs(da, db, ia, jb):
             total += _popcount64(da[a, w] ^ db[b, w])
         out[p] = float(total)
     return out
+
+
+@njit(cache=True, nogil=True)
+def window_best_two_hamming(pa, pb, order_b, vb_sorted, da, db, v_tol, du_lo, du_hi):
+    """:func:`window_pairs`, :func:`hamming_pairs` and :func:`best_two` both ways in one pass, without
+    materialising the candidate pairs (binary descriptors, the default path).
+
+    Returns:
+        ``best (Na,)``, ``d1 (Na,)``, ``d2 (Na,)`` (bits; -1 / inf where a keypoint has no candidate),
+        and ``back (Nb,)``: for each keypoint of the second image, its nearest of the first. Pairs are
+        visited in the order :func:`window_pairs` lists them, so ties resolve as there.
+    """
+    na, nb = pa.shape[0], pb.shape[0]
+    words = da.shape[1]
+    best = np.full(na, -1, np.int64)
+    d1 = np.full(na, np.inf)
+    d2 = np.full(na, np.inf)
+    back = np.full(nb, -1, np.int64)
+    b1 = np.full(nb, np.inf)
+    starts = np.searchsorted(vb_sorted, pa[:, 1] - v_tol, side="left")
+    stops = np.searchsorted(vb_sorted, pa[:, 1] + v_tol, side="right")
+    for i in range(na):
+        for s in range(starts[i], stops[i]):
+            j = order_b[s]
+            du = pa[i, 0] - pb[j, 0]
+            if du_lo <= du <= du_hi:
+                total = np.uint64(0)
+                for w in range(words):
+                    total += _popcount64(da[i, w] ^ db[j, w])
+                d = float(total)
+                if d < d1[i]:
+                    d2[i] = d1[i]
+                    d1[i] = d
+                    best[i] = j
+                elif d < d2[i]:
+                    d2[i] = d
+                if d < b1[j]:
+                    b1[j] = d
+                    back[j] = i
+    return best, d1, d2, back
 
 
 @njit(cache=True, nogil=True)

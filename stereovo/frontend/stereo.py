@@ -57,15 +57,6 @@ class StereoFeatures:
         return self.points[:, 0] - self.points[:, 2]
 
 
-def pair_distances(a: Keypoints, b: Keypoints, ia: np.ndarray, jb: np.ndarray) -> np.ndarray:
-    """Descriptor distances ``(P,)`` of candidate pairs, as fractions of the largest possible."""
-    if a.binary:
-        raw = kernels.hamming_pairs(a.descriptors, b.descriptors, ia, jb)
-    else:
-        raw = kernels.l2_pairs(a.descriptors, b.descriptors, ia, jb)
-    return raw / a.max_distance
-
-
 def second_ratio(d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
     """Lowe's ratio ``d1 / d2`` of the nearest two distances; 0 where there is no second candidate
     (nothing to confuse the match with), 1 where both are zero."""
@@ -76,10 +67,21 @@ def second_ratio(d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
     return ratio
 
 
-def window_candidates(pa: np.ndarray, pb: np.ndarray, v_tol: float, du_lo: float, du_hi: float):
-    """Candidate pairs ``(ia, jb)`` of positions ``pa (Na, 2)`` and ``pb (Nb, 2)`` within the window."""
-    order = np.argsort(pb[:, 1], kind="stable")
-    return kernels.window_pairs(pa, pb, order, np.ascontiguousarray(pb[order, 1]), v_tol, du_lo, du_hi)
+def window_matches(a: Keypoints, b: Keypoints, v_tol: float, du_lo: float, du_hi: float):
+    """For each keypoint of ``a``, its nearest keypoint of ``b`` within the window, the distances of
+    the nearest two (fractions of the largest; inf where missing), and for each of ``b`` its nearest
+    of ``a``: ``(best, d1, d2, back)``."""
+    order = np.argsort(b.xy[:, 1], kind="stable")
+    vb = np.ascontiguousarray(b.xy[order, 1])
+    if a.binary:  # one compiled pass
+        best, d1, d2, back = kernels.window_best_two_hamming(
+            a.xy, b.xy, order, vb, a.descriptors, b.descriptors, v_tol, du_lo, du_hi)
+    else:
+        ia, jb = kernels.window_pairs(a.xy, b.xy, order, vb, v_tol, du_lo, du_hi)
+        dist = kernels.l2_pairs(a.descriptors, b.descriptors, ia, jb)
+        best, d1, d2 = kernels.best_two(ia, jb, dist, len(a))
+        back, _, _ = kernels.best_two(jb, ia, dist, len(b))
+    return best, d1 / a.max_distance, d2 / a.max_distance, back
 
 
 def _empty(image: np.ndarray, n_left: int, n_right: int, binary: bool, max_distance: float, width: int,
@@ -99,9 +101,7 @@ def match_pair(left: np.ndarray, right: np.ndarray, kl: Keypoints, kr: Keypoints
         return _empty(left, len(kl), len(kr), kl.binary, kl.max_distance, width, dtype,
                       f"no keypoints in the {which} image")
     d_lo, d_hi = options.disparity_range(camera)
-    ia, jb = window_candidates(kl.xy, kr.xy, options.row_tolerance, d_lo, d_hi)
-    dist = pair_distances(kl, kr, ia, jb)
-    best, d1, d2 = kernels.best_two(ia, jb, dist, len(kl))
+    best, d1, d2, _ = window_matches(kl, kr, options.row_tolerance, d_lo, d_hi)
     ratio = second_ratio(d1, d2)
     keep = (best >= 0) & (d1 <= options.max_distance) & (ratio < options.stereo_ratio)
     rows = np.flatnonzero(keep)

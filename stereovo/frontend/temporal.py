@@ -20,9 +20,7 @@ from stereovo.camera import StereoCamera
 from stereovo.frontend import kernels
 from stereovo.frontend.options import FrontendOptions
 from stereovo.frontend.scores import comparison_confidence, match_scores
-from stereovo.frontend.stereo import (
-    StereoFeatures, pair_distances, second_ratio, stereo_features, window_candidates,
-)
+from stereovo.frontend.stereo import StereoFeatures, second_ratio, stereo_features, window_matches
 from stereovo.frontend.detection import Keypoints
 
 
@@ -77,17 +75,14 @@ def temporal_matches(prev: StereoFeatures, curr: StereoFeatures, options: Fronte
         raise ValueError("the two frames' features come from different detectors: match them with one front end")
     r = np.inf if options.search_radius is None else options.search_radius
     pa, pb = prev.points[:, :2], curr.points[:, :2]
-    ia, jb = window_candidates(pa, pb, r, -r, r)
-    ka = Keypoints(pa, prev.descriptors, prev.binary, prev.max_distance)
-    kb = Keypoints(pb, curr.descriptors, curr.binary, curr.max_distance)
-    dist = pair_distances(ka, kb, ia, jb)
-    best, d1, d2 = kernels.best_two(ia, jb, dist, len(prev))
+    ka = Keypoints(np.ascontiguousarray(pa), prev.descriptors, prev.binary, prev.max_distance)
+    kb = Keypoints(np.ascontiguousarray(pb), curr.descriptors, curr.binary, curr.max_distance)
+    best, d1, d2, back = window_matches(ka, kb, r, -r, r)
     ratio = second_ratio(d1, d2)
     keep = (best >= 0) & (d1 <= options.max_distance)
     if options.temporal_check in ("ratio", "both"):
         keep &= ratio < options.temporal_ratio
     if options.temporal_check in ("mutual", "both"):
-        back, _, _ = kernels.best_two(jb, ia, dist, len(curr))
         keep &= back[np.maximum(best, 0)] == np.arange(len(prev))
     rows = np.flatnonzero(keep)
     cols = best[rows]
