@@ -27,6 +27,7 @@ ENV_IDS: tuple[str, ...] = registered_ids()
 
 _LAZY = {
     "StereoVOEnv": "vo_gym.env",
+    "StereoVOImagesEnv": "vo_gym.images_env",
     "SAMPLING_MODES": "vo_gym.env",
     "DEFAULT_ESTIMATOR_OPTIONS": "vo_gym.env",
     "REWARD_MODES": "vo_gym.rewards",

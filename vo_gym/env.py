@@ -425,7 +425,7 @@ class StereoVOEnv(gym.Env):
         announce_compiling()  # one line on the first run after installing, else nothing
         sequence_seed = int(self.np_random.integers(0, 2**63 - 1))
         ransac_seed = int(self.np_random.integers(0, 2**63 - 1))
-        self._sequence = Sequence(self._sequence_config, sequence_seed)
+        self._sequence = self.make_sequence(sequence_seed)
         self._ransac_rng = np.random.default_rng(ransac_seed)
         self._k = 1
         self._frame = self._sequence.frame(1)
@@ -433,6 +433,11 @@ class StereoVOEnv(gym.Env):
         self._successes = []
         self._last_step = None
         return self._observation(), {"frame": 1}
+
+    def make_sequence(self, seed: int) -> Sequence:
+        """The episode's frame sequence for the seed ``reset`` drew (a hook: the images environment,
+        :mod:`vo_gym.images_env`, gives rendered or recorded frames instead)."""
+        return Sequence(self._sequence_config, seed)
 
     def step(self, action):
         if self._frame is None:
@@ -501,7 +506,8 @@ class StereoVOEnv(gym.Env):
     # ------------------------------------------------------------------ internals
 
     def _validate_action(self, action) -> np.ndarray:
-        M, n = self.max_correspondences, self.n_correspondences
+        # the frame's own count: image frames have fewer matches than slots, the simulator's exactly n
+        M, n = self.max_correspondences, self._frame.n if self._frame is not None else self.n_correspondences
         if np.iscomplexobj(action):  # a cast would drop the imaginary part with only a warning
             raise ValueError(f"StereoVOEnv: the action must be real, got complex dtype {np.asarray(action).dtype}")
         try:

@@ -18,7 +18,7 @@ from typing import Any
 
 import gymnasium
 
-__all__ = ["ENV_IDS", "ADAPTIVE_ENV_IDS", "HARD_SETTINGS", "register_envs", "registered_ids"]
+__all__ = ["ENV_IDS", "ADAPTIVE_ENV_IDS", "IMAGE_ENV_IDS", "HARD_SETTINGS", "register_envs", "registered_ids"]
 
 ENTRY_POINT = "vo_gym.env:StereoVOEnv"
 
@@ -53,17 +53,28 @@ ADAPTIVE_ENV_IDS: dict[str, dict[str, Any]] = {
 """Ids of :class:`vo_gym.adaptive_env.StereoVOAdaptiveEnv` and their keyword arguments."""
 
 
+IMAGES_ENTRY_POINT = "vo_gym.images_env:StereoVOImagesEnv"
+
+IMAGE_ENV_IDS: dict[str, dict[str, Any]] = {
+    # Matches from images (rendered by default; source= a KittiOdometry or another sequence), the
+    # observation layout of vo_gym/StereoVO-v0. Needs the images and render extras.
+    "vo_gym/StereoVOImages-v0": {"sampling": "guided"},
+}
+"""Ids of :class:`vo_gym.images_env.StereoVOImagesEnv` and their keyword arguments."""
+
+
 MISSING_NAMESPACE_ENTRY_POINT = "vo_gym.names:missing_namespace"
 
 
 def register_envs() -> None:
-    """Register every id of :data:`ENV_IDS` and :data:`ADAPTIVE_ENV_IDS` (idempotent).
+    """Register every id of :data:`ENV_IDS`, :data:`ADAPTIVE_ENV_IDS` and :data:`IMAGE_ENV_IDS` (idempotent).
 
     Each id's bare name (``StereoVO-v0``, without ``vo_gym/``) is registered too, to an entry
     point that only raises an error naming the full id (:func:`vo_gym.names.missing_namespace`):
     Gymnasium suggests near names only within one namespace.
     """
-    for ids, entry_point in ((ENV_IDS, ENTRY_POINT), (ADAPTIVE_ENV_IDS, ADAPTIVE_ENTRY_POINT)):
+    for ids, entry_point in ((ENV_IDS, ENTRY_POINT), (ADAPTIVE_ENV_IDS, ADAPTIVE_ENTRY_POINT),
+                             (IMAGE_ENV_IDS, IMAGES_ENTRY_POINT)):
         for env_id, kwargs in ids.items():
             if env_id not in gymnasium.registry:
                 gymnasium.register(id=env_id, entry_point=entry_point, kwargs=dict(kwargs))

@@ -1,0 +1,209 @@
+""":class:`KittiOdometry`: a sequence of the KITTI odometry benchmark read from disk.
+
+KITTI's layout (Geiger, Lenz & Urtasun, "Are we ready for autonomous driving? The KITTI vision
+benchmark suite", CVPR 2012)::
+
+    ROOT/sequences/NN/image_0/000000.png ...   left grey images
+    ROOT/sequences/NN/image_1/000000.png ...   right grey images
+    ROOT/sequences/NN/calib.txt                 "P0: 12 numbers", "P1: ...": rectified 3x4 projections
+    ROOT/poses/NN.txt                           (optional) one 3x4 camera-to-world pose per line
+
+``ROOT`` may also be the sequence folder itself (holding ``image_0/``). The rig comes from P0 and
+P1 (``fx, fy, cx, cy`` of P0, ``baseline = -P1[0, 3] / P1[0, 0]``), the image size from the first
+image. Only text and PNG images are read: nothing in the folder can run code.
+
+Labels when poses are known: there are no depth maps, so a match is labelled an inlier when the
+true motion carries its k-1 triangulation onto its k measurement within ``label_tolerance`` px
+(``uL``, ``vL`` and the disparity). KITTI's poses come from GPS/INS, accurate to centimetres, so
+these labels are approximate for distant points and near the tolerance.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from stereovo.camera import StereoCamera
+from stereovo.frontend import Matches
+from stereovo.geometry import invert_transform, relative_motion
+from stereovo.options import Integer, Number
+from stereovo.sequences.base import ImageSequence
+from stereovo.simulation import FrameTruth, OutlierKind
+
+_IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".pgm", ".ppm", ".bmp", ".tif", ".tiff")
+
+
+def read_calibration(path: Path) -> StereoCamera:
+    """A :class:`StereoCamera` (size 1x1, set later) from KITTI's ``calib.txt`` (P0 and P1)."""
+    rows: dict[str, np.ndarray] = {}
+    with open(path, encoding="utf-8", errors="replace") as handle:
+        for number, line in enumerate(handle, 1):
+            if ":" not in line:
+                continue
+            key, _, values = line.partition(":")
+            key = key.strip()
+            if key not in ("P0", "P1"):
+                continue
+            try:
+                numbers = np.array([float(x) for x in values.split()])
+            except ValueError:
+                raise ValueError(f"{path}, line {number}: {key} must be 12 numbers, got {values.strip()!r}") from None
+            if numbers.size != 12 or not np.all(np.isfinite(numbers)):
+                raise ValueError(f"{path}, line {number}: {key} must be 12 finite numbers, got {numbers.size}")
+            rows[key] = numbers.reshape(3, 4)
+    missing = [key for key in ("P0", "P1") if key not in rows]
+    if missing:
+        raise ValueError(f"{path}: no {' and no '.join(missing)} line (KITTI's 'P0: 12 numbers' projections)")
+    P0, P1 = rows["P0"], rows["P1"]
+    fx, fy, cx, cy = P0[0, 0], P0[1, 1], P0[0, 2], P0[1, 2]
+    if not np.allclose(P1[:, :3], P0[:, :3], rtol=1e-6, atol=1e-6):
+        raise ValueError(f"{path}: P0 and P1 have different intrinsics: the images are not a rectified pair")
+    baseline = -(P1[0, 3] - P0[0, 3]) / P1[0, 0]
+    if not baseline > 0:
+        raise ValueError(f"{path}: P1 puts the right camera at baseline {baseline:g} m; expected > 0 (P1[0, 3] < 0)")
+    return StereoCamera(fx=float(fx), fy=float(fy), cx=float(cx), cy=float(cy), baseline=float(baseline))
+
+
+def read_poses(path: Path) -> np.ndarray:
+    """``(N, 4, 4)`` camera-to-world poses from KITTI's pose file (12 numbers a line)."""
+    poses = []
+    with open(path, encoding="utf-8", errors="replace") as handle:
+        for number, line in enumerate(handle, 1):
+            if not line.strip():
+                continue
+            try:
+                values = np.array([float(x) for x in line.split()])
+            except ValueError:
+                raise ValueError(f"{path}, line {number}: a pose must be 12 numbers, got {line.strip()[:60]!r}") from None
+            if values.size != 12 or not np.all(np.isfinite(values)):
+                raise ValueError(f"{path}, line {number}: a pose must be 12 finite numbers, got {values.size}")
+            pose = np.eye(4)
+            pose[:3, :] = values.reshape(3, 4)
+            poses.append(pose)
+    if not poses:
+        raise ValueError(f"{path}: no poses")
+    return np.array(poses)
+
+
+def _images(folder: Path) -> list[Path]:
+    if not folder.is_dir():
+        raise FileNotFoundError(f"no image folder {folder}")
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in _IMAGE_SUFFIXES)
+    if not files:
+        raise FileNotFoundError(f"no images in {folder}")
+    return files
+
+
+def _read_grey(path: Path) -> np.ndarray:
+    import cv2
+
+    image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
+    if image is None:
+        raise ValueError(f"{path}: not a readable image")
+    if image.ndim == 3:
+        image = cv2.cvtColor(image, cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY)
+    if image.dtype != np.uint8:
+        raise ValueError(f"{path}: {image.dtype} image; the front end takes 8-bit grey images")
+    return image
+
+
+class KittiOdometry(ImageSequence):
+    """A KITTI odometry sequence as frame pairs (see the module docstring for the layout).
+
+    Args:
+        root: the dataset folder (holding ``sequences/`` and optionally ``poses/``) or one
+            sequence's folder (holding ``image_0/``).
+        sequence: the sequence name, e.g. ``"00"`` (or an int, written with two digits); None
+            when ``root`` is the sequence folder.
+        start, stop: image range ``[start, stop)`` (stop None: to the end); poses are re-anchored
+            so that the first image's pose is the identity.
+        noise_sigma: the pixel noise (px) the frames declare to the estimator.
+        label_tolerance: pixel gate of the approximate labels (px).
+        **frontend_options: :class:`~stereovo.frontend.FrontendOptions` fields.
+
+    Attributes:
+        true_poses: ``(F+1, 4, 4)`` poses from ``poses/NN.txt``, or None without it.
+
+    Raises:
+        FileNotFoundError: a missing folder, image folder or calib.txt, named.
+        ValueError: malformed calibration or poses, unequal image counts, a bad range.
+    """
+
+    def __init__(self, root: str | os.PathLike, sequence: str | int | None = "00", start: int = 0,
+                 stop: int | None = None, noise_sigma: float = 0.5, label_tolerance: float = 3.0,
+                 **frontend_options: Any) -> None:
+        root = Path(root).expanduser()
+        if not root.is_dir():
+            raise FileNotFoundError(f"KittiOdometry: no folder {root}")
+        name = f"{sequence:02d}" if isinstance(sequence, int) and not isinstance(sequence, bool) else sequence
+        if (root / "image_0").is_dir():
+            folder, name = root, name if name is not None else root.name
+            pose_candidates = [root.parent.parent / "poses" / f"{name}.txt", root / "poses.txt"]
+        else:
+            if name is None:
+                raise FileNotFoundError(f"KittiOdometry: {root} holds no image_0/; give sequence= or a sequence folder")
+            folder = root / "sequences" / str(name)
+            if not folder.is_dir():
+                raise FileNotFoundError(f"KittiOdometry: no sequence folder {folder}")
+            pose_candidates = [root / "poses" / f"{name}.txt"]
+        calib = folder / "calib.txt"
+        if not calib.is_file():
+            raise FileNotFoundError(f"KittiOdometry: no calibration file {calib}")
+        lefts, rights = _images(folder / "image_0"), _images(folder / "image_1")
+        if len(lefts) != len(rights):
+            raise ValueError(f"KittiOdometry: {len(lefts)} left images but {len(rights)} right images in {folder}")
+        n = len(lefts)
+        start = Integer(low=0, high=max(n - 2, 0)).check("start", start, prefix="KittiOdometry: ")
+        stop = Integer(low=start + 2, high=n, allow_none=True).check("stop", stop, prefix="KittiOdometry: ")
+        stop = n if stop is None else stop
+        self.label_tolerance = float(Number(low=0.0, low_open=True, unit="px").check(
+            "label_tolerance", label_tolerance, prefix="KittiOdometry: "))
+        first = _read_grey(lefts[start])
+        camera = read_calibration(calib)
+        camera = StereoCamera(fx=camera.fx, fy=camera.fy, cx=camera.cx, cy=camera.cy, baseline=camera.baseline,
+                              width=int(first.shape[1]), height=int(first.shape[0]))
+        super().__init__(camera, noise_sigma=noise_sigma, **frontend_options)
+        self.root, self.folder, self.sequence = root, folder, name
+        self._lefts, self._rights = lefts[start:stop], rights[start:stop]
+        self.start = start
+        self.poses_file = next((p for p in pose_candidates if p.is_file()), None)
+        self.true_poses = None
+        if self.poses_file is not None:
+            poses = read_poses(self.poses_file)
+            if len(poses) < stop:
+                raise ValueError(f"KittiOdometry: {self.poses_file} has {len(poses)} poses for {n} images")
+            anchor = invert_transform(poses[start])
+            self.true_poses = anchor @ poses[start:stop]
+            self.true_poses.setflags(write=False)
+
+    def n_images(self) -> int:
+        return len(self._lefts)
+
+    def load_images(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        left, right = _read_grey(self._lefts[k]), _read_grey(self._rights[k])
+        if left.shape != (self.camera.height, self.camera.width) or right.shape != left.shape:
+            raise ValueError(f"KittiOdometry: image pair {k} ({self._lefts[k].name}) is {left.shape} / {right.shape}, "
+                             f"the sequence's images are {(self.camera.height, self.camera.width)}")
+        return left, right
+
+    def label(self, k: int, matches: Matches) -> FrameTruth | None:
+        if self.true_poses is None:
+            return None
+        R, t = relative_motion(self.true_poses[k - 1], self.true_poses[k])
+        X, _, usable = self.camera.triangulate_usable(matches.prev, 1.0)
+        X = np.where(usable[:, None], X, np.array([0.0, 0.0, 1.0]))
+        moved = X @ R.T + t
+        ahead = usable & (moved[:, 2] > 1e-6)
+        predicted = self.camera.project(np.where(ahead[:, None], moved, np.array([0.0, 0.0, 1.0])))
+        error = np.abs(matches.curr[:, :3] - predicted[:, :3])
+        inlier = ahead & np.all(error <= self.label_tolerance, axis=1)
+        kind = np.where(inlier, int(OutlierKind.INLIER), int(OutlierKind.RANDOM_MISMATCH)).astype(np.int8)
+        return FrameTruth(rotation=R, translation=t, inlier=inlier, outlier_kind=kind,
+                          pose_prev=self.true_poses[k - 1], pose_curr=self.true_poses[k],
+                          outlier_ratio=float(1.0 - inlier.mean()) if inlier.size else 1.0)
+
+    def __repr__(self) -> str:
+        return f"KittiOdometry({os.fspath(self.root)!r}, sequence={self.sequence!r}, frames={len(self)})"

@@ -1,0 +1,194 @@
+"""``StereoVOImagesEnv``: the stereo-VO environment on matches an image front end found.
+
+The observation, action, reward and info are :class:`vo_gym.env.StereoVOEnv`'s, built by the
+same code (the features of :mod:`vo_gym.features`, the estimator core, the rewards): every
+sampler that runs on ``vo_gym/StereoVO-v0`` runs on ``vo_gym/StereoVOImages-v0`` unchanged.
+What differs is where a step's frame pair comes from: stereo images rendered along a simulator
+trajectory (:class:`stereovo.sequences.RenderedSequence`, the default) or a recorded sequence
+with known poses (``source=`` a :class:`stereovo.sequences.KittiOdometry` or any frame
+sequence), matched by :mod:`stereovo.frontend`. Its outliers are the matcher's own: repetitive
+texture, occlusion, wrong stereo pairs, moving objects.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import OrderedDict
+from typing import Any
+
+import numpy as np
+
+from stereovo.options import Choice, Integer, Number, Option, check_options
+from stereovo.simulation import Frame
+from vo_gym.env import StereoVOEnv
+
+__all__ = ["StereoVOImagesEnv", "EpisodeFrames"]
+
+_PREFIX = "StereoVOImagesEnv: "
+_RULES: dict[str, Option] = {
+    "n_frames": Integer(low=1, high=100_000),
+    "max_correspondences": Integer(low=3, high=100_000),
+    "resolution": Choice(choices=("kitti", "vga")),
+    "moving_objects": Integer(low=0, high=32),
+    "image_noise": Number(low=0.0, high=50.0),
+    "texture_seed": Integer(low=0, allow_none=True),
+    "cached_episodes": Integer(low=0, high=64),
+}
+# StereoVOEnv's simulator knobs that images decide for themselves
+_SIMULATOR_ONLY = ("n_correspondences", "outlier_ratio", "outlier_mix", "score_auc", "z_min", "z_max", "noise_sigma")
+
+
+def top_rows(frame: Frame, index: int, limit: int) -> Frame:
+    """``frame`` renumbered ``index``, keeping at most ``limit`` rows: the best scored, in their order."""
+    if frame.n <= limit:
+        return dataclasses.replace(frame, index=index)
+    keep = np.sort(np.argsort(-frame.scores, kind="stable")[:limit])
+    truth = frame.truth
+    if truth is not None:
+        truth = dataclasses.replace(truth, inlier=truth.inlier[keep], outlier_kind=truth.outlier_kind[keep],
+                                    outlier_ratio=float(1.0 - truth.inlier[keep].mean()))
+    return dataclasses.replace(frame, index=index, prev=frame.prev[keep], curr=frame.curr[keep],
+                               scores=frame.scores[keep], truth=truth)
+
+
+class EpisodeFrames:
+    """One episode's frames: frame pairs ``offset + 1 .. offset + n_frames`` of a source sequence,
+    numbered ``1 .. n_frames``, each computed on first use (in the step that needs it) and kept.
+
+    Attributes:
+        camera: the source's rig. true_poses: ``(n_frames + 1, 4, 4)`` the window's poses.
+    """
+
+    def __init__(self, source: Any, offset: int, n_frames: int, limit: int) -> None:
+        self.source, self.offset, self.limit = source, int(offset), int(limit)
+        self.camera = source.camera
+        self.true_poses = np.asarray(source.true_poses[self.offset:self.offset + n_frames + 1])
+        self._n = int(n_frames)
+        self._frames: dict[int, Frame] = {}
+
+    def __len__(self) -> int:
+        return self._n
+
+    def frame(self, k: int) -> Frame:
+        if not 1 <= k <= self._n:
+            raise IndexError(f"frame index must be an integer in [1, {self._n}], got {k!r}")
+        if k not in self._frames:
+            self._frames[k] = top_rows(self.source.frame(self.offset + k), k, self.limit)
+        return self._frames[k]
+
+    def __iter__(self):
+        for k in range(1, self._n + 1):
+            yield self.frame(k)
+
+
+class StereoVOImagesEnv(StereoVOEnv):
+    """Stereo visual odometry on images; the agent proposes RANSAC sampling priors.
+
+    Everything of :class:`vo_gym.env.StereoVOEnv` holds (spaces, sampling modes, rewards, info,
+    estimator arguments), with one step's frame pair made from images:
+
+    - ``source=None`` (default): each ``reset`` renders a new world along a new simulator
+      trajectory of the ``preset`` from the reset's seed (:class:`~stereovo.sequences.RenderedSequence`
+      at ``resolution``, with ``moving_objects``, ``image_noise``, ``speed``, ``world``).
+    - ``source=`` a frame sequence with ``true_poses`` (a :class:`~stereovo.sequences.KittiOdometry`,
+      a :class:`~stereovo.sequences.RenderedSequence`, ...) or a source string (``"rendered"``,
+      ``"kitti:PATH[:SEQ]"``): each episode is ``n_frames`` consecutive frame pairs of it from a
+      start the reset's seed draws.
+
+    A frame has as many matches as the front end found, at most ``max_correspondences`` (the
+    observation's rows; beyond it the best scored are kept); the rest of the rows are padding
+    (``mask`` 0). The rendering and the matching happen in the step that needs the frame, so
+    they count in the step's time; the frames an episode's seed determines are kept for the
+    last ``cached_episodes`` seeds, and the procedural textures for ``texture_seed`` (None: a
+    fresh set per episode, drawn from its seed).
+
+    Args:
+        source: see above. n_frames: steps per episode. max_correspondences: observation rows.
+        preset, resolution, moving_objects, image_noise, speed, world: the rendered world's.
+        frontend_options: :class:`~stereovo.frontend.FrontendOptions` fields as a dict.
+        estimator_noise_sigma: the pixel noise the estimator and the features assume; None: the
+            source's ``noise_sigma``.
+        **kwargs: any other :class:`vo_gym.env.StereoVOEnv` argument (``sampling``, ``reward_mode``,
+            ``method``, ``budget``, estimator options, ...). Its simulator-only arguments
+            (``n_correspondences``, ``outlier_ratio``, ``score_auc``, ...) are refused: images decide them.
+
+    Raises:
+        ValueError: a bad argument, named; TypeError: an unknown or simulator-only keyword.
+    """
+
+    def __init__(self, source: Any = None, n_frames: int = 100, max_correspondences: int = 1000, preset: str = "car",
+                 resolution: str = "kitti", moving_objects: int = 0, image_noise: float = 2.0,
+                 speed: float | None = None, world: str | None = None, frontend_options: dict | None = None,
+                 texture_seed: int | None = 0, cached_episodes: int = 2, estimator_noise_sigma: float | None = None,
+                 **kwargs: Any) -> None:
+        refused = sorted(set(kwargs) & set(_SIMULATOR_ONLY))
+        if refused:
+            raise TypeError(f"{_PREFIX}{refused} are simulator settings; on images the front end decides them")
+        checked = check_options(_RULES, dict(n_frames=n_frames, max_correspondences=max_correspondences,
+                                             resolution=resolution, moving_objects=moving_objects,
+                                             image_noise=image_noise, texture_seed=texture_seed,
+                                             cached_episodes=cached_episodes), prefix=_PREFIX)
+        if frontend_options is not None and not isinstance(frontend_options, dict):
+            raise ValueError(f"{_PREFIX}frontend_options must be a dict of FrontendOptions fields, "
+                             f"got {type(frontend_options).__name__}")
+        from stereovo.frontend import FrontendOptions
+        from stereovo.sequences.rendered import RESOLUTIONS
+
+        try:
+            self.frontend_options = FrontendOptions(**(frontend_options or {}))
+        except TypeError as err:
+            raise TypeError(f"{_PREFIX}frontend_options: {err}") from None
+        if isinstance(source, str):
+            from stereovo.sequences import open_source
+
+            source = open_source(source, options=self.frontend_options)
+        if source is not None:
+            if getattr(source, "true_poses", None) is None or not hasattr(source, "frame"):
+                raise ValueError(f"{_PREFIX}source must be a frame sequence with known poses (true_poses), "
+                                 f"got {type(source).__name__}: the rewards and the info need the true motion")
+            if len(source) < checked["n_frames"] + 1:
+                raise ValueError(f"{_PREFIX}source has {len(source)} frame pairs; an episode of n_frames="
+                                 f"{checked['n_frames']} needs n_frames + 1")
+            camera, noise = source.camera, float(getattr(source, "noise_sigma", 0.5))
+        else:
+            camera, noise = RESOLUTIONS[checked["resolution"]], 0.5
+        self.source = source
+        self.render_settings = dict(preset=preset, resolution=checked["resolution"],
+                                    moving_objects=checked["moving_objects"], image_noise=checked["image_noise"],
+                                    speed=speed, world=world)
+        self.texture_seed = checked["texture_seed"]
+        self.cached_episodes = checked["cached_episodes"]
+        M = checked["max_correspondences"]
+        super().__init__(n_frames=checked["n_frames"], n_correspondences=M, max_correspondences=M, preset=preset,
+                         world=world, speed=speed, camera=camera, noise_sigma=noise,
+                         estimator_noise_sigma=estimator_noise_sigma, **kwargs)
+        self._episodes: OrderedDict[int, EpisodeFrames] = OrderedDict()
+
+    def make_sequence(self, seed: int) -> EpisodeFrames:
+        """The episode of a reset's seed: rendered from it, or a window of the source it places."""
+        if seed in self._episodes:
+            self._episodes.move_to_end(seed)
+            return self._episodes[seed]
+        n = self.sim_config.n_frames + 1  # a spare frame pair: the observation returned at truncation
+        if self.source is None:
+            from stereovo.sequences.rendered import RenderedSequence
+
+            rendered = RenderedSequence(n_frames=n, seed=seed, texture_seed=self.texture_seed,
+                                        options=self.frontend_options, **self.render_settings)
+            episode = EpisodeFrames(rendered, 0, n, self.max_correspondences)
+        else:
+            offset = int(np.random.default_rng(seed).integers(0, len(self.source) - n + 1))
+            episode = EpisodeFrames(self.source, offset, n, self.max_correspondences)
+        self._episodes[seed] = episode
+        while len(self._episodes) > max(self.cached_episodes, 1):
+            _, old = self._episodes.popitem(last=False)
+            if old.source is not self.source and hasattr(old.source, "close"):
+                old.source.close()
+        return episode
+
+    def close(self) -> None:
+        for episode in self._episodes.values():
+            if episode.source is not self.source and hasattr(episode.source, "close"):
+                episode.source.close()
+        self._episodes.clear()
+        super().close()
