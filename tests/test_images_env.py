@@ -14,6 +14,7 @@ pytest.importorskip("cv2", reason="the image front end needs OpenCV: pip install
 pytest.importorskip("moderngl", reason="rendered sequences need moderngl: pip install 'vo-gym[render]'")
 
 import vo_gym  # noqa: E402,F401
+from stereovo.estimation import StereoProblem  # noqa: E402
 from vo_gym.features import FEATURE_NAMES, N_FEATURES  # noqa: E402
 from vo_gym.images_env import StereoVOImagesEnv  # noqa: E402
 
@@ -48,7 +49,10 @@ def test_the_observation_layout_is_the_simulated_environments():
     assert images.action_space == simulated.action_space
     obs, _ = images.reset(seed=0)
     frame = images.current_frame
-    assert obs["mask"][: frame.n].all() and not obs["mask"][frame.n:].any()
+    # the rows with a resolvable depth (the estimator's rule), none past the frame's own rows
+    usable = StereoProblem.build(frame.prev, frame.curr, frame.camera, images.estimator_noise_sigma).usable_mask
+    np.testing.assert_array_equal(obs["mask"][: frame.n], usable)
+    assert usable.mean() > 0.9 and not obs["mask"][frame.n:].any()
     assert not obs["features"][frame.n:].any()
     images.close()
 
