@@ -233,10 +233,15 @@ def test_mahalanobis_matches_explicit_inverse():
         P = problem.points_prev @ Rs[h].T + ts[h]
         Y = problem.points_curr
         r = Y - P
-        # covariances at the fused point: disparity the mean of the two, at k and mapped back to k-1
+        # covariances at the fused points: in each frame, the disparity the mean of the two
+        # observations carried there (Y carried back to k-1 is W = R^T (Y - t))
         ip, iy = 1 / P[:, 2], 1 / Y[:, 2]
         Q = (P * ip[:, None] + Y * iy[:, None]) / (ip + iy)[:, None]
-        X_star = (Q - ts[h]) @ Rs[h]
+        X, W = problem.points_prev, (Y - ts[h]) @ Rs[h]
+        ix, iw = 1 / X[:, 2], 1 / W[:, 2]
+        X_star = (X * ix[:, None] + W * iw[:, None]) / (ix + iw)[:, None]
+        np.testing.assert_allclose(CAMERA.disparity(CAMERA.project(X_star)), 0.5 * (CAMERA.disparity(CAMERA.project(X))
+                                   + CAMERA.disparity(CAMERA.project(W))), rtol=1e-12)
         np.testing.assert_allclose(CAMERA.disparity(CAMERA.project(Q)), 0.5 * (CAMERA.disparity(CAMERA.project(P))
                                    + CAMERA.disparity(CAMERA.project(Y))), rtol=1e-12)
         cov_at = lambda X: CAMERA.triangulation_covariance(CAMERA.project(X), 0.5)  # noqa: E731

@@ -44,8 +44,8 @@ class MahalanobisResidual:
     """Brink et al.: ``r_i = Y_i - (R X_i + t)`` under ``R Sigma_X R^T + Sigma_Y``; unit-free, chi-square(3).
 
     The two covariances are the camera's triangulation covariance evaluated at the landmark's
-    fused estimate from both observations under the hypothesis (whose disparity in frame k is
-    the mean of the two), not at the two noisy triangulations: evaluated there, a far match
+    fused estimate from both observations under the hypothesis (whose disparity in each frame is
+    the mean of the two observations carried there), not at the two noisy triangulations: evaluated there, a far match
     whose depths disagree gets a covariance inflated by the disagreement and the gate passes
     too many (0.937 instead of 0.90 at 45-60 m). See ``kernels.mahalanobis_sq``.
     """

@@ -85,8 +85,8 @@ def mahalanobis_sq(R, t, X, Y, cam, sigma_sq, cap):
     Both covariances are evaluated at one point, the two observations' fused estimate of the
     landmark under the hypothesis, not at the two noisy triangulations: in frame k the point
     ``Q = (P / p_z + Y / y_z) / (1 / p_z + 1 / y_z)`` (``P = R X + t``), whose disparity is the
-    mean of the two (the maximum-likelihood depth for equal disparity noise), and
-    ``R^T (Q - t)`` at k-1. At the measured points a far match whose two depths disagree gets
+    mean of the two (the maximum-likelihood depth for equal disparity noise), and at k-1 likewise
+    the point fused from ``X`` and ``W = R^T (Y - t)``. At the measured points a far match whose two depths disagree gets
     covariances inflated by the disagreement itself (depth variance grows as z^4), and the
     chi-square gate then passes too many: 0.937 instead of 0.90 at 45-60 m. At the fused point
     the depth term is the disparity difference, which is linear in the pixels.
@@ -96,8 +96,9 @@ def mahalanobis_sq(R, t, X, Y, cam, sigma_sq, cap):
     ``cap`` gets that lower bound (the trace bounds C's largest eigenvalue) and skips the 3x3
     solve. Most points of a bad hypothesis are settled before the fused point is even built, by
     a bound on the trace from norms alone: ``tr S(p) <= sigma^2 (c |p|^2 + 3 |p|^4 / (fx b)^2)``
-    with ``c = 2 / fx^2 + v_variance / fy^2``, and the fused point, a convex combination of
-    ``P`` and ``Y``, is no farther than ``max(|X| + |t|, |Y|)`` (``R^T (Q - t)``: plus ``|t|``).
+    with ``c = 2 / fx^2 + v_variance / fy^2``, and the fused point at k, a convex combination of
+    ``P`` and ``Y``, is no farther than ``max(|X| + |t|, |Y|)``, the one at k-1 (of ``X`` and
+    ``W``) no farther than ``max(|X|, |Y| + |t|)``.
     """
     fx, fy, bl = cam[0], cam[1], cam[4]
     inv_fx, inv_fy, inv_fb = 1.0 / fx, 1.0 / fy, 1.0 / (fx * bl)
@@ -126,9 +127,10 @@ def mahalanobis_sq(R, t, X, Y, cam, sigma_sq, cap):
             behind = p2 <= MIN_DEPTH  # a select, not a branch: the loop stays vectorisable
             if cap > 0.0 and not behind:
                 r2 = x * x + y * y + z * z
-                far = max(norm_x[n] + norm_t, norm_y[n])  # bounds |Q|; |R^T (Q - t)| <= far + |t|
+                far = max(norm_x[n] + norm_t, norm_y[n])  # bounds |Q|
+                far_prev = max(norm_x[n], norm_y[n] + norm_t)  # bounds the fused point at k-1
                 far2 = far * far
-                near2 = (far + norm_t) * (far + norm_t)
+                near2 = far_prev * far_prev
                 bound_trace = sigma_sq * (c_lateral * (far2 + near2) + c_depth * (far2 * far2 + near2 * near2))
                 if r2 >= cap * bound_trace:
                     out[h, n] = r2 / max(bound_trace, 1e-300)
@@ -136,13 +138,20 @@ def mahalanobis_sq(R, t, X, Y, cam, sigma_sq, cap):
             ip, iy = 1.0 / (MIN_DEPTH if behind else p2), inv_depth[n]
             iq = 1.0 / (ip + iy)
             q0, q1, q2 = (p0 * ip + y0 * iy) * iq, (p1 * ip + y1 * iy) * iq, 2.0 * iq
-            # the fused point at k-1: R^T (Q - t)
-            d0, d1, d2 = q0 - t0, q1 - t1, q2 - t2
-            k0 = r00 * d0 + r10 * d1 + r20 * d2
-            k1 = r01 * d0 + r11 * d1 + r21 * d2
-            k2 = r02 * d0 + r12 * d1 + r22 * d2
-            if k2 <= MIN_DEPTH:  # no depth at k-1 for the fused point (odd motions): the measured one
+            # the fused point at k-1, fused there as Q is at k: X and W = R^T (Y - t), the k point
+            # carried back, with the mean of their disparities. (Carrying Q back instead, an absurd
+            # motion that sends P kilometres away put the k-1 point there too, and its covariance
+            # then passed any residual.)
+            d0, d1, d2 = y0 - t0, y1 - t1, y2 - t2
+            w0 = r00 * d0 + r10 * d1 + r20 * d2
+            w1 = r01 * d0 + r11 * d1 + r21 * d2
+            w2 = r02 * d0 + r12 * d1 + r22 * d2
+            if w2 <= MIN_DEPTH:  # the k point carried back has no depth at k-1 (odd motions): the measured one
                 k0, k1, k2 = x0, x1, x2
+            else:
+                ix, iw = 1.0 / x2, 1.0 / w2
+                ik = 1.0 / (ix + iw)
+                k0, k1, k2 = (x0 * ix + w0 * iw) * ik, (x1 * ix + w1 * iw) * ik, 2.0 * ik
             sx00, sx01, sx02, sx11, sx12, sx22 = _covariance_at(k0, k1, k2, inv_fx, inv_fy, inv_fb, v_variance, sigma_sq)
             sy00, sy01, sy02, sy11, sy12, sy22 = _covariance_at(q0, q1, q2, inv_fx, inv_fy, inv_fb, v_variance, sigma_sq)
             if cap > 0.0:
