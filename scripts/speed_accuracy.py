@@ -2,11 +2,13 @@
 
 Regenerates ``docs/img/speed-accuracy-<preset>.png`` (success and median rotation error against
 median time per frame, each estimator's confidence swept, one column per epsilon) and prints
-its points; with ``--prior-table``, instead the table of hypotheses and time of ours and
+its points with each one's time over ours (uniform, the same confidence and epsilon, this run);
+with ``--prior-table``, instead the table of hypotheses and time of ours and
 SupeRANSAC against the score AUC (uniform, PROSAC by score, guided / importance / AR by the
-calibrated scores). Every estimator of a cell runs on the same frames; numba is warmed up first;
-the peers run on one thread. Times are per frame, wall clock, on whatever the machine is doing:
-compare estimators within one run.
+calibrated scores). Every estimator of a cell runs on the same frames, a frame's estimators one
+after another, each the fastest of ``--repeats``; numba is warmed up first; the peers run on one
+thread. Times are per frame, process CPU time by default (``--clock wall`` for wall time): compare
+estimators within one run.
 
 Usage::
 
@@ -84,10 +86,12 @@ def main() -> int:
         figure = Path(args.figure or ROOT / "docs" / "img" / f"speed-accuracy-{args.preset}.png")
         sa.plot_curves(points, figure, f"N {args.n}, preset {args.preset}, {frames} frames per point, confidence swept "
                                        f"{min(args.confidences)}-{max(args.confidences)}, {args.clock} time")
-        print(f"{'eps':>4} {'estimator':<32} {'conf':>8} {'ms':>8} {'success':>8} {'rot deg':>8} {'hyp':>7}")
+        ours = {(p.epsilon, p.setting): p.median_ms for p in points if p.estimator == "ours"}
+        print(f"{'eps':>4} {'estimator':<32} {'conf':>8} {'ms':>8} {'x ours':>7} {'success':>8} {'rot deg':>8} {'hyp':>7}")
         for p in points:
-            print(f"{p.epsilon:>4.2f} {p.estimator:<32} {p.setting:>8.5g} {p.median_ms:>8.2f} {p.success:>8.2f} "
-                  f"{p.median_rot_deg:>8.4f} {p.median_hypotheses:>7.0f}")
+            ratio = p.median_ms / ours.get((p.epsilon, p.setting), float("nan"))
+            print(f"{p.epsilon:>4.2f} {p.estimator:<32} {p.setting:>8.5g} {p.median_ms:>8.2f} {ratio:>7.2f} "
+                  f"{p.success:>8.2f} {p.median_rot_deg:>8.4f} {p.median_hypotheses:>7.0f}")
         print(f"wrote {figure}")
         result = [asdict(p) for p in points]
     if args.json:

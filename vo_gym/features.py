@@ -199,34 +199,15 @@ def _consistent_pairs(points_prev, points_curr, s2, anchors, gate_sq):
     """``(N,)`` counts of anchors j that pass the rigid-distance test (:mod:`stereovo.estimation.rigidity`)
     with ``var = s2_i + s2_j``: ``(|Q_i - Q_j| - |P_i - P_j|)^2 < gate_sq (s2_i + s2_j)``.
 
-    ``anchors`` must be increasing (the callers' are). The test is symmetric bit for bit (the
-    difference vectors only change sign, the variance sum commutes), so each pair of anchors is
-    tested once and counted for both; every other match is tested against every anchor. The
-    anchors' coordinates are gathered first so the inner loop reads contiguous memory.
+    One pass over the N x A pairs; the anchors' coordinates are gathered first so the
+    inner loop reads contiguous memory.
     """
     n, a = points_prev.shape[0], anchors.shape[0]
     px, py, pz = points_prev[anchors, 0].copy(), points_prev[anchors, 1].copy(), points_prev[anchors, 2].copy()
     qx, qy, qz = points_curr[anchors, 0].copy(), points_curr[anchors, 1].copy(), points_curr[anchors, 2].copy()
     s2_anchor = s2[anchors]
     counts = np.zeros(n, dtype=np.int64)
-    anchor_counts = np.zeros(a, dtype=np.int64)
-    for m in range(a):
-        p0, p1, p2, q0, q1, q2, s2i = px[m], py[m], pz[m], qx[m], qy[m], qz[m], s2_anchor[m]
-        c = rigid_distance_consistent_jit(
-            distance_change_sq_jit(px[m] - p0, py[m] - p1, pz[m] - p2, qx[m] - q0, qy[m] - q1, qz[m] - q2),
-            s2i + s2_anchor[m], gate_sq)
-        for k in range(m + 1, a):
-            change_sq = distance_change_sq_jit(px[k] - p0, py[k] - p1, pz[k] - p2, qx[k] - q0, qy[k] - q1, qz[k] - q2)
-            passed = rigid_distance_consistent_jit(change_sq, s2i + s2_anchor[k], gate_sq)
-            c += passed
-            anchor_counts[k] += passed
-        anchor_counts[m] += c
-    next_anchor = 0
     for i in range(n):
-        if next_anchor < a and anchors[next_anchor] == i:
-            counts[i] = anchor_counts[next_anchor]
-            next_anchor += 1
-            continue
         p0, p1, p2 = points_prev[i, 0], points_prev[i, 1], points_prev[i, 2]
         q0, q1, q2 = points_curr[i, 0], points_curr[i, 1], points_curr[i, 2]
         s2i = s2[i]

@@ -97,11 +97,13 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from stereovo.benchmark.peers import frame_errors
     from stereovo.simulation import SimulationConfig, simulate_frame
 
     if args.out:
         check_output_file(args.out, "--out")  # before any computing, so no result is lost
+    # Imported after the check: the benchmark package binds the simulator's functions when it loads.
+    from stereovo.benchmark.peers import frame_errors
+
     ns, epsilons = list(args.ns), list(args.epsilons)
     runners = _runners(args)
     print(f"threads: OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}; times are wall-clock per frame")

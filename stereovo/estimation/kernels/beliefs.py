@@ -68,26 +68,6 @@ def logistic_beliefs(log_odds):
 
 
 @jit
-def discretised_weights(beliefs, levels):
-    """``(N,)`` sampling weights ``max(ceil(levels p), 1)`` (BANSAC's discretisation)."""
-    n = beliefs.shape[0]
-    out = np.empty(n)
-    for i in range(n):
-        out[i] = max(math.ceil(levels * beliefs[i]), 1.0)
-    return out
-
-
-@jit
-def floored_weights(beliefs, floor):
-    """``(N,)`` sampling weights ``max(p, floor)``."""
-    n = beliefs.shape[0]
-    out = np.empty(n)
-    for i in range(n):
-        out[i] = max(beliefs[i], floor)
-    return out
-
-
-@jit
 def cumulative_weights(weights, total):
     """``(w, cdf, before)``: ``weights / total`` and its inclusive and exclusive cumulative sums
     (``np.cumsum`` adds left to right, as here), the arrays :func:`weighted_triplets` inverts."""
