@@ -392,8 +392,8 @@ def trial_bar(total: int):
         def __init__(self) -> None:
             self.bar = None
 
-        def setup(self, **info):
-            self.bar = tqdm(total=total, desc="sweep", unit="trial", dynamic_ncols=True)
+        def setup(self, total_num_samples=None, **info):
+            self.bar = tqdm(total=total_num_samples or total, desc="sweep", unit="trial", dynamic_ncols=True)
 
         def on_trial_complete(self, iteration, trials, trial, **info):
             self.bar.update(1)
@@ -423,6 +423,10 @@ def run_sweep(spec: SweepSpec, out: str | os.PathLike, workers: int | None = Non
 
     out = Path(out).resolve()
     experiment = out / "tune"
+    if not verbose:
+        # Tune's newer console output prints its heading and result paths even at verbose 0; the
+        # classic reporter is silent there.
+        os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")
     started = connect_ray(workers, address, log_to_driver=verbose > 0)
     try:
         trainable = tune.with_resources(tune.with_parameters(sweep_trainable, spec=spec.as_dict()), {"cpu": 1})
