@@ -383,8 +383,31 @@ class SweepOutcome:
     errors: int = 0
 
 
+def trial_bar(total: int):
+    """A Tune callback that shows the sweep as one tqdm bar over its trials (Tune's own table is off)."""
+    from ray.tune import Callback
+    from tqdm.auto import tqdm
+
+    class TrialBar(Callback):
+        def __init__(self) -> None:
+            self.bar = None
+
+        def setup(self, total_num_samples=None, **info):
+            self.bar = tqdm(total=total_num_samples or total, desc="sweep", unit="trial", dynamic_ncols=True)
+
+        def on_trial_complete(self, iteration, trials, trial, **info):
+            self.bar.update(1)
+
+        on_trial_error = on_trial_complete
+
+        def on_experiment_end(self, trials, **info):
+            self.bar.close()
+
+    return TrialBar()
+
+
 def run_sweep(spec: SweepSpec, out: str | os.PathLike, workers: int | None = None, address: str | None = None,
-              resume: bool = False, verbose: int = 1) -> SweepOutcome:
+              resume: bool = False, verbose: int = 0, progress: bool = True) -> SweepOutcome:
     """Run (or with ``resume`` restore and complete) the sweep in ``out/tune``.
 
     Without ``address`` a local Ray instance with ``workers`` CPUs is started (and shut down);
@@ -400,6 +423,10 @@ def run_sweep(spec: SweepSpec, out: str | os.PathLike, workers: int | None = Non
 
     out = Path(out).resolve()
     experiment = out / "tune"
+    if not verbose:
+        # Tune's newer console output prints its heading and result paths even at verbose 0; the
+        # classic reporter is silent there.
+        os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")
     started = connect_ray(workers, address, log_to_driver=verbose > 0)
     try:
         trainable = tune.with_resources(tune.with_parameters(sweep_trainable, spec=spec.as_dict()), {"cpu": 1})
@@ -418,7 +445,8 @@ def run_sweep(spec: SweepSpec, out: str | os.PathLike, workers: int | None = Non
                                             max_concurrent_trials=workers,
                                             search_alg=BasicVariantGenerator(random_state=spec.search_seed)),
                 run_config=tune.RunConfig(name="tune", storage_path=str(out), verbose=verbose,
-                                          checkpoint_config=tune.CheckpointConfig(num_to_keep=None)),
+                                          checkpoint_config=tune.CheckpointConfig(num_to_keep=None),
+                                          callbacks=[trial_bar(spec.samples)] if progress and not verbose else None),
             )
         grid = tuner.fit()
         trials, errors = [], 0

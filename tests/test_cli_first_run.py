@@ -154,3 +154,72 @@ def test_a_users_checkpoint_with_a_shipped_name_is_labelled_by_its_path(tmp_path
     specs = resolve_agents(["ngransac-supervised", str(mine),
                             str(ROOT / "agents" / "checkpoints" / "ppo.pt")])
     assert [s.label for s in specs] == ["ngransac-supervised", str(mine), "ppo"]
+
+
+def test_evaluate_figures_keep_agents_and_classical_apart_and_name_the_recipes(tmp_path, monkeypatch):
+    import agents.evaluation.report as report
+
+    saved = {}
+    monkeypatch.setattr(report, "save_figure", lambda fig, path: saved.setdefault(path.name, fig) and path)
+    argv = [a for a in TINY if a != "--no-plots"]
+    argv[argv.index("--methods") + 1] = "ransac,msac"
+    assert main(["evaluate", "--agent", "uniform", "--agent", "match-score", "--agent", "oracle", *argv,
+                 "--out", str(tmp_path / "out")]) == 0
+    colours: dict[str, set] = {}
+    for name, fig in saved.items():
+        for ax in fig.axes:
+            labels = [t.get_text() for t in ax.get_legend().get_texts()] if ax.get_legend() else []
+            series = [line for line in ax.get_lines() if not line.get_label().startswith(("_", "99 %"))]
+            assert len(series) <= 8, (name, labels)
+            kinds = {("classical" if "(" in line.get_label() and "upper bound" not in line.get_label() else "agent")
+                     for line in series}
+            assert len(kinds) <= 1, (name, [line.get_label() for line in series])  # never mixed in one panel
+            for line in series:
+                colours.setdefault(line.get_label(), set()).add(line.get_color())
+        titles = " ".join(ax.get_title(loc="left") for ax in fig.axes) + fig.get_suptitle()
+        assert "environment's recipe" in titles, name
+    assert all(len(c) == 1 for c in colours.values()), colours  # one colour per row in every panel
+    assert "textbook" in " ".join(ax.get_title(loc="left") for ax in saved["success_vs_epsilon.png"].axes)
+    left, right = saved["success_vs_budget.png"].axes[0].get_xlim()
+    assert 2 <= left < 4 and 4 < right <= 8  # the budget axis spans the budgets run (4), not the adaptive runs'
+
+
+def test_baselines_repeats_with_overwrite_and_points_to_the_claims(tmp_path, capsys):
+    argv = ["baselines", "--frames-per-cell", "1", "--ns", "100", "--epsilons", "0.5", "--sigmas", "0.5",
+            "--aucs", "0.9", "--methods", "ransac,prosac", "--no-progress", "--no-plots", "--workers", "1",
+            "--out", str(tmp_path / "out")]
+    assert main(argv) == 0
+    assert main([*argv, "--overwrite"]) == 0
+    printed = capsys.readouterr().out
+    assert printed.count(f"{tmp_path / 'out' / 'claims.md'} states each claim") == 2
+
+
+def _square(x):
+    return [{"x": x * x}]
+
+
+def test_the_bar_says_compiling_instead_of_an_eta_until_the_first_trial(monkeypatch, capsys):
+    from stereovo.trials import Task, make_backend, run_tasks
+    from stereovo.trials import runner
+
+    monkeypatch.setattr(runner, "announce_once_for_workers", lambda: True)  # as on a first run
+    result = run_tasks(_square, [Task(i, i) for i in range(3)], make_backend("local", 1), desc="demo")
+    assert {k: v[0]["x"] for k, v in result.results.items()} == {0: 0, 1: 1, 2: 4}
+    err = capsys.readouterr().err
+    first, _, rest = err.partition("demo: compiling the kernels (first run), ")
+    assert _ and "<" not in err.split("compiling")[1].split("\n")[0]  # no remaining-time estimate there
+    assert "3/3" in rest and "compiling" not in rest.rsplit("demo", 1)[1]  # a plain bar once compiled
+
+
+def test_the_compile_notice_is_silent_in_workers_of_a_run_that_printed_it(monkeypatch, capsys):
+    from stereovo import compilation
+
+    compilation.reset_announcement()
+    monkeypatch.setattr(compilation, "uncached_kernels", lambda kernels=None: ["k"])
+    monkeypatch.setenv(compilation.QUIET_ENV, "1")  # what a worker inherits
+    assert compilation.announce_compiling() is False
+    monkeypatch.delenv(compilation.QUIET_ENV)
+    compilation.reset_announcement()
+    assert compilation.announce_compiling() is True and compilation.announce_compiling() is False
+    assert capsys.readouterr().err.count(compilation.MESSAGE) == 1
+    compilation.reset_announcement()

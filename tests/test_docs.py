@@ -27,9 +27,9 @@ FENCE = re.compile(r"^```(?P<lang>[\w+-]*)\s*$")
 
 TEST_COMMAND = "./scripts/setup.sh && .venv/bin/python -m pytest -n 2"
 MAIN_JOB = (
-    "./scripts/setup.sh && .venv/bin/vo-gym baselines --out runs/baselines && .venv/bin/vo-gym evaluate "
+    "./scripts/setup.sh && .venv/bin/vo-gym baselines --out runs/baselines --overwrite && .venv/bin/vo-gym evaluate "
     "--agent agents/checkpoints/ngransac-supervised.pt --agent agents/checkpoints/ppo.pt --agent uniform "
-    "--epsilons 0.5,0.8 --budgets 4,16,64 --out runs/evaluate"
+    "--epsilons 0.5,0.8 --budgets 4,16,64 --out runs/evaluate --overwrite"
 )
 
 

@@ -86,12 +86,15 @@ def test_evaluate_heuristics_writes_tables_and_plots_and_is_reproducible(tmp_pat
     summary = json.loads((out_a / "summary.json").read_text())
     names = [m["name"] for m in summary["methods"]]
     assert names == ["uniform", "consistency", "net", "oracle (upper bound)", "msac (fixed)",
-                     "ransac+guided (fixed)", "msac (adaptive)", "ransac+guided (adaptive)"]
+                     "ransac+guided (fixed)", "msac (adaptive)", "ransac+guided (adaptive)",
+                     "msac (adaptive, textbook)", "ransac+guided (adaptive, textbook)"]
     eps = summary["epsilon_sweep"]["methods"]
     assert eps["oracle (upper bound)"]["0.85"]["success_rate"] > eps["uniform"]["0.85"]["success_rate"]
     assert eps["oracle (upper bound)"]["0.85"]["frames"] == 6
     assert set(summary["budget_sweep"]["methods"]["uniform"]) == {"2", "8"}
-    assert set(summary["budget_sweep"]["adaptive"]) == {"msac (adaptive)", "ransac+guided (adaptive)"}
+    assert set(summary["budget_sweep"]["adaptive"]) == {"msac (adaptive)", "ransac+guided (adaptive)",
+                                                         "msac (adaptive, textbook)",
+                                                         "ransac+guided (adaptive, textbook)"}
     needed = summary["hypotheses_for_success"]["methods"]
     assert needed["oracle (upper bound)"] in (2, 8) and "msac (adaptive)" not in needed
 
@@ -110,12 +113,26 @@ def test_classical_rows_use_the_agents_frames():
     kwargs = config.env_kwargs_for(0.5, 4)
     agent_rows = run_agent_episode(AgentSpec("uniform", "heuristic", "uniform"), config.env_id, kwargs, 7)
     classical = run_classical_episode(classical_estimators_for(config, 4, adaptive=True), config.env_id, kwargs, 7)
-    assert [r["frame"] for r in classical] == [1, 1, 2, 2]
-    for a, c in zip(agent_rows, classical[::2]):
+    assert [r["frame"] for r in classical] == [1, 1, 1, 2, 2, 2]
+    for a, c in zip(agent_rows, classical[::3]):
         assert (a["frame"], a["n_true_inliers"], a["frame_outlier_ratio"]) == (
             c["frame"], c["n_true_inliers"], c["frame_outlier_ratio"])
-    assert {r["method"] for r in classical} == {"msac (fixed)", "msac (adaptive)"}
+    assert {r["method"] for r in classical} == {"msac (fixed)", "msac (adaptive)", "msac (adaptive, textbook)"}
     assert all(r["n_hypotheses"] == 4 for r in classical if r["method"] == "msac (fixed)")
+
+
+def test_adaptive_classical_rows_run_the_environments_recipe_beside_the_textbook_one():
+    from agents.evaluation.run import classical_estimators_for
+    from vo_gym.env import DEFAULT_ESTIMATOR_OPTIONS
+
+    config = EvalConfig(episodes=1, frames_per_episode=2, n=60, methods=("ransac",), max_iterations=500)
+    rows = {label: (kind, est) for label, kind, est in classical_estimators_for(config, 8, adaptive=True)}
+    assert set(rows) == {"ransac (fixed)", "ransac (adaptive)", "ransac (adaptive, textbook)"}
+    recipe, textbook = rows["ransac (adaptive)"][1], rows["ransac (adaptive, textbook)"][1]
+    assert rows["ransac (adaptive)"][0] == "classical, adaptive"
+    assert rows["ransac (adaptive, textbook)"][0] == "classical, adaptive, textbook"
+    assert dict(recipe.options) == {**DEFAULT_ESTIMATOR_OPTIONS, "max_iterations": 500}
+    assert dict(textbook.options) == {"max_iterations": 500}
 
 
 def test_checkpoint_with_another_feature_layout_is_refused(tmp_path, capsys):

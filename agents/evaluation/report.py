@@ -23,12 +23,14 @@ from agents.evaluation.setup import (
     KIND_AGENT_ADAPTIVE,
     KIND_FIXED,
     KIND_ORACLE,
+    KIND_TEXTBOOK,
     EvalConfig,
     EvaluationResult,
 )
 from stereovo.benchmark import aggregate, markdown_table, success_definition
 from stereovo.reporting import (
     ERROR_FLOOR,
+    MAX_LINES_PER_PANEL,
     check_plot_format,
     figure,
     format_number,
@@ -36,6 +38,7 @@ from stereovo.reporting import (
     line_style,
     plot_success,
     save_figure,
+    wilson_interval,
 )
 
 STAT_KEYS: tuple[str, ...] = (
@@ -43,6 +46,20 @@ STAT_KEYS: tuple[str, ...] = (
     "mean_hypotheses", "median_hypotheses", "n_failed", "n_errors", "median_time_ms",
 )
 TIME_KEYS: tuple[str, ...] = ("median_time_ms",)
+
+
+ADAPTIVE_KINDS = (KIND_ADAPTIVE, KIND_TEXTBOOK, KIND_AGENT_ADAPTIVE)
+"""Rows that stop on their own (no budget): reported beside the budget sweep, not in it."""
+
+RECIPES: dict[str, str] = {
+    KIND_AGENT: "the environment's recipe (sample polish + final refinement) at the budget",
+    KIND_ORACLE: "the environment's recipe at the budget, sampling only the true inliers (an upper bound)",
+    KIND_FIXED: "the environment's recipe at the budget, the method's own sampler and scoring",
+    KIND_ADAPTIVE: "its own adaptive stop with the environment's recipe (sample polish + final refinement)",
+    KIND_TEXTBOOK: "its own adaptive stop with the core's defaults (the paper's recipe: no polish, no refinement)",
+    KIND_AGENT_ADAPTIVE: "the agent's priors with the prior-aware adaptive stop and the environment's recipe",
+}
+"""What each kind of row runs; the tables and the figures' captions name it."""
 
 
 def _stats(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
@@ -67,7 +84,7 @@ def summarize_evaluation(
     Keys of the per-value dicts are strings (``"0.8"``, ``"16"``) so the summary survives JSON.
     """
     kinds = {r["method"]: r["kind"] for r in rows}
-    rank = {KIND_AGENT: 0, KIND_ORACLE: 1, KIND_FIXED: 2, KIND_ADAPTIVE: 3, KIND_AGENT_ADAPTIVE: 4}
+    rank = {KIND_AGENT: 0, KIND_ORACLE: 1, KIND_FIXED: 2, KIND_ADAPTIVE: 3, KIND_TEXTBOOK: 4, KIND_AGENT_ADAPTIVE: 5}
     first_seen = list(dict.fromkeys(r["method"] for r in rows))
     agent_pos = {name: i for i, name in enumerate(agent_order)}
     methods = sorted(first_seen, key=lambda m: (rank[kinds[m]], agent_pos.get(m, 0), first_seen.index(m)))
@@ -83,13 +100,13 @@ def summarize_evaluation(
     eps_sweep = {
         m: {f"{e:g}": s for e in config.epsilons if (s := stats(m, e, config.budget)) is not None} for m in methods
     }
-    budget_methods = [m for m in methods if kinds[m] not in (KIND_ADAPTIVE, KIND_AGENT_ADAPTIVE)]
+    budget_methods = [m for m in methods if kinds[m] not in ADAPTIVE_KINDS]
     budget_sweep = {
         m: {str(b): s for b in config.budgets if (s := stats(m, config.sweep_epsilon, b)) is not None}
         for m in budget_methods
     }
     adaptive = {
-        m: s for m in methods if kinds[m] in (KIND_ADAPTIVE, KIND_AGENT_ADAPTIVE)
+        m: s for m in methods if kinds[m] in ADAPTIVE_KINDS
         if (s := stats(m, config.sweep_epsilon, config.budget)) is not None
     }
     needed: dict[str, int | None] = {}
@@ -130,8 +147,10 @@ def evaluation_markdown(summary: Mapping[str, Any], wall_s: float | None = None)
         f" frames = {frames} frames per setting, episode seeds {cfg['seed']}..{cfg['seed'] + cfg['episodes'] - 1}"
         f" (identical frames for every agent and method of a setting). Success = {summary['success_definition']}.",
         f"Agents and `(fixed)` methods draw exactly the budget's hypotheses with the environment's estimator"
-        f" settings; `(adaptive)` methods stop adaptively with the core's defaults, capped at"
-        f" {cfg['max_iterations']} hypotheses. The oracle reads the ground-truth labels: an upper bound only.",
+        f" recipe (sample polish + final refinement); `(adaptive)` methods stop on their own with the same recipe,"
+        f" `(adaptive, textbook)` ones with the core's defaults (the paper's recipe: no polish, no refinement),"
+        f" both capped at {cfg['max_iterations']} hypotheses. The oracle reads the ground-truth labels: an upper"
+        f" bound only.",
     ]
     if wall_s is not None:
         lines.append(f"Wall time {wall_s:.0f} s.")
@@ -165,8 +184,9 @@ def evaluation_markdown(summary: Mapping[str, Any], wall_s: float | None = None)
         body = [[f"`{m}`", format_percent(s["success_rate"]), format_number(s["mean_hypotheses"], ".0f"),
                  format_number(s["median_hypotheses"], ".0f"), format_number(s["median_time_ms"], ".1f")]
                 for m, s in bud["adaptive"].items()]
-        lines += [f"## (b) Adaptive runs at eps {bud['epsilon']:g} (classical methods: their own stopping rule;"
-                  f" `<agent> (adaptive)`: the agent's priors with the prior-aware stop)", "",
+        lines += [f"## (b) Adaptive runs at eps {bud['epsilon']:g} (classical methods: their own stopping rule,"
+                  f" with the environment's recipe or the textbook one; `<agent> (adaptive)`: the agent's priors"
+                  f" with the prior-aware stop)", "",
                   markdown_table(["method", "success", "hypotheses mean", "hypotheses med", "time med [ms]"], body),
                   ""]
     body = [[f"`{m}`", kinds[m], hypotheses_label(summary, m)] for m in hyp["methods"]]
@@ -180,83 +200,164 @@ PLOT_FILES = tuple(f"{name}.png" for name in PLOT_NAMES)
 """The figures' file names in the default format (PNG); ``write_plots(..., fmt=)`` writes pdf or svg."""
 
 
-def _line_style(i: int, kind: str) -> dict[str, Any]:
-    style = line_style(i)
-    style["linestyle"] = {KIND_AGENT: "-", KIND_ORACLE: ":", KIND_FIXED: "--", KIND_ADAPTIVE: "-.",
-                          KIND_AGENT_ADAPTIVE: "-."}[kind]
-    return style
+_KIND_LINES = {KIND_AGENT: "-", KIND_ORACLE: ":", KIND_FIXED: "--", KIND_ADAPTIVE: "-", KIND_TEXTBOOK: ":",
+               KIND_AGENT_ADAPTIVE: "-."}
+
+
+def _base_name(method: str) -> str:
+    return method.split(" (", 1)[0]
+
+
+def series_styles(summary: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """One style a row, the same in every panel and figure: a colour per agent or classical method
+    (its fixed, adaptive and textbook rows share it, told apart by line style and marker fill), a
+    line style per kind (:data:`RECIPES`)."""
+    kinds = {m["name"]: m["kind"] for m in summary["methods"]}
+    colours: dict[str, int] = {}
+    for m in kinds:
+        colours.setdefault(_base_name(m), len(colours))
+    styles = {}
+    for m, kind in kinds.items():
+        style = line_style(colours[_base_name(m)])
+        style["linestyle"] = _KIND_LINES[kind]
+        if kind == KIND_TEXTBOOK:
+            style["markerfacecolor"] = "white"
+        styles[m] = style
+    return styles
+
+
+def _groups(summary: Mapping[str, Any], kinds_of_group: Sequence[tuple[str, tuple[str, ...]]],
+            methods: Sequence[str]) -> list[tuple[str, list[str]]]:
+    """``(title, methods)`` panels: one per group of kinds that has rows, split to at most
+    :data:`MAX_LINES_PER_PANEL` lines each."""
+    kinds = {m["name"]: m["kind"] for m in summary["methods"]}
+    panels = []
+    for title, group in kinds_of_group:
+        members = [m for m in methods if kinds[m] in group]
+        parts = max(math.ceil(len(members) / MAX_LINES_PER_PANEL), 1)
+        size = math.ceil(len(members) / parts) if members else 0
+        for p in range(parts):
+            chunk = members[p * size:(p + 1) * size]
+            if chunk:
+                panels.append((title + (f" ({p + 1}/{parts})" if parts > 1 else ""), chunk))
+    return panels
+
+
+def _legend(ax) -> None:
+    ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="small", frameon=False)
+
+
+def _log_limits(values: Sequence[float]) -> tuple[float, float]:
+    """Log-axis limits a little outside the data's range (a factor 1.4 each side)."""
+    values = [v for v in values if v is not None and v > 0 and math.isfinite(v)]
+    if not values:
+        return 1.0, 10.0
+    return min(values) / 1.4, max(values) * 1.4
 
 
 def write_plots(summary: Mapping[str, Any], out: str | os.PathLike, fmt: str = "png") -> list[Path]:
-    """(a) success and median pose errors vs contamination; (b) success vs hypothesis budget.
+    """(a) success and median pose errors vs contamination; (b) success vs hypothesis budget, and the
+    adaptive runs' success against the hypotheses they drew.
 
-    Success rates carry their 95 % Wilson band over the frames behind each point; ``fmt`` is the
-    file format (png, pdf or svg).
+    Agents and classical methods are drawn in separate panels (at most
+    :data:`~stereovo.reporting.MAX_LINES_PER_PANEL` lines each), every row in the same style in every
+    panel (:func:`series_styles`); each panel's title names the recipe its rows run
+    (:data:`RECIPES`). Success rates carry their 95 % Wilson band (the adaptive runs' points an error
+    bar) over the frames behind each point; ``fmt`` is the file format (png, pdf or svg).
     """
     fmt = check_plot_format(fmt)
     names = [f"{name}.{fmt}" for name in PLOT_NAMES]
     out = Path(out)
-    kinds = {m["name"]: m["kind"] for m in summary["methods"]}
-    index = {m: i for i, m in enumerate(kinds)}
+    styles = series_styles(summary)
+    cfg = summary["config"]
     eps = summary["epsilon_sweep"]
-    fig = figure((16, 5))
-    axes = [fig.add_subplot(1, 3, i + 1) for i in range(3)]
-    panels = (("success_rate", 100.0, "success rate [%]", False), ("median_rot_err_deg", 1.0,
-              "median rotation error [deg]", True), ("median_trans_err_m", 1.0, "median translation error [m]", True))
-    for ax, (key, scale, ylabel, logy) in zip(axes, panels):
-        for m, per in eps["methods"].items():
-            pts = [(float(e), s[key], s.get("frames") or 0) for e, s in per.items() if s.get(key) is not None]
-            if not pts:
-                continue
-            xs, ys, ns = zip(*sorted(pts))
-            if key == "success_rate":
-                plot_success(ax, xs, ys, ns, m, _line_style(index[m], kinds[m]), scale=scale)
+    frames = cfg["episodes"] * cfg["frames_per_episode"]
+    rows_a = _groups(summary, (
+        ("agents", (KIND_AGENT, KIND_ORACLE)),
+        (f"classical, fixed budget of {eps['budget']}", (KIND_FIXED,)),
+        (f"classical, own stop (cap {cfg['max_iterations']}): environment's recipe (solid), textbook (dotted)",
+         (KIND_ADAPTIVE, KIND_TEXTBOOK)),
+        ("agents, own prior-aware stop", (KIND_AGENT_ADAPTIVE,)),
+    ), list(eps["methods"]))
+    panels = (("success_rate", "success rate [%]", False), ("median_rot_err_deg", "median rotation error [deg]", True),
+              ("median_trans_err_m", "median translation error [m]", True))
+    fig = figure((16, 3.3 * len(rows_a) + 0.8))
+    grid = fig.subplots(len(rows_a), 3, squeeze=False, sharex=True, sharey="col")
+    for r, (title, members) in enumerate(rows_a):
+        for c, (key, ylabel, logy) in enumerate(panels):
+            ax = grid[r][c]
+            for m in members:
+                pts = [(float(e), s[key], s.get("frames") or 0) for e, s in eps["methods"][m].items()
+                       if s.get(key) is not None]
+                if not pts:
+                    continue
+                xs, ys, ns = zip(*sorted(pts))
+                if key == "success_rate":
+                    plot_success(ax, xs, ys, ns, m, styles[m])
+                else:
+                    ax.plot(xs, [max(y, ERROR_FLOOR) for y in ys], label=m, lw=1.3, ms=4, **styles[m])
+            if logy:
+                ax.set_yscale("log")
             else:
-                ys = [max(y * scale, ERROR_FLOOR) for y in ys] if logy else [y * scale for y in ys]
-                ax.plot(xs, ys, label=m, lw=1.3, ms=4, **_line_style(index[m], kinds[m]))
-        ax.set_xlabel("contamination epsilon")
-        ax.set_ylabel(ylabel)
-        ax.set_xticks(list(eps["epsilons"]))
-        if logy:
-            ax.set_yscale("log")
-        else:
-            ax.set_ylim(-2, 102)
-        ax.grid(True, which="both", alpha=0.3)
-    axes[-1].legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="small")
-    fig.suptitle(f"(a) vs contamination at a budget of {eps['budget']} hypotheses (adaptive: own stopping rule)",
-                 fontsize="medium")
+                ax.set_ylim(-2, 102)
+            ax.set_xticks(list(eps["epsilons"]))
+            ax.set_ylabel(ylabel, fontsize="small")
+            ax.grid(True, which="both", alpha=0.3)
+            if r == len(rows_a) - 1:
+                ax.set_xlabel("contamination epsilon")
+        grid[r][0].set_title(title, fontsize="small", loc="left")
+        _legend(grid[r][2])
+    fig.suptitle(f"(a) vs contamination at a budget of {eps['budget']} hypotheses; {frames} frames a point,"
+                 f" bands: 95 % Wilson intervals (a wiggle inside a band is noise). Agents and fixed rows run the"
+                 f" environment's recipe (sample polish + final refinement)", fontsize="small")
     paths = [save_figure(fig, out / names[0])]
 
     bud = summary["budget_sweep"]
-    fig = figure((9.5, 5.5))
-    ax = fig.add_subplot()
-    for m, per in bud["methods"].items():
-        pts = [(int(b), s["success_rate"], s.get("frames") or 0) for b, s in per.items()
-               if s.get("success_rate") is not None]
-        if pts:
-            xs, ys, ns = zip(*sorted(pts))
-            plot_success(ax, xs, ys, ns, m, _line_style(index[m], kinds[m]))
-    for m, s in bud["adaptive"].items():
-        if s.get("mean_hypotheses") and s.get("success_rate") is not None:
-            style = _line_style(index[m], kinds[m])
-            ax.scatter([s["mean_hypotheses"]], [100 * s["success_rate"]], marker=style["marker"], s=60,
-                       color=style["color"], label=f"{m} (mean hypotheses)", zorder=3)
+    rows_b = _groups(summary, (("agents", (KIND_AGENT, KIND_ORACLE)), ("classical, fixed budget", (KIND_FIXED,))),
+                     list(bud["methods"]))
+    adaptive = [m for m in bud["adaptive"] if bud["adaptive"][m].get("mean_hypotheses")]
+    n_panels = len(rows_b) + bool(adaptive)
+    fig = figure((5.6 * n_panels, 6.4))
+    axes = fig.subplots(1, n_panels, squeeze=False, sharey=True)[0]
     target = summary["hypotheses_for_success"]["target"]
-    ax.axhline(100 * target, color="tab:red", ls="--", lw=0.8, label=f"{100 * target:g} % success")
-    ax.set_xscale("log", base=2)
-    ticks = list(bud["budgets"])
-    far = max((s.get("mean_hypotheses") or 0 for s in bud["adaptive"].values()), default=0)
-    while ticks and ticks[-1] * 2 <= 2 * far:  # extend the axis' labels to the adaptive runs' hypotheses
-        ticks.append(ticks[-1] * 2)
-    ax.set_xticks(ticks)
-    ax.set_xticklabels([str(b) for b in ticks])
-    ax.minorticks_off()
-    ax.set_ylim(-2, 102)
-    ax.set_xlabel("hypotheses per frame")
-    ax.set_ylabel("success rate [%]")
-    ax.set_title(f"(b) Success vs hypothesis budget at eps {bud['epsilon']:g}", fontsize="medium")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="small")
+    budgets = list(bud["budgets"])
+    for ax, (title, members) in zip(axes, rows_b):
+        for m in members:
+            pts = [(int(b), s["success_rate"], s.get("frames") or 0) for b, s in bud["methods"][m].items()
+                   if s.get("success_rate") is not None]
+            if pts:
+                xs, ys, ns = zip(*sorted(pts))
+                plot_success(ax, xs, ys, ns, m, styles[m])
+        ax.set_xscale("log", base=2)
+        ax.set_xlim(*_log_limits(budgets))
+        ax.set_xticks(budgets)
+        ax.set_xticklabels([str(b) for b in budgets])
+        ax.minorticks_off()
+        ax.set_xlabel("hypotheses per frame (budget)")
+        ax.set_title(f"{title}: environment's recipe", fontsize="small", loc="left")
+    if adaptive:
+        ax = axes[-1]
+        for m in adaptive:
+            s = bud["adaptive"][m]
+            n = s.get("frames") or 0
+            low, high = wilson_interval(np.array([s["success_rate"] * n]), np.array([n]))
+            y = 100 * s["success_rate"]
+            ax.errorbar([s["mean_hypotheses"]], [y], yerr=[[y - 100 * low[0]], [100 * high[0] - y]],
+                        color=styles[m]["color"], marker=styles[m]["marker"], ms=7, capsize=3, lw=1.2,
+                        markerfacecolor=styles[m].get("markerfacecolor", styles[m]["color"]),
+                        linestyle="none", label=m)
+        ax.set_xscale("log")
+        ax.set_xlim(*_log_limits([bud["adaptive"][m]["mean_hypotheses"] for m in adaptive]))
+        ax.set_xlabel("mean hypotheses drawn per frame")
+        ax.set_title("own stop: environment's recipe (filled), textbook (hollow)", fontsize="small", loc="left")
+    for ax in axes:
+        ax.axhline(100 * target, color="tab:red", ls="--", lw=0.8, label=f"{100 * target:g} % success")
+        ax.set_ylim(-2, 102)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, fontsize="small", frameon=False)
+    axes[0].set_ylabel("success rate [%]")
+    fig.suptitle(f"(b) Success vs hypotheses at eps {bud['epsilon']:g}; {frames} frames a point, 95 % Wilson"
+                 f" bands / bars", fontsize="small")
     paths.append(save_figure(fig, out / names[1]))
     return paths
 

@@ -29,7 +29,8 @@ CHECKPOINT_SUFFIXES = (".pt", ".zip")
 KIND_AGENT = "agent"
 KIND_ORACLE = "upper bound"
 KIND_FIXED = "classical, fixed budget"
-KIND_ADAPTIVE = "classical, adaptive"
+KIND_ADAPTIVE = "classical, adaptive"  # its own stop, the environment's recipe (as the agents)
+KIND_TEXTBOOK = "classical, adaptive, textbook"  # its own stop, the core's defaults (the paper's recipe)
 KIND_AGENT_ADAPTIVE = "agent, adaptive"  # the agent's priors with the prior-aware adaptive stop
 
 ROW_COLUMNS: tuple[str, ...] = (

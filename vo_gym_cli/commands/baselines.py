@@ -326,8 +326,10 @@ def _benchmark(args, grid, estimators, options, out, journal) -> int:
     print(bm.overall_table(summary))
     print()
     width = max(len(c.key) for c in claims)
+    print("claims of the papers, checked on these frames:")
     for c in claims:
         print(f"  {c.key:<{width}}  {c.verdict}")
+    print(f"  {out / 'claims.md'} states each claim, its source and the numbers behind each verdict")
     errors = sum(s.get("n_errors", 0) for s in summary.overall.values())
     if errors:
         print(f"  warning: {errors} estimator call(s) raised; see the status column of trials.csv", file=sys.stderr)

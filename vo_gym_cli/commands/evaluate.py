@@ -45,6 +45,9 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
         f"        shipped learned samplers {', '.join(ONE_SHOT_SAMPLERS)} (needs the train extra);"
         " or a checkpoint path (.pt, PPO .zip)\n"
         f"--adaptive: shipped in-frame samplers {', '.join(IN_FRAME_SAMPLERS)}\n"
+        "classical rows: '<method> (fixed)' at the agents' budget and recipe; '<method> (adaptive)' with its own"
+        " stop and the environment's recipe (sample polish + final refinement), as the agents;"
+        " '<method> (adaptive, textbook)' with its own stop and the core's defaults\n"
         "default: 10 episodes x 10 frames per setting, 5 contaminations + 7 budgets, N 500 (a few minutes on 2 cores)"
     )
     parser.add_argument("--agent", action="append", default=None, metavar="NAME|CHECKPOINT",

@@ -34,7 +34,11 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                         help="join this Ray cluster instead of starting a local instance")
     parser.add_argument("--resume", action="store_true", help="restore the interrupted sweep in --out and complete it")
     parser.add_argument("--overwrite", action="store_true", help="replace the sweep in a non-empty --out")
-    parser.add_argument("--quiet", action="store_true", help="no per-trial progress table from Tune")
+    talk = parser.add_mutually_exclusive_group()
+    talk.add_argument("--verbose", action="store_true",
+                      help="Ray's and Tune's own console output: the per-trial table and the workers' logs"
+                           " (default: one progress bar over the trials)")
+    talk.add_argument("--quiet", action="store_true", help="no progress bar either")
 
 
 def _error(message: str) -> int:
@@ -75,7 +79,7 @@ def _run(args: argparse.Namespace) -> int:
           f" report every {spec.report_every} of {spec.total_steps} steps; {where}", flush=True)
     try:
         outcome = run_sweep(spec, out, workers=None if args.address else workers, address=args.address,
-                            resume=args.resume, verbose=0 if args.quiet else 1)
+                            resume=args.resume, verbose=1 if args.verbose else 0, progress=not args.quiet)
     except ValueError as err:
         raise UsageError(str(err)) from None
     except KeyboardInterrupt:
