@@ -259,7 +259,9 @@ def estimate_motion(
         priors: optional ``(N,)`` non-negative sampling weights (guided sampling).
         order: optional ``(N,)`` permutation, best match first (PROSAC sampling).
         rng: a ``numpy.random.Generator`` or a seed; the same seed gives the same result.
-        **options: fields of :class:`EstimatorOptions` and the method's own options.
+        **options: fields of :class:`stereovo.estimation.EstimatorOptions` (the options every method
+            shares) and the method's own (``method_spec(method).extra_options``). Match scores reach a
+            method only through ``priors=`` or ``order=``.
 
     Returns:
         A :class:`MotionEstimate`. Rows without a resolvable depth (NaN or inf; disparity at or
