@@ -290,6 +290,7 @@ def plot_transfer(results: Sequence[dict[str, Any]], path: str | Path) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     domains = list(dict.fromkeys(r["domain"] for r in results))
     epsilons = sorted({r["epsilon"] for r in results})
@@ -328,6 +329,7 @@ def plot_transfer(results: Sequence[dict[str, Any]], path: str | Path) -> Path:
                 ax.errorbar([r["mean_hypotheses"]], [100 * r["success"]], yerr=err, fmt="os^vD<>ph*"[s % 10],
                             color=plt.get_cmap("tab20").colors[s % 20], capsize=3, label=sampler)
             ax.set_xscale("log")
+            ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())  # minor labels overlap on short ranges
             ax.set_ylim(0, 102)
             ax.set_xlabel("mean hypotheses per frame (own stop)")
             ax.set_ylabel("success (%), 95 % Wilson interval")

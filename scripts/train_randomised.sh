@@ -12,7 +12,7 @@ FRAMES="${1:-16000}"
 OUT="${2:-runs/randomised/ngransac-randomised.pt}"
 export OMP_NUM_THREADS=1 MKL_NUM_THREADS=1
 mkdir -p "$(dirname "$OUT")"
-exec .venv/bin/python - "$FRAMES" "$OUT" <<'PY'
+exec "${PYTHON:-.venv/bin/python}" - "$FRAMES" "$OUT" <<'PY'
 import sys
 
 import torch

@@ -44,6 +44,7 @@ from vo_gym.in_frame import (
     AgentPriorSampler,
     InFrameSearch,
 )
+from vo_gym.names import keyword_hint
 from vo_gym.rewards import REWARD_MODES, inlier_reward, msac_reward, pose_error_ratio, supervised_reward
 
 __all__ = [
@@ -182,7 +183,8 @@ class StereoVOAdaptiveEnv(gym.Env):
             options = {**DEFAULT_ESTIMATOR_OPTIONS, **estimator_options}
             self.estimator_options = EstimatorOptions(noise_sigma=self.sim_config.noise_sigma, **options)
         except (TypeError, ValueError) as err:
-            raise ValueError(f"StereoVOAdaptiveEnv: invalid estimator setting: {err}") from None
+            hint = keyword_hint(estimator_options, StereoVOAdaptiveEnv, [f.name for f in dataclasses.fields(EstimatorOptions)])
+            raise ValueError(f"StereoVOAdaptiveEnv: invalid estimator setting: {err}{hint}") from None
         self.method = method
         F = N_FEATURES + len(LOOP_FEATURE_NAMES)
         self.observation_space = spaces.Dict({
