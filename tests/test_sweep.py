@@ -119,10 +119,13 @@ def test_a_tiny_ngransac_sweep_runs_writes_its_outputs_and_restores(tmp_path, ca
     assert _results(out) == rows  # restored from Tune's saved experiment, nothing re-run
 
 
-def test_a_tiny_ppo_sweep_runs(tmp_path):
+def test_a_tiny_ppo_sweep_runs_with_a_quiet_console(tmp_path, capfd):
     pytest.importorskip("ray")
     out = tmp_path / "out"
-    assert main(["sweep", str(_write(tmp_path, PPO)), "--out", str(out), "--workers", "1", "--quiet"]) == 0
+    assert main(["sweep", str(_write(tmp_path, PPO)), "--out", str(out), "--workers", "1"]) == 0
+    # without --verbose: one progress bar and the summary, none of Ray's or Tune's coloured console
+    printed = "".join(capfd.readouterr())
+    assert "\x1b[" not in printed and "Trial status" not in printed and "\u256d" not in printed, printed[-2000:]
     [row] = _results(out)
     assert row["reports"] == "2" and row["steps"] == "32"
     assert (out / "best_checkpoint" / "ppo.zip").is_file() and (out / "best_checkpoint" / "ppo.pt").is_file()
