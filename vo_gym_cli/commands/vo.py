@@ -19,7 +19,7 @@ import math
 from pathlib import Path
 from typing import Any, Iterator
 
-from agents.catalog import ONE_SHOT_SAMPLERS
+from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
 from vo_gym_cli.commands.common import (
     UsageError,
     bounded_int,
@@ -91,8 +91,10 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
              "scores calibrated to inlier probabilities (its gamma_i)",
     )
     parser.add_argument("--agent", default=None, metavar="NAME|PATH",
-                        help="a learned sampler that sets the method's sampling weights each frame: a shipped "
-                             f"one ({', '.join(ONE_SHOT_SAMPLERS)}) or a .pt checkpoint (default: none)")
+                        help="a learned sampler: a one-shot one sets the method's sampling weights each frame "
+                             f"({', '.join(ONE_SHOT_SAMPLERS)}); an in-frame one runs the method's search batch by "
+                             f"batch and stops it ({', '.join(IN_FRAME_SAMPLERS)}); or a .pt checkpoint of "
+                             "either kind (default: none)")
     parser.add_argument("--seed", type=seed, default=0, help="seed of the simulation and of the estimator stream")
     parser.add_argument(
         "--out", type=Path, default=Path("runs/vo"),
@@ -172,8 +174,10 @@ def _summary_lines(s: dict[str, Any]) -> list[str]:
     return [f"  {k:<{width}}  {v}" for k, v in table]
 
 
-def _sampling(args: argparse.Namespace) -> dict[str, Any]:
-    """``priors_fn`` / ``order_fn`` / ``on_estimate`` of ``run_odometry`` for ``--method`` and ``--agent``."""
+def _sampling(args: argparse.Namespace, noise_sigma: float) -> dict[str, Any]:
+    """``priors_fn`` / ``order_fn`` / ``on_estimate`` (one-shot sampler, scores) or ``estimate_fn``
+    (in-frame sampler) of ``run_odometry`` for ``--method`` and ``--agent``; ``noise_sigma`` (px) is
+    what the sampler's features assume."""
     from stereovo.estimation import method_spec
 
     needs = method_spec(args.method).inputs
@@ -182,13 +186,26 @@ def _sampling(args: argparse.Namespace) -> dict[str, Any]:
     if needs == "none":
         raise UsageError(f"--agent {args.agent}: method {args.method!r} does not sample hypotheses, so a learned "
                          "sampler has no role in it; pick a sampling method (e.g. --method msac)")
-    from agents.checkpoint import load_sampler
+    from agents.checkpoint import IN_FRAME
+    from agents.samplers import load_sampler
 
     try:
         policy = load_sampler(args.agent)
     except (ValueError, FileNotFoundError) as err:
         raise UsageError(f"--agent: {err}") from None
-    sampling = _LearnedSampling(policy, args.noise, order=needs == "order")
+    if policy.kind == IN_FRAME:
+        from agents.estimator import LearnedEstimator
+
+        try:
+            estimator = LearnedEstimator(policy, method=args.method, noise_sigma=noise_sigma)
+        except ValueError as err:
+            raise UsageError(f"--agent {args.agent}: {err}") from None
+
+        def estimate(frame: Any, rng: Any) -> Any:
+            return estimator.estimate(frame.prev, frame.curr, frame.camera, frame.scores, rng=rng)
+
+        return {"estimate_fn": estimate}
+    sampling = _LearnedSampling(policy, noise_sigma, order=needs == "order")
     key = "order_fn" if needs == "order" else "priors_fn"
     return {key: sampling, "on_estimate": sampling.observe}
 
@@ -220,7 +237,7 @@ def run(args: argparse.Namespace) -> int:
         # Invalid settings (the config validates them, naming its field): the message names the flag.
         field = next((f for f in _CONFIG_FLAGS if str(err).startswith(f"SimulationConfig.{f} ")), None)
         raise (flag_error(_CONFIG_FLAGS[field], err) if field else UsageError(str(err))) from None
-    sampling = _sampling(args)
+    sampling = _sampling(args, args.noise)
     out: Path = check_output_dir(args.out)  # before computing: a bad --out loses no result
     result = run_odometry(sequence, method=args.method, seed=args.seed, progress=not args.no_progress, **sampling)
 
