@@ -59,3 +59,100 @@ def test_vo_in_frame_sampler_needs_a_sampling_method(tmp_path, capsys):
                  "--out", str(tmp_path / "v")]) == 2
     assert "does not sample" in _one_line(capsys, "vo")
     assert not (tmp_path / "v").exists()
+
+
+# ---------------------------------------------------------------- vo --source
+
+OUTPUTS = ["trajectory_est.tum", "trajectory_true.tum", "trajectory_est.kitti.txt", "trajectory_true.kitti.txt",
+           "frames.csv", "covariances.npy", "odometry.png", "summary.json"]
+
+
+@pytest.fixture(scope="module")
+def short():
+    from images_support import rendered
+
+    sequence = rendered(preset="car", n_frames=3, resolution="vga", seed=4)
+    yield sequence
+    sequence.close()
+
+
+def test_vo_on_a_rendered_source_writes_trajectory_drift_and_plot(tmp_path, capsys, short):
+    from stereovo.io import read_tum
+
+    out = tmp_path / "r"
+    assert main(["vo", "--source", "rendered", "--resolution", "vga", "--frames", "3", "--seed", "4",
+                 "--no-progress", "--out", str(out)]) == 0
+    for name in OUTPUTS:
+        assert (out / name).is_file() and (out / name).stat().st_size > 0, name
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["settings"]["source"] == "rendered" and summary["settings"]["resolution"] == "vga"
+    assert summary["metrics"]["frames"] == 3 and summary["metrics"]["success_rate"] == 1.0
+    assert "kitti_t_percent" in summary["metrics"]
+    true, _ = read_tum(out / "trajectory_true.tum")
+    assert np.allclose(true, short.true_poses, atol=1e-6)  # the rendered sequence of that seed
+    est, _ = read_tum(out / "trajectory_est.tum")
+    assert np.abs(est[:, :3, 3] - true[:, :3, 3]).max() < 0.05
+    assert "rendered, 3 frames" in capsys.readouterr().out
+
+
+def test_vo_on_a_kitti_folder_with_and_without_poses(tmp_path, capsys, short):
+    from images_support import write_kitti
+
+    write_kitti(tmp_path / "data", short, "05")
+    out = tmp_path / "k"
+    # --frames 2 takes the first 2 of the 3 pairs
+    assert main(["vo", "--source", f"kitti:{tmp_path / 'data'}:05", "--frames", "2", "--no-progress",
+                 "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["metrics"]["frames"] == 2 and summary["metrics"]["success_rate"] == 1.0
+    est = np.loadtxt(out / "trajectory_est.kitti.txt")
+    true = np.loadtxt(out / "trajectory_true.kitti.txt")
+    assert est.shape == true.shape == (3, 12) and np.abs(est - true).max() < 0.05
+
+    write_kitti(tmp_path / "bare", short, "00", with_poses=False)
+    out = tmp_path / "b"
+    assert main(["vo", "--source", f"kitti:{tmp_path / 'bare'}", "--method", "msac", "--no-progress",
+                 "--out", str(out)]) == 0
+    assert not (out / "trajectory_true.tum").exists()
+    for name in ("trajectory_est.tum", "trajectory_est.kitti.txt", "frames.csv", "odometry.png", "summary.json"):
+        assert (out / name).is_file(), name
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["metrics"]["frames"] == 3 and summary["metrics"]["kitti_t_percent"] is None
+    with (out / "frames.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 3 and all(int(r["n_inliers"]) > 0 for r in rows)
+    assert "no ground-truth poses" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("source, needle", [
+    ("bogus", "--source must be one of rendered, rendered:PRESET, kitti:PATH, kitti:PATH:SEQ, got 'bogus'"),
+    ("rendered:plane", "--source 'rendered:plane': the rendered preset must be one of car, free, got 'plane'"),
+])
+def test_bad_source_strings_are_one_line_and_write_nothing(tmp_path, capsys, source, needle):
+    with pytest.raises(SystemExit) as exc:
+        main(["vo", "--source", source, "--out", str(tmp_path / "v")])
+    assert exc.value.code == 2
+    assert needle in _one_line(capsys, "vo")
+    assert not (tmp_path / "v").exists()
+
+
+def test_a_missing_kitti_folder_is_one_line_naming_source(tmp_path, capsys):
+    pytest.importorskip("cv2")
+    assert main(["vo", "--source", f"kitti:{tmp_path / 'none'}", "--out", str(tmp_path / "v")]) == 2
+    line = _one_line(capsys, "vo")
+    assert "--source kitti:" in line and "no folder" in line
+    assert not (tmp_path / "v").exists()
+
+
+@pytest.mark.parametrize("missing, source, extra", [("moderngl", "rendered", "render"),
+                                                    ("cv2", "rendered", "images"),
+                                                    ("cv2", "kitti:/data", "images")])
+def test_a_missing_extra_is_one_line_naming_it(tmp_path, capsys, monkeypatch, missing, source, extra):
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == missing else real(name, *a))
+    assert main(["vo", "--source", source, "--out", str(tmp_path / "v")]) == 2
+    line = _one_line(capsys, "vo")
+    assert f"'{extra}' extra ({missing} is not installed): pip install 'vo-gym[{extra}]'" in line
+    assert not (tmp_path / "v").exists()
