@@ -156,3 +156,50 @@ def test_a_missing_extra_is_one_line_naming_it(tmp_path, capsys, monkeypatch, mi
     line = _one_line(capsys, "vo")
     assert f"'{extra}' extra ({missing} is not installed): pip install 'vo-gym[{extra}]'" in line
     assert not (tmp_path / "v").exists()
+
+
+# ---------------------------------------------------------------- train --algo adaptive
+
+def test_train_adaptive_within_a_time_budget_writes_a_usable_in_frame_sampler(tmp_path, capsys):
+    torch = pytest.importorskip("torch")
+    from agents import LearnedEstimator
+    from agents.adaptive import load_adaptive
+    from stereovo.simulation import SimulationConfig, simulate_frame
+
+    out = tmp_path / "ad"
+    threads = torch.get_num_threads()
+    try:
+        assert main(["train", "--algo", "adaptive", "--minutes", "0.5", "--clock", "cpu", "--max-episodes", "2",
+                     "--frames-per-episode", "2", "--n-correspondences", "60", "--seed", "3", "--no-progress",
+                     "--out", str(out)]) == 0
+    finally:
+        torch.set_num_threads(threads)
+    summary = json.loads((out / "training.json").read_text())
+    assert summary["algo"] == "adaptive" and summary["episodes"] == 2 and summary["frames"] == 4
+    assert summary["config"]["minutes"] == 0.5 and summary["config"]["clock"] == "cpu"
+    assert summary["config"]["seed"] == 3 and summary["config"]["n"] == 60
+    _, payload = load_adaptive(out / "adaptive.pt")
+    assert payload["config"]["max_episodes"] == 2
+    assert f"checkpoint: {out / 'adaptive.pt'}" in capsys.readouterr().out
+    frame = simulate_frame(SimulationConfig(n_correspondences=60, outlier_ratio=0.3), rng=1)
+    est = LearnedEstimator(out / "adaptive.pt", budget=8).estimate(frame.prev, frame.curr, frame.camera, frame.scores)
+    assert est.sampler_kind == "in-frame" and est.n_hypotheses == 8
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["--prior", "nope"], "--prior 'nope' is not a shipped one-shot sampler; shipped: ngransac-supervised"),
+    (["--resume", str(ROOT / "agents" / "checkpoints" / "ppo.pt")], "a one-shot checkpoint; --algo adaptive"),
+    (["--prior", "ppo", "--resume", str(ROOT / "agents" / "checkpoints" / "adaptive-pg.pt")], "--prior starts a fresh network, --resume continues"),
+])
+def test_train_adaptive_errors_are_one_line(tmp_path, capsys, argv, needle):
+    pytest.importorskip("torch")
+    assert main(["train", "--algo", "adaptive", "--minutes", "0.01", *argv, "--out", str(tmp_path / "t")]) == 2
+    assert needle in _one_line(capsys, "train")
+    assert not (tmp_path / "t" / "adaptive.pt").exists()
+
+
+def test_train_adaptive_minutes_must_be_positive(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["train", "--algo", "adaptive", "--minutes", "0", "--out", str(tmp_path / "t")])
+    assert exc.value.code == 2
+    assert "--minutes must be > 0.0" in _one_line(capsys, "train")
