@@ -181,7 +181,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.source is not None:
         from vo_gym_cli.commands.evaluate_images import run_on_images
 
-        return run_on_images(args)
+        return run_on_images(args, DEFAULT_AGENTS)
     from agents.evaluation.run import check_environments
     from agents.evaluation.setup import DEFAULT_METHODS, ROW_COLUMNS, EvalConfig, parse_row_value, resolve_agents
     from stereovo.trials import TrialJournal

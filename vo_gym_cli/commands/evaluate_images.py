@@ -64,8 +64,9 @@ def _render(args: argparse.Namespace, preset: str, progress: bool) -> list[_Fram
     return episodes
 
 
-def run_on_images(args: argparse.Namespace) -> int:
-    """The ``--source`` branch of ``vo-gym evaluate`` (see the module doc)."""
+def run_on_images(args: argparse.Namespace, default_agents: tuple[str, ...]) -> int:
+    """The ``--source`` branch of ``vo-gym evaluate`` (see the module doc); ``default_agents`` when
+    no ``--agent`` is given."""
     import gymnasium as gym
     import numpy as np
 
@@ -85,10 +86,8 @@ def run_on_images(args: argparse.Namespace) -> int:
         raise UsageError(f"--source {args.source!r}: the rendered preset must be one of car, free, got {preset!r}")
     require_extra("images", "cv2", context=f"--source {args.source}")
     require_extra("render", "moderngl", "glcontext", context=f"--source {args.source}")
-    from vo_gym_cli.commands.evaluate import DEFAULT_AGENTS
-
     try:
-        agents = resolve_agents(args.agent or DEFAULT_AGENTS)
+        agents = resolve_agents(args.agent or default_agents)
     except (ValueError, FileNotFoundError) as err:
         raise UsageError(f"--agent: {err}") from None
     budgets = sorted(set(args.budgets))
