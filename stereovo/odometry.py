@@ -102,6 +102,7 @@ def run_odometry(
     kitti_lengths: Sequence[float] = KITTI_LENGTHS,
     kitti_step: int = KITTI_STEP,
     on_estimate: Callable[[Any, Any], None] | None = None,
+    estimate_fn: Callable[[Any, np.random.Generator], Any] | None = None,
     **estimator_options: Any,
 ) -> OdometryResult:
     """Run frame-to-frame odometry over a ``stereovo.simulation.Sequence``.
@@ -117,6 +118,10 @@ def run_odometry(
         order_fn: ``frame -> (N,) ordering or None`` for PROSAC-style methods.
         on_estimate: optional ``(frame, estimate) -> None`` called after each frame's estimate
             (e.g. a learned sampler that feeds the last motion into its next frame's features).
+        estimate_fn: optional ``(frame, rng) -> MotionEstimate`` that replaces the core's
+            ``estimate_motion`` call (e.g. a learned in-frame sampler that runs its own search);
+            ``rng`` is the run's shared stream. With it, ``priors_fn``, ``order_fn`` and
+            ``estimator_options`` are not used and must not be given.
         kitti_lengths, kitti_step: KITTI segment lengths (m) and start stride
             (frames) for the trajectory drift metric.
         **estimator_options: passed to every ``estimate_motion`` call. A
@@ -128,6 +133,10 @@ def run_odometry(
             raise ValueError(f"{key}= differs per frame: pass {key}_fn=callable(frame) instead")
         estimator_options.pop(key, None)
     noise_sigma = estimator_options.pop("noise_sigma", None)
+    if estimate_fn is not None and (priors_fn is not None or order_fn is not None or estimator_options
+                                    or noise_sigma is not None):
+        raise ValueError("estimate_fn= runs its own estimator: priors_fn, order_fn and estimator options "
+                         "are not used with it")
     rng = np.random.default_rng(seed)
     true_poses = np.asarray(sequence.true_poses, dtype=float)
     chain = PoseChain(true_poses[0])
@@ -136,17 +145,20 @@ def run_odometry(
     covariances: list[np.ndarray] = []
 
     for frame in _progress(sequence, progress, method):
-        est = estimate_motion(
-            frame.prev,
-            frame.curr,
-            frame.camera,
-            method=method,
-            priors=priors_fn(frame) if priors_fn is not None else None,
-            order=order_fn(frame) if order_fn is not None else None,
-            rng=rng,
-            noise_sigma=frame.noise_sigma if noise_sigma is None else noise_sigma,
-            **estimator_options,
-        )
+        if estimate_fn is not None:
+            est = estimate_fn(frame, rng)
+        else:
+            est = estimate_motion(
+                frame.prev,
+                frame.curr,
+                frame.camera,
+                method=method,
+                priors=priors_fn(frame) if priors_fn is not None else None,
+                order=order_fn(frame) if order_fn is not None else None,
+                rng=rng,
+                noise_sigma=frame.noise_sigma if noise_sigma is None else noise_sigma,
+                **estimator_options,
+            )
         if on_estimate is not None:
             on_estimate(frame, est)
         # A failed frame keeps the last motion: constant-velocity fallback.

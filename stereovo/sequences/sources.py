@@ -9,7 +9,7 @@ over it and, when the poses are known, scores it (per-frame success, KITTI drift
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -82,6 +82,9 @@ class TrajectoryEstimate:
 
 def run_image_odometry(sequence: Any, method: str = "probabilistic", seed: int | np.random.Generator | None = 0,
                        progress: bool = False, use_scores: bool = False,
+                       priors_fn: Callable[[Any], Any] | None = None, order_fn: Callable[[Any], Any] | None = None,
+                       on_estimate: Callable[[Any, Any], None] | None = None,
+                       estimate_fn: Callable[[Any, np.random.Generator], Any] | None = None,
                        **estimator_options: Any) -> OdometryResult | TrajectoryEstimate:
     """Frame-to-frame odometry over a frame sequence (rendered, KITTI, or the simulator's).
 
@@ -91,16 +94,23 @@ def run_image_odometry(sequence: Any, method: str = "probabilistic", seed: int |
         seed: the estimator's random stream.
         progress: a tqdm progress bar.
         use_scores: pass each frame's match scores as the sampler's priors (guided methods).
+        priors_fn, order_fn, on_estimate, estimate_fn: per-frame hooks, as
+            :func:`stereovo.odometry.run_odometry`'s (``priors_fn`` replaces ``use_scores``).
         **estimator_options: passed to every :func:`~stereovo.estimation.estimate_motion` call.
 
     Returns:
         an :class:`~stereovo.odometry.OdometryResult` (per-frame metrics, drift) when the poses
         are known, else a :class:`TrajectoryEstimate`.
     """
-    priors_fn = (lambda frame: frame.scores) if use_scores else None
+    if use_scores and priors_fn is None:
+        priors_fn = lambda frame: frame.scores  # noqa: E731
     if getattr(sequence, "true_poses", None) is not None:
         return run_odometry(sequence, method=method, seed=seed, progress=progress, priors_fn=priors_fn,
+                            order_fn=order_fn, on_estimate=on_estimate, estimate_fn=estimate_fn,
                             **estimator_options)
+    if estimate_fn is not None and (priors_fn is not None or order_fn is not None or estimator_options):
+        raise ValueError("estimate_fn= runs its own estimator: priors, order and estimator options "
+                         "are not used with it")
     rng = np.random.default_rng(seed)
     chain = PoseChain(np.eye(4))
     ok, n_matches, n_inliers = [], [], []
@@ -110,9 +120,15 @@ def run_image_odometry(sequence: Any, method: str = "probabilistic", seed: int |
 
         frames = tqdm(frames, total=len(sequence), desc=method, unit="frame", dynamic_ncols=True)
     for frame in frames:
-        est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=rng,
-                              priors=priors_fn(frame) if priors_fn else None,
-                              **{"noise_sigma": frame.noise_sigma, **estimator_options})
+        if estimate_fn is not None:
+            est = estimate_fn(frame, rng)
+        else:
+            est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=rng,
+                                  priors=priors_fn(frame) if priors_fn else None,
+                                  order=order_fn(frame) if order_fn else None,
+                                  **{"noise_sigma": frame.noise_sigma, **estimator_options})
+        if on_estimate is not None:
+            on_estimate(frame, est)
         chain.append(est.ok, est.rotation, est.translation)
         ok.append(bool(est.ok))
         n_matches.append(frame.n)

@@ -253,6 +253,7 @@ EXTRAS = {
     "torch": "train", "stable_baselines3": "train", "tensorboard": "train", "rich": "train",
     "ray": "distributed", "yaml": "distributed",
     "cv2": "peers", "poselib": "peers",
+    "moderngl": "render", "glcontext": "render", "skimage": "images",
 }
 """Top-level module -> the ``pip install 'vo-gym[EXTRA]'`` extra that provides it (pyproject.toml)."""
 
@@ -281,6 +282,26 @@ def require_extras(*modules: str) -> None:
             found = False
         if not found:
             raise UsageError(missing_extra(ModuleNotFoundError(name=module)) or f"{module} is not installed")
+
+
+def require_extra(extra: str, *modules: str, context: str = "") -> None:
+    """Like :func:`require_extras` for modules that more than one extra provides (OpenCV is in
+    ``peers`` and ``images``): the hint names ``extra``, after ``context`` (e.g. the option).
+
+    Raises:
+        UsageError: ``CONTEXT: this needs the 'EXTRA' extra (MODULE is not installed): pip install ...``.
+    """
+    import importlib.util
+
+    for module in modules:
+        try:
+            found = importlib.util.find_spec(module) is not None
+        except (ImportError, ValueError):
+            found = False
+        if not found:
+            lead = f"{context}: " if context else ""
+            raise UsageError(f"{lead}this needs the '{extra}' extra ({module} is not installed): "
+                             f"pip install 'vo-gym[{extra}]'")
 
 
 def guarded(command: str, run: Callable[[], int]) -> int:

@@ -99,6 +99,14 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                         help="also run each agent without a budget: its priors with the prior-aware adaptive stop"
                              " (capped at --max-iterations), reported beside the adaptive classical methods"
                              " (PROSAC's own stop among them)")
+    parser.add_argument("--source", default=None, metavar="rendered[:PRESET]",
+                        help="evaluate on rendered images (vo_gym/StereoVOImages-v0, the image front end) instead of"
+                             " simulated matches: each episode rendered once and replayed to every agent at every"
+                             " --budgets value; uses --agent, --episodes, --frames-per-episode, --seed, --budgets, --out"
+                             " (needs the images and render extras; default: simulated matches)")
+    parser.add_argument("--resolution", default="kitti", choices=["kitti", "vga"],
+                        help="with --source: the rendered image size, kitti (1241x376) or vga (640x480)"
+                             " (default: kitti)")
     add_backend_options(parser, "episodes")
 
 
@@ -170,6 +178,10 @@ def _run_adaptive(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace) -> int:
     if args.adaptive:
         return _run_adaptive(args)
+    if args.source is not None:
+        from vo_gym_cli.commands.evaluate_images import run_on_images
+
+        return run_on_images(args, DEFAULT_AGENTS)
     from agents.evaluation.run import check_environments
     from agents.evaluation.setup import DEFAULT_METHODS, ROW_COLUMNS, EvalConfig, parse_row_value, resolve_agents
     from stereovo.trials import TrialJournal

@@ -5,7 +5,10 @@
 environment through the equivariant custom policy (:mod:`agents.ppo`). Both
 show a progress bar, log to TensorBoard under ``<out>/tb``, evaluate
 periodically and write checkpoints that carry their config and feature layout;
-``--resume CHECKPOINT`` continues from one.
+``--resume CHECKPOINT`` continues from one. ``--algo adaptive`` trains the in-frame
+sampler (:func:`agents.adaptive.train_in_frame`) within a time budget (``--minutes``)
+into ``<out>/adaptive.pt``, ``training.jsonl`` and ``training.json``; ``--resume``
+starts from an in-frame checkpoint's weights.
 """
 
 from __future__ import annotations
@@ -26,8 +29,9 @@ from vo_gym_cli.commands.common import (
 
 
 def add_parser(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--algo", choices=("ngransac", "ppo"), default="ngransac",
-                        help="trainer: NG-RANSAC-style policy gradient or stable-baselines3 PPO")
+    parser.add_argument("--algo", choices=("ngransac", "ppo", "adaptive"), default="ngransac",
+                        help="trainer: NG-RANSAC-style policy gradient, stable-baselines3 PPO, or the in-frame "
+                             "sampler (adaptive: acts inside each frame's RANSAC loop and stops it)")
     parser.add_argument("--out", default="runs/train", help="directory for checkpoints and TensorBoard logs")
     parser.add_argument("--seed", type=seed, default=0, help="seed of the simulation, the sampler and the network")
     parser.add_argument("--resume", default=None, metavar="CHECKPOINT",
@@ -92,6 +96,19 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                      help="stop after this much wall time even before --timesteps (default: no limit)")
     ppo.add_argument("--checkpoint-every", type=positive_int("--checkpoint-every"), default=None,
                      help="environment steps between SB3 zips (default 5000)")
+    # --seed, --frames-per-episode, --n-correspondences and --resume (an in-frame checkpoint to start
+    # from) apply to the in-frame trainer too; None keeps agents.adaptive.AdaptiveTrainConfig's default.
+    ad = parser.add_argument_group("adaptive")
+    ad.add_argument("--minutes", type=finite_float("--minutes", 0.0, low_open=True), default=None,
+                    help="training time budget in minutes, of --clock (default 25)")
+    ad.add_argument("--clock", choices=("wall", "cpu"), default=None,
+                    help="what --minutes counts: wall time, or this process' CPU time (the same budget on a busy "
+                         "machine) (default wall)")
+    ad.add_argument("--prior", default=None, metavar="NAME",
+                    help="a shipped one-shot sampler whose logits a fresh network adds to its own "
+                         "(e.g. ngransac-supervised; default: none)")
+    ad.add_argument("--max-episodes", type=positive_int("--max-episodes"), default=None,
+                    help="stop after this many episodes even within --minutes (default: the time budget alone)")
 
 
 def _epsilon_range(text: str) -> tuple[float, float]:
@@ -217,6 +234,49 @@ def _train_ppo(args: argparse.Namespace, out: Path) -> int:
     return 0
 
 
+def _train_adaptive(args: argparse.Namespace, out: Path) -> int:
+    from agents.adaptive import AdaptiveTrainConfig, train_in_frame
+    from agents.catalog import ONE_SHOT_SAMPLERS
+
+    if args.prior is not None and args.prior not in ONE_SHOT_SAMPLERS:
+        raise UsageError(f"--prior {args.prior!r} is not a shipped one-shot sampler; shipped: "
+                         f"{', '.join(ONE_SHOT_SAMPLERS)}")
+    if args.prior is not None and args.resume is not None:
+        raise UsageError("--prior starts a fresh network, --resume continues a checkpoint (which keeps its own "
+                         "prior): give one of them")
+    given = {"minutes": args.minutes, "clock": args.clock, "prior": args.prior, "max_episodes": args.max_episodes,
+             "frames_per_episode": args.frames_per_episode, "n": args.n_correspondences, "init": args.resume}
+    flags = {"minutes": "--minutes", "clock": "--clock", "prior": "--prior", "max_episodes": "--max-episodes",
+             "frames_per_episode": "--frames-per-episode", "n": "--n-correspondences", "init": "--resume"}
+    try:
+        config = AdaptiveTrainConfig(seed=args.seed, **{k: v for k, v in given.items() if v is not None})
+    except ValueError as err:
+        field = next((f for f in flags if str(err).startswith(f"{f} ")), None)
+        raise UsageError(f"{flags[field]}{str(err)[len(field):]}" if field else str(err)) from None
+    if args.resume is not None:
+        from agents.checkpoint import IN_FRAME, resolve_sampler
+
+        try:
+            kind, _, _ = resolve_sampler(args.resume)
+        except (ValueError, FileNotFoundError) as err:
+            raise UsageError(f"--resume: {err}") from None
+        if kind != IN_FRAME:
+            raise UsageError(f"--resume {args.resume}: a {kind} checkpoint; --algo adaptive continues an in-frame one")
+    clock = "CPU" if config.clock == "cpu" else "wall"
+    print(f"vo-gym train: in-frame sampler, {config.minutes:g} min of {clock} time, seed {config.seed}"
+          + (f", prior {config.prior}" if config.prior else "") + (f", from {config.init}" if config.init else ""))
+    result = train_in_frame(config, out, progress=not args.no_progress)
+    print(f"checkpoint: {result.checkpoint}")
+    line = f"{result.episodes} episodes, {result.frames} frames in {result.wall_s:.0f} s wall / {result.cpu_s:.0f} s CPU"
+    if result.log:
+        last = result.log[-1]
+        extra = ", ".join(f"{k} {v:.3f}" if isinstance(v, float) else f"{k} {v}" for k, v in last.items()
+                          if k in ("success", "mean_hypotheses", "stopped"))
+        line += f"; last window: {extra}" if extra else ""
+    print(line)
+    return 0
+
+
 def _check_env_id(env_id: str) -> None:
     import gymnasium as gym
 
@@ -230,7 +290,8 @@ def _check_env_id(env_id: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    require_extras("torch", "tensorboard", *(("stable_baselines3",) if args.algo == "ppo" else ()))
+    require_extras("torch", *(("tensorboard",) if args.algo != "adaptive" else ()),
+                   *(("stable_baselines3",) if args.algo == "ppo" else ()))
     out = check_output_dir(args.out, "--out")  # before any computing: a bad --out loses no training
     if args.resume is not None and not Path(args.resume).is_file():
         raise UsageError(f"--resume: no checkpoint at {args.resume}")
@@ -238,6 +299,8 @@ def run(args: argparse.Namespace) -> int:
         _check_env_id(args.env_id)
     elif args.resume is not None and Path(args.resume).suffix == ".zip":
         raise UsageError(f"--resume {args.resume}: a .zip is a stable-baselines3 PPO model; resume it with --algo ppo")
+    if args.algo == "adaptive":
+        return _train_adaptive(args, out)
     if args.algo == "ngransac":
         return _train_ngransac(args, out)
     return _train_ppo(args, out)

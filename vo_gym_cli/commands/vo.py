@@ -1,4 +1,5 @@
-"""``vo-gym vo``: stereo visual odometry over one simulated sequence.
+"""``vo-gym vo``: stereo visual odometry over one sequence: simulated matches (default), or images
+through the front end (``--source rendered[:PRESET]`` or ``--source kitti:PATH[:SEQ]``).
 
 Writes to ``--out``: ``trajectory_est.tum``, ``trajectory_true.tum``,
 ``trajectory_est.kitti.txt``, ``trajectory_true.kitti.txt``, ``frames.csv``
@@ -9,6 +10,9 @@ pair k: the covariance of the error ``(log(R_est R_true^T), t_est - t_true)``,
 rotation first (rad) then translation (m), as
 :attr:`stereovo.estimation.MotionEstimate.covariance`; NaN on a failed frame. The TUM files load directly in evo (``evo_ape tum trajectory_true.tum
 trajectory_est.tum --align``).
+
+A KITTI sequence without ground-truth poses gets the estimated trajectory only (``trajectory_est.*``,
+``frames.csv`` with each frame's success, matches and inliers, ``odometry.png``, ``summary.json``).
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ import math
 from pathlib import Path
 from typing import Any, Iterator
 
-from agents.catalog import ONE_SHOT_SAMPLERS
+from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
 from vo_gym_cli.commands.common import (
     UsageError,
     bounded_int,
@@ -27,6 +31,7 @@ from vo_gym_cli.commands.common import (
     finite_float,
     flag_error,
     positive_int,
+    require_extra,
     score_inputs,
     seed,
 )
@@ -73,9 +78,37 @@ def parse_outliers(text: str) -> float | tuple[float, float]:
     return values[0]
 
 
+PRESETS = ("car", "free")
+
+
+def parse_source(text: str) -> str:
+    """``--source``: ``rendered``, ``rendered:PRESET`` or ``kitti:PATH[:SEQ]`` (checked, returned as given)."""
+    from stereovo.sequences.sources import parse_source as parse
+
+    try:
+        kind, named = parse(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(f"--{err}") from None
+    if kind == "rendered" and named.get("preset", "car") not in PRESETS:
+        raise argparse.ArgumentTypeError(f"--source {text!r}: the rendered preset must be one of "
+                                         f"{', '.join(PRESETS)}, got {named['preset']!r}")
+    return text
+
+
 def add_parser(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--preset", default="car", choices=["car", "free"], help="motion preset")
-    parser.add_argument("--frames", type=positive_int("--frames"), default=300, help="frame pairs to simulate")
+    parser.add_argument(
+        "--source", type=parse_source, default=None, metavar="rendered[:PRESET]|kitti:PATH[:SEQ]",
+        help="run on images through the front end instead of simulated matches: a rendered sequence "
+             "(needs the 'images' and 'render' extras; PRESET car or free, else --preset) or a KITTI odometry "
+             "sequence on disk (PATH a dataset folder with sequences/SEQ/, default SEQ 00, or one sequence's "
+             "folder; needs the 'images' extra); --outliers, --n and --auc apply to simulated matches only "
+             "(default: simulated matches)",
+    )
+    parser.add_argument("--resolution", default="kitti", choices=["kitti", "vga"],
+                        help="a rendered source's image size: kitti (1241x376) or vga (640x480)")
+    parser.add_argument("--preset", default="car", choices=list(PRESETS), help="motion preset")
+    parser.add_argument("--frames", type=positive_int("--frames"), default=300,
+                        help="frame pairs to simulate or render (a KITTI sequence: at most this many, from its start)")
     parser.add_argument(
         "--outliers", type=parse_outliers, default=0.5, metavar="EPS|LO:HI",
         help="outlier ratio, fixed (0.5) or drawn per frame from a range (0.3:0.9)",
@@ -91,8 +124,10 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
              "scores calibrated to inlier probabilities (its gamma_i)",
     )
     parser.add_argument("--agent", default=None, metavar="NAME|PATH",
-                        help="a learned sampler that sets the method's sampling weights each frame: a shipped "
-                             f"one ({', '.join(ONE_SHOT_SAMPLERS)}) or a .pt checkpoint (default: none)")
+                        help="a learned sampler: a one-shot one sets the method's sampling weights each frame "
+                             f"({', '.join(ONE_SHOT_SAMPLERS)}); an in-frame one runs the method's search batch by "
+                             f"batch and stops it ({', '.join(IN_FRAME_SAMPLERS)}); or a .pt checkpoint of "
+                             "either kind (default: none)")
     parser.add_argument("--seed", type=seed, default=0, help="seed of the simulation and of the estimator stream")
     parser.add_argument(
         "--out", type=Path, default=Path("runs/vo"),
@@ -172,8 +207,10 @@ def _summary_lines(s: dict[str, Any]) -> list[str]:
     return [f"  {k:<{width}}  {v}" for k, v in table]
 
 
-def _sampling(args: argparse.Namespace) -> dict[str, Any]:
-    """``priors_fn`` / ``order_fn`` / ``on_estimate`` of ``run_odometry`` for ``--method`` and ``--agent``."""
+def _sampling(args: argparse.Namespace, noise_sigma: float) -> dict[str, Any]:
+    """``priors_fn`` / ``order_fn`` / ``on_estimate`` (one-shot sampler, scores) or ``estimate_fn``
+    (in-frame sampler) of ``run_odometry`` for ``--method`` and ``--agent``; ``noise_sigma`` (px) is
+    what the sampler's features assume."""
     from stereovo.estimation import method_spec
 
     needs = method_spec(args.method).inputs
@@ -182,13 +219,26 @@ def _sampling(args: argparse.Namespace) -> dict[str, Any]:
     if needs == "none":
         raise UsageError(f"--agent {args.agent}: method {args.method!r} does not sample hypotheses, so a learned "
                          "sampler has no role in it; pick a sampling method (e.g. --method msac)")
-    from agents.checkpoint import load_sampler
+    from agents.checkpoint import IN_FRAME
+    from agents.samplers import load_sampler
 
     try:
         policy = load_sampler(args.agent)
     except (ValueError, FileNotFoundError) as err:
         raise UsageError(f"--agent: {err}") from None
-    sampling = _LearnedSampling(policy, args.noise, order=needs == "order")
+    if policy.kind == IN_FRAME:
+        from agents.estimator import LearnedEstimator
+
+        try:
+            estimator = LearnedEstimator(policy, method=args.method, noise_sigma=noise_sigma)
+        except ValueError as err:
+            raise UsageError(f"--agent {args.agent}: {err}") from None
+
+        def estimate(frame: Any, rng: Any) -> Any:
+            return estimator.estimate(frame.prev, frame.curr, frame.camera, frame.scores, rng=rng)
+
+        return {"estimate_fn": estimate}
+    sampling = _LearnedSampling(policy, noise_sigma, order=needs == "order")
     key = "order_fn" if needs == "order" else "priors_fn"
     return {key: sampling, "on_estimate": sampling.observe}
 
@@ -199,11 +249,9 @@ _CONFIG_FLAGS = {"preset": "--preset", "n_frames": "--frames", "n_correspondence
 
 
 def run(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from stereovo.io import write_frame_csv, write_kitti, write_tum
+    if args.source is not None:
+        return _run_source(args)
     from stereovo.odometry import run_odometry
-    from stereovo.plotting import plot_odometry
     from stereovo.simulation import Sequence, SimulationConfig
 
     try:
@@ -220,9 +268,28 @@ def run(args: argparse.Namespace) -> int:
         # Invalid settings (the config validates them, naming its field): the message names the flag.
         field = next((f for f in _CONFIG_FLAGS if str(err).startswith(f"SimulationConfig.{f} ")), None)
         raise (flag_error(_CONFIG_FLAGS[field], err) if field else UsageError(str(err))) from None
-    sampling = _sampling(args)
+    sampling = _sampling(args, args.noise)
     out: Path = check_output_dir(args.out)  # before computing: a bad --out loses no result
     result = run_odometry(sequence, method=args.method, seed=args.seed, progress=not args.no_progress, **sampling)
+    settings = {
+        "preset": args.preset, "frames": args.frames, "outliers": args.outliers, "noise_px": args.noise,
+        "n_correspondences": args.n, "score_auc": args.auc, "method": args.method, "seed": args.seed,
+        "agent": args.agent,
+    }
+    agent = "" if args.agent is None else f", sampler {args.agent}"
+    _write_result(out, result, settings,
+                  f"vo-gym vo: {args.preset}, {args.frames} frames, outliers {args.outliers}, noise {args.noise} px, "
+                  f"N {args.n}, AUC {args.auc}, seed {args.seed}{agent}")
+    return 0
+
+
+def _write_result(out: Path, result: Any, settings: dict[str, Any], header: str) -> None:
+    """Write an :class:`stereovo.odometry.OdometryResult` (trajectories, frames, covariances, plot,
+    summary) under ``out`` and print the summary table."""
+    import numpy as np
+
+    from stereovo.io import write_frame_csv, write_kitti, write_tum
+    from stereovo.plotting import plot_odometry
 
     write_tum(out / "trajectory_est.tum", result.poses)
     write_tum(out / "trajectory_true.tum", result.true_poses)
@@ -233,18 +300,103 @@ def run(args: argparse.Namespace) -> int:
     plot_odometry(result, out / "odometry.png")
 
     summary = result.summary()
-    settings = {
-        "preset": args.preset, "frames": args.frames, "outliers": args.outliers, "noise_px": args.noise,
-        "n_correspondences": args.n, "score_auc": args.auc, "method": args.method, "seed": args.seed,
-        "agent": args.agent,
-    }
     (out / "summary.json").write_text(
         json.dumps(_json_safe({"settings": settings, "metrics": summary}), indent=2) + "\n"
     )
-    agent = "" if args.agent is None else f", sampler {args.agent}"
-    print(f"vo-gym vo: {args.preset}, {args.frames} frames, outliers {args.outliers}, noise {args.noise} px, "
-          f"N {args.n}, AUC {args.auc}, seed {args.seed}{agent}")
+    print(header)
     print("\n".join(_summary_lines(summary)))
     print(f"  wrote {out}/: trajectory_{{est,true}}.tum, trajectory_{{est,true}}.kitti.txt, "
           "frames.csv, covariances.npy, odometry.png, summary.json")
+
+
+def _write_trajectory(out: Path, estimate: Any, settings: dict[str, Any], header: str) -> None:
+    """Write a :class:`stereovo.sequences.sources.TrajectoryEstimate` (no ground truth): the
+    estimated trajectory, each frame's outcome, a top-down plot and the summary."""
+    import numpy as np
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from stereovo.io import write_frame_csv, write_kitti, write_tum
+
+    write_tum(out / "trajectory_est.tum", estimate.poses)
+    write_kitti(out / "trajectory_est.kitti.txt", estimate.poses)
+    write_frame_csv(out / "frames.csv", [
+        {"frame": k + 1, "success": bool(ok), "n_matches": int(m), "n_inliers": int(i), "fallback": not bool(ok)}
+        for k, (ok, m, i) in enumerate(zip(estimate.ok, estimate.n_matches, estimate.n_inliers))])
+    fig = Figure(figsize=(6, 6))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    poses = np.asarray(estimate.poses)
+    ax.plot(poses[:, 0, 3], poses[:, 2, 3], color="tab:blue", lw=1.2, label=f"estimate ({estimate.method})")
+    ax.plot(poses[0, 0, 3], poses[0, 2, 3], "o", color="tab:green", ms=6, label="start")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("z [m]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    ax.set_title("estimated trajectory (no ground-truth poses: no drift)")
+    fig.savefig(out / "odometry.png", dpi=110)
+    steps = np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1)
+    metrics = {"method": estimate.method, "frames": int(len(estimate.ok)),
+               "failed_frames": int(np.count_nonzero(~estimate.ok)),
+               "success_rate": float(np.mean(estimate.ok)) if len(estimate.ok) else float("nan"),
+               "median_matches": float(np.median(estimate.n_matches)) if len(estimate.ok) else float("nan"),
+               "median_inliers": float(np.median(estimate.n_inliers)) if len(estimate.ok) else float("nan"),
+               "path_length_m": float(steps.sum()), "kitti_t_percent": None}
+    (out / "summary.json").write_text(
+        json.dumps(_json_safe({"settings": settings, "metrics": metrics}), indent=2) + "\n")
+    print(header)
+    print(f"  frames {metrics['frames']} ({metrics['failed_frames']} failed: previous motion reused), "
+          f"median {metrics['median_matches']:.0f} matches / {metrics['median_inliers']:.0f} inliers, "
+          f"path {metrics['path_length_m']:.1f} m; no ground-truth poses, so no drift")
+    print(f"  wrote {out}/: trajectory_est.tum, trajectory_est.kitti.txt, frames.csv, odometry.png, summary.json")
+
+
+def _open_source(args: argparse.Namespace) -> Any:
+    """The image sequence ``--source`` names, its extras checked first; errors name ``--source``."""
+    from stereovo.sequences.sources import open_source, parse_source as parse
+
+    kind, named = parse(args.source)
+    require_extra("images", "cv2", context=f"--source {args.source}")
+    if kind == "rendered":
+        require_extra("render", "moderngl", "glcontext", context=f"--source {args.source}")
+    from stereovo.sequences.rendering import RenderingUnavailable
+
+    try:
+        if kind == "rendered":
+            return open_source(args.source, **({} if "preset" in named else {"preset": args.preset}),
+                               n_frames=args.frames, seed=args.seed, resolution=args.resolution,
+                               noise_sigma=args.noise)
+        sequence = open_source(args.source, noise_sigma=args.noise)
+        if sequence.n_images() > args.frames + 1:  # the first --frames pairs
+            sequence = open_source(args.source, noise_sigma=args.noise, stop=args.frames + 1)
+        return sequence
+    except (FileNotFoundError, ValueError, RenderingUnavailable) as err:
+        raise UsageError(f"--source {args.source}: {' '.join(str(err).split())}") from None
+
+
+def _run_source(args: argparse.Namespace) -> int:
+    from stereovo.sequences.sources import run_image_odometry
+
+    sequence = _open_source(args)
+    try:
+        sampling = _sampling(args, args.noise)
+        out: Path = check_output_dir(args.out)
+        result = run_image_odometry(sequence, method=args.method, seed=args.seed, progress=not args.no_progress,
+                                    **sampling)
+    finally:
+        close = getattr(sequence, "close", None)
+        if close is not None:
+            close()
+    settings = {"source": args.source, "frames": len(result.poses) - 1, "noise_px": args.noise,
+                "method": args.method, "seed": args.seed, "agent": args.agent}
+    if args.source.startswith("rendered"):
+        settings["resolution"] = args.resolution
+    agent = "" if args.agent is None else f", sampler {args.agent}"
+    header = (f"vo-gym vo: {args.source}, {len(result.poses) - 1} frames, noise {args.noise} px, "
+              f"seed {args.seed}{agent}")
+    if hasattr(result, "true_poses"):
+        _write_result(out, result, settings, header)
+    else:
+        _write_trajectory(out, result, settings, header)
     return 0
