@@ -192,8 +192,12 @@ def connect_ray(workers: int | None, address: str | None, log_to_driver: bool = 
 
     if ray.is_initialized():
         return False
+    from stereovo.compilation import QUIET_ENV
+
+    # The driver prints the compile notice once for the run (stereovo.trials.runner); a Ray worker,
+    # started by Ray's daemons rather than by this process, would print it again without this.
     kwargs: dict[str, Any] = dict(include_dashboard=False, logging_level="ERROR", log_to_driver=log_to_driver,
-                                  configure_logging=True)
+                                  configure_logging=True, runtime_env={"env_vars": {QUIET_ENV: "1"}})
     if address is None:
         kwargs["num_cpus"] = int(workers or os.cpu_count() or 1)
         # Ray starts its workers at niceness 15 (to keep its own daemons responsive): on a machine
