@@ -255,15 +255,7 @@ class LearnedEstimator:
             _, _, done = search.step(np.asarray(action[:-1], dtype=np.float64), stop, batch)
             if done or search.drawn >= limit:
                 break
-        estimate = search.finish(self.method)
-        if estimate.ok:
-            estimate.defer_covariance(sub, estimate.rotation, estimate.translation, estimate.inliers)
-        if rows is not None:
-            inliers = np.zeros(problem.n, dtype=bool)
-            inliers[rows] = estimate.inliers
-            estimate.inliers = inliers
-            estimate.unusable = unusable
-        return estimate
+        return search.finish(self.method).on_all_rows(sub, rows, problem.n)
 
     def estimate_sequence(self, frames, rng: np.random.Generator | int | None = None) -> list[LearnedMotionEstimate]:
         """Estimates for consecutive frame pairs ``[(prev, curr, camera, scores), ...]`` of one

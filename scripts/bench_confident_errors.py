@@ -6,7 +6,7 @@ above 1 m, for every registered method on hostile frames (or another outliers pr
 
 Frames cycle through the cells N 200 / 500 / 1000 x eps 0.2, 0.5, 0.8, 0.9 (seeded by their index,
 so every method sees the same frames). A method that needs sampling input gets the calibrated
-scores (priors) or their order. Prints, per method, the frames, successes, confidently wrong
+scores in the form the benchmark gives them (``METHOD_INPUTS``). Prints, per method, the frames, successes, confidently wrong
 estimates and failed statuses, with a progress bar; ``--out`` writes the table as CSV.
 """
 
@@ -20,26 +20,13 @@ import numpy as np
 from tqdm import tqdm
 
 from stereovo import estimate_motion
+from stereovo.benchmark.runner import METHOD_INPUTS, score_inputs
 from stereovo.estimation import available_methods, method_spec
 from stereovo.metrics import frame_metrics
 from stereovo.simulation import OUTLIER_PRESETS, SimulationConfig, simulate_frame
 
 CELLS = list(itertools.product((200, 500, 1000), (0.2, 0.5, 0.8, 0.9)))
 ABSURD_ROT_DEG, ABSURD_TRANS_M = 10.0, 1.0
-
-
-def inputs(method: str, frame) -> dict:
-    """The sampling input ``method`` needs: none, the calibrated scores as priors, or their order."""
-    spec = method_spec(method)
-    for priors, order in ((False, False), (True, False), (False, True)):
-        try:
-            spec.check_inputs(priors, order)
-        except ValueError:
-            continue
-        if priors:
-            return {"priors": frame.match_probabilities}
-        return {"order": np.argsort(-frame.scores, kind="stable")} if order else {}
-    raise ValueError(f"method {method!r} takes no sampling input this script can give")
 
 
 def main() -> None:
@@ -64,7 +51,8 @@ def main() -> None:
             frame = simulate_frame(
                 SimulationConfig(n_correspondences=n, outlier_ratio=eps, outliers=args.outliers), args.seed * 10**7 + i
             )
-            est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=i, **inputs(method, frame))
+            given = score_inputs(frame, METHOD_INPUTS.get(method))
+            est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=i, **given)
             errors = frame_metrics(est, frame.truth)
             success += errors.success
             failed += not est.ok

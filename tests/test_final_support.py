@@ -3,7 +3,7 @@
 "ok" means: the returned pose is finite, at least ``min_inliers`` rows pass the method's own final
 gate under it, and the returned inliers are exactly those rows. Checked on hostile frames, whose
 match errors (independent left/right moves, duplicates, far clutter, repetitive texture,
-Student-t noise) no method was built on.
+Student-t noise) no method was built on, and on a rendered frame pair through the image front end.
 """
 
 from __future__ import annotations
@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from stereovo import estimate_motion
-from stereovo.estimation import available_methods, method_spec
+from stereovo.benchmark.runner import METHOD_INPUTS, score_inputs
+from stereovo.estimation import available_methods
 from stereovo.estimation.loop import final_report
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.refinement import ReprojectionRefiner
@@ -26,25 +27,23 @@ FRAMES = [simulate_frame(SimulationConfig(n_correspondences=150, outlier_ratio=e
           for seed, eps in ((11, 0.5), (12, 0.8))]
 
 
-def _inputs(method: str, frame) -> dict:
-    """The sampling input a method needs (priors or an order), none where it takes none."""
-    spec = method_spec(method)
-    for priors, order in ((False, False), (True, False), (False, True)):
-        try:
-            spec.check_inputs(priors, order)
-        except ValueError:
-            continue
-        if priors:
-            return {"priors": frame.match_probabilities}
-        return {"order": np.argsort(-frame.scores, kind="stable")} if order else {}
-    raise AssertionError(f"{method} takes no input combination")
+@pytest.fixture(scope="module")
+def rendered_frame():
+    """One frame pair of a rendered drive through the ORB front end (real matcher errors)."""
+    from images_support import rendered
+
+    sequence = rendered(preset="car", n_frames=2, resolution="vga", seed=3)
+    frame = sequence.frame(1)
+    sequence.close()
+    return frame
 
 
 @pytest.mark.parametrize("method", sorted(available_methods()))
-def test_ok_means_the_returned_inliers_pass_the_final_gate_under_the_returned_pose(method):
-    for i, frame in enumerate(FRAMES):
+def test_ok_means_the_returned_inliers_pass_the_final_gate_under_the_returned_pose(method, rendered_frame):
+    for i, frame in enumerate([*FRAMES, rendered_frame]):
         est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=i, max_iterations=2000,
-                              **_inputs(method, frame))
+                              noise_sigma=frame.noise_sigma,
+                              **score_inputs(frame, METHOD_INPUTS.get(method)))
         if not est.ok:
             assert est.n_inliers == 0 and np.array_equal(est.rotation, np.eye(3))
             continue
@@ -65,7 +64,8 @@ def test_no_confident_absurd_pose_where_far_rows_once_won_the_consensus(method, 
     # resolvable-depth rule returned "ok" with a rotation error of 140-175 deg, translations of
     # 1.9-22 km and 93-327 inliers (probabilistic), none of which passed its gate.
     frame = simulate_frame(SimulationConfig(n_correspondences=500, outlier_ratio=0.8, outliers="hostile"), seed)
-    est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=0, **_inputs(method, frame))
+    given = score_inputs(frame, METHOD_INPUTS.get(method))
+    est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=0, **given)
     errors = frame_metrics(est, frame.truth)
     assert not (est.ok and (errors.rot_err_deg > 10 or errors.trans_err_m > 1)), (est.status, errors)
     if method == "probabilistic":

@@ -166,6 +166,21 @@ class MotionEstimate:
             counters=dict(getattr(report, "counters", None) or {}),
         )
 
+    def on_all_rows(self, sub: StereoProblem, rows: np.ndarray | None, n: int) -> "MotionEstimate":
+        """This estimate, made on the usable sub-problem ``sub`` whose rows are ``rows (M,)`` of the
+        ``n`` given (None: all of them, :meth:`StereoProblem.usable_subproblem`), as one over all
+        ``n`` rows: inliers scattered back, the other rows flagged unusable, and the covariance of a
+        successful fit deferred on ``sub``. Returns ``self``."""
+        if self.ok:
+            self.defer_covariance(sub, self.rotation, self.translation, self.inliers)
+        if rows is not None:
+            inliers = np.zeros(n, dtype=bool)
+            inliers[rows] = self.inliers
+            self.inliers = inliers
+            self.unusable = np.ones(n, dtype=bool)
+            self.unusable[rows] = False
+        return self
+
     @property
     def ok(self) -> bool:
         return self.status == "ok"
@@ -374,13 +389,6 @@ def _estimate(
             position = np.cumsum(problem.usable) - 1
             order = position[order[problem.usable[order]]]
     report = spec.run(sub, shared, priors, order, extra, generator)
-    estimate = MotionEstimate.from_report(report, method, 0.0)
-    if estimate.ok:
-        estimate.defer_covariance(sub, estimate.rotation, estimate.translation, estimate.inliers)
-    if rows is not None:
-        inliers = np.zeros(problem.n, dtype=bool)
-        inliers[rows] = estimate.inliers
-        estimate.inliers = inliers
-        estimate.unusable = unusable
+    estimate = MotionEstimate.from_report(report, method, 0.0).on_all_rows(sub, rows, problem.n)
     estimate.time_s = time.perf_counter() - start
     return estimate

@@ -34,8 +34,8 @@ from __future__ import annotations
 import numpy as np
 
 from stereovo.camera import StereoCamera
+from stereovo.simulation.outliers import MAX_REDRAWS
 
-MAX_REDRAWS = 30
 _INDEPENDENT_SPREAD = 2.0  # independent moves are uniform in +-2 tau per coordinate (uL, uR), +-tau/2 in v
 _FAR_DISPARITY_PX = (0.05, 1.0)  # far clutter's disparity range at k-1 (px)
 _FAR_DRIFT = (1.0, 3.0)  # its drift at k, in outlier thresholds
