@@ -8,7 +8,7 @@ recipe on user-supplied arrays, for both kinds of sampler:
   estimated motion for the constant-velocity columns) go through the network once; its weights
   are the guided-sampling priors of the shared core (:func:`stereovo.estimation.estimate_problem`),
   which draws a fixed ``budget`` of hypotheses or stops adaptively with the prior-aware bound (the
-  all-inlier chance of one draw *from these priors*, :mod:`stereovo.estimation.termination`);
+  all-inlier chance of one draw *from these priors*, :mod:`stereovo.estimation.roles.termination`);
 - **in-frame** (``adaptive-pg-prior``, ``adaptive-pg``, or a file of
   :func:`agents.adaptive.save_adaptive`): the sampler steers the search batch by batch
   (:class:`vo_gym.in_frame.InFrameSearch`, the adaptive environment's loop), reading the loop's
@@ -36,8 +36,8 @@ from agents.checkpoint import IN_FRAME, ONE_SHOT, CheckpointError
 from agents.samplers import load_sampler
 from stereovo.camera import StereoCamera
 from stereovo.estimation import StereoProblem, estimate_problem, method_spec, validate_options
-from stereovo.estimation.methods import MotionEstimate, as_generator
-from stereovo.estimation.solvers import SAMPLE_SIZE
+from stereovo.estimation.api import MotionEstimate, as_generator
+from stereovo.estimation.roles.solvers import SAMPLE_SIZE
 from vo_gym.env import DEFAULT_ESTIMATOR_OPTIONS
 from vo_gym.features import compute_features, feature_index
 from vo_gym.in_frame import InFrameSearch

@@ -27,7 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from stereovo.estimation import ars, bansac, estimate_motion
+from stereovo.estimation.methods import ars, bansac
+from stereovo.estimation import estimate_motion
 from stereovo.simulation import SimulationConfig, simulate_frame
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))

@@ -32,11 +32,12 @@ import time
 import numpy as np
 
 from stereovo.estimation.loop import run_ransac
-from stereovo.estimation.methods import EstimatorOptions, method_spec
+from stereovo.estimation.estimator_options import EstimatorOptions
+from stereovo.estimation.registry import method_spec
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.solvers import minimal_hypotheses
-from stereovo.estimation.termination import AdaptiveTermination
-from stereovo.estimation.verification import FullVerification, ScoringContext
+from stereovo.estimation.roles.solvers import minimal_hypotheses
+from stereovo.estimation.roles.termination import AdaptiveTermination
+from stereovo.estimation.roles.verification import FullVerification, ScoringContext
 from stereovo.geometry import rotation_error
 from stereovo.simulation import SimulationConfig, simulate_frame
 

@@ -15,8 +15,8 @@ import time
 
 import numpy as np
 
-from stereovo.estimation.bansac import WeightedDraw
-from stereovo.estimation.samplers import WeightedSampler
+from stereovo.estimation.methods.bansac import WeightedDraw
+from stereovo.estimation.roles.samplers import WeightedSampler
 
 
 def fastest(fn, loops: int, repeats: int) -> float:

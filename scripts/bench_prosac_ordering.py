@@ -23,10 +23,11 @@ import argparse
 import numpy as np
 
 from stereovo.estimation.loop import run_ransac
-from stereovo.estimation.methods import EstimatorOptions, method_spec
+from stereovo.estimation.estimator_options import EstimatorOptions
+from stereovo.estimation.registry import method_spec
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.prosac import ProsacTermination, prefix_draws
-from stereovo.estimation.samplers import ProsacSampler
+from stereovo.estimation.methods.prosac import ProsacTermination, prefix_draws
+from stereovo.estimation.roles.samplers import ProsacSampler
 from stereovo.geometry import rotation_error
 from stereovo.simulation import SimulationConfig, simulate_frame
 

@@ -13,7 +13,7 @@ copy against a fast subset of the suite (``MODULES``), in order of importance, e
 ``--minutes``; mutmut runs the tests of a mutant fastest first and stops at the first failure.
 
 Not mutated: the numba kernels (the package ``stereovo/estimation/kernels/`` and
-``stereovo/estimation/kernels_verification.py``, never in ``MODULES``; and any ``@njit`` function:
+``stereovo/estimation/kernels/verification.py``, never in ``MODULES``; and any ``@njit`` function:
 mutmut leaves decorated functions alone, so also properties and ``lru_cache``d helpers).
 
 Compiled kernels are reused, not recompiled: numba caches its machine code beside each source
@@ -85,24 +85,24 @@ _NGRANSAC_TESTS = tuple(f"tests/test_agents_ngransac.py::{name}" for name in (
     "test_smoothness_loss_prefers_the_motion_that_continues_the_previous_one"))
 MODULES: tuple[Module, ...] = (
     Module("rewards", "vo_gym/rewards.py", ("tests/test_rewards.py",)),
-    Module("termination", "stereovo/estimation/termination.py",
+    Module("termination", "stereovo/estimation/roles/termination.py",
            ("tests/test_stopping_bounds.py", "tests/test_prior_aware_stop.py::test_prosac_schedule_stop_is_the_product_over_its_draws",
             "tests/test_prior_aware_stop.py::test_guided_termination_follows_the_samplers_q")),
-    Module("prosac", "stereovo/estimation/prosac.py", ("tests/test_stopping_bounds.py", "tests/test_mutation_survivors.py")),
-    Module("mlesac", "stereovo/estimation/mlesac.py",
+    Module("prosac", "stereovo/estimation/methods/prosac.py", ("tests/test_stopping_bounds.py", "tests/test_mutation_survivors.py")),
+    Module("mlesac", "stereovo/estimation/methods/mlesac.py",
            ("tests/test_mlesac_densities.py", "tests/test_classical_mlesac.py", "tests/test_mutation_mlesac.py")),
     Module("env", "vo_gym/env.py", ("tests/test_env_honesty.py", "tests/test_rewards.py", *_ENV_TESTS)),
-    Module("sprt", "stereovo/estimation/sprt.py",
+    Module("sprt", "stereovo/estimation/methods/sprt.py",
            ("tests/test_stopping_bounds.py", "tests/test_mutation_survivors.py", "tests/test_classical_verification.py",
             "tests/test_prior_aware_stop.py::test_prosac_schedule_stop_is_the_product_over_its_draws")),
-    Module("tdd", "stereovo/estimation/tdd.py",
+    Module("tdd", "stereovo/estimation/methods/tdd.py",
            ("tests/test_stopping_bounds.py", "tests/test_classical_verification.py", "tests/test_mutation_tdd.py",
             "tests/test_prior_aware_stop.py::test_prosac_schedule_stop_is_the_product_over_its_draws")),
-    Module("samplers", "stereovo/estimation/samplers.py",
+    Module("samplers", "stereovo/estimation/roles/samplers.py",
            ("tests/test_stopping_bounds.py", "tests/test_mutation_survivors.py", "tests/test_mutation_samplers.py",
             "tests/test_classical_prosac.py", "tests/test_estimation_core.py",
             "tests/test_prior_aware_stop.py::test_prosac_schedule_stop_is_the_product_over_its_draws")),
-    Module("scoring", "stereovo/estimation/scoring.py",
+    Module("scoring", "stereovo/estimation/roles/scoring.py",
            ("tests/test_estimation_core.py", "tests/test_classical_verification.py", "tests/test_mutation_scoring.py")),
     Module("features", "vo_gym/features.py",
            ("tests/test_features.py", "tests/test_env_honesty.py", "tests/test_mutation_features.py")),
@@ -122,15 +122,15 @@ STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests"
 # Survivors that cannot change behaviour, with the reason. Keyed by mutmut's mutant name; the report
 # shows each one's diff, so a reviewer can check the reason against the code (names shift when a
 # function's code changes: rerun and recheck).
-_T = "stereovo.estimation.termination."
-_D = "stereovo.estimation.tdd."
-_P = "stereovo.estimation.prosac."
+_T = "stereovo.estimation.roles.termination."
+_D = "stereovo.estimation.methods.tdd."
+_P = "stereovo.estimation.methods.prosac."
 _INT = ("integer counts stay integers until a float operation (the binomial, the products with beta, the "
         "division) makes the result float64 all the same.")
 _AXIS = "drops axis=1: the default axis -1 is axis 1 of these 2-D arrays."
-_S = "stereovo.estimation.sprt."
-_SA = "stereovo.estimation.samplers."
-_SC = "stereovo.estimation.scoring."
+_S = "stereovo.estimation.methods.sprt."
+_SA = "stereovo.estimation.roles.samplers."
+_SC = "stereovo.estimation.roles.scoring."
 _F = "vo_gym.features."
 _G = "stereovo.geometry."
 _CACHE = ("a different eviction of the per-count alpha cache (>= 16, > 17, [:16], [:-17]): evicted entries are "
@@ -197,10 +197,10 @@ EQUIVALENT: dict[str, str] = {
     _P + "x_prefix_draws__mutmut_10": "asarray(n) without dtype: " + _INT,
     _P + "x_prefix_draws__mutmut_47":
         "min(q, 2.0) instead of min(q, 1.0): q <= 1 whenever the support I_n <= n, which a prefix's support is.",
-    "stereovo.estimation.mlesac.xǁGuidedMlesacQualityǁfor_problem__mutmut_9":
+    "stereovo.estimation.methods.mlesac.xǁGuidedMlesacQualityǁfor_problem__mutmut_9":
         "asarray(gamma, dtype=None): np.clip with the float bounds returns float64 for integer or bool priors too.",
-    "stereovo.estimation.mlesac.xǁGuidedMlesacQualityǁfor_problem__mutmut_11": "the same without the dtype argument.",
-    "stereovo.estimation.mlesac.xǁGuidedMlesacQualityǁscore__mutmut_19":
+    "stereovo.estimation.methods.mlesac.xǁGuidedMlesacQualityǁfor_problem__mutmut_11": "the same without the dtype argument.",
+    "stereovo.estimation.methods.mlesac.xǁGuidedMlesacQualityǁscore__mutmut_19":
         "sum over axis=+1 instead of -1: the same axis of the (H, N) squared distances score is documented to take.",
     _P + "x_prefix_draws__mutmut_18":
         "clip(I - j, None, None): for an integer support I < 3 the product has the factor I - I = 0 anyway.",
@@ -214,12 +214,12 @@ EQUIVALENT: dict[str, str] = {
         "clip(stop_at, None, max): stop_at = t + max(ceil(min(k_stop, max)) - drawn within U_n*, 0) is t >= 1 "
         "after a draw, and ceil(k_stop) >= 1 before one (k_stop > 0: prefix_draws or max_iterations), so >= 1 "
         "already.",
-    "stereovo.estimation.mlesac.x_mixture_log_likelihood__mutmut_9":
+    "stereovo.estimation.methods.mlesac.x_mixture_log_likelihood__mutmut_9":
         "asarray(gamma, dtype=None): np.clip with the float bounds makes it float64 anyway.",
-    "stereovo.estimation.mlesac.x_mixture_log_likelihood__mutmut_11": "the same without the dtype argument.",
-    "stereovo.estimation.mlesac.x_mixture_log_likelihood__mutmut_27":
+    "stereovo.estimation.methods.mlesac.x_mixture_log_likelihood__mutmut_11": "the same without the dtype argument.",
+    "stereovo.estimation.methods.mlesac.x_mixture_log_likelihood__mutmut_27":
         "sum over axis=+1 instead of -1: the same axis of the (H, N) densities.",
-    "stereovo.estimation.mlesac.x_mlesac_em__mutmut_65":
+    "stereovo.estimation.methods.mlesac.x_mlesac_em__mutmut_65":
         "change <= tolerance instead of <: differs only when the largest change equals the tolerance exactly.",
     _T + "xǁAdaptiveTerminationǁrequired__mutmut_17":
         "> instead of >= against max_iterations: at draws == max_iterations both give max_iterations.",
@@ -431,10 +431,10 @@ EQUIVALENT: dict[str, str] = {
     "agents.ngransac.xǁNGRansacTrainerǁ_frame_loss__mutmut_114":
         "max(N, 3) instead of max(N, 2) in the entropy's log N: differs only at N = 2, where no triplet can be drawn "
         "(WeightedSampler needs three positive weights).",
-    "stereovo.estimation.mlesac.x_outlier_log_density__mutmut_28":
+    "stereovo.estimation.methods.mlesac.x_outlier_log_density__mutmut_28":
         "no upper depth clip: never reached, a usable row's disparity d exceeds min_disparity, so its depth "
         "fB / d < fB / min_disparity (division rounds monotonically), and an unusable row's NaN stays NaN.",
-    "stereovo.estimation.mlesac.x_mlesac_em__mutmut_16":
+    "stereovo.estimation.methods.mlesac.x_mlesac_em__mutmut_16":
         "the start's (gamma, L) computed when no history is asked as well: one more evaluation of a pure function, "
         "never appended to or returned.",
     "vo_gym.env.xǁStereoVOEnvǁ_trajectory_summary__mutmut_13":
@@ -468,13 +468,13 @@ EQUIVALENT: dict[str, str] = {
         "n_correspondences >= 3.",
     "agents.ngransac.x_smooth_inlier_loss__mutmut_17":
         "degrees * SMOOTHNESS_SCALE_DEG instead of /: the scale is 1.0 degree, multiplying and dividing by 1 agree.",
-    "stereovo.estimation.mlesac.x_inlier_log_normaliser__mutmut_10":
+    "stereovo.estimation.methods.mlesac.x_inlier_log_normaliser__mutmut_10":
         "sign < 0 instead of <= 0: a zero sign comes with logdet = -inf, which ~isfinite(logdet) flags.",
-    "stereovo.estimation.mlesac.x_inlier_log_normaliser__mutmut_9":
+    "stereovo.estimation.methods.mlesac.x_inlier_log_normaliser__mutmut_9":
         "((sign <= 0) & ~isfinite) | ~cond: S is symmetric, so sign <= 0 means an eigenvalue <= 0, which the "
         "condition test eig_min > 1e-12 eig_max flags anyway (also when all are negative); a non-finite logdet with "
         "a positive sign comes only from non-finite entries, whose NaN eigenvalues fail the condition test too.",
-    "stereovo.estimation.mlesac.x_inlier_log_normaliser__mutmut_16":
+    "stereovo.estimation.methods.mlesac.x_inlier_log_normaliser__mutmut_16":
         ">= instead of >: differs only when eig_min = 1e-12 eig_max exactly, where the floor is eig_min itself: the "
         "same log-determinant up to slogdet's rounding.",
     _G + "x_compose__mutmut_9": "einsum labels in capitals (\"...IJ,...J->...I\"): the same contraction.",
@@ -540,7 +540,7 @@ NOTED: dict[str, str] = {
 
 # Survivors of the recorded run that a test added after it now targets (rerun to confirm).
 ADDRESSED: dict[str, str] = {
-    "stereovo.estimation.prosac.xǁProsacTerminationǁrequired__mutmut_4":
+    "stereovo.estimation.methods.prosac.xǁProsacTerminationǁrequired__mutmut_4":
         "test_mutation_survivors.py::test_prosac_stop_past_the_cap_is_the_cap (test_stopping_bounds' capped case no "
         "longer reaches it: on_new_best caps k_stop, so only draws outside U_n* push the stop past the cap)",
     **{f"vo_gym.env.xǁStereoVOEnvǁstep__mutmut_{i}":
@@ -633,7 +633,7 @@ ADDRESSED: dict[str, str] = {
        for i in (35, 50, 59)},
     **{_G + f"x_{name}__mutmut_{i}": "test_mutation_geometry.py::test_batched_transforms_and_twists"
        for name, i in (("se3_log", 15), ("se3_log", 17), ("make_transform", 10))},
-    **{f"stereovo.estimation.mlesac.x_inlier_log_normaliser__mutmut_{i}":
+    **{f"stereovo.estimation.methods.mlesac.x_inlier_log_normaliser__mutmut_{i}":
        "test_mutation_mlesac.py::test_inlier_normaliser_keeps_slogdet_and_floors_only_ill_conditioned_rows"
        for i in (8, 11, 12, 14, 15, 17)},
     **{f"vo_gym.env.xǁStereoVOEnvǁ__init____mutmut_{i}":

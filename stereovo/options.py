@@ -14,6 +14,8 @@ refused, with the same message, wherever it enters:
   numbers are refused.
 - :class:`Choice`: one of a fixed set of strings; the message lists them.
 
+Arrays have one contract too: :func:`real_array` (a real numeric array of a given shape).
+
 Each declaration may allow ``None``. :meth:`Option.check` returns the value normalised to a
 plain Python ``int``/``float``/``bool``/``str`` (never changing it numerically), or raises
 :class:`OptionError` (a ``ValueError``) of the form
@@ -29,7 +31,10 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
-__all__ = ["OptionError", "Option", "Integer", "Boolean", "Number", "Choice", "check_options", "is_integer", "is_real"]
+__all__ = [
+    "OptionError", "Option", "Integer", "Boolean", "Number", "Choice", "check_options", "is_integer", "is_real",
+    "real_array",
+]
 
 
 class OptionError(ValueError):
@@ -56,10 +61,14 @@ class Option:
 
     Attributes:
         allow_none: ``None`` is a valid value (meaning "not set"; the owner's docstring says what it means).
+        default: the value an owner that fills in missing options uses (a method's options: the
+            registry hands the recipe this value when the caller gives none); None where the owner
+            keeps its defaults itself (a dataclass field's default).
         prefix: text before the option's name in messages (e.g. ``"SimulationConfig."``; default ``"option "``).
     """
 
     allow_none: bool = False
+    default: Any = None
 
     @property
     def rule(self) -> str:  # pragma: no cover - overridden
@@ -179,3 +188,37 @@ def check_options(declarations: Mapping[str, Option], values: Mapping[str, Any],
     """
     names = values.keys() if only is None else only
     return {name: declarations[name].check(name, values[name], prefix) for name in names}
+
+
+def real_array(name: str, value: Any, shape: tuple[int | str, ...], entries: str = "numbers", per: str = "",
+               what: str | None = None, prefix: str = "") -> np.ndarray:
+    """``value`` as a float64 array of ``shape``, or a ``ValueError`` naming ``name`` and the value.
+
+    The one check of "a real numeric array of shape X": complex values are refused (a cast would
+    drop the imaginary part with only a warning), and so are values numpy cannot read as numbers
+    and arrays of another shape. NaN and inf pass (the callers say what they mean). The input
+    itself is returned when it already is a float64 array (no copy).
+
+    Args:
+        name: the argument's name, for the messages (after ``prefix``, e.g. ``"StereoVOEnv: "``).
+        shape: the expected shape; an axis given as a string (``"N"``) takes any length.
+        entries: what the values are, for the messages (``"weights"``, ``"(uL, vL, uR, vR) pixels"``).
+        per: what one entry stands for, for the shape message (``"one weight per correspondence"``).
+        what: the whole array in words, for a value that is no array of numbers (default: ``"a
+            numeric array of shape (...) of {entries}"``).
+
+    Raises:
+        ValueError: ``{name} must be real {entries}, got complex dtype ...``, ``{name} must be
+            {what}, got TYPE`` or ``{name} must have shape (...), {per}, got (...)``.
+    """
+    wanted = "(" + ", ".join(map(str, shape)) + ("," if len(shape) == 1 else "") + ")"
+    if np.iscomplexobj(value):
+        raise ValueError(f"{prefix}{name} must be real {entries}, got complex dtype {np.asarray(value).dtype}")
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        what = what or f"a numeric array of shape {wanted} of {entries}"
+        raise ValueError(f"{prefix}{name} must be {what}, got {type(value).__name__}") from None
+    if array.ndim != len(shape) or any(isinstance(k, int) and k != m for k, m in zip(shape, array.shape)):
+        raise ValueError(f"{prefix}{name} must have shape {wanted}{', ' + per if per else ''}, got {array.shape}")
+    return array

@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 
-from stereovo.estimation.ars import CANDIDATES, baysac_failure_update
-from stereovo.estimation.bansac import (
+from stereovo.estimation.methods.ars import CANDIDATES, baysac_failure_update
+from stereovo.estimation.methods.bansac import (
     BANSAC_THRESHOLD,
     WEIGHT_FLOOR,
     WEIGHT_LEVELS,
@@ -23,7 +23,8 @@ from stereovo.estimation.bansac import (
     prior_beliefs,
     sequential_all_inlier_probability,
 )
-from stereovo.estimation.samplers import SAMPLE_SIZE, WeightedSampler
+from stereovo.estimation.roles.solvers import SAMPLE_SIZE
+from stereovo.estimation.roles.samplers import WeightedSampler
 
 _TRIPLES = np.array([(a, b, c) for a in range(CANDIDATES) for b in range(a + 1, CANDIDATES)
                      for c in range(b + 1, CANDIDATES)], dtype=np.int64)

@@ -7,7 +7,7 @@ import torch
 from agents.checkpoint import LearnedPolicy, load_checkpoint, save_checkpoint
 from agents.network import CorrespondenceNet
 from agents.ngransac import NGRansacConfig, NGRansacTrainer, ordered_triplet_log_prob
-from stereovo.estimation.samplers import WeightedSampler
+from stereovo.estimation.roles.samplers import WeightedSampler
 from vo_gym.features import N_FEATURES
 
 

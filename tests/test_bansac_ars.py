@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from stereovo.estimation import EstimatorOptions, StereoProblem, estimate_motion, method_spec
-from stereovo.estimation.ars import ArsSampler, baysac_failure_update
-from stereovo.estimation.bansac import (
+from stereovo.estimation.methods.ars import ArsSampler, baysac_failure_update
+from stereovo.estimation.methods.bansac import (
     BansacSampler,
     BansacTermination,
     VerdictBeliefSampler,
@@ -18,7 +18,7 @@ from stereovo.estimation.bansac import (
     verdict_likelihood_update,
 )
 from stereovo.estimation.loop import RansacSearch, run_ransac
-from stereovo.estimation.termination import AdaptiveTermination
+from stereovo.estimation.roles.termination import AdaptiveTermination
 from stereovo.metrics import frame_metrics
 from stereovo.simulation import SimulationConfig, simulate_frame
 

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 from reference_belief_samplers import ReferenceArsSampler, ReferenceBansacSampler
 
-from stereovo.estimation import ars, bansac, estimate_motion
-from stereovo.estimation.ars import ArsSampler, baysac_failure_update
-from stereovo.estimation.bansac import BansacSampler, log_odds_update
+from stereovo.estimation.methods import ars, bansac
+from stereovo.estimation import estimate_motion
+from stereovo.estimation.methods.ars import ArsSampler, baysac_failure_update
+from stereovo.estimation.methods.bansac import BansacSampler, log_odds_update
 from stereovo.estimation.kernels import beliefs as belief_kernels
 from stereovo.estimation.loop import LoopState
 from stereovo.simulation import SimulationConfig, simulate_frame

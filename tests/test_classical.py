@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from stereovo import available_methods, estimate_motion
-from stereovo.estimation.methods import method_spec
+from stereovo.estimation.registry import method_spec
 from stereovo.geometry import rotation_error
 from stereovo.simulation import SimulationConfig, simulate_frame
 

@@ -7,9 +7,14 @@ import itertools
 import numpy as np
 
 from stereovo import estimate_motion
-from stereovo.estimation.clique import consistency_matrix, exact_clique, greedy_clique, maximum_consistent_set
+from stereovo.estimation.methods.clique import (
+    consistency_matrix,
+    exact_clique,
+    greedy_clique,
+    maximum_consistent_set,
+)
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.solvers import SAMPLE_SIZE
+from stereovo.estimation.roles.solvers import SAMPLE_SIZE
 from stereovo.geometry import rotation_error
 from stereovo.simulation import OutlierKind, SimulationConfig, simulate_frame
 
@@ -120,8 +125,8 @@ def test_the_fit_on_the_clique_succeeds_at_heavy_contamination():
 def test_robust_clique_fit_ignores_far_outliers_inside_the_set():
     # A "clique" of the true inliers plus five far outliers, each a few metres off: the least-squares
     # fit on all of it is pulled away, the robust fit (RANSAC inside, then reprojection) is not.
-    from stereovo.estimation.clique import robust_clique_fit
-    from stereovo.estimation.solvers import fit_rigid
+    from stereovo.estimation.methods.clique import robust_clique_fit
+    from stereovo.estimation.roles.solvers import fit_rigid
 
     frame = simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.5, outlier_mix=(1, 0, 0)), 36)
     camera = frame.camera

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from stereovo import estimate_motion
-from stereovo.estimation.lo import InnerRansacLO
+from stereovo.estimation.methods.lo import InnerRansacLO
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.samplers import UniformSampler
-from stereovo.estimation.scoring import ReprojectionResidual, TruncatedQuadratic
-from stereovo.estimation.solvers import minimal_hypotheses
-from stereovo.estimation.verification import ScoringContext
+from stereovo.estimation.roles.samplers import UniformSampler
+from stereovo.estimation.roles.scoring import ReprojectionResidual, TruncatedQuadratic
+from stereovo.estimation.roles.solvers import minimal_hypotheses
+from stereovo.estimation.roles.verification import ScoringContext
 from stereovo.simulation import SimulationConfig, simulate_frame
 
 

@@ -5,15 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stereovo.estimation.methods import EstimatorOptions, method_spec
-from stereovo.estimation.mlesac import (
+from stereovo.estimation.estimator_options import EstimatorOptions
+from stereovo.estimation.registry import method_spec
+from stereovo.estimation.methods.mlesac import (
     GuidedMlesacQuality,
     MlesacQuality,
     mixture_log_likelihood,
     mlesac_em,
 )
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.scoring import MahalanobisResidual
+from stereovo.estimation.roles.scoring import MahalanobisResidual
 from stereovo.geometry import so3_exp
 from stereovo.simulation import SimulationConfig, simulate_frame
 

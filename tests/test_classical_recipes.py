@@ -6,18 +6,13 @@ import numpy as np
 import pytest
 
 from stereovo import available_methods, estimate_motion
-from stereovo.estimation.classical import ENHANCED_VARIANTS
-from stereovo.estimation.methods import (
-    ENHANCEMENTS,
-    PROBABILISTIC_RECIPE,
-    EstimatorOptions,
-    enhancements_used,
-    method_spec,
-    register_variant,
-)
+from stereovo.estimation.recipes import ENHANCED_VARIANTS
+from stereovo.estimation.estimator_options import ENHANCEMENTS, EstimatorOptions, enhancements_used
+from stereovo.estimation.recipes import PROBABILISTIC_RECIPE
+from stereovo.estimation.registry import method_spec, register_variant
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.refinement import ReprojectionRefiner
-from stereovo.estimation.sample_check import RigidityCheck
+from stereovo.estimation.roles.refinement import ReprojectionRefiner
+from stereovo.estimation.roles.sample_check import RigidityCheck
 from stereovo.simulation import SimulationConfig, simulate_frame
 
 
@@ -29,7 +24,7 @@ def frame():
 def components(method, frame, **options):
     """The recipe ``estimate_motion`` would run: options through the method's defaults."""
     spec = method_spec(method)
-    from stereovo.estimation.methods import validate_options
+    from stereovo.estimation.registry import validate_options
 
     shared, extra = validate_options(method, {**options, "noise_sigma": frame.noise_sigma})
     problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)

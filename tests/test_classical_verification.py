@@ -9,19 +9,23 @@ import pytest
 from scipy.stats import binom
 
 from stereovo import estimate_motion
-from stereovo.estimation.preemptive import PreemptiveVerification, preemption_function, preemptive_evaluations
+from stereovo.estimation.methods.preemptive import (
+    PreemptiveVerification,
+    preemption_function,
+    preemptive_evaluations,
+)
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.scoring import InlierCount, ReprojectionResidual, TruncatedQuadratic
-from stereovo.estimation.sprt import (
+from stereovo.estimation.roles.scoring import InlierCount, ReprojectionResidual, TruncatedQuadratic
+from stereovo.estimation.methods.sprt import (
     SprtTermination,
     SprtTest,
     SprtVerification,
     good_model_exponent,
     sprt_design,
 )
-from stereovo.estimation.tdd import TddVerification, random_points_excluding
-from stereovo.estimation.termination import all_inlier_probability
-from stereovo.estimation.verification import ScoringContext
+from stereovo.estimation.methods.tdd import TddVerification, random_points_excluding
+from stereovo.estimation.roles.termination import all_inlier_probability
+from stereovo.estimation.roles.verification import ScoringContext
 from stereovo.geometry import random_rotation, rotation_error
 from stereovo.simulation import SimulationConfig, simulate_frame
 
@@ -290,7 +294,7 @@ def numpy_route(ctx):
 
 
 def test_compiled_sprt_decides_exactly_like_the_vectorised_test():
-    import stereovo.estimation.sprt as sprt_module
+    import stereovo.estimation.methods.sprt as sprt_module
 
     frame, problem, ctx = setup()
     rng = np.random.default_rng(3)
@@ -313,7 +317,7 @@ def test_compiled_sprt_decides_exactly_like_the_vectorised_test():
 
 
 def test_compiled_tdd_pretest_points_are_uniform_and_exclude_the_sample():
-    from stereovo.estimation.kernels_verification import tdd_pretest
+    from stereovo.estimation.kernels.verification import tdd_pretest
 
     frame, problem, ctx = setup()
     H, d = 4000, 3
@@ -352,7 +356,7 @@ def test_compiled_tdd_pretest_points_are_uniform_and_exclude_the_sample():
 def test_tdd_measured_pass_probability_matches_that_of_true_all_inlier_fits():
     """The verifier's alpha (mean pass probability of the hypotheses whose samples lie in the best
     model's inliers) against the pass rate of minimal fits on truly all-inlier samples."""
-    from stereovo.estimation.solvers import minimal_hypotheses
+    from stereovo.estimation.roles.solvers import minimal_hypotheses
 
     frame = simulate_frame(SimulationConfig(n_correspondences=500, outlier_ratio=0.5), 21)
     problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
@@ -461,7 +465,7 @@ def test_r_ransac_at_eps_08_is_not_capped_and_switches_off_a_pretest_that_cannot
 def test_tdd_pretest_stays_on_where_it_pays():
     """Low noise and a generous gate (every inlier passes, alpha ~ w = 0.5), N = 2000, a cheap fit
     (t_M = 20 point checks): d + P(pass) N + t_M (1 - alpha) < alpha N, so the pre-test stays on."""
-    from stereovo.estimation.solvers import minimal_hypotheses
+    from stereovo.estimation.roles.solvers import minimal_hypotheses
 
     frame = simulate_frame(SimulationConfig(n_correspondences=2000, outlier_ratio=0.5, noise_sigma=0.05), 3)
     problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)

@@ -15,7 +15,7 @@ from scipy.stats import chi2
 
 from stereovo.camera import StereoCamera
 from stereovo.estimation import StereoProblem
-from stereovo.estimation.scoring import MahalanobisResidual, PixelMahalanobisResidual
+from stereovo.estimation.roles.scoring import MahalanobisResidual, PixelMahalanobisResidual
 from stereovo.simulation import SimulationConfig, simulate_frame
 
 PROBABILITIES = (0.9, 0.95, 0.99)

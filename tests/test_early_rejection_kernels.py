@@ -9,10 +9,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from stereovo.estimation.kernels import forward_reprojection_sq
-from stereovo.estimation.kernels_verification import sprt_verify
+from stereovo.estimation.kernels.residuals import forward_reprojection_sq
+from stereovo.estimation.kernels.verification import sprt_verify
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.sprt import SprtTermination, SprtTest
+from stereovo.estimation.methods.sprt import SprtTermination, SprtTest
 from stereovo.geometry import random_rotation
 from stereovo.simulation import SimulationConfig, simulate_frame
 

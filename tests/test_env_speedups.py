@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from stereovo.estimation.bansac import WeightedDraw
+from stereovo.estimation.methods.bansac import WeightedDraw
 from stereovo.estimation.loop import LoopState
-from stereovo.estimation.samplers import WeightedSampler
-from stereovo.estimation.rigidity import distance_change_sq, rigid_distance_consistent
+from stereovo.estimation.roles.samplers import WeightedSampler
+from stereovo.estimation.kernels.rigidity import distance_change_sq, rigid_distance_consistent
 from vo_gym.adaptive_env import AgentPriorSampler
 from vo_gym.features import MAX_ANCHORS, rigid_consistency_degree
 

@@ -9,15 +9,15 @@ from hypothesis import strategies as st
 
 from stereovo import StereoCamera, available_methods, estimate_motion
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.samplers import (
+from stereovo.estimation.roles.samplers import (
     ProsacSampler,
     WeightedSampler,
     distinct_uniform_triplets,
     prosac_growth,
 )
-from stereovo.estimation.scoring import MahalanobisResidual, PixelMahalanobisResidual
-from stereovo.estimation.solvers import degenerate_triplets, kabsch_batch
-from stereovo.estimation.termination import required_iterations
+from stereovo.estimation.roles.scoring import MahalanobisResidual, PixelMahalanobisResidual
+from stereovo.estimation.roles.solvers import degenerate_triplets, kabsch_batch
+from stereovo.estimation.roles.termination import required_iterations
 from stereovo.geometry import random_rotation, rotation_error, se3_exp
 
 CAMERA = StereoCamera()
@@ -124,8 +124,8 @@ def test_degenerate_triplets_detected():
 
 
 def test_minimal_hypotheses_compose_degeneracy_fit_and_polish():
-    from stereovo.estimation.reprojection import gauss_newton_steps
-    from stereovo.estimation.solvers import minimal_hypotheses
+    from stereovo.estimation.roles.reprojection import gauss_newton_steps
+    from stereovo.estimation.roles.solvers import minimal_hypotheses
 
     rng = np.random.default_rng(6)
     prev, curr = noise_free_pair(rng, random_rotation(rng, 0.05), np.array([0.2, 0.0, -1.0]), 40)
@@ -200,8 +200,8 @@ def test_required_iterations_without_replacement():
 
 
 def test_reprojection_residual_matches_projection_and_is_inf_behind_the_camera():
-    from stereovo.estimation.kernels import MIN_DEPTH
-    from stereovo.estimation.reprojection import reprojection_sq
+    from stereovo.estimation.kernels.base import MIN_DEPTH
+    from stereovo.estimation.roles.reprojection import reprojection_sq
 
     rng = np.random.default_rng(4)
     X = np.column_stack([rng.uniform(-8, 8, 300), rng.uniform(-2, 2, 300), rng.uniform(2, 60, 300)])
@@ -464,7 +464,8 @@ def test_small_first_batch_and_refit_skipped_only_in_the_batch_that_ends_the_sea
 
 def test_adaptive_batches_double_from_the_first_up_to_batch_size():
     from stereovo.estimation.loop import run_ransac
-    from stereovo.estimation.methods import EstimatorOptions, method_spec
+    from stereovo.estimation.estimator_options import EstimatorOptions
+    from stereovo.estimation.registry import method_spec
 
     class BatchRecorder:
         def __init__(self):
@@ -496,9 +497,9 @@ def test_adaptive_batches_double_from_the_first_up_to_batch_size():
 def test_new_best_inliers_come_from_the_batch_scores_exactly():
     """Scoring caps residuals at the gate; the inlier mask read from the capped batch residuals
     must equal the one from the hypothesis' own residuals."""
-    from stereovo.estimation.scoring import InlierCount, MahalanobisResidual
-    from stereovo.estimation.solvers import minimal_hypotheses
-    from stereovo.estimation.verification import ScoringContext
+    from stereovo.estimation.roles.scoring import InlierCount, MahalanobisResidual
+    from stereovo.estimation.roles.solvers import minimal_hypotheses
+    from stereovo.estimation.roles.verification import ScoringContext
     from stereovo.simulation import SimulationConfig, simulate_frame
 
     frame = simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.5), np.random.default_rng(3))
@@ -534,7 +535,7 @@ def _pairwise_rigidity_reference(problem, samples):
 def test_rigidity_check_keeps_inlier_triplets_and_drops_most_with_an_outlier():
     from scipy.stats import chi2
 
-    from stereovo.estimation.sample_check import RigidityCheck
+    from stereovo.estimation.roles.sample_check import RigidityCheck
     from stereovo.simulation import SimulationConfig, simulate_frame
 
     frame = simulate_frame(SimulationConfig(n_correspondences=400, outlier_ratio=0.6), np.random.default_rng(2))
@@ -591,7 +592,7 @@ def test_priors_and_order_reach_the_sampler():
 
 
 def test_symmetric_reprojection_jacobian_matches_finite_differences():
-    from stereovo.estimation.reprojection import residuals_and_jacobians
+    from stereovo.estimation.roles.reprojection import residuals_and_jacobians
 
     rng = np.random.default_rng(3)
     R_true, t_true = se3_exp(np.array([0.1, -0.05, 0.8, 0.02, -0.03, 0.01]))
@@ -620,7 +621,7 @@ def test_symmetric_reprojection_jacobian_matches_finite_differences():
 def test_gauss_newton_step_solves_the_normal_equations_of_the_jacobian_rows(huber):
     # The LM kernel sums J^T W J from each side's 3x3 terms rather than the 8 x 6 rows: one
     # plain Gauss-Newton step must equal the step computed here from the rows themselves.
-    from stereovo.estimation.reprojection import gauss_newton_steps, residuals_and_jacobians
+    from stereovo.estimation.roles.reprojection import gauss_newton_steps, residuals_and_jacobians
 
     rng = np.random.default_rng(8)
     R_true, t_true = se3_exp(np.array([0.3, -0.1, 1.2, 0.03, -0.02, 0.05]))
@@ -648,7 +649,7 @@ def test_gauss_newton_step_solves_the_normal_equations_of_the_jacobian_rows(hube
     np.testing.assert_allclose(t[0], dR_ref @ t0 + dt_ref, atol=1e-10)
 
 def test_gauss_newton_refinement_reaches_the_noise_free_motion():
-    from stereovo.estimation.reprojection import gauss_newton_steps
+    from stereovo.estimation.roles.reprojection import gauss_newton_steps
 
     rng = np.random.default_rng(4)
     R_true, t_true = se3_exp(np.array([-0.2, 0.05, 1.1, 0.01, 0.04, -0.02]))
@@ -687,7 +688,7 @@ def test_weighted_sampler_fix_up_path_draws_distinct_positive_indices():
 
 def test_compiled_weighted_draw_inverts_the_cut_cumulative_weights_like_searchsorted():
     """The compiled draw against the same inversion written with numpy's searchsorted."""
-    from stereovo.estimation.kernels import weighted_triplets
+    from stereovo.estimation.kernels.sampling import weighted_triplets
 
     rng = np.random.default_rng(2)
     for trial in range(60):
@@ -719,8 +720,8 @@ def test_compiled_weighted_draw_inverts_the_cut_cumulative_weights_like_searchso
 
 @pytest.mark.parametrize("gate", [None, "pixel"])
 def test_refinement_returns_the_residuals_that_selected_its_inliers(gate):
-    from stereovo.estimation.refinement import ReprojectionRefiner
-    from stereovo.estimation.scoring import PixelMahalanobisResidual, ReprojectionResidual
+    from stereovo.estimation.roles.refinement import ReprojectionRefiner
+    from stereovo.estimation.roles.scoring import PixelMahalanobisResidual, ReprojectionResidual
     from stereovo.simulation import SimulationConfig, simulate_frame
 
     frame = simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.4), np.random.default_rng(5))
@@ -752,9 +753,9 @@ def test_refinement_returns_the_residuals_that_selected_its_inliers(gate):
 
 
 def test_local_refit_scores_its_result_as_a_fresh_scoring_would():
-    from stereovo.estimation.local_optimization import ConsensusRefit
-    from stereovo.estimation.scoring import ReprojectionResidual, TruncatedQuadratic
-    from stereovo.estimation.verification import ScoringContext
+    from stereovo.estimation.roles.local_optimization import ConsensusRefit
+    from stereovo.estimation.roles.scoring import ReprojectionResidual, TruncatedQuadratic
+    from stereovo.estimation.roles.verification import ScoringContext
     from stereovo.simulation import SimulationConfig, simulate_frame
 
     frame = simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.4), np.random.default_rng(6))
@@ -772,8 +773,12 @@ def test_local_refit_scores_its_result_as_a_fresh_scoring_would():
 @pytest.mark.parametrize("gate_kind", ["reprojection", "mahalanobis", "pixel-gate", "huber"])
 def test_compiled_refinement_rounds_equal_the_python_loop(gate_kind):
     """The compiled loop must reproduce the Python loop bit for bit (poses, inliers, residuals)."""
-    from stereovo.estimation.refinement import ReprojectionRefiner
-    from stereovo.estimation.scoring import MahalanobisResidual, PixelMahalanobisResidual, ReprojectionResidual
+    from stereovo.estimation.roles.refinement import ReprojectionRefiner
+    from stereovo.estimation.roles.scoring import (
+        MahalanobisResidual,
+        PixelMahalanobisResidual,
+        ReprojectionResidual,
+    )
     from stereovo.simulation import SimulationConfig, simulate_frame
 
     model, threshold = (MahalanobisResidual(), 7.81) if gate_kind == "mahalanobis" else (ReprojectionResidual(), 9.0)

@@ -16,8 +16,8 @@ from stereovo.benchmark.runner import METHOD_INPUTS, score_inputs
 from stereovo.estimation import available_methods
 from stereovo.estimation.loop import final_report
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.refinement import ReprojectionRefiner
-from stereovo.estimation.scoring import InlierCount, ReprojectionResidual
+from stereovo.estimation.roles.refinement import ReprojectionRefiner
+from stereovo.estimation.roles.scoring import InlierCount, ReprojectionResidual
 from stereovo.geometry import so3_exp
 from stereovo.metrics import frame_metrics
 from stereovo.simulation import SimulationConfig, simulate_frame

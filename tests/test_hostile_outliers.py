@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from stereovo.camera import StereoCamera
-from stereovo.estimation.solvers import fit_rigid
+from stereovo.estimation.roles.solvers import fit_rigid
 from stereovo.geometry import so3_log
 from stereovo.simulation import OUTLIER_KINDS, OUTLIER_PRESETS, OutlierKind, SimulationConfig, simulate_frame
 from stereovo.simulation.hostile import student_t_scale

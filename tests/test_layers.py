@@ -193,3 +193,41 @@ def test_importing_the_simulator_and_environment_loads_no_torch_and_no_ray():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[]"
+
+
+# stereovo.estimation's floors, bottom to top (its package docstring draws the same map); a module
+# imports only from its own floor or below. Sub-packages are one floor each.
+ESTIMATION_FLOORS = (
+    ("stereovo.estimation.kernels",),
+    ("stereovo.estimation.problem",),
+    ("stereovo.estimation.roles", "stereovo.estimation.covariance"),
+    ("stereovo.estimation.estimator_options",),
+    ("stereovo.estimation.loop",),
+    ("stereovo.estimation.registry",),
+    ("stereovo.estimation.recipes",),
+    ("stereovo.estimation.methods",),
+    ("stereovo.estimation.api",),
+)
+
+
+def _estimation_floor(module: str) -> int | None:
+    """The floor of an estimation module; None outside it, and for the package itself (the top)."""
+    for floor, prefixes in enumerate(ESTIMATION_FLOORS):
+        if any(module == p or module.startswith(p + ".") for p in prefixes):
+            return floor
+    return len(ESTIMATION_FLOORS) if module == "stereovo.estimation" else None
+
+
+def test_every_estimation_module_has_a_floor():
+    assert [m for m in MODULES if m.startswith("stereovo.estimation") and _estimation_floor(m) is None] == []
+
+
+def test_estimation_floors_only_look_down():
+    upward = [
+        f"{module} (floor {_estimation_floor(module)}) imports {target} (floor {_estimation_floor(target)})"
+        for module, targets in _graph(module_level=False).items()
+        if _estimation_floor(module) is not None
+        for target in sorted(targets)
+        if _estimation_floor(target) is not None and _estimation_floor(target) > _estimation_floor(module)
+    ]
+    assert upward == []

@@ -1,4 +1,4 @@
-"""MLESAC's densities in absolute units, on a non-default camera, against the formulas of stereovo.estimation.mlesac.
+"""MLESAC's densities in absolute units, on a non-default camera, against the formulas of stereovo.estimation.methods.mlesac.
 
 Outliers are uniform in the stereo measurement box ``width x height x (largest disparity)`` px^3, carried
 to metres at the point by ``|det J| = Z^4 / (fx^2 fy b)``; inliers are Gaussian with covariance
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from stereovo.camera import StereoCamera
-from stereovo.estimation.mlesac import (
+from stereovo.estimation.methods.mlesac import (
     GuidedMlesacQuality,
     MlesacQuality,
     inlier_log_normaliser,

@@ -123,7 +123,7 @@ def _degree_fast(P, Q, spread, anchors):
 
 def _by_definition(frame, scores, motion, unusable):
     """Every column from the module doc's table, with the camera's own triangulation and reprojection."""
-    from stereovo.estimation.reprojection import reprojection_sq
+    from stereovo.estimation.roles.reprojection import reprojection_sq
 
     cam, sigma, n = frame.camera, frame.noise_sigma, len(scores)
     prev, curr = frame.prev.copy(), frame.curr.copy()

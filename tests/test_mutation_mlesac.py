@@ -1,5 +1,5 @@
 """MLESAC's inlier normaliser on covariances by hand, for the survivors of the mutmut run of
-``stereovo/estimation/mlesac.py`` (docs/mutation-testing.md): ``log((2 pi)^(-3/2) |S|^(-1/2))`` with
+``stereovo/estimation/methods/mlesac.py`` (docs/mutation-testing.md): ``log((2 pi)^(-3/2) |S|^(-1/2))`` with
 ``S = S_X + S_Y``, slogdet's value kept bit for bit on well-conditioned rows, and eigenvalues floored
 at ``COVARIANCE_FLOOR`` times the largest on numerically singular ones.
 """
@@ -11,7 +11,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from stereovo.estimation.mlesac import COVARIANCE_FLOOR, inlier_log_normaliser
+from stereovo.estimation.methods.mlesac import COVARIANCE_FLOOR, inlier_log_normaliser
 
 
 def test_inlier_normaliser_keeps_slogdet_and_floors_only_ill_conditioned_rows():

@@ -16,7 +16,7 @@ import torch
 import agents.ngransac as ngransac
 from agents.ngransac import LOSS_CAP, NGRansacConfig, NGRansacTrainer, inlier_loss, pose_loss, smooth_inlier_loss
 from stereovo.estimation import MotionEstimate, StereoProblem
-from stereovo.estimation.samplers import WeightedSampler
+from stereovo.estimation.roles.samplers import WeightedSampler
 from stereovo.simulation import simulate_frame
 from vo_gym.features import compute_features
 

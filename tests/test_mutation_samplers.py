@@ -1,4 +1,4 @@
-"""The samplers' contracts that the mutmut run of ``stereovo/estimation/samplers.py`` found untested
+"""The samplers' contracts that the mutmut run of ``stereovo/estimation/roles/samplers.py`` found untested
 (docs/mutation-testing.md): which triplet a given set of uniforms is, bit-for-bit normalisation,
 the equal-weights shortcut, the exact fix-up draw, PROSAC's schedule at its boundaries, and the
 replay sampler's bookkeeping.
@@ -19,7 +19,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from stereovo.estimation.samplers import (
+from stereovo.estimation.roles.samplers import (
     ProsacSampler,
     ReplaySampler,
     UniformSampler,

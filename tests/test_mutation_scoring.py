@@ -1,5 +1,5 @@
 """The qualities' and residual models' contracts that the mutmut run of
-``stereovo/estimation/scoring.py`` found untested (docs/mutation-testing.md).
+``stereovo/estimation/roles/scoring.py`` found untested (docs/mutation-testing.md).
 
 RANSAC counts the residuals strictly under the gate (Fischler & Bolles 1981), MSAC sums the
 truncated squares normalised by the gate (Torr & Zisserman, "MLESAC: a new robust estimator with
@@ -13,7 +13,12 @@ import numpy as np
 import pytest
 
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.scoring import InlierCount, MahalanobisResidual, PixelMahalanobisResidual, TruncatedQuadratic
+from stereovo.estimation.roles.scoring import (
+    InlierCount,
+    MahalanobisResidual,
+    PixelMahalanobisResidual,
+    TruncatedQuadratic,
+)
 from stereovo.simulation import SimulationConfig, simulate_frame
 
 

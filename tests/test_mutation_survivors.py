@@ -17,7 +17,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from stereovo.estimation.samplers import (
+from stereovo.estimation.roles.samplers import (
     ProsacSampler,
     ReplaySampler,
     UniformSampler,
@@ -26,7 +26,7 @@ from stereovo.estimation.samplers import (
     prosac_growth,
     validate_priors,
 )
-from stereovo.estimation.sprt import (
+from stereovo.estimation.methods.sprt import (
     SprtTermination,
     SprtTest,
     SprtVerification,
@@ -389,8 +389,8 @@ def test_good_model_exponent_beyond_the_bracket_is_its_end_not_an_error():
 
 def _sprt_frame(n=200, epsilon=0.5, seed=11):
     from stereovo.estimation.problem import StereoProblem
-    from stereovo.estimation.scoring import InlierCount, ReprojectionResidual
-    from stereovo.estimation.verification import ScoringContext
+    from stereovo.estimation.roles.scoring import InlierCount, ReprojectionResidual
+    from stereovo.estimation.roles.verification import ScoringContext
     from stereovo.simulation import SimulationConfig, simulate_frame
 
     frame = simulate_frame(SimulationConfig(n_correspondences=n, outlier_ratio=epsilon), seed)
@@ -456,7 +456,7 @@ def test_sprt_verifier_decides_counts_and_reestimates_delta_point_by_point(monke
     # test designed when it moves by more than 5 %. Then a batch of the true motion, all accepted: no new
     # evidence, no new test, N checks each. Both routes: the compiled pass and the numpy one (chunks of 16,
     # 32, ... points: most of these hypotheses are rejected after the first chunk).
-    import stereovo.estimation.sprt as sprt_module
+    import stereovo.estimation.methods.sprt as sprt_module
     from stereovo.geometry import random_rotation
 
     if route == "numpy":
@@ -563,7 +563,7 @@ def test_prosac_stop_past_the_cap_is_the_cap():
     # test_stopping_bounds' maximality case: N = 500, 100 draws of which T'_20 = 23 lie in U_20, a best of the top
     # 10: n* = 20, k_20 = 41.40 -> 42 draws from U_20, 19 more; the stop at draw 100 + 19 = 119. With a cap of 110
     # draws the stop is the cap, even though the draws still needed from U_20 (19) are within it.
-    from stereovo.estimation.prosac import ProsacTermination
+    from stereovo.estimation.methods.prosac import ProsacTermination
 
     sampler = ProsacSampler(np.arange(500), t_n=200_000)
     sampler.draw(100, np.random.default_rng(0))

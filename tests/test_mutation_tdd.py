@@ -1,4 +1,4 @@
-"""T(d,d)'s verifier and bound by hand, for the survivors of the mutmut run of ``stereovo/estimation/tdd.py``
+"""T(d,d)'s verifier and bound by hand, for the survivors of the mutmut run of ``stereovo/estimation/methods/tdd.py``
 (docs/mutation-testing.md): the numpy route (taken for residual models other than the reprojection one,
 whose compiled route test_classical_verification checks), point by point.
 """
@@ -11,11 +11,16 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-import stereovo.estimation.tdd as tdd_module
+import stereovo.estimation.methods.tdd as tdd_module
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.scoring import InlierCount, ReprojectionResidual
-from stereovo.estimation.tdd import TddTermination, TddVerification, pass_probability, random_points_excluding
-from stereovo.estimation.verification import ScoringContext
+from stereovo.estimation.roles.scoring import InlierCount, ReprojectionResidual
+from stereovo.estimation.methods.tdd import (
+    TddTermination,
+    TddVerification,
+    pass_probability,
+    random_points_excluding,
+)
+from stereovo.estimation.roles.verification import ScoringContext
 from stereovo.geometry import random_rotation
 from stereovo.simulation import SimulationConfig, simulate_frame
 

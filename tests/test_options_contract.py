@@ -13,7 +13,7 @@ import pytest
 
 import vo_gym  # noqa: F401
 from stereovo.estimation import EstimatorOptions, available_methods, estimate_motion, method_spec, validate_options
-from stereovo.estimation.methods import ESTIMATOR_OPTION_RULES
+from stereovo.estimation.estimator_options import ESTIMATOR_OPTION_RULES
 from stereovo.options import Boolean, Choice, Integer, Number, OptionError
 from stereovo.simulation import SimulationConfig, simulate_frame
 from vo_gym.env import StereoVOEnv
@@ -152,7 +152,7 @@ def test_make_keywords_follow_the_contract(name, value):
 
 def test_env_learns_validity_without_running_the_method(monkeypatch):
     """No probe frame: making an env with bad method options fails before any estimate is run."""
-    import stereovo.estimation.methods as methods
+    import stereovo.estimation.api as methods
 
     def boom(*args, **kwargs):
         raise AssertionError("the environment ran the estimator while being made")

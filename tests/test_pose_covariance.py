@@ -15,7 +15,7 @@ import pytest
 
 from stereovo import StereoCamera, estimate_motion
 from stereovo.estimation import StereoProblem
-from stereovo.estimation.refinement import motion_error_jacobian, pose_covariance
+from stereovo.estimation.covariance import motion_error_jacobian, pose_covariance
 from stereovo.geometry import random_rotation, se3_exp, so3_log
 from stereovo.simulation import SimulationConfig, simulate_frame
 

@@ -11,12 +11,18 @@ import pytest
 from scipy.stats import binom
 
 from stereovo import estimate_motion
-from stereovo.estimation.methods import EstimatorOptions, method_spec
+from stereovo.estimation.estimator_options import EstimatorOptions
+from stereovo.estimation.registry import method_spec
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.samplers import ProsacSampler, UniformSampler, WeightedSampler, normalised_weights
-from stereovo.estimation.sprt import SprtTermination, SprtVerification
-from stereovo.estimation.tdd import TddTermination, TddVerification
-from stereovo.estimation.termination import (
+from stereovo.estimation.roles.samplers import (
+    ProsacSampler,
+    UniformSampler,
+    WeightedSampler,
+    normalised_weights,
+)
+from stereovo.estimation.methods.sprt import SprtTermination, SprtVerification
+from stereovo.estimation.methods.tdd import TddTermination, TddVerification
+from stereovo.estimation.roles.termination import (
     AdaptiveTermination,
     all_inlier_probability,
     iterations_for,

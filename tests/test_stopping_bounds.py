@@ -14,11 +14,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from stereovo.estimation.prosac import ProsacTermination, non_random_minimum, prefix_draws
-from stereovo.estimation.samplers import ProsacSampler, prosac_growth
-from stereovo.estimation.sprt import SprtTermination, SprtTest, SprtVerification
-from stereovo.estimation.tdd import TddTermination, random_points_excluding
-from stereovo.estimation.termination import (
+from stereovo.estimation.methods.prosac import ProsacTermination, non_random_minimum, prefix_draws
+from stereovo.estimation.roles.samplers import ProsacSampler, prosac_growth
+from stereovo.estimation.methods.sprt import SprtTermination, SprtTest, SprtVerification
+from stereovo.estimation.methods.tdd import TddTermination, random_points_excluding
+from stereovo.estimation.roles.termination import (
     AdaptiveTermination,
     FixedBudget,
     all_inlier_probability,

@@ -20,7 +20,7 @@ from gymnasium import spaces
 from stereovo.camera import StereoCamera
 from stereovo.compilation import announce_compiling
 from stereovo.estimation import EstimatorOptions, StereoProblem, estimate_problem, method_spec, validate_options
-from stereovo.estimation.methods import ESTIMATOR_OPTION_RULES, MAX_COUNT
+from stereovo.estimation.estimator_options import ESTIMATOR_OPTION_RULES, MAX_COUNT
 from stereovo.geometry import PoseChain
 from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, frame_metrics, trajectory_metrics
 from stereovo.options import Choice, Integer, Number, Option, check_options
@@ -63,7 +63,7 @@ _ENV_RULES: dict[str, Option] = {
 }
 """The environment's own keywords' declarations (:mod:`stereovo.options`); the simulator's are
 :class:`~stereovo.simulation.SimulationConfig`'s and the estimator's
-:data:`~stereovo.estimation.methods.ESTIMATOR_OPTION_RULES` and the method's."""
+:data:`~stereovo.estimation.estimator_options.ESTIMATOR_OPTION_RULES` and the method's."""
 
 
 def _nan_to_none(value: Any) -> Any:

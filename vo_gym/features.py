@@ -65,10 +65,10 @@ import numpy as np
 from numba import njit
 
 from stereovo.camera import StereoCamera
-from stereovo.estimation.methods import ESTIMATOR_OPTION_RULES
+from stereovo.estimation.estimator_options import ESTIMATOR_OPTION_RULES
 from stereovo.estimation.problem import StereoProblem, as_measurements
-from stereovo.estimation.reprojection import reprojection_sq
-from stereovo.estimation.rigidity import distance_change_sq_jit, rigid_distance_consistent_jit
+from stereovo.estimation.roles.reprojection import reprojection_sq
+from stereovo.estimation.kernels.rigidity import distance_change_sq_jit, rigid_distance_consistent_jit
 
 __all__ = [
     "FEATURE_NAMES",
@@ -196,7 +196,7 @@ def rigid_consistency_degree(
 
 @njit(cache=True, nogil=True)
 def _consistent_pairs(points_prev, points_curr, s2, anchors, gate_sq):
-    """``(N,)`` counts of anchors j that pass the rigid-distance test (:mod:`stereovo.estimation.rigidity`)
+    """``(N,)`` counts of anchors j that pass the rigid-distance test (:mod:`stereovo.estimation.kernels.rigidity`)
     with ``var = s2_i + s2_j``: ``(|Q_i - Q_j| - |P_i - P_j|)^2 < gate_sq (s2_i + s2_j)``.
 
     One pass over the N x A pairs; the anchors' coordinates are gathered first so the

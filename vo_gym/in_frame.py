@@ -20,10 +20,10 @@ import numpy as np
 
 from stereovo.estimation import EstimatorOptions, StereoProblem
 from stereovo.estimation.loop import LoopState, RansacSearch
-from stereovo.estimation.methods import MotionEstimate
+from stereovo.estimation.api import MotionEstimate
 from stereovo.estimation.registry import MethodSpec
-from stereovo.estimation.bansac import WeightedDraw
-from stereovo.estimation.termination import FixedBudget
+from stereovo.estimation.methods.bansac import WeightedDraw
+from stereovo.estimation.roles.termination import FixedBudget
 from vo_gym.features import FEATURE_BOUND, FEATURE_NAMES, N_FEATURES
 
 __all__ = [

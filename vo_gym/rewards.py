@@ -37,8 +37,8 @@ import math
 import numpy as np
 
 from stereovo.camera import StereoCamera
-from stereovo.estimation.reprojection import reprojection_sq
-from stereovo.estimation.scoring import TruncatedQuadratic
+from stereovo.estimation.roles.reprojection import reprojection_sq
+from stereovo.estimation.roles.scoring import TruncatedQuadratic
 from stereovo.metrics import FrameMetrics
 from stereovo.metrics import pose_error_ratio as error_ratio
 

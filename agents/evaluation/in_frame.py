@@ -5,7 +5,7 @@ same final refinement, same chained motion), on the same held-out episode seeds,
 identical for all (they depend on the seed only):
 
 - ``learned``: the in-frame sampler of :mod:`agents.adaptive`, its own stop at several confidences;
-- ``bansac`` / ``ars``: the samplers of :mod:`stereovo.estimation.bansac` / ``ars`` fed by the env's
+- ``bansac`` / ``ars``: the samplers of :mod:`stereovo.estimation.methods.bansac` / ``ars`` fed by the env's
   per-hypothesis verdicts, with the match scores or the first one-shot network's weights as priors
   (ARS-MAGSAC's neural guidance), BANSAC's own stop at tau 0.01 (BANSAC) and 0.1 (P-BANSAC),
   ARS's adaptive bound (ARS's deterministic "most probable sample" becomes guided sampling on
@@ -31,11 +31,16 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from stereovo.estimation import estimate_problem
-from stereovo.estimation.ars import baysac_failure_update
-from stereovo.estimation.bansac import BANSAC_THRESHOLD, P_BANSAC_THRESHOLD, BansacSampler, initial_beliefs
+from stereovo.estimation.methods.ars import baysac_failure_update
+from stereovo.estimation.methods.bansac import (
+    BANSAC_THRESHOLD,
+    P_BANSAC_THRESHOLD,
+    BansacSampler,
+    initial_beliefs,
+)
 from stereovo.estimation.loop import LoopState
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.termination import required_iterations
+from stereovo.estimation.roles.termination import required_iterations
 from stereovo.metrics import frame_metrics
 from stereovo.reporting import plot_success, wilson_interval
 from vo_gym.adaptive_env import LOOP_FEATURE_NAMES, StereoVOAdaptiveEnv
@@ -101,7 +106,7 @@ def _priors(obs: dict, n: int, logits_fn: Callable[[dict], np.ndarray] | None) -
 
 
 class BansacPolicy:
-    """BANSAC (the paper's update, :class:`stereovo.estimation.bansac.BansacSampler`; priors: the
+    """BANSAC (the paper's update, :class:`stereovo.estimation.methods.bansac.BansacSampler`; priors: the
     match scores, or a network's weights) updated from each step's verdicts in the order drawn;
     sampling weights ``ceil(100 p)``; its own stop (``#(p < threshold)`` reaches the best consensus'
     outliers, ``threshold`` 0.01 BANSAC, 0.1 P-BANSAC) or the uniform adaptive bound at

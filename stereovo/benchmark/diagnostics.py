@@ -47,8 +47,8 @@ def claim_diagnostics(rows: Sequence[Mapping[str, Any]], seed: int, max_frames: 
     Returns an empty dict when ``rows`` hold no frames.
     """
     from stereovo.estimation import SAMPLE_SIZE, StereoProblem
-    from stereovo.estimation.scoring import ReprojectionResidual
-    from stereovo.estimation.solvers import minimal_hypotheses
+    from stereovo.estimation.roles.scoring import ReprojectionResidual
+    from stereovo.estimation.roles.solvers import minimal_hypotheses
     from stereovo.simulation import OutlierKind
 
     if not rows:

@@ -4,24 +4,40 @@ Public entry point: :func:`estimate_motion` (:func:`estimate_problem` for a preb
 :class:`StereoProblem`); the registry: :func:`available_methods`. For code that drives the
 loop itself (the NG-RANSAC trainer replays its own minimal samples): :func:`run_ransac` on a
 method's :class:`RansacComponents`, and the samplers.
+
+The floors, bottom to top (each imports only those below it):
+
+- :mod:`~stereovo.estimation.kernels`: every compiled (numba) kernel: residuals, least squares,
+  Mahalanobis distances, fits, sampling, rigidity, refinement rounds, early-rejection
+  verification, belief updates, the covariance sums;
+- :mod:`~stereovo.estimation.problem`: :class:`StereoProblem`, one frame pair's measurements,
+  triangulated points and their covariances;
+- :mod:`~stereovo.estimation.roles`: what the loop composes, named for no method: samplers,
+  sample check, solvers, residuals and qualities, verification, termination, local
+  optimisation, the final LM refinement; beside them :mod:`~stereovo.estimation.covariance`,
+  the pose covariance of a fit;
+- :mod:`~stereovo.estimation.estimator_options`: :class:`EstimatorOptions`, the options every
+  method shares, and the named enhancements;
+- :mod:`~stereovo.estimation.loop`: :func:`run_ransac`, the one loop, on
+  :class:`RansacComponents`, returning a :class:`RansacReport`;
+- :mod:`~stereovo.estimation.registry`: the named methods, their option declarations and
+  :func:`validate_options`;
+- :mod:`~stereovo.estimation.recipes`: the core's own methods (``ransac``, ``msac``,
+  ``probabilistic``), the recipe parts every method shares and the ``+`` variants;
+- :mod:`~stereovo.estimation.methods`: one module per paper (its roles, its option
+  declarations, its registration); importing this package imports it, which registers them;
+- :mod:`~stereovo.estimation.api`: :func:`estimate_motion`, :func:`estimate_problem` and
+  :class:`MotionEstimate`.
 """
 
-from stereovo.estimation.methods import (
-    EstimatorOptions,
-    MotionEstimate,
-    available_methods,
-    estimate_motion,
-    estimate_problem,
-    method_spec,
-    register_method,
-    validate_options,
-)
+from stereovo.estimation import methods  # noqa: F401  (registers the named methods)
+from stereovo.estimation.api import MotionEstimate, estimate_motion, estimate_problem
+from stereovo.estimation.estimator_options import EstimatorOptions
 from stereovo.estimation.loop import RansacComponents, RansacReport, run_ransac
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.samplers import ReplaySampler, UniformSampler, WeightedSampler
-from stereovo.estimation.solvers import SAMPLE_SIZE
-from stereovo.estimation import classical  # noqa: F401  (registers the classical family)
-from stereovo.estimation import ars, bansac  # noqa: F401  (register bansac and ars)
+from stereovo.estimation.registry import available_methods, method_spec, register_method, validate_options
+from stereovo.estimation.roles.samplers import ReplaySampler, UniformSampler, WeightedSampler
+from stereovo.estimation.roles.solvers import SAMPLE_SIZE
 
 __all__ = [
     "SAMPLE_SIZE",

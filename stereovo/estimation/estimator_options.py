@@ -14,7 +14,7 @@ from typing import Any, Mapping
 
 from scipy.stats import chi2
 
-from stereovo.estimation.solvers import SAMPLE_SIZE
+from stereovo.estimation.roles.solvers import SAMPLE_SIZE
 from stereovo.options import Boolean, Integer, Number, Option
 
 MAX_COUNT = 10**9
@@ -146,7 +146,7 @@ class EstimatorOptions:
 @functools.lru_cache(maxsize=64)
 def chi2_quantile(probability: float, dof: int) -> float:
     """The chi-square(``dof``) quantile at ``probability``, the gates' squared thresholds."""
-    # scipy's ppf costs ~0.2 ms a call, a noticeable share of an easy frame's estimate
+    # scipy's ppf costs a noticeable share of an easy frame's estimate per call (docs/performance.md)
     return float(chi2.ppf(probability, dof))
 
 

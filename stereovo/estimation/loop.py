@@ -17,11 +17,11 @@ from typing import Any, Protocol
 import numpy as np
 
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.refinement import ReprojectionRefiner
-from stereovo.estimation.samplers import Sampler
-from stereovo.estimation.scoring import Quality, ResidualModel
-from stereovo.estimation.solvers import minimal_hypotheses
-from stereovo.estimation.verification import FullVerification, ScoringContext, Verifier
+from stereovo.estimation.roles.refinement import ReprojectionRefiner
+from stereovo.estimation.roles.samplers import Sampler
+from stereovo.estimation.roles.scoring import Quality, ResidualModel
+from stereovo.estimation.roles.solvers import minimal_hypotheses
+from stereovo.estimation.roles.verification import FullVerification, ScoringContext, Verifier
 
 
 class LocalOptimizer(Protocol):
@@ -34,15 +34,8 @@ class LocalOptimizer(Protocol):
 
     subsumed_by_refinement: bool
 
-    def improve(
-        self,
-        ctx: ScoringContext,
-        R: np.ndarray,
-        t: np.ndarray,
-        inliers: np.ndarray,
-        score: float,
-        rng: np.random.Generator,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
+    def improve(self, ctx: ScoringContext, R: np.ndarray, t: np.ndarray, inliers: np.ndarray, score: float,
+                rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
         """Better ``(R, t, inliers, score)`` or the input, and the point checks spent."""
         ...
 
@@ -66,7 +59,7 @@ class RansacComponents:
     Attributes:
         sampler: draws ``(B, 3)`` minimal samples.
         sample_check: optional; removes samples before they are fitted (they still count as
-            drawn), e.g. :class:`stereovo.estimation.sample_check.RigidityCheck`.
+            drawn), e.g. :class:`stereovo.estimation.roles.sample_check.RigidityCheck`.
         residual_model, quality, threshold_sq: how a hypothesis is judged.
         verifier: full scoring or an early-rejection strategy.
         termination: adaptive bound or fixed budget.
@@ -80,9 +73,11 @@ class RansacComponents:
         polish_iterations: Gauss-Newton steps on each minimal sample's reprojection error.
         min_inliers: fewer inliers in the best model means "no consensus".
         listeners: objects whose ``on_new_best(inliers, loop_state)`` is called on each new best
-            (PROSAC's sampler and termination, SPRT's verifier adapt there); a listener may also
-            define ``on_batch(loop_state)``, called after every batch (SPRT's termination counts
-            the draws made under each test there).
+            (PROSAC's sampler, SPRT's verifier adapt there); a listener may also define
+            ``on_batch(loop_state)``, called after every batch. The termination listens itself,
+            after them, where it defines these methods (an adaptive bound reads a guided sampler's
+            q on each new best, SPRT's termination counts the draws made under each test): a
+            recipe lists only its other listeners (a termination listed among them is called once).
 
     Hooks for cheaper verifiers and adaptive terminations:
         - a verifier with ``uses_samples = True`` gets ``samples=`` ``(H, 3)``, the minimal sample of
@@ -192,10 +187,12 @@ class RansacSearch:
         self.local_runs = self.found_at = 0
         self.required = c.termination.max_iterations
         self._uses_samples = bool(getattr(c.verifier, "uses_samples", False))
-        self._batch_listeners = [listener for listener in c.listeners if hasattr(listener, "on_batch")]
+        listening = [*c.listeners, *([] if any(x is c.termination for x in c.listeners) else [c.termination])]
+        self._best_listeners = [listener for listener in listening if hasattr(listener, "on_new_best")]
+        self._batch_listeners = [listener for listener in listening if hasattr(listener, "on_batch")]
         self._feedback = getattr(c.sampler, "on_hypotheses", None)
         # An adaptive search starts small (the bound often falls below a full batch at once) and doubles
-        # its batches up to batch_size: each batch costs ~50 us of bookkeeping here, as much as several
+        # its batches up to batch_size: each batch costs bookkeeping here, as much as several
         # hypotheses, so a long search (high contamination) should take few, large ones.
         self._size = min(c.first_batch_size, c.batch_size) if c.first_batch_size else c.batch_size
 
@@ -261,7 +258,7 @@ class RansacSearch:
             self.local_runs += 1
             self.checks += spent
         state = self.state
-        for listener in c.listeners:
+        for listener in self._best_listeners:
             listener.on_new_best(self.best_inliers, state)
 
     def choose(self, R: np.ndarray, t: np.ndarray, inliers: np.ndarray, score: float) -> None:
@@ -273,15 +270,9 @@ class RansacSearch:
     def finish(self) -> RansacReport:
         """The final refinement of the best model and the run's report (:func:`final_report`)."""
         c, n = self.components, self.n
-        counts = dict(
-            n_hypotheses=self.drawn,
-            n_scored=self.scored,
-            n_point_checks=self.checks,
-            n_degenerate=self.degenerate,
-            n_rejected_samples=self.rejected,
-            n_local_optimizations=self.local_runs,
-            best_found_at=self.found_at,
-        )
+        counts = dict(n_hypotheses=self.drawn, n_scored=self.scored, n_point_checks=self.checks,
+                      n_degenerate=self.degenerate, n_rejected_samples=self.rejected,
+                      n_local_optimizations=self.local_runs, best_found_at=self.found_at)
         if self.scored == 0:
             reason = "all samples degenerate" if self.rejected == 0 else (
                 f"no sample passed the sample check ({self.rejected} of {self.drawn} rejected, "

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stereovo.camera import StereoCamera
+from stereovo.options import real_array
 
 
 MIN_DISPARITY_SIGMAS = 2.0
@@ -52,17 +53,10 @@ def as_measurements(name: str, value: np.ndarray) -> np.ndarray:
     Raises:
         ValueError: naming ``name``: not numeric, complex, or wrong shape.
     """
-    if np.iscomplexobj(value):
-        raise ValueError(f"{name} must be real (uL, vL, uR, vR) pixels, got complex dtype {np.asarray(value).dtype}")
-    try:
-        array = np.ascontiguousarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"{name} must be a numeric (N, 4) array of (uL, vL, uR, vR) pixels, got {type(value).__name__}"
-        ) from None
-    if array.ndim != 2 or array.shape[1] != 4:
-        raise ValueError(f"{name} must have shape (N, 4) of (uL, vL, uR, vR) pixels, got shape {array.shape}")
-    return array
+    array = real_array(name, value, ("N", 4), entries="(uL, vL, uR, vR) pixels",
+                       per="one (uL, vL, uR, vR) row per correspondence",
+                       what="a numeric (N, 4) array of (uL, vL, uR, vR) pixels")
+    return np.ascontiguousarray(array)
 
 
 def resolvable_depth(measurements: np.ndarray, noise_sigma: float, sigmas: float) -> np.ndarray:

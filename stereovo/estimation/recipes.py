@@ -1,9 +1,12 @@
-"""The core's own methods (``ransac``, ``msac``, ``probabilistic``) and the recipe parts all methods share.
+"""The core's own methods (``ransac``, ``msac``, ``probabilistic``), the recipe parts all methods
+share, and the ``method+enhancement`` variants.
 
 :func:`base_components` is the plain loop for a given residual model and quality: the
 sampler by what the caller gives (uniform, guided, PROSAC), the stopping rule, the sample
-check, the local refit and the final refinement the options ask for. Named methods replace
-roles of it; importing this module registers the three core methods.
+check, the local refit and the final refinement the options ask for. Named methods
+(:mod:`stereovo.estimation.methods`) replace roles of it; importing this module registers the
+three core methods. :func:`register_enhanced_variants` registers :data:`ENHANCED_VARIANTS` once
+their bases are registered (the methods package calls it last).
 """
 
 from __future__ import annotations
@@ -15,21 +18,21 @@ from typing import Any
 import numpy as np
 
 from stereovo.estimation.estimator_options import EstimatorOptions, chi2_quantile
-from stereovo.estimation.local_optimization import ConsensusRefit
 from stereovo.estimation.loop import RansacComponents
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.refinement import ReprojectionRefiner
-from stereovo.estimation.registry import register_method
-from stereovo.estimation.sample_check import RigidityCheck
-from stereovo.estimation.samplers import ProsacSampler, UniformSampler, WeightedSampler
-from stereovo.estimation.scoring import (
+from stereovo.estimation.registry import register_method, register_variant
+from stereovo.estimation.roles.local_optimization import ConsensusRefit
+from stereovo.estimation.roles.refinement import ReprojectionRefiner
+from stereovo.estimation.roles.sample_check import RigidityCheck
+from stereovo.estimation.roles.samplers import ProsacSampler, UniformSampler, WeightedSampler
+from stereovo.estimation.roles.scoring import (
     InlierCount,
     MahalanobisResidual,
     PixelMahalanobisResidual,
     ReprojectionResidual,
     TruncatedQuadratic,
 )
-from stereovo.estimation.termination import AdaptiveTermination, FixedBudget
+from stereovo.estimation.roles.termination import AdaptiveTermination, FixedBudget
 
 
 def default_sampler(problem: StereoProblem, priors: np.ndarray | None, order: np.ndarray | None):
@@ -89,8 +92,6 @@ def base_components(
         quality=quality,
         threshold_sq=threshold_sq,
         termination=termination,
-        # the adaptive bound reads each new best's inlier mask for a guided sampler's q
-        listeners=[termination] if isinstance(termination, AdaptiveTermination) else [],
         local_optimizer=ConsensusRefit() if options.local_refit else None,
         refiner=final_refiner(options),
         batch_size=int(options.batch_size),
@@ -102,26 +103,29 @@ def base_components(
     )
 
 
-@register_method(
+def reprojection_judge(options: EstimatorOptions, quality) -> tuple[ReprojectionResidual, Any, float]:
+    """``(residual_model, quality, threshold_sq)`` judging by the stereo reprojection gate
+    (``options.reprojection_threshold_sq``) with ``quality``: the judge of most classical methods."""
+    return ReprojectionResidual(options.reprojection_threshold_sq), quality, options.reprojection_threshold_sq
+
+
+def _reprojection_recipe(quality):
+    """The plain loop judged by the stereo reprojection gate with ``quality`` (a class)."""
+
+    def build(problem, options, priors, order, extra) -> RansacComponents:
+        return base_components(problem, options, priors, order, *reprojection_judge(options, quality()))
+
+    return build
+
+
+register_method(
     "ransac",
     "minimal 3-point fits, inlier count under a stereo reprojection gate, exact (without replacement) stop",
     "Fischler & Bolles 1981",
-)
-def _build_ransac(problem, options, priors, order, extra) -> RansacComponents:
-    return base_components(
-        problem, options, priors, order, ReprojectionResidual(), InlierCount(), options.reprojection_threshold_sq
-    )
-
-
-@register_method(
-    "msac",
-    "minimal 3-point fits, truncated quadratic cost under a stereo reprojection gate",
-    "Torr & Zisserman 2000",
-)
-def _build_msac(problem, options, priors, order, extra) -> RansacComponents:
-    return base_components(
-        problem, options, priors, order, ReprojectionResidual(), TruncatedQuadratic(), options.reprojection_threshold_sq
-    )
+)(_reprojection_recipe(InlierCount))
+register_method(
+    "msac", "minimal 3-point fits, truncated quadratic cost under a stereo reprojection gate", "Torr & Zisserman 2000",
+)(_reprojection_recipe(TruncatedQuadratic))
 
 
 @functools.lru_cache(maxsize=64)
@@ -134,7 +138,7 @@ def _pixel_gated_refiner(options: EstimatorOptions, dof: int = 4) -> Reprojectio
     The 3-D gate misses about a tenth of the inliers, mostly far points (triangulation's skewed
     depth error), and those carry the rotation; the pixel gate keeps them. The local refit keeps
     the 3-D gate: with the pixel gate there too, frames with a moving object failed more often
-    (eps 0.8 on the baseline grid: 75 instead of 85 % success).
+    (docs/algorithms.md, "Measurements behind the code").
     """
     refiner = final_refiner(options)
     if refiner is None:
@@ -164,3 +168,25 @@ def _build_probabilistic(problem, options, priors, order, extra) -> RansacCompon
     )
     components.refiner = _pixel_gated_refiner(options, problem.camera.measurement_dof)
     return components
+
+
+VARIANT_ENHANCEMENTS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("ransac", ("polish",)),
+    ("ransac", ("refit",)),
+    ("ransac", ("rigidity",)),
+    ("ransac", ("lm",)),
+    ("ransac", ("polish", "refit", "lm")),  # what ``ransac`` ran before it became the paper's recipe
+    ("msac", ("polish", "lm")),  # the environment's recipe
+    ("lo-ransac", ("polish", "lm")),
+    ("inlier-detection", ("lm",)),
+)
+"""``(base method, enhancements)`` of the ``method+enhancement...`` variants: the baseline report's
+"+ enhancement" rows beside the papers' recipes, so that each addition's gain is measured on the same frames."""
+
+ENHANCED_VARIANTS: tuple[str, ...] = tuple("+".join((base, *enhancements)) for base, enhancements in VARIANT_ENHANCEMENTS)
+"""The variants' registered names (:func:`~stereovo.estimation.registry.register_variant`)."""
+
+
+def register_enhanced_variants() -> tuple[str, ...]:
+    """Register :data:`VARIANT_ENHANCEMENTS` (their bases must be registered); returns their names."""
+    return tuple(register_variant(base, *enhancements) for base, enhancements in VARIANT_ENHANCEMENTS)

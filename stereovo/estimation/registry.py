@@ -64,7 +64,13 @@ class MethodSpec:
         if unknown:
             allowed = sorted(SHARED_OPTIONS | set(self.extra_options))
             raise ValueError(f"unknown option(s) {sorted(unknown)} for method {self.name!r}; known options: {allowed}")
-        return {k: rule.check(k, v) if (rule := self.option_rule(k)) is not None else v for k, v in extra.items()}
+        given = {k: rule.check(k, v) if (rule := self.option_rule(k)) is not None else v for k, v in extra.items()}
+        return {**self.option_defaults(), **given}
+
+    def option_defaults(self) -> dict[str, Any]:
+        """The method's options at their declared defaults (:attr:`stereovo.options.Option.default`):
+        what its recipe reads for an option the caller did not give."""
+        return {name: rule.default for name in self.extra_options if (rule := self.option_rule(name)) is not None}
 
     def option_rule(self, name: str) -> Option | None:
         """The declaration of the method option ``name``: the method's own, else the shared one
@@ -128,6 +134,8 @@ def declared_option(name: str) -> Option | None:
 def _register(spec: MethodSpec) -> None:
     if spec.name in _METHODS:
         raise ValueError(f"method {spec.name!r} is already registered")
+    for option, value in spec.option_defaults().items():
+        spec.option_rule(option).check(option, value)  # each declared default obeys its rule
     unknown = set(spec.defaults) - {f.name for f in dataclasses.fields(EstimatorOptions)}
     if unknown:
         raise ValueError(f"method {spec.name!r}: defaults {sorted(unknown)} are not EstimatorOptions fields")
@@ -136,8 +144,8 @@ def _register(spec: MethodSpec) -> None:
 
 
 def _option_names_and_rules(extra_options) -> tuple[tuple[str, ...], dict[str, Option]]:
-    if isinstance(extra_options, Mapping):
-        return tuple(extra_options), dict(extra_options)
+    if isinstance(extra_options, Mapping):  # None for a name: its shared declaration
+        return tuple(extra_options), {k: v for k, v in extra_options.items() if v is not None}
     return tuple(extra_options), {}
 
 
@@ -147,14 +155,21 @@ def register_method(
 ) -> Callable[[MethodBuilder], MethodBuilder]:
     """Decorator registering ``build(problem, options, priors, order, extra) -> RansacComponents``.
 
-    ``extra_options``: the method's own option names, or a mapping of them to their declarations
-    (:mod:`stereovo.options`), which are then checked before the method runs. ``inputs``: see
+    ``extra_options``: the method's own option names (declared by :func:`declare_options`), or a
+    mapping of them to their declarations (:mod:`stereovo.options`; None: the shared one). Each
+    given value is checked before the method runs, and the recipe gets every option, the caller's
+    value or the declaration's :attr:`~stereovo.options.Option.default`. ``inputs``: see
     :meth:`MethodSpec.check_inputs`. ``defaults``: :attr:`MethodSpec.defaults`.
     """
 
     def decorator(build: MethodBuilder) -> MethodBuilder:
         names, rules = _option_names_and_rules(extra_options)
-        _register(MethodSpec(name, description, reference, build, names, option_rules=rules, inputs=inputs,
+
+        def recipe(problem, options, priors, order, extra):
+            # every caller's recipe reads the method's options complete: given or at their defaults
+            return build(problem, options, priors, order, _METHODS[name].check_options(extra))
+
+        _register(MethodSpec(name, description, reference, recipe, names, option_rules=rules, inputs=inputs,
                              defaults=dict(defaults or {})))
         return build
 
@@ -175,7 +190,11 @@ def register_estimator(
 
     def decorator(runner: MethodRunner) -> MethodRunner:
         names, rules = _option_names_and_rules(extra_options)
-        _register(MethodSpec(name, description, reference, None, names, runner, option_rules=rules, inputs=inputs))
+
+        def run(problem, options, priors, order, extra, rng):
+            return runner(problem, options, priors, order, _METHODS[name].check_options(extra), rng)
+
+        _register(MethodSpec(name, description, reference, None, names, run, option_rules=rules, inputs=inputs))
         return runner
 
     return decorator
@@ -191,6 +210,36 @@ def method_spec(name: str) -> MethodSpec:
     if name not in _METHODS:
         raise ValueError(f"unknown method {name!r}; available: {', '.join(sorted(_METHODS))}")
     return _METHODS[name]
+
+
+def split_options(spec: MethodSpec, options: Mapping[str, Any]) -> tuple[EstimatorOptions, dict[str, Any]]:
+    """``options`` of a call to method ``spec`` as its :class:`EstimatorOptions` (the method's
+    :attr:`~MethodSpec.defaults` under the given shared options) and its own options, validated."""
+    extra = spec.check_options({k: v for k, v in options.items() if k not in SHARED_OPTIONS})
+    shared = EstimatorOptions(**{**spec.defaults, **{k: v for k, v in options.items() if k in SHARED_OPTIONS}})
+    return shared, extra
+
+
+def validate_options(
+    method: str, options: Mapping[str, Any], priors: bool | None = None, order: bool | None = None
+) -> tuple[EstimatorOptions, dict[str, Any]]:
+    """Check a method call's settings without running it: the shared options, the method's own
+    options and, when ``priors`` or ``order`` is given (whether priors= / order= will be passed),
+    whether the method runs with that sampling input. What
+    :func:`~stereovo.estimation.api.estimate_motion` accepts, this accepts.
+
+    Returns:
+        The :class:`EstimatorOptions` and the method's own options (validated, normalised).
+
+    Raises:
+        ValueError: an unknown method or option, a value its declaration refuses (naming both),
+            or sampling inputs the method cannot use.
+    """
+    spec = method_spec(method)
+    shared, extra = split_options(spec, dict(options))
+    if priors is not None or order is not None:
+        spec.check_inputs(bool(priors), bool(order))
+    return shared, extra
 
 
 def register_variant(base: str, *enhancements: str) -> str:

@@ -71,7 +71,7 @@ class RenderedSequence(ImageSequence):
         camera: a rig overriding ``resolution``.
         noise_sigma: the pixel noise (px) the frames declare to the estimator.
         texture_seed: None draws the textures from ``seed``; an int draws them from it instead, once
-            per process (worlds of many seeds then share one texture set, and skip its ~0.5 s).
+            per process (worlds of many seeds then share one texture set, and skip drawing it).
         **frontend_options: :class:`~stereovo.frontend.FrontendOptions` fields.
 
     Attributes:

@@ -81,17 +81,11 @@ class MotionPreset:
 
 PRESETS: dict[str, MotionPreset] = {
     "car": MotionPreset(
-        speed=1.0,
-        linear_std=(0.02, 0.01, 0.15),
-        angular_std=(0.001, 0.02, 0.001),
-        reversion=0.1,
+        speed=1.0, linear_std=(0.02, 0.01, 0.15), angular_std=(0.001, 0.02, 0.001), reversion=0.1,
         description="road vehicle: forward ~1 m/frame, yaw-dominant turns, small pitch/roll",
     ),
     "free": MotionPreset(
-        speed=0.3,
-        linear_std=(0.1, 0.1, 0.1),
-        angular_std=(0.03, 0.03, 0.03),
-        reversion=0.2,
+        speed=0.3, linear_std=(0.1, 0.1, 0.1), angular_std=(0.03, 0.03, 0.03), reversion=0.2,
         description="hand-held / drone: 6-DoF, ~0.3 m/frame, a few degrees per frame about all axes",
     ),
 }

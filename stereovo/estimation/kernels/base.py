@@ -15,5 +15,5 @@ BEHIND_CAMERA_RESIDUAL = 1e3  # its residual rows are set to this and its Jacobi
 jit = njit(cache=True, nogil=True, error_model="numpy")
 # Helpers that take arrays and run once per point or per hypothesis are inlined into their callers:
 # a compiled call passes each array as a struct and reference-counts it on entry and exit, which
-# cost more than the arithmetic of a point's residual (89 against ~20 ns measured).
+# cost more than the arithmetic of a point's residual (docs/performance.md, "Measurements behind the code").
 inline_jit = njit(cache=True, nogil=True, error_model="numpy", inline="always")

@@ -1,6 +1,6 @@
 """Compiled belief updates of the belief-driven samplers: BANSAC's log-odds update with its sampling
-weights (:mod:`stereovo.estimation.bansac`) and ARS's most-probable-untried draw with the BaySAC
-failure update (:mod:`stereovo.estimation.ars`).
+weights (:mod:`stereovo.estimation.methods.bansac`) and ARS's most-probable-untried draw with the BaySAC
+failure update (:mod:`stereovo.estimation.methods.ars`).
 
 Each kernel computes, element for element and in the same order, what the numpy formulation in
 those modules' docstrings computes (``np.logaddexp`` as numpy defines it, products left to right,
@@ -103,31 +103,28 @@ def _slot(code, mask):
 
 
 @inline_jit
-def _contains(table, code):
+def _probe(table, code):
+    """The slot holding ``code``, or the empty slot where it would go (linear probing)."""
     mask = table.shape[0] - 1
     s = _slot(code, mask)
-    while True:
-        x = table[s]
-        if x == code:
-            return True
-        if x == EMPTY:
-            return False
+    while table[s] != code and table[s] != EMPTY:
         s = (s + 1) & mask
+    return s
+
+
+@inline_jit
+def _contains(table, code):
+    return table[_probe(table, code)] == code
 
 
 @inline_jit
 def _insert(table, code):
     """Add ``code``; returns 1 if it was new, 0 if already there."""
-    mask = table.shape[0] - 1
-    s = _slot(code, mask)
-    while True:
-        x = table[s]
-        if x == code:
-            return 0
-        if x == EMPTY:
-            table[s] = code
-            return 1
-        s = (s + 1) & mask
+    s = _probe(table, code)
+    if table[s] == code:
+        return 0
+    table[s] = code
+    return 1
 
 
 @jit

@@ -1,6 +1,6 @@
 """The compiled refinement loop: Levenberg-Marquardt on the inliers, re-gated, round after round.
 
-:func:`refine_rounds` runs :meth:`stereovo.estimation.refinement.ReprojectionRefiner.refine_with_residuals`
+:func:`refine_rounds` runs :meth:`stereovo.estimation.roles.refinement.ReprojectionRefiner.refine_with_residuals`
 in one call for the residual models with a compiled kernel (``GATE_*``).
 """
 

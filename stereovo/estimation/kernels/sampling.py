@@ -3,7 +3,7 @@
 :func:`distinct_triplets` (uniform) and :func:`weighted_triplets` (proportional to weights)
 draw three distinct indices per row from given uniforms; :func:`prior_defects` checks the
 weights in one pass; :func:`rigid_triplets` keeps the samples whose pairwise distances agree
-between k-1 and k (:mod:`stereovo.estimation.rigidity`).
+between k-1 and k (:mod:`stereovo.estimation.kernels.rigidity`).
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from stereovo.estimation.kernels.base import inline_jit, jit
-from stereovo.estimation.rigidity import distance_change_sq_jit, rigid_distance_consistent_jit
+from stereovo.estimation.kernels.rigidity import distance_change_sq_jit, rigid_distance_consistent_jit
 
 
 @jit
@@ -109,7 +109,7 @@ def _summed_quadratic_form(cov, a, b, x0, x1, x2):
 
 @inline_jit
 def _pair_is_rigid(X, Y, cov_prev, cov_curr, a, b, threshold_sq):
-    """The rigid-distance test (:mod:`stereovo.estimation.rigidity`) for points ``a`` and ``b``: their
+    """The rigid-distance test (:mod:`stereovo.estimation.kernels.rigidity`) for points ``a`` and ``b``: their
     distance changes from k-1 to k by less than ``sqrt(threshold_sq)`` standard deviations, ``var``
     carrying both points' triangulation covariances in both frames onto the direction between them
     (first order). False for coincident points."""

@@ -22,7 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from stereovo.camera import StereoCamera
-from stereovo.estimation import kernels
+from stereovo.estimation.kernels.least_squares import gauss_newton
+from stereovo.estimation.kernels.residuals import forward_reprojection_sq, symmetric_residuals
 
 
 def _grouped(array: np.ndarray, width: int) -> np.ndarray:
@@ -51,14 +52,8 @@ def _kernel_problem(camera, R, t, points_prev, points_curr, meas_prev, meas_curr
 
 
 def residuals_and_jacobians(
-    camera: StereoCamera,
-    R: np.ndarray,
-    t: np.ndarray,
-    points_prev: np.ndarray,
-    points_curr: np.ndarray,
-    meas_prev: np.ndarray,
-    meas_curr: np.ndarray,
-    with_jacobian: bool = True,
+    camera: StereoCamera, R: np.ndarray, t: np.ndarray, points_prev: np.ndarray, points_curr: np.ndarray,
+    meas_prev: np.ndarray, meas_curr: np.ndarray, with_jacobian: bool = True,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Symmetric reprojection residuals ``(H, M, 8)`` and Jacobians ``(H, M, 8, 6)``.
 
@@ -71,18 +66,13 @@ def residuals_and_jacobians(
     A point behind either camera gets residual rows of ``1e3`` px and a zero Jacobian.
     """
     args = _kernel_problem(camera, R, t, points_prev, points_curr, meas_prev, meas_curr)
-    res, jac = kernels.symmetric_residuals(*args, with_jacobian)
+    res, jac = symmetric_residuals(*args, with_jacobian)
     return res, (jac if with_jacobian else None)
 
 
 def gauss_newton_steps(
-    camera: StereoCamera,
-    R: np.ndarray,
-    t: np.ndarray,
-    points_prev: np.ndarray,
-    points_curr: np.ndarray,
-    meas_prev: np.ndarray,
-    meas_curr: np.ndarray,
+    camera: StereoCamera, R: np.ndarray, t: np.ndarray, points_prev: np.ndarray, points_curr: np.ndarray,
+    meas_prev: np.ndarray, meas_curr: np.ndarray,
     weights: np.ndarray | None = None,
     iterations: int = 3,
     damping: float = 1e-6,
@@ -98,7 +88,7 @@ def gauss_newton_steps(
         huber: optional Huber threshold in pixels on each point's residual norm.
         tolerance: a hypothesis stops once its step is below this (radians / metres) or, with
             step control, once the next step would move it by less than 1 % of the pose's standard
-            deviation (:data:`stereovo.estimation.kernels.CONVERGED_STEP_IN_STD`).
+            deviation (:data:`stereovo.estimation.kernels.least_squares.CONVERGED_STEP_IN_STD`).
         step_control: False takes every step (plain Gauss-Newton, as the minimal-sample polish does).
 
     Returns:
@@ -109,7 +99,7 @@ def gauss_newton_steps(
     args = _kernel_problem(camera, R, t, points_prev, points_curr, meas_prev, meas_curr)
     w = np.ones((1, args[2].shape[1])) if weights is None else np.asarray(weights, dtype=float)
     w = np.ascontiguousarray(w[None] if w.ndim == 1 else w)
-    return kernels.gauss_newton(
+    return gauss_newton(
         *args, w, 0.0 if huber is None else float(huber), int(iterations), float(damping), float(tolerance),
         step_control,
     )
@@ -123,7 +113,7 @@ def reprojection_sq(
     ``inf`` where the moved point is behind the camera.
     """
     R, t = _motions(R, t)
-    return kernels.forward_reprojection_sq(
+    return forward_reprojection_sq(
         R, t, np.ascontiguousarray(points_prev, dtype=float), np.ascontiguousarray(meas_curr, dtype=float),
         camera.parameters,
     )

@@ -8,8 +8,9 @@ similarity scale is far from 1 for this reason. :class:`RigidityCheck` is the
 covariance-aware form of that check: each distance's change is standardised
 by its first-order variance from the triangulation covariances, so far points
 (large depth error) are judged as leniently as their noise requires and near
-ones as strictly. At epsilon 0.8 it removes about 85-90 % of the contaminated
-samples for ~50 ns each, before the ~2 us fit and the scoring over all N.
+ones as strictly. It removes most contaminated samples at high contamination, at a small
+fraction of a fit's cost, before the fit and the scoring over all N (docs/performance.md,
+"Measurements behind the code").
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stereovo.estimation import kernels
+from stereovo.estimation.kernels.sampling import rigid_triplets
 from stereovo.estimation.problem import StereoProblem
 
 
@@ -36,7 +37,7 @@ class RigidityCheck:
 
     def accept(self, problem: StereoProblem, samples: np.ndarray) -> np.ndarray:
         """``(H,)`` bool: which of the ``(H, 3)`` index samples are rigid enough to fit."""
-        return kernels.rigid_triplets(
+        return rigid_triplets(
             np.ascontiguousarray(samples, dtype=np.int64), problem.points_prev, problem.points_curr,
             problem.cov_prev, problem.cov_curr, float(self.threshold_sq),
         )

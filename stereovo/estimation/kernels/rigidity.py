@@ -2,9 +2,9 @@
 
 A rigid motion preserves distances, so for two correct matches ``a`` and ``b`` the distance between
 their triangulated points changes from frame k-1 to frame k only by triangulation noise. Three parts
-of the project ask this question: the rigidity sample check (:mod:`stereovo.estimation.sample_check`,
+of the project ask this question: the rigidity sample check (:mod:`stereovo.estimation.roles.sample_check`,
 each pair of a minimal sample), the consistency graph of maximum-clique inlier detection
-(:func:`stereovo.estimation.clique.consistency_matrix`, Hirschmueller, Innocent & Garibaldi, ICARCV
+(:func:`stereovo.estimation.methods.clique.consistency_matrix`, Hirschmueller, Innocent & Garibaldi, ICARCV
 2002; Howard, IROS 2008) and the environment's per-match consistency feature
 (:func:`vo_gym.features.rigid_consistency_degree`). Each supplies its own noise model (the variance
 ``var`` of the distance change, m^2: covariances carried onto the pair's direction, or per-match

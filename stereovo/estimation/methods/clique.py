@@ -42,6 +42,8 @@ Counters (``RansacReport.counters``): ``clique_graph_nodes`` (M),
 Bron-Kerbosch proved the maximum), ``clique_subsampled`` (1 if M < N),
 ``clique_fit_hypotheses`` (minimal samples of the RANSAC inside the clique) and
 ``clique_fit_inliers`` (its consensus among the clique).
+
+This module also declares the ``clique_*`` options and registers ``inlier-detection``.
 """
 
 from __future__ import annotations
@@ -50,15 +52,24 @@ import time
 
 import numpy as np
 
+from stereovo.estimation.estimator_options import MAX_COUNT
+from stereovo.estimation.kernels.rigidity import distance_change_sq, rigid_distance_consistent
 from stereovo.estimation.loop import RansacComponents, RansacReport, final_report, run_ransac
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.refinement import ReprojectionRefiner
-from stereovo.estimation.reprojection import gauss_newton_steps
-from stereovo.estimation.rigidity import distance_change_sq, rigid_distance_consistent
-from stereovo.estimation.samplers import UniformSampler
-from stereovo.estimation.scoring import CHI2_3_95, InlierCount, MahalanobisResidual, ReprojectionResidual
-from stereovo.estimation.solvers import SAMPLE_SIZE
-from stereovo.estimation.termination import AdaptiveTermination
+from stereovo.estimation.recipes import final_refiner
+from stereovo.estimation.registry import register_estimator
+from stereovo.estimation.roles.refinement import ReprojectionRefiner
+from stereovo.estimation.roles.reprojection import gauss_newton_steps
+from stereovo.estimation.roles.samplers import UniformSampler
+from stereovo.estimation.roles.scoring import (
+    CHI2_3_95,
+    InlierCount,
+    MahalanobisResidual,
+    ReprojectionResidual,
+)
+from stereovo.estimation.roles.solvers import SAMPLE_SIZE
+from stereovo.estimation.roles.termination import AdaptiveTermination
+from stereovo.options import Integer, Number
 
 GRAPH_MAX = 2000
 """Most matches the consistency graph is built on (a 4 MB bool matrix); above, a random subset of
@@ -331,4 +342,36 @@ def detect_inliers(
     return final_report(
         problem, R, t, inliers, float(np.count_nonzero(inliers)), refiner, residual_model, InlierCount(),
         threshold_sq, max(min_inliers, SAMPLE_SIZE), counters, n_point_checks=checks, **counts,
+    )
+
+
+@register_estimator(
+    "inlier-detection",
+    "maximum clique of rigid-distance-consistent matches (depth-aware), fit on it, reprojection re-gating",
+    "Hirschmueller et al. 2002; Howard 2008",
+    extra_options={
+        "clique_c": Number(low=0.0, high=1e6, low_open=True, default=3.0),
+        "clique_exact_max": Integer(low=0, high=MAX_COUNT, default=60),
+        "clique_time_limit_s": Number(low=0.0, high=1e6, low_open=True, unit="s", default=0.5),
+        "clique_graph_max": Integer(low=SAMPLE_SIZE, high=20_000, default=GRAPH_MAX),  # 20,000: a 400 MB graph at most
+    },
+)
+def _run_inlier_detection(problem, options, priors, order, extra, rng):
+    if priors is not None or order is not None:
+        raise ValueError(
+            "method 'inlier-detection' does not sample hypotheses: priors= and order= have no role in it; pass neither"
+        )
+    return detect_inliers(
+        problem,
+        options.reprojection_threshold_sq,
+        min_inliers=int(options.min_inliers),
+        # Howard's own last step is the reprojection fit on the clique; the LM refinement is an enhancement
+        refiner=final_refiner(options) if options.refine else None,
+        c=float(extra["clique_c"]),
+        exact_max=extra["clique_exact_max"],
+        time_limit_s=float(extra["clique_time_limit_s"]),
+        rng=rng,
+        graph_max=extra["clique_graph_max"],
+        gate_sq=options.mahalanobis_threshold_sq,
+        confidence=options.confidence,
     )

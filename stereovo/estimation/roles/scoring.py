@@ -15,9 +15,9 @@ from typing import Protocol
 import numpy as np
 from scipy.stats import chi2
 
-from stereovo.estimation import kernels
+from stereovo.estimation.kernels.mahalanobis import mahalanobis_sq, pixel_mahalanobis_sq
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.reprojection import reprojection_sq
+from stereovo.estimation.roles.reprojection import reprojection_sq
 
 CHI2_3_95 = float(chi2.ppf(0.95, 3))  # 7.81: Mahalanobis gate on 3-D residuals
 CHI2_4_99 = float(chi2.ppf(0.99, 4))  # 13.28: pixel Mahalanobis gate, independent vL and vR (4 dof)
@@ -47,14 +47,14 @@ class MahalanobisResidual:
     fused estimate from both observations under the hypothesis (whose disparity in each frame is
     the mean of the two observations carried there), not at the two noisy triangulations: evaluated there, a far match
     whose depths disagree gets a covariance inflated by the disagreement and the gate passes
-    too many (0.937 instead of 0.90 at 45-60 m). See ``kernels.mahalanobis_sq``.
+    too many (0.937 instead of 0.90 at 45-60 m). See ``mahalanobis_sq``.
     """
 
     threshold_sq: float = CHI2_3_95
     name: str = "mahalanobis"
 
     def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray, cap: float | None = None) -> np.ndarray:
-        return kernels.mahalanobis_sq(
+        return mahalanobis_sq(
             np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float),
             problem.points_prev, problem.points_curr, problem.camera.parameters, problem.noise_sigma**2,
             0.0 if cap is None else float(cap),
@@ -79,7 +79,7 @@ class PixelMahalanobisResidual:
     name: str = "pixel-mahalanobis"
 
     def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray, cap: float | None = None) -> np.ndarray:
-        return kernels.pixel_mahalanobis_sq(
+        return pixel_mahalanobis_sq(
             np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float),
             problem.points_prev, problem.cov_prev, problem.curr,
             problem.camera.parameters,

@@ -19,7 +19,9 @@ assumed to fail (its update applied at once) so that the next row is the next mo
 feedback hook undoes the update for the sample that raised the best support.
 
 Initial probabilities: ``initial_probability`` without priors, else priors scaled so that the largest
-is ``prior_ceiling`` (as :mod:`stereovo.estimation.bansac`). Termination: the loop's adaptive bound.
+is ``prior_ceiling`` (as :mod:`stereovo.estimation.methods.bansac`). Termination: the loop's adaptive bound.
+
+This module also registers ``ars`` (its belief options as :mod:`~stereovo.estimation.methods.bansac` declares them).
 """
 
 from __future__ import annotations
@@ -28,10 +30,18 @@ import itertools
 
 import numpy as np
 
-from stereovo.estimation.bansac import BELIEF_FLOOR, PRIOR_CEILING, initial_beliefs
 from stereovo.estimation.kernels import beliefs as belief_kernels
 from stereovo.estimation.loop import LoopState
-from stereovo.estimation.samplers import SAMPLE_SIZE
+from stereovo.estimation.methods.bansac import (
+    BELIEF_FLOOR,
+    CEILING_RULE,
+    PRIOR_CEILING,
+    belief_options,
+    initial_beliefs,
+    judged_components,
+)
+from stereovo.estimation.registry import register_method
+from stereovo.estimation.roles.solvers import SAMPLE_SIZE
 
 CANDIDATES = 8
 CANDIDATE_TRIPLES = np.array(list(itertools.combinations(range(CANDIDATES), SAMPLE_SIZE)), dtype=np.int64)
@@ -124,8 +134,6 @@ class ArsSampler:
 
 # ----------------------------------------------------------------------------- the method
 
-from stereovo.estimation.bansac import BELIEF_OPTIONS, belief_options, judged_components  # noqa: E402
-from stereovo.estimation.methods import register_method  # noqa: E402
 
 
 @register_method(
@@ -133,7 +141,7 @@ from stereovo.estimation.methods import register_method  # noqa: E402
     "always the most probable untried sample, inlier probabilities updated by Bayes' rule after each "
     "failure (adaptive reordering); adaptive stop; the probabilistic method's judge",
     "Wei, Matas & Barath, ICCV 2023",
-    extra_options=BELIEF_OPTIONS,
+    extra_options={"initial_probability": None, "prior_ceiling": CEILING_RULE},
 )
 def _build_ars(problem, options, priors, order, extra):
     return judged_components(problem, options, priors, order, ArsSampler(problem.n, priors, **belief_options(extra)))

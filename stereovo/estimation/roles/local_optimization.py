@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from stereovo.estimation.refinement import ReprojectionRefiner
-from stereovo.estimation.verification import ScoringContext
+from stereovo.estimation.roles.refinement import ReprojectionRefiner
+from stereovo.estimation.roles.verification import ScoringContext
 
 
 @dataclass(frozen=True)
@@ -27,15 +27,8 @@ class ConsensusRefit:
     # this run's counts (a recipe builds its optimiser per estimate); mutable inside the frozen class
     counts: dict = field(default_factory=lambda: {"refit_runs": 0, "refit_improved": 0}, repr=False, compare=False)
 
-    def improve(
-        self,
-        ctx: ScoringContext,
-        R: np.ndarray,
-        t: np.ndarray,
-        inliers: np.ndarray,
-        score: float,
-        rng: np.random.Generator,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
+    def improve(self, ctx: ScoringContext, R: np.ndarray, t: np.ndarray, inliers: np.ndarray, score: float,
+                rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
         if np.count_nonzero(inliers) < 3:
             return R, t, inliers, score, 0
         self.counts["refit_runs"] += 1

@@ -14,7 +14,7 @@ from typing import Protocol
 import numpy as np
 
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.scoring import Quality, ResidualModel
+from stereovo.estimation.roles.scoring import Quality, ResidualModel
 
 
 @dataclass

@@ -11,6 +11,8 @@ quadratic normalised like the MSAC quality, so the winner's accumulated score
 over all N observations *is* its MSAC score. Vectorised over blocks of B
 observations, inside which the survivor set is constant: one residual call
 per block (at most ``log2 M`` blocks).
+
+This module also declares the ``preemptive_*`` options and registers ``preemptive``.
 """
 
 from __future__ import annotations
@@ -19,8 +21,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stereovo.estimation.partial import residuals_on
-from stereovo.estimation.verification import ScoringContext
+from stereovo.estimation.estimator_options import MAX_COUNT
+from stereovo.estimation.recipes import base_components, reprojection_judge
+from stereovo.estimation.registry import register_method
+from stereovo.estimation.roles.partial import residuals_on
+from stereovo.estimation.roles.scoring import TruncatedQuadratic
+from stereovo.estimation.roles.termination import FixedBudget
+from stereovo.estimation.roles.verification import ScoringContext
+from stereovo.options import Integer
 
 
 def preemption_function(i: np.ndarray, M: int, B: int) -> np.ndarray:
@@ -45,7 +53,7 @@ class PreemptiveVerification:
     """Score a fixed hypothesis set breadth-first and keep only the winner.
 
     Args:
-        hypotheses: M, the size of the hypothesis set (500).
+        hypotheses: M, the size of the hypothesis set.
         block: B, observations between halvings of the survivors (100).
 
     ``verify`` returns ``-inf`` for every hypothesis but the winner, whose score is its
@@ -117,3 +125,30 @@ class PreemptiveVerification:
             "preemptive_evaluations": self.n_evaluations,
             "preemptive_observations": self.last_observations,
         }
+
+
+DEFAULT_HYPOTHESES = PreemptiveVerification.hypotheses  # Nister's M without a budget
+
+
+@register_method(
+    "preemptive",
+    "fixed set of M hypotheses scored breadth-first, halving the survivors every B observations",
+    "Nister 2003",
+    extra_options={
+        # None: DEFAULT_HYPOTHESES, or the shared budget when one is given
+        "preemptive_hypotheses": Integer(low=1, high=MAX_COUNT, allow_none=True, default=None),
+        "preemptive_block": Integer(low=1, high=MAX_COUNT, default=PreemptiveVerification.block),
+    },
+)
+def _build_preemptive(problem, options, priors, order, extra):
+    m = extra["preemptive_hypotheses"]
+    if m is None:
+        m = DEFAULT_HYPOTHESES if options.budget is None else int(options.budget)
+    elif options.budget is not None and m != options.budget:
+        raise ValueError(f"preemptive: budget={options.budget} and preemptive_hypotheses={m} disagree; give one")
+    components = base_components(problem, options, priors, order, *reprojection_judge(options, TruncatedQuadratic()))
+    components.verifier = PreemptiveVerification(m, extra["preemptive_block"])
+    components.termination = FixedBudget(m)
+    components.batch_size = m  # the whole hypothesis set reaches the verifier at once
+    components.first_batch_size = None
+    return components

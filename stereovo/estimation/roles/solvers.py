@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from stereovo.estimation import kernels
+from stereovo.estimation.kernels import fitting as fitting_kernels
 from stereovo.estimation.problem import StereoProblem
 
 SAMPLE_SIZE = 3  # a rigid motion from three 3-D points: the one definition the core shares
@@ -37,7 +37,7 @@ def kabsch_batch(X: np.ndarray, Y: np.ndarray, weights: np.ndarray | None = None
     X = np.ascontiguousarray(X, dtype=float)
     Y = np.ascontiguousarray(Y, dtype=float)
     w = np.ones(X.shape[:2]) if weights is None else np.ascontiguousarray(weights, dtype=float)
-    return kernels.rigid_fits(X, Y, w)
+    return fitting_kernels.rigid_fits(X, Y, w)
 
 
 def fit_rigid(X: np.ndarray, Y: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -52,7 +52,7 @@ def degenerate_triplets(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
     Args:
         X, Y: ``(H, 3, 3)`` triplets of points at k-1 and k.
     """
-    return kernels.degenerate_triplets(
+    return fitting_kernels.degenerate_triplets(
         np.ascontiguousarray(X, dtype=float), np.ascontiguousarray(Y, dtype=float), DEGENERATE_AREA_RATIO
     )
 
@@ -72,11 +72,11 @@ def minimal_hypotheses(
         (their motion is the identity) or did not stay finite.
 
     The degeneracy test, closed-form fit and polish run in one compiled pass per batch
-    (:func:`stereovo.estimation.kernels.minimal_fits`), with the same arithmetic as
+    (:func:`stereovo.estimation.kernels.fitting.minimal_fits`), with the same arithmetic as
     :func:`degenerate_triplets`, :func:`kabsch_batch` and plain Gauss-Newton steps
-    (:func:`stereovo.estimation.reprojection.gauss_newton_steps` without step control).
+    (:func:`stereovo.estimation.roles.reprojection.gauss_newton_steps` without step control).
     """
-    return kernels.minimal_fits(
+    return fitting_kernels.minimal_fits(
         np.ascontiguousarray(samples, dtype=np.int64), problem.points_prev, problem.points_curr,
         problem.prev, problem.curr, problem.camera.parameters, DEGENERATE_AREA_RATIO, int(polish_iterations),
     )

@@ -17,6 +17,8 @@ Run by the loop on every new best-so-far model (docs/algorithms.md, `lo-ransac`)
 noise is isotropic (docs/algorithms.md, the `polish` enhancement); candidates are scored with the
 loop's own quality (MSAC for the ``lo-ransac`` recipe, as in LO+). Every
 inner sample and every shrinking-gate branch is fitted in one batched call.
+
+This module also declares the ``lo_*`` options (shared with ``usac``) and registers ``lo-ransac``.
 """
 
 from __future__ import annotations
@@ -25,9 +27,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from stereovo.estimation.reprojection import gauss_newton_steps
-from stereovo.estimation.solvers import SAMPLE_SIZE, kabsch_batch
-from stereovo.estimation.verification import ScoringContext
+from stereovo.estimation.estimator_options import MAX_COUNT
+from stereovo.estimation.recipes import base_components, reprojection_judge
+from stereovo.estimation.registry import declare_options, register_method
+from stereovo.estimation.roles.reprojection import gauss_newton_steps
+from stereovo.estimation.roles.scoring import TruncatedQuadratic
+from stereovo.estimation.roles.solvers import SAMPLE_SIZE, kabsch_batch
+from stereovo.estimation.roles.verification import ScoringContext
 from stereovo.options import Integer, Number
 
 
@@ -49,10 +55,10 @@ class InnerRansacLO:
     """LO+ local optimiser (see module docstring).
 
     Args:
-        inner_iterations: r, inner RANSAC samples (10).
-        sample_cap: largest non-minimal sample (12).
-        threshold_multiplier: K, the first gate of the shrinking sequence is K theta (3).
-        steps: L, gate reductions from K theta to theta (4).
+        inner_iterations: r, inner RANSAC samples.
+        sample_cap: largest non-minimal sample.
+        threshold_multiplier: K, the first gate of the shrinking sequence is K theta.
+        steps: L, gate reductions from K theta to theta.
         fit_cap: most points in one least-squares fit (random subset beyond it).
         fit_iterations: Gauss-Newton steps per fit.
     """
@@ -82,15 +88,8 @@ class InnerRansacLO:
         ):
             object.__setattr__(self, field, rule.check(f"lo_{field}", getattr(self, field)))
 
-    def improve(
-        self,
-        ctx: ScoringContext,
-        R: np.ndarray,
-        t: np.ndarray,
-        inliers: np.ndarray,
-        score: float,
-        rng: np.random.Generator,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
+    def improve(self, ctx: ScoringContext, R: np.ndarray, t: np.ndarray, inliers: np.ndarray, score: float,
+                rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
         """Better ``(R, t, inliers, score)`` or the input unchanged, and the point checks spent."""
         members = np.flatnonzero(inliers)
         n = ctx.problem.n
@@ -153,3 +152,32 @@ class InnerRansacLO:
         """``lo_runs`` (LO run on a new best), ``lo_skipped`` (fewer than 2 s inliers), ``lo_improved``
         (the result replaced the best), ``lo_checks`` (point checks spent in LO)."""
         return dict(self.counts)
+
+
+LO_OPTIONS = ("lo_inner_iterations", "lo_sample_cap", "lo_threshold_multiplier", "lo_steps")
+declare_options({
+    "lo_inner_iterations": Integer(low=1, high=MAX_COUNT, default=InnerRansacLO.inner_iterations),
+    "lo_sample_cap": Integer(low=4, high=MAX_COUNT, default=InnerRansacLO.sample_cap),
+    "lo_threshold_multiplier": Number(low=1.0, high=1e6, default=InnerRansacLO.threshold_multiplier),
+    "lo_steps": Integer(low=1, high=MAX_COUNT, default=InnerRansacLO.steps),
+})  # shared with usac
+
+
+def inner_ransac_lo(extra: dict) -> InnerRansacLO:
+    """LO+ with the ``lo_*`` options of ``extra``."""
+    return InnerRansacLO(
+        inner_iterations=extra["lo_inner_iterations"], sample_cap=extra["lo_sample_cap"],
+        threshold_multiplier=float(extra["lo_threshold_multiplier"]), steps=extra["lo_steps"],
+    )
+
+
+@register_method(
+    "lo-ransac",
+    "MSAC with LO+ on every new best: inner RANSAC on non-minimal samples, shrinking-gate least squares",
+    "Chum, Matas & Kittler 2003; Lebeda, Matas & Chum 2012",
+    extra_options=LO_OPTIONS,
+)
+def _build_lo_ransac(problem, options, priors, order, extra):
+    components = base_components(problem, options, priors, order, *reprojection_judge(options, TruncatedQuadratic()))
+    components.local_optimizer = inner_ransac_lo(extra)  # replaces the light consensus refit
+    return components

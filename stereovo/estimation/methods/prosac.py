@@ -1,7 +1,7 @@
 """PROSAC's termination: non-randomness and maximality (Chum & Matas 2005, "Matching with PROSAC -
 progressive sample consensus", CVPR).
 
-The sampler (:class:`~stereovo.estimation.samplers.ProsacSampler`) grows the
+The sampler (:class:`~stereovo.estimation.roles.samplers.ProsacSampler`) grows the
 set of top-ranked correspondences it draws from; this object decides when to
 stop and how far the set may grow. On every new best model it computes, for
 each prefix size n, the model's support ``I_n`` among the n top-ranked
@@ -26,6 +26,8 @@ fraction: the non-randomness test is what rejects a chance consensus, and a frac
 switches PROSAC's stop off whenever the inlier ratio is low (with a perfect ordering it then
 needs RANSAC's thousands of draws instead of a handful). The one practical guard is ``min_n``:
 prefixes shorter than it are not considered (their binomial test has too few points to mean much).
+
+This module also declares the ``prosac_*`` options (shared with ``usac``) and registers ``prosac``.
 """
 
 from __future__ import annotations
@@ -35,9 +37,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import binom, norm
 
+from stereovo.estimation.estimator_options import MAX_COUNT, EstimatorOptions
 from stereovo.estimation.loop import LoopState
-from stereovo.estimation.samplers import ProsacSampler
-from stereovo.estimation.solvers import SAMPLE_SIZE
+from stereovo.estimation.recipes import base_components, reprojection_judge
+from stereovo.estimation.registry import declare_options, register_method
+from stereovo.estimation.roles.samplers import ProsacSampler
+from stereovo.estimation.roles.scoring import InlierCount
+from stereovo.estimation.roles.solvers import SAMPLE_SIZE
+from stereovo.options import Integer, Number
 
 
 def non_random_minimum(n: np.ndarray, beta: float, psi: float, m: int = SAMPLE_SIZE, exact: bool = True) -> np.ndarray:
@@ -139,3 +146,46 @@ class ProsacTermination:
             "prosac_stop_at": int(self.stop_at),
             "prosac_updates": int(self.updates),
         }
+
+
+PROSAC_OPTIONS = ("prosac_beta", "prosac_psi", "prosac_min_n", "prosac_t_n")
+declare_options({
+    "prosac_beta": Number(low=0.0, high=1.0, low_open=True, high_open=True, default=ProsacTermination.beta),
+    "prosac_psi": Number(low=0.0, high=1.0, low_open=True, high_open=True, default=ProsacTermination.psi),
+    "prosac_min_n": Integer(low=4, high=MAX_COUNT, default=ProsacTermination.min_n),
+    "prosac_t_n": Number(low=1.0, high=1e15, default=200_000.0),
+})  # shared with usac, which checks them without an order too
+
+
+def prosac_sampler(order: np.ndarray, extra: dict) -> ProsacSampler:
+    """PROSAC's sampler on ``order`` with the ``prosac_t_n`` of the method options ``extra``."""
+    return ProsacSampler(order, t_n=float(extra["prosac_t_n"]))
+
+
+def prosac_termination(sampler: ProsacSampler, options: EstimatorOptions, extra: dict) -> ProsacTermination:
+    """PROSAC's stop for ``sampler`` with the ``prosac_*`` options of ``extra``."""
+    return ProsacTermination(
+        sampler, options.confidence, int(options.max_iterations),
+        beta=float(extra["prosac_beta"]), psi=float(extra["prosac_psi"]), min_n=extra["prosac_min_n"],
+    )
+
+
+@register_method(
+    "prosac",
+    "progressive sampling from the top of order= (required), PROSAC's non-randomness and maximality stop",
+    "Chum & Matas 2005",
+    extra_options=PROSAC_OPTIONS,
+    inputs="order",
+)
+def _build_prosac(problem, options, priors, order, extra):
+    if order is None:
+        raise ValueError("method 'prosac' needs order=: a permutation of range(N), best correspondence first")
+    components = base_components(problem, options, None, None, *reprojection_judge(options, InlierCount()))
+    sampler = prosac_sampler(order, extra)
+    stop = prosac_termination(sampler, options, extra)
+    components.sampler = sampler
+    if options.budget is None:
+        components.termination = stop
+    else:
+        components.listeners.append(stop)  # lowers sampler.n_max to n* under a fixed budget too
+    return components

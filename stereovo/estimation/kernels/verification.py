@@ -5,11 +5,11 @@ saves time only if a hypothesis costs what its point checks say. Run point by po
 each check is a Python-level round; here each hypothesis walks its points in one compiled loop,
 computes a point's residual in registers and stops at the decision, so a hypothesis rejected
 after j points costs j residuals. The residual is the forward stereo reprojection error of
-:func:`stereovo.estimation.kernels.forward_reprojection_sq` (px^2, ``inf`` behind the camera),
+:func:`stereovo.estimation.kernels.residuals.forward_reprojection_sq` (px^2, ``inf`` behind the camera),
 with the same arithmetic, so a compiled check agrees with full scoring bit for bit.
 
-The wrappers in :mod:`stereovo.estimation.tdd`, :mod:`stereovo.estimation.sprt` and
-:mod:`stereovo.estimation.samplers` fix the shapes and meaning; nothing else calls this module.
+The wrappers in :mod:`stereovo.estimation.methods.tdd`, :mod:`stereovo.estimation.methods.sprt` and
+:mod:`stereovo.estimation.roles.samplers` fix the shapes and meaning; nothing else calls this module.
 Array arguments are float64 / int64 and C-contiguous (the wrappers ensure it); ``cam`` is
 ``(fx, fy, cx, cy, baseline)``. No kernel draws random numbers: the callers pass uniforms or a
 permutation drawn from their generator.
@@ -18,15 +18,13 @@ permutation drawn from their generator.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from stereovo.estimation.kernels import point_reprojection_sq
-
-_jit = njit(cache=True, nogil=True, error_model="numpy")
-_inline_jit = njit(cache=True, nogil=True, error_model="numpy", inline="always")
+from stereovo.estimation.kernels.base import inline_jit, jit
+from stereovo.estimation.kernels.residuals import point_reprojection_sq
 
 
-@_inline_jit
+
+@inline_jit
 def _point_sq(R, t, h, X, mc, n, fx, fy, cx, cy, b):
     """Hypothesis ``h``'s squared forward reprojection error (px^2) of point ``n``; ``inf`` behind."""
     return point_reprojection_sq(
@@ -36,7 +34,7 @@ def _point_sq(R, t, h, X, mc, n, fx, fy, cx, cy, b):
     )
 
 
-@_jit
+@jit
 def tdd_pretest(R, t, X, mc, cam, threshold_sq, samples, u, stop_at_failure):
     """The T(d,d) pre-test of ``H`` hypotheses on d random points each, none of them its own sample.
 
@@ -95,7 +93,7 @@ def tdd_pretest(R, t, X, mc, cam, threshold_sq, samples, u, stop_at_failure):
     return passed, checks, consistent
 
 
-@_jit
+@jit
 def sprt_verify(R, t, X, mc, cam, threshold_sq, samples, perm, log_consistent, log_inconsistent, log_A):
     """Wald's SPRT on each of ``H`` hypotheses, points in the order ``perm (N,)``, own sample skipped.
 
@@ -184,7 +182,7 @@ def sprt_verify(R, t, X, mc, cam, threshold_sq, samples, perm, log_consistent, l
     return accepted, checked, consistent, out
 
 
-@_jit
+@jit
 def weighted_all_inlier_probability(w, total):
     """Chance that three sequential draws without replacement, P(i) proportional to the weights, all
     fall in a set I whose weights are ``w (m,)``; ``total`` is the sum of all N weights (W).

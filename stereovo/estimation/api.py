@@ -1,15 +1,9 @@
-"""Named estimators and the public entry point :func:`estimate_motion`.
+"""The public entry point: :func:`estimate_motion`, :func:`estimate_problem` and their :class:`MotionEstimate`.
 
-A method is a short recipe: it picks a residual model, a quality, a verifier,
-a local optimiser and a termination rule, and the shared loop runs it. New
-methods register themselves with :func:`register_method`; the classical
-family does so in :mod:`stereovo.estimation.classical`.
-
-This module holds the entry point (:func:`estimate_motion`, :func:`estimate_problem`,
-:func:`validate_options`, :class:`MotionEstimate`) and re-exports the rest: the shared options
-(:mod:`stereovo.estimation.estimator_options`), the registry
-(:mod:`stereovo.estimation.registry`) and the core's own methods with the recipe parts they
-share (:mod:`stereovo.estimation.recipes`, whose import registers them).
+The entry point builds the frame's :class:`~stereovo.estimation.problem.StereoProblem`, looks the
+method up in the registry (:mod:`stereovo.estimation.registry`), runs it on the usable rows and
+scatters the result back to all rows. The methods themselves live in :mod:`stereovo.estimation.recipes`
+(the core's own) and :mod:`stereovo.estimation.methods` (one module per paper).
 """
 
 from __future__ import annotations
@@ -17,78 +11,20 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass
-from typing import Any, Mapping
 
 import numpy as np
 
 from stereovo.camera import StereoCamera
 from stereovo.compilation import announce_compiling
-from stereovo.estimation.estimator_options import (
-    ENHANCEMENTS,
-    ESTIMATOR_OPTION_RULES,
-    MAX_COUNT,
-    NOISE_SIGMA_RANGE_PX,
-    SHARED_OPTIONS,
-    EstimatorOptions,
-    enhancements_used,
-    recipe_note,
-)
+from stereovo.estimation.covariance import pose_covariance
+from stereovo.estimation.estimator_options import EstimatorOptions
 from stereovo.estimation.loop import RansacReport
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.recipes import (
-    PROBABILISTIC_RECIPE,
-    base_components,
-    default_sampler,
-    default_termination,
-    final_refiner,
-    sample_check,
-)
-from stereovo.estimation.refinement import pose_covariance
-from stereovo.estimation.registry import (
-    MethodBuilder,
-    MethodRunner,
-    MethodSpec,
-    available_methods,
-    declare_options,
-    declared_option,
-    method_spec,
-    register_estimator,
-    register_method,
-    register_variant,
-)
-from stereovo.estimation.samplers import SAMPLE_SIZE, validate_order, validate_priors
+from stereovo.estimation.registry import MethodSpec, method_spec, split_options
+from stereovo.estimation.roles.samplers import validate_order, validate_priors
+from stereovo.estimation.roles.solvers import SAMPLE_SIZE
 
-__all__ = [
-    "MAX_COUNT",
-    "NOISE_SIGMA_RANGE_PX",
-    "ESTIMATOR_OPTION_RULES",
-    "EstimatorOptions",
-    "SHARED_OPTIONS",
-    "ENHANCEMENTS",
-    "enhancements_used",
-    "recipe_note",
-    "MethodBuilder",
-    "MethodRunner",
-    "MethodSpec",
-    "declare_options",
-    "declared_option",
-    "register_method",
-    "register_estimator",
-    "register_variant",
-    "available_methods",
-    "method_spec",
-    "default_sampler",
-    "default_termination",
-    "final_refiner",
-    "sample_check",
-    "base_components",
-    "PROBABILISTIC_RECIPE",
-    "MotionEstimate",
-    "as_generator",
-    "validate_options",
-    "estimate_motion",
-    "estimate_problem",
-]
+__all__ = ["MotionEstimate", "as_generator", "estimate_motion", "estimate_problem"]
 
 
 @dataclass
@@ -114,9 +50,9 @@ class MotionEstimate:
             ``e = (log(R_est R_true^T), t_est - t_true)`` (rotation first, rad, in the world-side,
             left-multiplied form; then translation, m), propagated from the pixel noise of both
             frames through the least-squares fit on the final inliers
-            (:func:`stereovo.estimation.refinement.pose_covariance`); None on a failed estimate.
-            Computed on first read and then kept (it costs about a sixth of an estimate at N 500,
-            eps 0.2, and the environment never reads it).
+            (:func:`stereovo.estimation.covariance.pose_covariance`); None on a failed estimate.
+            Computed on first read and then kept (it costs a noticeable share of an estimate,
+            docs/performance.md, and the environment never reads it).
         counters: the method's own counters (e.g. T(d,d) passes, SPRT tests, local optimisation
             runs), name -> number, as its components report them (``RansacReport.counters``);
             empty for a method that reports none.
@@ -152,17 +88,9 @@ class MotionEstimate:
     def from_report(cls, report: RansacReport, method: str, time_s: float) -> "MotionEstimate":
         """The public view of one run of the loop (or of a direct estimator)."""
         return cls(
-            rotation=report.rotation,
-            translation=report.translation,
-            inliers=report.inliers,
-            status=report.status,
-            n_hypotheses=report.n_hypotheses,
-            n_scored=report.n_scored,
-            n_point_checks=report.n_point_checks,
-            time_s=time_s,
-            method=method,
-            score=report.score,
-            report=report,
+            rotation=report.rotation, translation=report.translation, inliers=report.inliers, status=report.status,
+            n_hypotheses=report.n_hypotheses, n_scored=report.n_scored, n_point_checks=report.n_point_checks,
+            time_s=time_s, method=method, score=report.score, report=report,
             counters=dict(getattr(report, "counters", None) or {}),
         )
 
@@ -226,34 +154,6 @@ def as_generator(rng: np.random.Generator | int | np.random.SeedSequence | None)
     return np.random.default_rng(rng)
 
 
-def _split_options(spec: MethodSpec, options: dict) -> tuple[EstimatorOptions, dict]:
-    known = SHARED_OPTIONS
-    extra = spec.check_options({k: v for k, v in options.items() if k not in known})
-    shared = EstimatorOptions(**{**spec.defaults, **{k: v for k, v in options.items() if k in known}})
-    return shared, extra
-
-
-def validate_options(
-    method: str, options: Mapping[str, Any], priors: bool | None = None, order: bool | None = None
-) -> tuple[EstimatorOptions, dict[str, Any]]:
-    """Check a method call's settings without running it: the shared options, the method's own
-    options and, when ``priors`` or ``order`` is given (whether priors= / order= will be passed),
-    whether the method runs with that sampling input. What :func:`estimate_motion` accepts, this accepts.
-
-    Returns:
-        The :class:`EstimatorOptions` and the method's own options (validated, normalised).
-
-    Raises:
-        ValueError: an unknown method or option, a value its declaration refuses (naming both),
-            or sampling inputs the method cannot use.
-    """
-    spec = method_spec(method)
-    shared, extra = _split_options(spec, dict(options))
-    if priors is not None or order is not None:
-        spec.check_inputs(bool(priors), bool(order))
-    return shared, extra
-
-
 def estimate_motion(
     prev: np.ndarray,
     curr: np.ndarray,
@@ -296,18 +196,14 @@ def estimate_motion(
     announce_compiling()  # one line on the first run after installing, else nothing
     start = time.perf_counter()
     spec = method_spec(method)
-    shared, extra = _split_options(spec, options)
+    shared, extra = split_options(spec, options)
     problem = StereoProblem.build(prev, curr, camera, shared.noise_sigma, shared.min_disparity_sigmas)
     return _estimate(problem, spec, shared, extra, priors, order, rng, start)
 
 
 def estimate_problem(
-    problem: StereoProblem,
-    method: str = "probabilistic",
-    priors: np.ndarray | None = None,
-    order: np.ndarray | None = None,
-    rng: np.random.Generator | int | None = 0,
-    **options,
+    problem: StereoProblem, method: str = "probabilistic", priors: np.ndarray | None = None,
+    order: np.ndarray | None = None, rng: np.random.Generator | int | None = 0, **options,
 ) -> MotionEstimate:
     """:func:`estimate_motion` on an already built :class:`StereoProblem`.
 
@@ -335,7 +231,7 @@ def estimate_problem(
             f"min_disparity_sigmas={options['min_disparity_sigmas']!r} differs from the problem's "
             f"{problem.min_disparity_sigmas!r}, with which its unusable rows were chosen"
         )
-    shared, extra = _split_options(
+    shared, extra = split_options(
         spec, {**options, "noise_sigma": problem.noise_sigma, "min_disparity_sigmas": problem.min_disparity_sigmas}
     )
     return _estimate(problem, spec, shared, extra, priors, order, rng, start)

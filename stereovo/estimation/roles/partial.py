@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from stereovo.estimation.verification import ScoringContext
+from stereovo.estimation.roles.verification import ScoringContext
 
 # Hypotheses per call of :func:`residuals_at`: its cost is O(group * d) per hypothesis.
 _GROUP = 64

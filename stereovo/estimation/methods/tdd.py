@@ -15,9 +15,11 @@ far (the good ones, as far as the data tell), measures each one's chance of pass
 from its full support when it passed and was scored, unbiased from ``measure_points`` random
 points when it failed) and reports their mean.
 
-The pre-test runs compiled (:mod:`stereovo.estimation.kernels_verification`) for the reprojection
+The pre-test runs compiled (:mod:`stereovo.estimation.kernels.verification`) for the reprojection
 residual, so a rejected hypothesis costs its d point checks; other residual models take the
 vectorised numpy route with the same draws' distribution.
+
+This module also declares ``tdd_d`` and registers ``r-ransac``.
 """
 
 from __future__ import annotations
@@ -28,12 +30,17 @@ from typing import ClassVar
 
 import numpy as np
 
-from stereovo.estimation import kernels_verification
-from stereovo.estimation.partial import residuals_at
-from stereovo.estimation.scoring import ReprojectionResidual
-from stereovo.estimation.solvers import SAMPLE_SIZE
-from stereovo.estimation.termination import SampleProbability, iterations_for
-from stereovo.estimation.verification import ScoringContext
+from stereovo.estimation.estimator_options import MAX_COUNT
+from stereovo.estimation.kernels.verification import tdd_pretest
+from stereovo.estimation.recipes import base_components, reprojection_judge
+from stereovo.estimation.registry import register_method
+from stereovo.estimation.roles.partial import residuals_at
+from stereovo.estimation.roles.scoring import InlierCount
+from stereovo.estimation.roles.scoring import ReprojectionResidual
+from stereovo.estimation.roles.solvers import SAMPLE_SIZE
+from stereovo.estimation.roles.termination import SampleProbability, check_bound, iterations_for
+from stereovo.estimation.roles.verification import ScoringContext
+from stereovo.options import Integer
 
 
 def random_points_excluding(samples: np.ndarray, n: int, d: int, rng: np.random.Generator) -> np.ndarray:
@@ -176,7 +183,7 @@ class TddVerification:
             return self._verify_fully(ctx, R, t, samples, d)
         if compiled:
             p = ctx.problem
-            passed, spent, _ = kernels_verification.tdd_pretest(
+            passed, spent, _ = tdd_pretest(
                 np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float), p.points_prev, p.curr,
                 p.camera.parameters, float(ctx.threshold_sq), samples, rng.random((H, d)), True,
             )
@@ -252,7 +259,7 @@ class TddVerification:
             m = min(self.measure_points, others)
             if compiled:
                 p = ctx.problem
-                _, _, consistent = kernels_verification.tdd_pretest(
+                _, _, consistent = tdd_pretest(
                     np.ascontiguousarray(R[rows], dtype=float), np.ascontiguousarray(t[rows], dtype=float),
                     p.points_prev, p.curr, p.camera.parameters, float(ctx.threshold_sq),
                     np.ascontiguousarray(samples[rows]), rng.random((rows.size, m)), False,
@@ -310,14 +317,10 @@ class TddTermination:
     sampler: object = None
 
     def __post_init__(self) -> None:
-        if not 0 < self.confidence < 1:
-            raise ValueError(f"confidence must be in (0, 1), got {self.confidence}")
-        if self.max_iterations < 1:
-            raise ValueError(f"max_iterations must be >= 1, got {self.max_iterations}")
+        check_bound(self.confidence, self.max_iterations)
         self.probability = SampleProbability(self.sampler, self.confidence)  # a PROSAC schedule needs it
         self.last_alpha = float("nan")
         self._drawn = 0
-        self._q_by_count: dict[tuple[int, int], float] = {}  # uniform sampling's q per (I, N): asked every batch
 
     def on_new_best(self, inliers: np.ndarray, state) -> None:
         self.probability.on_new_best(inliers, state)
@@ -326,14 +329,7 @@ class TddTermination:
         self._drawn = int(state.n_hypotheses)
 
     def required(self, n_inliers: int, n: int) -> int:
-        if self.probability.guided:
-            q = self.probability.of(n_inliers, n)
-        else:
-            q = self._q_by_count.get((n_inliers, n))
-            if q is None:
-                if len(self._q_by_count) > 64:
-                    self._q_by_count.clear()
-                q = self._q_by_count[(n_inliers, n)] = self.probability.of(n_inliers, n)
+        q = self.probability.of(n_inliers, n)
         v = self.verifier
         alpha = v.alpha() if v is not None else None
         if alpha is None:
@@ -355,3 +351,21 @@ class TddTermination:
 
     def counters(self) -> dict[str, int | float]:
         return {"tdd_alpha_used": self.last_alpha}
+
+
+@register_method(
+    "r-ransac",
+    "randomized RANSAC: T(d,d) pre-test on d random points before full scoring, bound stretched by 1/alpha",
+    "Matas & Chum 2002",
+    extra_options={"tdd_d": Integer(low=1, high=MAX_COUNT, default=TddVerification.d)},
+)
+def _build_r_ransac(problem, options, priors, order, extra):
+    d = extra["tdd_d"]
+    components = base_components(problem, options, priors, order, *reprojection_judge(options, InlierCount()))
+    verifier = TddVerification(d)
+    components.verifier = verifier
+    components.listeners.append(verifier)  # the best model's inliers decide which hypotheses are good
+    if options.budget is None:
+        components.termination = TddTermination(options.confidence, int(options.max_iterations), d, verifier,
+                                                components.sampler)
+    return components

@@ -12,9 +12,11 @@ from typing import ClassVar, Protocol
 
 import numpy as np
 
-from stereovo.estimation import kernels, kernels_verification
-from stereovo.estimation.solvers import SAMPLE_SIZE
-from stereovo.estimation.termination import all_inlier_probability as uniform_all_inlier_probability
+from stereovo.estimation.kernels.verification import weighted_all_inlier_probability
+from stereovo.estimation.kernels.sampling import distinct_triplets, prior_defects, weighted_triplets
+from stereovo.estimation.roles.solvers import SAMPLE_SIZE
+from stereovo.estimation.roles.termination import all_inlier_probability as uniform_all_inlier_probability
+from stereovo.options import real_array
 
 
 class Sampler(Protocol):
@@ -47,7 +49,7 @@ def distinct_uniform_triplets(pool_sizes: np.ndarray, rng: np.random.Generator) 
     shift past the indices already taken, so no rejection loop is needed.
     """
     m = np.ascontiguousarray(pool_sizes, dtype=np.int64)
-    return kernels.distinct_triplets(rng.random((m.shape[0], 3)), m)
+    return distinct_triplets(rng.random((m.shape[0], 3)), m)
 
 
 class UniformSampler:
@@ -76,15 +78,9 @@ def validate_priors(priors: np.ndarray, n: int) -> np.ndarray:
     Any scale is accepted (``np.full(n, 1e307)``, ``exp`` of logits near 709): the weights'
     sum may overflow, so :func:`normalised_weights` divides by the largest weight first.
     """
-    if np.iscomplexobj(priors):
-        raise ValueError(f"priors must be real weights, got complex dtype {np.asarray(priors).dtype}")
-    try:
-        p = np.asarray(priors, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"priors must be an array of real weights, got {type(priors).__name__}") from None
-    if p.shape != (n,):
-        raise ValueError(f"priors must have shape ({n},), one weight per correspondence, got {p.shape}")
-    nonfinite, minimum, positive = kernels.prior_defects(np.ascontiguousarray(p))
+    p = real_array("priors", priors, (n,), entries="weights", per="one weight per correspondence",
+                   what="an array of real weights")
+    nonfinite, minimum, positive = prior_defects(np.ascontiguousarray(p))
     if nonfinite:
         raise ValueError("priors contain NaN or inf")
     if minimum < 0:
@@ -142,7 +138,7 @@ class WeightedSampler:
     def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
         w = self._w
         u = rng.random((batch, SAMPLE_SIZE))
-        samples, suspect = kernels.weighted_triplets(u, w, self._cdf, self._before)
+        samples, suspect = weighted_triplets(u, w, self._cdf, self._before)
         # Rounding at an interval's edge can land on a drawn or zero-weight index; redo those rows exactly.
         for row in np.flatnonzero(suspect):
             samples[row] = self._draw_exactly(u[row])
@@ -173,7 +169,7 @@ class WeightedSampler:
         if self._equal_weights:
             count = int(np.count_nonzero(mask & (self._w > 0)))
             return float(uniform_all_inlier_probability(count, self._n_positive))
-        return float(kernels_verification.weighted_all_inlier_probability(np.ascontiguousarray(self._w[mask]), 1.0))
+        return float(weighted_all_inlier_probability(np.ascontiguousarray(self._w[mask]), 1.0))
 
     def log_probability(self, samples: np.ndarray) -> np.ndarray:
         """Log-probability ``(B,)`` of drawing each ordered triplet sequentially without replacement."""

@@ -38,7 +38,7 @@ sampling, from the best support: the paper's code keeps OpenCV's SPRT-based boun
 ``max_iterations`` cap.
 
 **Hypotheses per batch.** The paper draws, fits and updates one hypothesis at a time, which is the
-methods' default (``bansac_batch`` 1). With larger batches each hypothesis' update is applied in the
+methods' default (``bansac_batch``: :data:`PAPER_BATCH`). With larger batches each hypothesis' update is applied in the
 order drawn, the next batch is drawn from the updated beliefs and the stop is checked per batch.
 
 **Priors** are the initial beliefs when they lie in [0, 1] (the paper's input); larger weights are
@@ -52,24 +52,31 @@ it calls an outlier an outlier and finds an inlier with chance ``rho`` (``bansac
 calls any point an inlier with chance ``r``. Bayes' rule with ``P(in | inlier) = delta rho + (1 -
 delta) r`` and ``P(in | outlier) = (1 - delta) r`` (complements for "out") updates every point but
 the sample's own three; beliefs are clipped to ``[1e-4, 1 - 1e-4]``; sampling is proportional to the
-beliefs, in batches of 4; the stop is reached once, under the current beliefs, an all-inlier sample
-was drawn with ``confidence``: ``1 - prod_t (1 - prod_{j in S_t} p_j) >= confidence``. Priors are
-scaled so the largest is ``prior_ceiling`` (0.6).
+beliefs, in batches of :data:`FEEDBACK_BATCH`; the stop is reached once, under the current beliefs, an
+all-inlier sample was drawn with ``confidence``: ``1 - prod_t (1 - prod_{j in S_t} p_j) >= confidence``. Priors are
+scaled so the largest is ``prior_ceiling`` (:data:`PRIOR_CEILING` by default).
+
+This module also declares the belief and ``bansac_*`` options and registers ``bansac`` and ``p-bansac``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from stereovo.estimation import kernels
+from stereovo.estimation.estimator_options import EstimatorOptions
 from stereovo.estimation.kernels import beliefs as belief_kernels
-from stereovo.estimation.local_optimization import ConsensusRefit
+from stereovo.estimation.kernels.sampling import weighted_triplets
 from stereovo.estimation.loop import LoopState
-from stereovo.estimation.samplers import SAMPLE_SIZE, WeightedSampler
-from stereovo.estimation.termination import AdaptiveTermination
+from stereovo.estimation.registry import declare_options, method_spec, register_method
+from stereovo.estimation.roles.local_optimization import ConsensusRefit
+from stereovo.estimation.roles.samplers import WeightedSampler
+from stereovo.estimation.roles.solvers import SAMPLE_SIZE
+from stereovo.estimation.roles.termination import AdaptiveTermination
+from stereovo.options import Choice, Integer, Number
 
 BELIEF_FLOOR = 1e-4
 BANSAC_THRESHOLD = 0.01  # tau of BANSAC's stop
@@ -84,7 +91,9 @@ C_MAX = 1.0 - 1e-12
 LOG_GATED_IN, LOG_GATED_OUT = math.log(0.2), math.log(0.8)  # the table's split of a gated point's outlier weight
 
 DEFAULT_RECALL = 0.5
-PRIOR_CEILING = 0.6  # the largest prior's belief: at 0.95 the verdict-likelihood beliefs lock onto the first consensus (eps 0.5, 20 frames: 85 % success; 0.6: 95 %)
+# the largest prior's belief: near 1 the verdict-likelihood beliefs lock onto the first consensus
+# (docs/algorithms.md, "Measurements behind the code")
+PRIOR_CEILING = 0.6
 FEEDBACK_BATCH = 4  # hypotheses per batch of the verdict-likelihood variant: the beliefs move between batches
 
 
@@ -144,7 +153,7 @@ class BansacSampler:
 
     The update, the weights and their cumulative sums are compiled
     (:mod:`stereovo.estimation.kernels.beliefs`) and kept between draws: the numpy formulation
-    (:func:`log_odds_update`, then a fresh :class:`~stereovo.estimation.samplers.WeightedSampler`
+    (:func:`log_odds_update`, then a fresh :class:`~stereovo.estimation.roles.samplers.WeightedSampler`
     per hypothesis) gives the same draws bit for bit at several times the cost.
 
     Attributes:
@@ -186,7 +195,7 @@ class BansacSampler:
 
     def _draw_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The weights, and what the weighted draw inverts: the weights over their sum (every weight
-        is >= 1e-12, so that is :func:`~stereovo.estimation.samplers.normalised_weights`' direct
+        is >= 1e-12, so that is :func:`~stereovo.estimation.roles.samplers.normalised_weights`' direct
         quotient) and its inclusive and exclusive cumulative sums; kept until the next update."""
         if self._arrays is None:
             self._arrays = belief_kernels.bansac_draw_arrays(
@@ -238,7 +247,7 @@ class BansacSampler:
 
 
 class WeightedDraw:
-    """:class:`~stereovo.estimation.samplers.WeightedSampler`'s draw for weights that change between
+    """:class:`~stereovo.estimation.roles.samplers.WeightedSampler`'s draw for weights that change between
     batches (BANSAC's beliefs, the adaptive environment's agent): the same samples from the same
     generator, without the sampler's validation and with its normalisation compiled.
 
@@ -262,7 +271,7 @@ class WeightedDraw:
     def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
         """``(batch, 3)`` ordered draws without replacement, P(i) proportional to the weights."""
         u = rng.random((batch, SAMPLE_SIZE))
-        samples, suspect = kernels.weighted_triplets(u, self.w, self.cdf, self.before)
+        samples, suspect = weighted_triplets(u, self.w, self.cdf, self.before)
         if suspect.any():
             for row in np.flatnonzero(suspect):
                 samples[row] = exact_weighted_draw(self.w, u[row])
@@ -272,7 +281,7 @@ class WeightedDraw:
 def exact_weighted_draw(w: np.ndarray, u: np.ndarray) -> np.ndarray:
     """One ordered draw of three from weights ``w (N,)`` (normalised) and uniforms ``u (3,)``, each
     inverted on the explicitly renormalised weights: the rare fix-up of a draw that rounding put on
-    an interval's edge (as :class:`~stereovo.estimation.samplers.WeightedSampler` fixes its own)."""
+    an interval's edge (as :class:`~stereovo.estimation.roles.samplers.WeightedSampler` fixes its own)."""
     w = w.copy()
     picked = np.empty(SAMPLE_SIZE, dtype=np.int64)
     for k in range(SAMPLE_SIZE):
@@ -436,37 +445,37 @@ class VerdictConfidenceTermination:
 
 # ----------------------------------------------------------------------------- the methods
 
-from stereovo.estimation.methods import (  # noqa: E402  (the methods need the samplers above)
-    EstimatorOptions,
-    declare_options,
-    declared_option,
-    method_spec,
-    register_method,
-)
-from stereovo.options import Choice, Integer, Number  # noqa: E402
 
-BELIEF_OPTIONS = ("initial_probability", "prior_ceiling")
 UPDATES = ("paper", "verdict-likelihood")
+BELIEF_OPTIONS = ("initial_probability", "prior_ceiling")
 declare_options({
-    "initial_probability": Number(low=0.0, high=1.0, low_open=True, high_open=True),
-    "prior_ceiling": Number(low=0.0, high=1.0, low_open=True, high_open=True),
-    "bansac_recall": Number(low=0.0, high=1.0, low_open=True),
-    "bansac_update": Choice(choices=UPDATES),
-    "bansac_threshold": Number(low=0.0, high=1.0, low_open=True, high_open=True),
-    "bansac_batch": Integer(low=1),
-    "bansac_weights": Choice(choices=WEIGHTINGS),
+    "initial_probability": Number(low=0.0, high=1.0, low_open=True, high_open=True, default=0.5),
+    "bansac_recall": Number(low=0.0, high=1.0, low_open=True, default=DEFAULT_RECALL),
+    "bansac_update": Choice(choices=UPDATES, default="paper"),
+    # None: PAPER_BATCH under the paper's update, FEEDBACK_BATCH under the verdict-likelihood one
+    "bansac_batch": Integer(low=1, allow_none=True, default=None),
+    "bansac_weights": Choice(choices=WEIGHTINGS, default="discretised"),
 })
-BANSAC_OPTIONS = BELIEF_OPTIONS + ("bansac_update", "bansac_threshold", "bansac_batch", "bansac_weights", "bansac_recall")
+CEILING_RULE = Number(low=0.0, high=1.0, low_open=True, high_open=True, default=PRIOR_CEILING)
+"""``prior_ceiling`` of the belief samplers that cap the priors by default (ars, the verdict-likelihood update)."""
 
 
-def _checked(extra: dict, name: str, default):
-    return declared_option(name).check(name, extra.get(name, default))
+def bansac_options(threshold: float) -> dict:
+    """The declarations of ``bansac``'s options, with stop threshold ``threshold`` by default;
+    ``prior_ceiling`` None (its default) caps the priors only under the verdict-likelihood update."""
+    return {
+        "initial_probability": None, "prior_ceiling": dataclasses.replace(CEILING_RULE, allow_none=True, default=None),
+        "bansac_update": None, "bansac_batch": None, "bansac_weights": None, "bansac_recall": None,
+        "bansac_threshold": Number(low=0.0, high=1.0, low_open=True, high_open=True, default=threshold),
+    }
 
 
 def belief_options(extra: dict) -> dict[str, float]:
-    """The belief options of ``ars`` and the verdict-likelihood variant from ``extra``, checked."""
-    defaults = {"initial_probability": 0.5, "prior_ceiling": PRIOR_CEILING}
-    return {name: float(_checked(extra, name, defaults[name])) for name in BELIEF_OPTIONS}
+    """The belief options of ``ars`` and the verdict-likelihood variant from the method options
+    ``extra`` (an unset ceiling: :data:`PRIOR_CEILING`)."""
+    ceiling = extra["prior_ceiling"]
+    return {"initial_probability": float(extra["initial_probability"]),
+            "prior_ceiling": PRIOR_CEILING if ceiling is None else float(ceiling)}
 
 
 def judged_components(problem, options: EstimatorOptions, priors, order, sampler):
@@ -478,42 +487,39 @@ def judged_components(problem, options: EstimatorOptions, priors, order, sampler
     components.sampler = sampler
     # Belief-driven samplers draw from the first consensus found, and a minimal stereo fit finds
     # only part of its inliers: refitting each new best on its consensus gives it its full support
-    # (eps 0.7, informative priors, 20 frames: verdict-likelihood bansac 45 -> 80 % success, ars 90 -> 100 %).
+    # (docs/algorithms.md, "Measurements behind the code").
     components.local_optimizer = components.local_optimizer or ConsensusRefit()
     return components
 
 
-def _build(problem, options, priors, order, extra, threshold_default: float):
-    update = _checked(extra, "bansac_update", "paper")
-    if update == "verdict-likelihood":
+def _build(problem, options, priors, order, extra):
+    if extra["bansac_update"] == "verdict-likelihood":
         return _build_verdict_variant(problem, options, priors, order, extra)
-    ceiling = extra.get("prior_ceiling")
+    ceiling = extra["prior_ceiling"]
     sampler = BansacSampler(
-        problem.n, priors, threshold=float(_checked(extra, "bansac_threshold", threshold_default)),
-        initial_probability=float(_checked(extra, "initial_probability", 0.5)),
-        prior_ceiling=None if ceiling is None else float(_checked(extra, "prior_ceiling", ceiling)),
-        weights=_checked(extra, "bansac_weights", "discretised"),
+        problem.n, priors, threshold=float(extra["bansac_threshold"]),
+        initial_probability=float(extra["initial_probability"]),
+        prior_ceiling=None if ceiling is None else float(ceiling),
+        weights=extra["bansac_weights"],
     )
     components = judged_components(problem, options, priors, order, sampler)
-    components.batch_size, components.first_batch_size = int(_checked(extra, "bansac_batch", PAPER_BATCH)), None
+    batch = extra["bansac_batch"]
+    components.batch_size, components.first_batch_size = PAPER_BATCH if batch is None else batch, None
     if options.budget is None:
         # the released code keeps the uniform adaptive bound beside the beliefs' stop
         bound = AdaptiveTermination(options.confidence, int(options.max_iterations))
-        components.listeners = [x for x in components.listeners if x is not components.termination]
         components.termination = BansacTermination(sampler, bound)
     return components
 
 
 def _build_verdict_variant(problem, options, priors, order, extra):
-    recall = float(_checked(extra, "bansac_recall", DEFAULT_RECALL))
+    recall = float(extra["bansac_recall"])
     sampler = VerdictBeliefSampler(problem.n, priors, recall=recall, **belief_options(extra))
     components = judged_components(problem, options, priors, order, sampler)
-    batch = int(_checked(extra, "bansac_batch", FEEDBACK_BATCH))
+    batch = FEEDBACK_BATCH if extra["bansac_batch"] is None else extra["bansac_batch"]
     components.batch_size, components.first_batch_size = min(int(options.batch_size), batch), None
     if options.budget is None:
-        adaptive = components.termination
         components.termination = VerdictConfidenceTermination(sampler, options.confidence, int(options.max_iterations))
-        components.listeners = [listener for listener in components.listeners if listener is not adaptive]
     return components
 
 
@@ -523,17 +529,17 @@ def _build_verdict_variant(problem, options, priors, order, extra):
     "after every hypothesis; stops when the beliefs rule out as many points (p < 0.01) as the best "
     "model's outliers, or at the adaptive bound; the probabilistic method's judge",
     "Piedade & Miraldo, ICCV 2023",
-    extra_options=BANSAC_OPTIONS,
+    extra_options=bansac_options(BANSAC_THRESHOLD),
 )
 def _build_bansac(problem, options, priors, order, extra):
-    return _build(problem, options, priors, order, extra, BANSAC_THRESHOLD)
+    return _build(problem, options, priors, order, extra)
 
 
 @register_method(
     "p-bansac",
     "P-BANSAC: BANSAC with the looser stop (beliefs under 0.1 count as ruled out)",
     "Piedade & Miraldo, ICCV 2023",
-    extra_options=BANSAC_OPTIONS,
+    extra_options=bansac_options(P_BANSAC_THRESHOLD),
 )
 def _build_p_bansac(problem, options, priors, order, extra):
-    return _build(problem, options, priors, order, extra, P_BANSAC_THRESHOLD)
+    return _build(problem, options, priors, order, extra)

@@ -16,6 +16,8 @@ size (16, 32, 64, ...); within a chunk the cumulative log-ratio of every
 hypothesis is a ``cumsum`` and each hypothesis stops at its first crossing.
 Marginally each hypothesis sees a uniformly random order, which is all the
 test's error bounds use; a hypothesis' own three sample points are skipped.
+
+This module also declares the ``sprt_*`` options (shared with ``usac``) and registers ``waldsac``.
 """
 
 from __future__ import annotations
@@ -28,12 +30,17 @@ from typing import ClassVar
 import numpy as np
 from scipy.optimize import brentq
 
-from stereovo.estimation import kernels_verification
+from stereovo.estimation.estimator_options import MAX_COUNT
+from stereovo.estimation.kernels.verification import sprt_verify
 from stereovo.estimation.loop import LoopState
-from stereovo.estimation.partial import residuals_on
-from stereovo.estimation.scoring import ReprojectionResidual
-from stereovo.estimation.termination import SampleProbability
-from stereovo.estimation.verification import ScoringContext
+from stereovo.estimation.recipes import base_components, reprojection_judge
+from stereovo.estimation.registry import declare_options, register_method
+from stereovo.estimation.roles.partial import residuals_on
+from stereovo.estimation.roles.scoring import InlierCount
+from stereovo.estimation.roles.scoring import ReprojectionResidual
+from stereovo.estimation.roles.termination import SampleProbability, check_bound
+from stereovo.estimation.roles.verification import ScoringContext
+from stereovo.options import Integer, Number
 
 DELTA_BOUNDS = (1e-3, 0.3)  # clamp delta: at 0 the test takes log 0 and rejects at once; it must stay below epsilon
 MIN_A = 2.0  # below this the test rejects almost anything: fall back to full verification
@@ -301,7 +308,7 @@ class SprtVerification:
         """The SPRT point by point in one compiled pass (reprojection residuals): a rejected
         hypothesis costs exactly the points it was checked on."""
         p = ctx.problem
-        alive, checked, consistent, sq_all = kernels_verification.sprt_verify(
+        alive, checked, consistent, sq_all = sprt_verify(
             np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float), p.points_prev, p.curr,
             p.camera.parameters, float(ctx.threshold_sq), np.ascontiguousarray(samples, dtype=np.int64),
             np.ascontiguousarray(perm, dtype=np.int64), float(log_consistent), float(log_inconsistent), float(log_A),
@@ -347,17 +354,13 @@ class SprtTermination:
     sampler: object = None
 
     def __post_init__(self) -> None:
-        if not 0 < self.confidence < 1:
-            raise ValueError(f"confidence must be in (0, 1), got {self.confidence}")
-        if self.max_iterations < 1:
-            raise ValueError(f"max_iterations must be >= 1, got {self.max_iterations}")
+        check_bound(self.confidence, self.max_iterations)
         self.probability = SampleProbability(self.sampler, self.confidence)  # a PROSAC schedule needs it
         self._last_drawn = 0
         self._test_index = 0
         # alpha_i depends on the tests and on I_best only: cached per inlier count (the loop asks with
         # the count before and after a new best's local optimisation, so one entry would thrash)
         self._alphas_by_count: dict[int, tuple[list[SprtTest], list[float]]] = {}
-        self._q_by_count: dict[tuple[int, int], float] = {}  # uniform sampling's P_g per (I, N)
         # the last answers: the loop asks after every batch, and between redesigns only the current
         # test's draws change, which the bound does not read (it needs the draws of the past tests)
         self._answers: dict[tuple, tuple] = {}
@@ -390,14 +393,7 @@ class SprtTermination:
         return alphas
 
     def required(self, n_inliers: int, n: int) -> int:
-        if self.probability.guided:
-            p_good = self.probability.of(n_inliers, n)
-        else:
-            p_good = self._q_by_count.get((n_inliers, n))
-            if p_good is None:
-                if len(self._q_by_count) > 64:
-                    self._q_by_count.clear()
-                p_good = self._q_by_count[(n_inliers, n)] = self.probability.of(n_inliers, n)
+        p_good = self.probability.of(n_inliers, n)
         if p_good <= 0:
             return self.max_iterations
         history = self.verifier.history
@@ -435,3 +431,37 @@ class SprtTermination:
             return self.max_iterations
         k_current = (np.log1p(-self.confidence) - log_eta) / np.log1p(-p_find)
         return int(np.clip(done + np.ceil(max(k_current, 0.0)), 1, self.max_iterations))
+
+
+SPRT_OPTIONS = ("sprt_t_m", "sprt_epsilon0", "sprt_delta0", "sprt_chunk")
+declare_options({
+    "sprt_t_m": Number(low=0.0, high=1e15, low_open=True, default=SprtVerification.t_m),
+    "sprt_epsilon0": Number(low=0.0, high=1.0, low_open=True, high_open=True, default=SprtVerification.epsilon0),
+    "sprt_delta0": Number(low=0.0, high=1.0, low_open=True, high_open=True, default=SprtVerification.delta0),
+    "sprt_chunk": Integer(low=1, high=MAX_COUNT, default=SprtVerification.chunk),
+})  # shared with usac
+
+
+def sprt_verifier(problem, extra: dict) -> SprtVerification:
+    """The SPRT verification of ``problem`` with the ``sprt_*`` options of ``extra``."""
+    return SprtVerification(
+        problem.n, t_m=float(extra["sprt_t_m"]), epsilon0=float(extra["sprt_epsilon0"]),
+        delta0=float(extra["sprt_delta0"]), chunk=extra["sprt_chunk"],
+    )
+
+
+@register_method(
+    "waldsac",
+    "randomized RANSAC with the SPRT: early rejection, adaptive epsilon/delta, SPRT-aware stopping",
+    "Matas & Chum 2005; Chum & Matas 2008",
+    extra_options=SPRT_OPTIONS,
+)
+def _build_waldsac(problem, options, priors, order, extra):
+    components = base_components(problem, options, priors, order, *reprojection_judge(options, InlierCount()))
+    verifier = sprt_verifier(problem, extra)
+    components.verifier = verifier
+    components.listeners.append(verifier)
+    if options.budget is None:
+        components.termination = SprtTermination(verifier, options.confidence, int(options.max_iterations),
+                                                 components.sampler)
+    return components

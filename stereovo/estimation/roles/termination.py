@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from stereovo.estimation.solvers import SAMPLE_SIZE
+from stereovo.estimation.roles.solvers import SAMPLE_SIZE
 
 
 def all_inlier_probability(n_inliers: int | np.ndarray, n: int, sample_size: int = SAMPLE_SIZE) -> np.ndarray:
@@ -64,6 +64,18 @@ def iterations_for(q: float, confidence: float, max_iterations: int) -> int:
     return min(max(math.ceil(math.log1p(-confidence) / math.log1p(-q)), 1), max_iterations)
 
 
+def check_bound(confidence: float, max_iterations: int) -> None:
+    """The arguments every adaptive bound shares: ``confidence`` in (0, 1), ``max_iterations`` >= 1.
+
+    Raises:
+        ValueError: naming the argument and its value.
+    """
+    if not 0 < confidence < 1:
+        raise ValueError(f"confidence must be in (0, 1), got {confidence}")
+    if max_iterations < 1:
+        raise ValueError(f"max_iterations must be >= 1, got {max_iterations}")
+
+
 class SampleProbability:
     """``q`` of one draw of a given sampler for the best model's inliers (a loop listener).
 
@@ -91,6 +103,7 @@ class SampleProbability:
         self.q = 0.0  # the guided q of the latest best (unused for uniform sampling)
         self.draws = math.inf  # a scheduled sampler's required draws for the latest best
         self.updates = 0
+        self._by_count: dict[tuple[int, int], float] = {}  # the count formula's q per (I, N): asked every batch
 
     def on_new_best(self, inliers: np.ndarray, state) -> None:
         if self.scheduled:
@@ -103,7 +116,14 @@ class SampleProbability:
 
     def of(self, n_inliers: int, n: int) -> float:
         """``q`` for the best model (``n_inliers`` of ``n``): the sampler's if guided, else the count formula."""
-        return self.q if self.guided else float(all_inlier_probability(n_inliers, n))
+        if self.guided:
+            return self.q
+        q = self._by_count.get((n_inliers, n))
+        if q is None:
+            if len(self._by_count) > 64:
+                self._by_count.clear()
+            q = self._by_count[(n_inliers, n)] = float(all_inlier_probability(n_inliers, n))
+        return q
 
 
 @dataclass
@@ -115,8 +135,8 @@ class AdaptiveTermination:
     uniform sampling (bit for bit the bound without a sampler), the sampler's own
     ``all_inlier_probability(inliers)`` otherwise. A sampler whose draws follow a schedule (PROSAC's
     growing prefix: :class:`SampleProbability`) stops after its ``required_draws``, counted from the
-    first draw. With a guided sampler the termination must be a loop listener (``on_new_best``) to
-    see the inlier mask; :func:`stereovo.estimation.methods` recipes register it.
+    first draw. With a guided sampler it reads the inlier mask in ``on_new_best``, which the loop
+    calls on its termination (:class:`stereovo.estimation.loop.RansacComponents`).
     """
 
     confidence: float = 0.99

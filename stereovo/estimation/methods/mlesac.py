@@ -7,7 +7,7 @@ with the mixing weight gamma fitted by EM per hypothesis. Tordoff & Murray
 correspondence from its match score.
 
 Units (our choice, documented): residuals are the Mahalanobis ones of
-:class:`~stereovo.estimation.scoring.MahalanobisResidual`,
+:class:`~stereovo.estimation.roles.scoring.MahalanobisResidual`,
 ``r_i = Y_i - (R X_i + t)`` in metres with covariance
 ``S_i = R S_X,i R^T + S_Y,i``, so the inlier density is
 ``p_in = (2 pi)^(-3/2) |S_i|^(-1/2) exp(-d_i^2 / 2)`` in m^-3. Outliers are
@@ -34,6 +34,8 @@ makes it numerically singular) gets its eigenvalues floored at
 ``COVARIANCE_FLOOR`` times the largest before its determinant is taken; squared
 distances that come back negative or NaN from such a covariance count as 0 and
 infinity (an outlier).
+
+This module also declares the options of ``mlesac`` and ``guided-mlesac`` and registers them.
 """
 
 from __future__ import annotations
@@ -42,7 +44,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stereovo.estimation.estimator_options import MAX_COUNT
 from stereovo.estimation.problem import StereoProblem
+from stereovo.estimation.recipes import base_components
+from stereovo.estimation.registry import register_method
+from stereovo.estimation.roles.scoring import MahalanobisResidual
+from stereovo.options import Integer, Number
 
 _GAMMA_CLIP = 1e-6  # keeps log(gamma) and log(1 - gamma) finite
 COVARIANCE_FLOOR = 1e-12
@@ -188,3 +195,38 @@ class GuidedMlesacQuality:
     def score(self, residual_sq: np.ndarray, threshold_sq: float) -> np.ndarray:
         log_p_in = self.log_normaliser - 0.5 * _finite_sq(residual_sq)
         return np.sum(np.logaddexp(np.log(self.gamma) + log_p_in, np.log1p(-self.gamma) + self.log_p_out), axis=-1)
+
+
+@register_method(
+    "mlesac",
+    "mixture likelihood (Gaussian Mahalanobis inliers + uniform outliers), inlier fraction by EM per hypothesis",
+    "Torr & Zisserman 2000",
+    extra_options={
+        "mlesac_em_iterations": Integer(low=1, high=MAX_COUNT, default=MlesacQuality.em_iterations),
+        "mlesac_em_tolerance": Number(low=0.0, low_open=True, default=MlesacQuality.em_tolerance),
+    },
+)
+def _build_mlesac(problem, options, priors, order, extra):
+    quality = MlesacQuality.for_problem(
+        problem, em_iterations=extra["mlesac_em_iterations"], em_tolerance=float(extra["mlesac_em_tolerance"])
+    )
+    threshold = options.mahalanobis_threshold_sq
+    return base_components(problem, options, priors, order, MahalanobisResidual(threshold), quality, threshold)
+
+
+@register_method(
+    "guided-mlesac",
+    "MLESAC with a prior inlier probability gamma_i per match (priors=, required), sampling by gamma_i",
+    "Tordoff & Murray 2005",
+    inputs="priors",
+)
+def _build_guided_mlesac(problem, options, priors, order, extra):
+    if priors is None:
+        raise ValueError(
+            "method 'guided-mlesac' needs priors=: one inlier probability gamma_i per correspondence "
+            "(e.g. calibrated match scores; clipped to (0, 1))"
+        )
+    quality = GuidedMlesacQuality.for_problem(problem, priors)
+    threshold = options.mahalanobis_threshold_sq
+    # P(i) proportional to the clipped gamma_i; the adaptive stop uses this sampler's all-inlier chance
+    return base_components(problem, options, quality.gamma, None, MahalanobisResidual(threshold), quality, threshold)
