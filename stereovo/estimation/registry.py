@@ -126,11 +126,6 @@ def declare_options(rules: Mapping[str, Option]) -> None:
         _DECLARED_OPTIONS[name] = rule
 
 
-def declared_option(name: str) -> Option | None:
-    """The shared declaration of a method option (None if undeclared)."""
-    return _DECLARED_OPTIONS.get(name)
-
-
 def _register(spec: MethodSpec) -> None:
     if spec.name in _METHODS:
         raise ValueError(f"method {spec.name!r} is already registered")
