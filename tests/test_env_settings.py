@@ -97,3 +97,12 @@ def test_lengths_refuse_what_is_not_positive_finite_lengths(value):
     with pytest.raises(ValueError, match=rf"^E: kitti_lengths must be positive numbers \(m\), got "):
         check_settings("E", kitti_lengths=value)
     assert Lengths().check("x", (1, 2.5)) == (1.0, 2.5)
+
+
+@pytest.mark.parametrize("value", [(0.9, 0.5), (-0.1, 0.5), (0.2, 1.0), (0.5,), "ab", (0.1, "0.5"), (True, 0.5), None])
+def test_a_contamination_range_is_a_pair_within_zero_and_one(value):
+    from vo_gym.settings import ContaminationRange
+
+    with pytest.raises(ValueError, match=r"^epsilons must be a \(low, high\) pair with 0 <= low <= high < 1, got "):
+        ContaminationRange().check("epsilons", value, prefix="")
+    assert ContaminationRange().check("epsilons", [0, np.float32(0.5)], prefix="") == (0.0, 0.5)

@@ -26,13 +26,14 @@ from stereovo.camera import StereoCamera
 from stereovo.estimation import EstimatorOptions, method_spec, validate_options
 from stereovo.estimation.registry import MethodSpec
 from stereovo.estimation.methods import ESTIMATOR_OPTION_RULES, MAX_COUNT, SHARED_OPTIONS
-from stereovo.options import Choice, Integer, Number, Option, check_options
+from stereovo.options import Choice, Integer, Number, Option, check_options, is_real
 from stereovo.simulation import SimulationConfig
 from vo_gym.names import constructor_keywords, keyword_hint
 from vo_gym.rewards import REWARD_MODES
 
 __all__ = [
-    "SAMPLING_MODES", "DEFAULT_ESTIMATOR_OPTIONS", "SIMULATOR_KEYWORDS", "RULES", "Lengths", "check_settings",
+    "SAMPLING_MODES", "DEFAULT_ESTIMATOR_OPTIONS", "SIMULATOR_KEYWORDS", "RULES", "Lengths", "ContaminationRange",
+    "check_settings",
     "simulation_config", "observation_rows", "estimator_noise", "estimator_settings",
 ]
 
@@ -68,6 +69,25 @@ class Lengths(Option):
         except (TypeError, ValueError):
             return False, None
         return bool(lengths) and all(math.isfinite(x) and x > 0 for x in lengths), lengths
+
+
+@dataclasses.dataclass(frozen=True)
+class ContaminationRange(Option):
+    """A ``(low, high)`` range of outlier ratios with ``0 <= low <= high < 1``, normalised to floats
+    (the range a trainer draws each episode's or frame's contamination from)."""
+
+    @property
+    def rule(self) -> str:
+        return "a (low, high) pair with 0 <= low <= high < 1"
+
+    def _accepts(self, value: Any) -> tuple[bool, Any]:
+        if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
+            return False, None
+        low, high = value
+        if not (is_real(low) and is_real(high)):
+            return False, None
+        low, high = float(low), float(high)
+        return 0.0 <= low <= high < 1.0, (low, high)
 
 
 RULES: dict[str, Option] = {
