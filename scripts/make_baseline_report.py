@@ -7,8 +7,7 @@ Usage::
     python scripts/make_baseline_report.py --from runs/baselines
 
 ``--name baselines-full`` writes ``docs/baselines-full.md`` and ``docs/img/baselines-full/``
-instead (the report of the full grid, beside the default grid's). Without ``--from`` the default grid is run first (into ``runs/baselines``,
-about two minutes on two cores). The summary and the claim checks are
+instead (the report of the full grid, beside the default grid's). Without ``--from`` the default grid is run first (into ``runs/baselines``). The summary and the claim checks are
 recomputed from ``trials.csv`` (the run's only source of truth), the run's
 figures are copied to ``docs/img/baselines/`` (redrawn from the CSV when the
 run has none, or with ``--redraw``), and ``docs/baselines.md`` is rewritten
