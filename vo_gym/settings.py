@@ -1,4 +1,4 @@
-"""The environments' keywords, each declared once: its rule here, its default in one place.
+"""The environments' keywords, each checked by one rule, declared once, the same in every environment.
 
 :class:`vo_gym.env.StereoVOEnv` (and :class:`vo_gym.images_env.StereoVOImagesEnv` above it) and
 :class:`vo_gym.adaptive_env.StereoVOAdaptiveEnv` accept the same kinds of keywords, and each one
@@ -13,7 +13,8 @@ is checked by the same rule wherever it enters, with the same message
   options, declared by the estimator (:func:`estimator_settings`); the environments' defaults for
   them are :data:`DEFAULT_ESTIMATOR_OPTIONS`.
 
-A constructor hands its keywords to these functions and keeps what they return as plain attributes.
+A constructor hands its keywords to these functions and keeps what they return as plain attributes;
+its signature keeps the defaults (those of the simulator's keywords are SimulationConfig's).
 """
 
 from __future__ import annotations
@@ -24,8 +25,8 @@ from typing import Any, Iterable, Mapping
 
 from stereovo.camera import StereoCamera
 from stereovo.estimation import EstimatorOptions, method_spec, validate_options
-from stereovo.estimation.registry import MethodSpec
 from stereovo.estimation.methods import ESTIMATOR_OPTION_RULES, MAX_COUNT, SHARED_OPTIONS
+from stereovo.estimation.registry import MethodSpec
 from stereovo.options import Choice, Integer, Number, Option, check_options, is_real
 from stereovo.simulation import SimulationConfig
 from vo_gym.names import constructor_keywords, keyword_hint
@@ -33,8 +34,7 @@ from vo_gym.rewards import REWARD_MODES
 
 __all__ = [
     "SAMPLING_MODES", "DEFAULT_ESTIMATOR_OPTIONS", "SIMULATOR_KEYWORDS", "RULES", "Lengths", "ContaminationRange",
-    "check_settings",
-    "simulation_config", "observation_rows", "estimator_noise", "estimator_settings",
+    "check_settings", "simulation_config", "observation_rows", "estimator_noise", "estimator_settings",
 ]
 
 SAMPLING_MODES: tuple[str, ...] = ("guided", "prosac")
@@ -105,7 +105,7 @@ RULES: dict[str, Option] = {
     "estimator_noise_sigma": dataclasses.replace(ESTIMATOR_OPTION_RULES["noise_sigma"], allow_none=True),
     "budget": dataclasses.replace(ESTIMATOR_OPTION_RULES["budget"], allow_none=True),
     "batch_size": dataclasses.replace(ESTIMATOR_OPTION_RULES["batch_size"], allow_none=True),
-    "max_hypotheses": Integer(low=1, high=10**6),
+    "max_hypotheses": Integer(low=1, high=10**6),  # a frame keeps an (H, N) bool inlier mask per hypothesis
 }
 """One declaration per environment keyword (:mod:`stereovo.options`). ``batch_size`` is the
 hypotheses fitted together: per vectorised batch in :class:`~vo_gym.env.StereoVOEnv`, per step
