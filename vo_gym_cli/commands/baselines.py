@@ -39,12 +39,12 @@ from typing import Any, Callable
 
 
 from vo_gym_cli.commands.common import (
-    EXIT_INTERRUPTED,
     RunStart,
     UsageError,
     check_output_dir,
     flag_error,
     csv_list,
+    interrupted_run,
     positive_int,
     seed as parse_seed,
     stoppable,
@@ -276,16 +276,8 @@ def _benchmark(args, grid, estimators, options, out, journal) -> int:
         finally:
             backend.close()
         wall = time.perf_counter() - start
-    except RunInterrupted as stop:
-        journal.close()
-        print(stop.message(), file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except KeyboardInterrupt:
-        journal.close()
-        from stereovo.trials.runner import interrupted_message
-
-        print(interrupted_message(len(journal.read()), len(trials), out), file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except (RunInterrupted, KeyboardInterrupt) as stop:
+        return interrupted_run(journal, stop, len(trials), out)
     journal.close()
     # The final files come from the journal, so a resumed run writes exactly what an uninterrupted one does.
     stored = journal.read()

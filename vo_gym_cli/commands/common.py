@@ -332,3 +332,16 @@ def stoppable(command: str, run: Callable[[], int]) -> int:
     with sigterm_as_interrupt():
         return guarded(command, run)
 
+
+def interrupted_run(journal: Any, stop: BaseException, total: int, out: Path) -> int:
+    """Close the journal of a run that stopped (a worker's ``RunInterrupted``, or Ctrl-C / SIGTERM as
+    ``KeyboardInterrupt``), print its one line (what is kept, how to resume) and return
+    :data:`EXIT_INTERRUPTED`; ``total`` is the run's units of work, ``out`` its folder."""
+    from stereovo.trials import RunInterrupted
+    from stereovo.trials.runner import interrupted_message
+
+    journal.close()
+    message = stop.message() if isinstance(stop, RunInterrupted) else interrupted_message(len(journal.read()), total, out)
+    print(message, file=sys.stderr)
+    return EXIT_INTERRUPTED
+

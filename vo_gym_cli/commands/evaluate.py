@@ -24,12 +24,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
 from vo_gym_cli.commands.baselines import PLOT_FORMATS, add_backend_options, backend_from_args, open_run_folder
-from vo_gym_cli.commands.common import EXIT_INTERRUPTED, RunStart, UsageError, flag_error, stoppable
+from vo_gym_cli.commands.common import RunStart, UsageError, flag_error, interrupted_run, stoppable
 from vo_gym_cli.commands.common import csv_list as _csv_list
 from vo_gym_cli.commands.common import positive_int as _positive_int
 from vo_gym_cli.commands.common import seed as _seed
@@ -223,7 +222,6 @@ def _evaluate(args, config, agents, out, journal) -> int:
     from agents.evaluation.setup import EvaluationResult
     from stereovo.benchmark import default_workers
     from stereovo.trials import RunInterrupted
-    from stereovo.trials.runner import interrupted_message
     from stereovo.trials.store import RunFolderError
 
     workers = args.workers or default_workers()
@@ -253,14 +251,8 @@ def _evaluate(args, config, agents, out, journal) -> int:
                                     journal=journal, done=done)
         finally:
             backend.close()
-    except RunInterrupted as stop:
-        journal.close()
-        print(stop.message(), file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except KeyboardInterrupt:
-        journal.close()
-        print(interrupted_message(len(journal.read()), len(units), out), file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except (RunInterrupted, KeyboardInterrupt) as stop:
+        return interrupted_run(journal, stop, len(units), out)
     except (ValueError, TypeError) as err:
         raise UsageError(str(err)) from None
     journal.close()
