@@ -25,7 +25,7 @@ from typing import Any, Iterable, Mapping
 
 from stereovo.camera import StereoCamera
 from stereovo.estimation import EstimatorOptions, method_spec, validate_options
-from stereovo.estimation.methods import ESTIMATOR_OPTION_RULES, MAX_COUNT, SHARED_OPTIONS
+from stereovo.estimation.estimator_options import ESTIMATOR_OPTION_RULES, MAX_COUNT, SHARED_OPTIONS
 from stereovo.estimation.registry import MethodSpec
 from stereovo.options import Choice, Integer, Number, Option, check_options, is_real
 from stereovo.simulation import SimulationConfig
