@@ -47,8 +47,10 @@ from torch import nn
 from agents.checkpoint import IN_FRAME, IN_FRAME_FORMAT, CheckpointError, read_payload, shipped_checkpoint
 from agents.network import PAD_LOGIT, CorrespondenceNet
 from agents.ngransac import ordered_triplet_log_prob
+from stereovo.options import Choice, Integer, Number, Option, check_options
 from vo_gym.adaptive_env import ADAPTIVE_FEATURE_NAMES, GLOBAL_FEATURE_NAMES, StereoVOAdaptiveEnv
 from vo_gym.registration import HARD_SETTINGS
+from vo_gym.settings import ContaminationRange
 
 FORMAT = IN_FRAME_FORMAT
 LOGIT_BOUND = 10.0
@@ -219,6 +221,18 @@ def load_adaptive(name_or_path: str | Path) -> tuple[AdaptiveSamplerNet, dict[st
 # ----------------------------------------------------------------------------- training
 
 
+_TRAIN_RULES: dict[str, Option] = {
+    "minutes": Number(low=0.0, low_open=True),
+    "clock": Choice(choices=("wall", "cpu")),
+    "max_episodes": Integer(low=1, allow_none=True),
+    **{name: Integer(low=1) for name in ("frames_per_episode", "batch_size", "max_hypotheses", "n", "width", "blocks",
+                                         "frames_per_update")},
+    "epsilons": ContaminationRange(),
+    "hard_epsilons": ContaminationRange(),
+}
+"""The declarations :class:`AdaptiveTrainConfig` is checked by (:mod:`stereovo.options`)."""
+
+
 @dataclass
 class AdaptiveTrainConfig:
     """Training settings (every field is recorded in the checkpoint).
@@ -272,22 +286,7 @@ class AdaptiveTrainConfig:
     extra: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if isinstance(self.minutes, bool) or not isinstance(self.minutes, (int, float)) or not (
-                math.isfinite(self.minutes) and self.minutes > 0):
-            raise ValueError(f"minutes must be a positive number, got {self.minutes!r}")
-        if self.clock not in ("wall", "cpu"):
-            raise ValueError(f"clock must be 'wall' or 'cpu', got {self.clock!r}")
-        if self.max_episodes is not None and (isinstance(self.max_episodes, bool) or not isinstance(self.max_episodes, int)
-                                              or self.max_episodes < 1):
-            raise ValueError(f"max_episodes must be None or an integer >= 1, got {self.max_episodes!r}")
-        for name in ("frames_per_episode", "batch_size", "max_hypotheses", "n", "width", "blocks", "frames_per_update"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-        for name in ("epsilons", "hard_epsilons"):
-            low, high = getattr(self, name)
-            if not 0 <= low <= high < 1:
-                raise ValueError(f"{name} must satisfy 0 <= low <= high < 1, got {getattr(self, name)!r}")
+        check_options(_TRAIN_RULES, vars(self), prefix="", only=_TRAIN_RULES)
         if self.prior is not None and self.init is not None:
             raise ValueError("prior starts a fresh network; init continues a checkpoint (which keeps its own prior)")
 

@@ -249,6 +249,12 @@ def load_sampler(name_or_path: str | os.PathLike, temperature: float = 1.0) -> "
     if kind == IN_FRAME:
         raise ValueError(f"sampler {os.fspath(name_or_path)!r} is an in-frame sampler: load it with agents.load_sampler "
                          "(either kind) or agents.adaptive.load_adaptive, or run it with agents.LearnedEstimator")
+    return resolved_policy(name, path, temperature)
+
+
+def resolved_policy(name: str, path: Path | None, temperature: float = 1.0) -> "LearnedPolicy":
+    """The policy of a one-shot sampler :func:`resolve_sampler` found: shipped ``name`` (``path``
+    None) or the checkpoint at ``path``."""
     if path is None:
         with shipped_checkpoint(name) as shipped:
             net, _ = load_checkpoint(shipped)

@@ -38,7 +38,7 @@ from stereovo.camera import StereoCamera
 from stereovo.estimation import StereoProblem, estimate_problem, method_spec, validate_options
 from stereovo.estimation.api import MotionEstimate, as_generator
 from stereovo.estimation.roles.solvers import SAMPLE_SIZE
-from vo_gym.env import DEFAULT_ESTIMATOR_OPTIONS
+from vo_gym.settings import DEFAULT_ESTIMATOR_OPTIONS
 from vo_gym.features import compute_features, feature_index
 from vo_gym.in_frame import InFrameSearch
 
@@ -95,7 +95,7 @@ class LearnedEstimator:
         batch_size: hypotheses per batch of an in-frame search (default 4, its training batch).
         temperature: one-shot logits are divided by it (1: as trained).
         **estimator_options: :class:`stereovo.estimation.EstimatorOptions` fields and the method's
-            own options, over the environments' defaults (:data:`vo_gym.env.DEFAULT_ESTIMATOR_OPTIONS`);
+            own options, over the environments' defaults (:data:`vo_gym.settings.DEFAULT_ESTIMATOR_OPTIONS`);
             ``noise_sigma`` (px, default 0.5) is also the noise the features assume. A one-shot
             sampler's adaptive search starts with batches of 4 (``first_batch_size``) doubling to 8
             (``batch_size``) unless given, so that its stop can act after a few hypotheses.

@@ -43,7 +43,7 @@ from stereovo.estimation import (
 from stereovo.geometry import rotation_error
 from stereovo.metrics import pose_error_ratio
 from stereovo.simulation import OUTLIER_KINDS, Frame, Sequence, SimulationConfig
-from vo_gym.env import DEFAULT_ESTIMATOR_OPTIONS
+from vo_gym.settings import DEFAULT_ESTIMATOR_OPTIONS
 from vo_gym.features import N_FEATURES, compute_features
 
 LOSSES = ("supervised", "self-supervised", "self-supervised-smooth")

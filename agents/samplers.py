@@ -17,9 +17,8 @@ from agents.checkpoint import (
     ONE_SHOT,
     SAMPLER_KINDS,
     LearnedPolicy,
-    load_checkpoint,
     resolve_sampler,
-    shipped_checkpoint,
+    resolved_policy,
 )
 
 __all__ = ["load_sampler"]
@@ -47,9 +46,4 @@ def load_sampler(name_or_path: str | os.PathLike, temperature: float = 1.0, kind
     if found == IN_FRAME:
         net, _ = load_adaptive(name if path is None else path)
         return AdaptiveSamplerPolicy(net, confidence=confidence, name=name)
-    if path is None:
-        with shipped_checkpoint(name) as shipped:
-            net, _ = load_checkpoint(shipped)
-    else:
-        net, _ = load_checkpoint(path)
-    return LearnedPolicy(net, name, temperature)
+    return resolved_policy(name, path, temperature)

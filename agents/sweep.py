@@ -33,7 +33,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
-from stereovo.options import Integer
+from stereovo.options import Integer, Number, Option, check_options
 
 __all__ = [
     "ALGOS",
@@ -56,6 +56,14 @@ TOP_KEYS = {"name", "algo", "fixed", "space", "samples", "report_every", "metric
 _TUPLE_FIELDS = ("epsilon_range", "outlier_mix")
 
 
+_METRIC_RULES: dict[str, Option] = {
+    **{name: Integer(low=1) for name in ("budget", "n", "episodes", "frames_per_episode")},
+    "seed": Integer(low=0),
+    "epsilon": Number(low=0.0, high=1.0, high_open=True),
+}
+"""The declarations :class:`MetricSpec` is checked by (:mod:`stereovo.options`)."""
+
+
 @dataclass(frozen=True)
 class MetricSpec:
     """Held-out success rate at a budget (see the module doc)."""
@@ -69,11 +77,7 @@ class MetricSpec:
     seed: int = 10_000
 
     def __post_init__(self) -> None:
-        for name in ("budget", "n", "episodes", "frames_per_episode"):
-            Integer(low=1).check(name, getattr(self, name), prefix="sweep metric.")
-        Integer(low=0).check("seed", self.seed, prefix="sweep metric.")
-        if not isinstance(self.epsilon, (int, float)) or not 0.0 <= float(self.epsilon) < 1.0:
-            raise ValueError(f"sweep metric.epsilon must be in [0, 1), got {self.epsilon!r}")
+        check_options(_METRIC_RULES, vars(self), prefix="sweep metric.", only=_METRIC_RULES)
 
     def env_kwargs(self) -> dict[str, Any]:
         return {"n_frames": self.frames_per_episode, "n_correspondences": self.n,

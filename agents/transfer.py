@@ -14,7 +14,7 @@ Do learned priors transfer to outliers unlike their training data? Each *domain*
 Rows: each shipped sampler through :class:`agents.LearnedEstimator` (one-shot: fixed budgets and
 the prior-aware stop; in-frame: fixed budgets batch after batch and its own stop), BANSAC and ARS
 with the match scores as priors, PROSAC ordered by match score, and uniform sampling (MSAC), all
-with the environments' estimator options (:data:`vo_gym.env.DEFAULT_ESTIMATOR_OPTIONS`). Points:
+with the environments' estimator options (:data:`vo_gym.settings.DEFAULT_ESTIMATOR_OPTIONS`). Points:
 success at 4, 16 and 64 hypotheses, and success with mean hypotheses under each row's own stop
 (the cap ``cap``; the in-frame samplers' own cap is their training cap of 64). Rates carry Wilson
 95 % intervals.
@@ -41,7 +41,7 @@ from stereovo.metrics import frame_metrics
 from stereovo.reporting import wilson_interval
 from stereovo.simulation import Sequence as SimSequence
 from stereovo.simulation import SimulationConfig
-from vo_gym.env import DEFAULT_ESTIMATOR_OPTIONS
+from vo_gym.settings import DEFAULT_ESTIMATOR_OPTIONS
 
 __all__ = ["DOMAINS", "register_domain", "TransferConfig", "run_transfer", "write_transfer", "main"]
 

@@ -20,7 +20,7 @@ from agents import LearnedEstimator
 from agents.checkpoint import SHIPPED_IN_FRAME_SAMPLERS, SHIPPED_SAMPLERS
 from stereovo.estimation import estimate_motion
 from stereovo.simulation import Sequence, SimulationConfig
-from vo_gym.env import DEFAULT_ESTIMATOR_OPTIONS
+from vo_gym.settings import DEFAULT_ESTIMATOR_OPTIONS
 
 
 def frames(n: int) -> list[list]:

@@ -19,32 +19,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 
 import numpy as np
 
 import vo_gym  # noqa: F401
-
-
-class FrameList:
-    """Frames computed once, served as a frame sequence (camera, true_poses, len, frame)."""
-
-    def __init__(self, frames, camera, true_poses, noise_sigma):
-        self.frames, self.camera, self.true_poses, self.noise_sigma = frames, camera, true_poses, noise_sigma
-
-    def __len__(self):
-        return len(self.frames)
-
-    def frame(self, k):
-        return self.frames[k - 1]
-
-
-def wilson(successes: int, n: int) -> tuple[float, float]:
-    z = 1.96
-    p = successes / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return centre - half, centre + half
 
 
 def main() -> None:
@@ -66,7 +44,8 @@ def main() -> None:
     from agents.checkpoint import SHIPPED_SAMPLERS, load_sampler
     from agents.policies import make_heuristic
     from stereovo.sequences.rendered import RenderedSequence
-    from vo_gym.images_env import StereoVOImagesEnv
+    from stereovo.reporting import wilson_interval
+    from vo_gym.images_env import ReplayedFrames, StereoVOImagesEnv
 
     sources = []
     for seed in (int(s) for s in args.seeds.split(",")):
@@ -74,7 +53,7 @@ def main() -> None:
         frames = [seq.frame(k) for k in tqdm(range(1, args.frames + 1), desc=f"rendering seed {seed}", unit="frame")]
         inl = np.concatenate([f.truth.inlier for f in frames])
         print(f"seed {seed}: {np.mean([f.n for f in frames]):.0f} matches per frame, labelled inlier rate {inl.mean():.3f}")
-        sources.append(FrameList(frames, seq.camera, seq.true_poses, seq.noise_sigma))
+        sources.append(ReplayedFrames(frames, seq.camera, seq.true_poses, seq.noise_sigma))
         seq.close()
     policies = {name: make_heuristic(name) for name in ("uniform", "match-score", "consistency")}
     policies.update({name: load_sampler(name) for name in SHIPPED_SAMPLERS})
@@ -94,14 +73,13 @@ def main() -> None:
                 hyp.append(info["n_hypotheses"])
                 done = terminated or truncated
             env.close()
-        low, high = wilson(hits, n)
+        low, high = (float(x) for x in wilson_interval(hits, n))
         row = dict(sampler=label, budget=budget if budget is not None else "adaptive", frames=n,
                    success=hits / n, ci_low=low, ci_high=high, mean_hypotheses=float(np.mean(hyp)))
         rows.append(row)
         print(f"{label:34s} budget {str(row['budget']):>8s}: success {100 * row['success']:5.1f} % "
               f"[{100 * low:5.1f}, {100 * high:5.1f}], mean hypotheses {row['mean_hypotheses']:.1f}", flush=True)
 
-    score_index = None
     from vo_gym.features import feature_index
 
     score_index = feature_index("match_score")
@@ -118,28 +96,11 @@ def main() -> None:
 
 def plot(rows: list[dict], path: str | None) -> None:
     """Success (%) against the fixed budgets, one line per sampler, Wilson 95 % intervals as bars."""
-    if not path:
-        return
-    import matplotlib
+    if path:
+        from agents.evaluation.report import plot_success_vs_budget
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 4.2))
-    for name in dict.fromkeys(r["sampler"] for r in rows):
-        own = [r for r in rows if r["sampler"] == name and r["budget"] != "adaptive"]
-        b = np.array([r["budget"] for r in own], float)
-        p = np.array([r["success"] for r in own]) * 100
-        err = np.array([[r["success"] - r["ci_low"], r["ci_high"] - r["success"]] for r in own]).T * 100
-        ax.errorbar(b, p, yerr=err, marker="o", capsize=3, label=name)
-    ax.set_xscale("log", base=2)
-    ax.set_xlabel("hypotheses per frame (fixed budget)")
-    ax.set_ylabel("frames within 1 deg / 5 cm (%)")
-    ax.set_title("rendered car drives with moving cars: success vs budget (95 % Wilson CI)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="lower right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
+        plot_success_vs_budget(path, rows, "sampler",
+                               "rendered car drives with moving cars: success vs budget (95 % Wilson CI)")
 
 
 if __name__ == "__main__":

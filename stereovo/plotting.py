@@ -23,13 +23,15 @@ if TYPE_CHECKING:
 
     from stereovo.odometry import OdometryResult
 
-def plot_trajectories(ax: "Axes", est: np.ndarray, true: np.ndarray, label: str = "estimate") -> None:
-    """Top-down view (x right, z forward; metres) of ``(F, 4, 4)`` camera-to-world poses."""
+def plot_trajectories(ax: "Axes", est: np.ndarray, true: np.ndarray | None, label: str = "estimate") -> None:
+    """Top-down view (x right, z forward; metres) of ``(F, 4, 4)`` camera-to-world poses; ``true``
+    None (a recording without ground truth) draws the estimate alone, solid."""
     est = np.asarray(est, dtype=float)
-    true = np.asarray(true, dtype=float)
-    ax.plot(true[:, 0, 3], true[:, 2, 3], color="black", lw=1.5, label="ground truth")
-    ax.plot(est[:, 0, 3], est[:, 2, 3], color="tab:blue", lw=1.2, ls="--", label=label)
-    ax.plot(true[0, 0, 3], true[0, 2, 3], "o", color="tab:green", ms=6, label="start")
+    start = est if true is None else np.asarray(true, dtype=float)
+    if true is not None:
+        ax.plot(start[:, 0, 3], start[:, 2, 3], color="black", lw=1.5, label="ground truth")
+    ax.plot(est[:, 0, 3], est[:, 2, 3], color="tab:blue", lw=1.2, ls="-" if true is None else "--", label=label)
+    ax.plot(start[0, 0, 3], start[0, 2, 3], "o", color="tab:green", ms=6, label="start")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("z [m]")
     ax.set_aspect("equal", adjustable="datalim")

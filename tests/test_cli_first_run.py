@@ -130,7 +130,7 @@ def test_a_near_miss_keyword_gets_a_did_you_mean():
         gym.make("vo_gym/StereoVO-v0", max_iteration=10)
     with pytest.raises(TypeError, match=r"'n_correspondence' \(did you mean 'n_correspondences'\?\)"):
         gym.make("vo_gym/StereoVO-v0", n_correspondence=10)
-    with pytest.raises(ValueError, match=r"'max_hypothesis' \(did you mean 'max_hypotheses'\?\)"):
+    with pytest.raises(TypeError, match=r"'max_hypothesis' \(did you mean 'max_hypotheses'\?\)"):
         gym.make("vo_gym/StereoVOAdaptive-v0", max_hypothesis=10)
     with pytest.raises(TypeError) as far:
         gym.make("vo_gym/StereoVO-v0", zzz=1)

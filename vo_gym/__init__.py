@@ -28,8 +28,8 @@ ENV_IDS: tuple[str, ...] = registered_ids()
 _LAZY = {
     "StereoVOEnv": "vo_gym.env",
     "StereoVOImagesEnv": "vo_gym.images_env",
-    "SAMPLING_MODES": "vo_gym.env",
-    "DEFAULT_ESTIMATOR_OPTIONS": "vo_gym.env",
+    "SAMPLING_MODES": "vo_gym.settings",
+    "DEFAULT_ESTIMATOR_OPTIONS": "vo_gym.settings",
     "REWARD_MODES": "vo_gym.rewards",
     "FEATURE_NAMES": "vo_gym.features",
     "FEATURE_LAYOUT_VERSION": "vo_gym.features",

@@ -28,14 +28,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from stereovo.camera import StereoCamera
 from stereovo.compilation import announce_compiling
-from stereovo.estimation import EstimatorOptions, StereoProblem, method_spec
+from stereovo.estimation import StereoProblem
 from stereovo.geometry import PoseChain
 from stereovo.metrics import frame_metrics
-from stereovo.options import Integer, Number
-from stereovo.simulation import Frame, Sequence, SimulationConfig
-from vo_gym.env import DEFAULT_ESTIMATOR_OPTIONS
+from stereovo.simulation import Frame, Sequence
 from vo_gym.features import FEATURE_BOUND, N_FEATURES, compute_features
 from vo_gym.in_frame import (
     ADAPTIVE_FEATURE_NAMES,
@@ -44,15 +41,21 @@ from vo_gym.in_frame import (
     AgentPriorSampler,
     InFrameSearch,
 )
-from vo_gym.names import keyword_hint
-from vo_gym.rewards import REWARD_MODES, inlier_reward, msac_reward, pose_error_ratio, supervised_reward
+from vo_gym.rewards import inlier_reward, msac_reward, pose_error_ratio, supervised_reward
+from vo_gym.settings import (
+    SIMULATOR_KEYWORDS,
+    check_settings,
+    estimator_noise,
+    estimator_settings,
+    observation_rows,
+    simulation_config,
+)
 
 __all__ = [
     "StereoVOAdaptiveEnv", "LOOP_FEATURE_NAMES", "GLOBAL_FEATURE_NAMES", "ADAPTIVE_FEATURE_NAMES", "AgentPriorSampler",
 ]
 
-def _check(rule, name: str, value: Any):
-    return rule.check(name, value, prefix="StereoVOAdaptiveEnv: ")
+_OWNER = "StereoVOAdaptiveEnv"  # the messages' prefix
 
 
 class StereoVOAdaptiveEnv(gym.Env):
@@ -105,13 +108,21 @@ class StereoVOAdaptiveEnv(gym.Env):
 
     ## Arguments
 
-    ``batch_size`` (hypotheses per step, default 4), ``max_hypotheses`` (per-frame cap, default 64),
-    ``reward_mode``, ``hypothesis_cost`` (default 0.002), ``success_bonus``, ``failure_reward``,
-    ``action_bound`` (default 10), ``logit_scale`` (default 1), ``max_correspondences``; the
-    simulator's settings as :class:`vo_gym.StereoVOEnv` (``n_frames``, ``n_correspondences``,
-    ``outlier_ratio``, ``outliers`` (``"default"`` / ``"hostile"``), ``outlier_mix``, ``noise_dof``, ``score_auc``, ...); ``method`` (the judge, default
-    ``"msac"``) and further estimator options (defaults :data:`vo_gym.env.DEFAULT_ESTIMATOR_OPTIONS`).
-    Invalid values raise ``ValueError`` naming the argument.
+    - ``batch_size``: hypotheses per step (default 4; None: ``max_hypotheses``, one step a frame).
+    - ``max_hypotheses``: the per-frame cap (default 64).
+    - ``reward_mode``, ``success_bonus``, ``failure_reward``, ``action_bound`` (default 10),
+      ``logit_scale`` (default 1), ``max_correspondences``, ``estimator_noise_sigma``: as
+      :class:`vo_gym.StereoVOEnv`; ``hypothesis_cost`` in [0, 1] (default 0.002).
+    - ``method``: the judge (default ``"msac"``).
+    - ``**settings``: the simulator's settings, the fields of :class:`stereovo.simulation.SimulationConfig`
+      with its defaults, as in :class:`vo_gym.StereoVOEnv` (``n_frames``, ``n_correspondences``,
+      ``outlier_ratio``, ``outliers`` (``"default"`` / ``"hostile"``), ``outlier_mix``, ``noise_dof``,
+      ``score_auc``, ...); any other keyword is an estimator option of ``method`` (defaults
+      :data:`vo_gym.settings.DEFAULT_ESTIMATOR_OPTIONS`).
+
+    Each keyword's rule is declared once, in :mod:`vo_gym.settings`, and is the same as in
+    :class:`vo_gym.StereoVOEnv`. Invalid values raise ``ValueError`` naming the argument; unknown
+    keywords raise ``TypeError``.
 
     ## Version History
 
@@ -122,7 +133,7 @@ class StereoVOAdaptiveEnv(gym.Env):
 
     def __init__(
         self,
-        batch_size: int = 4,
+        batch_size: int | None = 4,
         max_hypotheses: int = 64,
         reward_mode: str = "supervised",
         hypothesis_cost: float = 0.002,
@@ -131,60 +142,30 @@ class StereoVOAdaptiveEnv(gym.Env):
         action_bound: float = 10.0,
         logit_scale: float = 1.0,
         max_correspondences: int | None = None,
-        preset: str = "car",
-        world: str | None = None,
-        n_frames: int = 100,
-        n_correspondences: int = 500,
-        noise_sigma: float = 0.5,
-        outlier_ratio: float | tuple[float, float] = 0.5,
-        outlier_mix: tuple[float, ...] | dict[str, float] | None = None,
-        score_auc: float = 0.75,
-        z_min: float = 3.0,
-        z_max: float = 60.0,
-        camera: StereoCamera | None = None,
-        speed: float | None = None,
-        outliers: str = "default",
-        noise_dof: float | None = None,
+        estimator_noise_sigma: float | None = None,
         method: str = "msac",
-        **estimator_options: Any,
+        **settings: Any,
     ) -> None:
         super().__init__()
-        self.batch_size = _check(Integer(low=1, high=4096), "batch_size", batch_size)
-        self.max_hypotheses = _check(Integer(low=1, high=10**6), "max_hypotheses", max_hypotheses)
-        if reward_mode not in REWARD_MODES:
-            raise ValueError(f"StereoVOAdaptiveEnv: reward_mode must be one of {list(REWARD_MODES)}, got {reward_mode!r}")
-        self.reward_mode = reward_mode
-        self.hypothesis_cost = _check(Number(low=0.0, high=1.0), "hypothesis_cost", hypothesis_cost)
-        self.success_bonus = _check(Number(low=0.0, high=1.0), "success_bonus", success_bonus)
-        self.failure_reward = _check(Number(low=-1.0, high=1.0), "failure_reward", failure_reward)
-        self.action_bound = _check(Number(low=0.0, low_open=True, high=300.0), "action_bound", action_bound)
-        self.logit_scale = _check(Number(low=0.0, low_open=True, high=300.0), "logit_scale", logit_scale)
-        if self.action_bound * self.logit_scale > 300:
-            raise ValueError("StereoVOAdaptiveEnv: action_bound * logit_scale must be <= 300 (weights stay representable)")
-        try:
-            self.sim_config = SimulationConfig(
-                preset=preset, world=world, n_frames=n_frames, n_correspondences=n_correspondences,
-                noise_sigma=noise_sigma, outlier_ratio=outlier_ratio, outlier_mix=outlier_mix,
-                score_auc=score_auc, z_min=z_min, z_max=z_max,
-                camera=StereoCamera() if camera is None else camera, speed=speed,
-                outliers=outliers, noise_dof=noise_dof,
-            )
-        except (TypeError, ValueError) as err:
-            raise ValueError(f"StereoVOAdaptiveEnv: invalid simulator setting: {err}") from None
-        if self.sim_config.noise_sigma <= 0:
-            raise ValueError("StereoVOAdaptiveEnv: noise_sigma must be > 0 (the estimator's gates need it)")
+        s = check_settings(
+            _OWNER, batch_size=batch_size, max_hypotheses=max_hypotheses, reward_mode=reward_mode,
+            hypothesis_cost=hypothesis_cost, success_bonus=success_bonus, failure_reward=failure_reward,
+            action_bound=action_bound, logit_scale=logit_scale, max_correspondences=max_correspondences,
+            estimator_noise_sigma=estimator_noise_sigma,
+        )
+        self.max_hypotheses, self.reward_mode = s["max_hypotheses"], s["reward_mode"]
+        self.batch_size = self.max_hypotheses if s["batch_size"] is None else s["batch_size"]
+        self.hypothesis_cost, self.success_bonus = s["hypothesis_cost"], s["success_bonus"]
+        self.failure_reward, self.action_bound, self.logit_scale = s["failure_reward"], s["action_bound"], s["logit_scale"]
+        self.sim_config = simulation_config(_OWNER, {k: settings.pop(k) for k in SIMULATOR_KEYWORDS if k in settings})
         self._sequence_config = dataclasses.replace(self.sim_config, n_frames=self.sim_config.n_frames + 1)
         n = self.n_correspondences = self.sim_config.n_correspondences
-        M = self.max_correspondences = n if max_correspondences is None else _check(
-            Integer(low=n), "max_correspondences", max_correspondences
+        M = self.max_correspondences = observation_rows(_OWNER, s["max_correspondences"], n)
+        self.estimator_noise_sigma = estimator_noise(_OWNER, s["estimator_noise_sigma"], self.sim_config.noise_sigma)
+        self._spec, self.estimator_options, self._extra = estimator_settings(
+            _OWNER, StereoVOAdaptiveEnv, method, settings, fixed={"noise_sigma": self.estimator_noise_sigma},
+            also_known=SIMULATOR_KEYWORDS,
         )
-        try:
-            self._spec = method_spec(method)
-            options = {**DEFAULT_ESTIMATOR_OPTIONS, **estimator_options}
-            self.estimator_options = EstimatorOptions(noise_sigma=self.sim_config.noise_sigma, **options)
-        except (TypeError, ValueError) as err:
-            hint = keyword_hint(estimator_options, StereoVOAdaptiveEnv, [f.name for f in dataclasses.fields(EstimatorOptions)])
-            raise ValueError(f"StereoVOAdaptiveEnv: invalid estimator setting: {err}{hint}") from None
         self.method = method
         F = N_FEATURES + len(LOOP_FEATURE_NAMES)
         self.observation_space = spaces.Dict({
@@ -280,7 +261,7 @@ class StereoVOAdaptiveEnv(gym.Env):
             self._chain.last_motion, problem=problem,
         )
         self._search = InFrameSearch(problem, features, self._spec, self.estimator_options, self.max_hypotheses,
-                                     self._chain.last_motion, self._rng)
+                                     self._chain.last_motion, self._rng, self._extra)
 
     def _finish_frame(self, info: dict[str, Any], stopped: bool) -> float:
         frame, search = self._frame, self._search

@@ -19,51 +19,27 @@ from gymnasium import spaces
 
 from stereovo.camera import StereoCamera
 from stereovo.compilation import announce_compiling
-from stereovo.estimation import EstimatorOptions, StereoProblem, estimate_problem, method_spec, validate_options
-from stereovo.estimation.estimator_options import ESTIMATOR_OPTION_RULES, MAX_COUNT
+from stereovo.estimation import EstimatorOptions, StereoProblem, estimate_problem
 from stereovo.geometry import PoseChain
 from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, frame_metrics, trajectory_metrics
-from stereovo.options import Choice, Integer, Number, Option, check_options
-from stereovo.simulation import Frame, Sequence, SimulationConfig
-from vo_gym.names import keyword_hint
+from stereovo.simulation import Frame, Sequence
 from vo_gym.features import FEATURE_BOUND, FEATURE_LAYOUT_VERSION, FEATURE_NAMES, N_FEATURES, compute_features
-from vo_gym.rewards import REWARD_MODES, inlier_reward, msac_reward, pose_error_ratio, supervised_reward
+from vo_gym.rewards import inlier_reward, msac_reward, pose_error_ratio, supervised_reward
+from vo_gym.settings import (
+    DEFAULT_ESTIMATOR_OPTIONS,
+    SAMPLING_MODES,
+    check_settings,
+    estimator_noise,
+    estimator_settings,
+    observation_rows,
+    simulation_config,
+)
 
 __all__ = ["StereoVOEnv", "SAMPLING_MODES", "DEFAULT_ESTIMATOR_OPTIONS"]
 
-SAMPLING_MODES: tuple[str, ...] = ("guided", "prosac")
-
-DEFAULT_ESTIMATOR_OPTIONS: dict[str, Any] = {
-    "polish_iterations": 2, "refine": True, "local_refit": False, "refine_iterations": 3, "refine_rounds": 2,
-}
-"""The environment's defaults for :class:`~stereovo.estimation.EstimatorOptions` fields (the rest
-keep the method's defaults): two of the core's enhancements, named explicitly because the named
-methods default to their papers' recipes: the sample polish and the final LM refinement (with
-fewer iterations and rounds); no per-hypothesis local refit, which keeps a step fast. Pass any of
-them as a keyword to change it."""
-
 # FrameMetrics fields that must not reach info: wall-clock time breaks determinism.
 _NON_DETERMINISTIC_METRICS = ("time_s",)
-
-
-_PREFIX = "StereoVOEnv: "
-_ENV_RULES: dict[str, Option] = {
-    "sampling": Choice(choices=SAMPLING_MODES),
-    "reward_mode": Choice(choices=REWARD_MODES),
-    "render_mode": Choice(choices=("rgb_array",), allow_none=True),
-    "action_bound": Number(low=0.0, low_open=True),
-    "logit_scale": Number(low=0.0, low_open=True),
-    "success_bonus": Number(low=0.0, high=1.0),
-    "hypothesis_cost": Number(low=0.0),
-    "failure_reward": Number(low=-1.0, high=1.0),
-    "max_correspondences": Integer(low=1, high=MAX_COUNT, allow_none=True),
-    "estimator_noise_sigma": dataclasses.replace(ESTIMATOR_OPTION_RULES["noise_sigma"], allow_none=True),
-    "budget": dataclasses.replace(ESTIMATOR_OPTION_RULES["budget"], allow_none=True),
-    "batch_size": dataclasses.replace(ESTIMATOR_OPTION_RULES["batch_size"], allow_none=True),
-}
-"""The environment's own keywords' declarations (:mod:`stereovo.options`); the simulator's are
-:class:`~stereovo.simulation.SimulationConfig`'s and the estimator's
-:data:`~stereovo.estimation.estimator_options.ESTIMATOR_OPTION_RULES` and the method's."""
+_OWNER = "StereoVOEnv"  # the messages' prefix, also of the images environment built on it
 
 
 def _nan_to_none(value: Any) -> Any:
@@ -178,7 +154,7 @@ class StereoVOEnv(gym.Env):
     - ``action_bound``: the action Box is ``[-action_bound, action_bound]`` (default 10).
     - ``logit_scale``: guided weights are ``softmax(logit_scale * a)`` (default 1);
       e.g. ``action_bound=1, logit_scale=10`` gives an SB3-style ``[-1, 1]`` Box.
-    - ``success_bonus`` in [0, 1] (default 0.5), ``hypothesis_cost`` >= 0 per
+    - ``success_bonus`` in [0, 1] (default 0.5), ``hypothesis_cost`` in [0, 1] per
       hypothesis drawn (default 0.001; a constant under a fixed budget),
       ``failure_reward`` in [-1, 1] (default -1): reward shaping (see Rewards).
     - ``render_mode``: None or ``"rgb_array"`` (the trajectories so far and the
@@ -210,7 +186,8 @@ class StereoVOEnv(gym.Env):
       ``max_iterations``) or an option of the chosen method; the environment's own
       defaults are :data:`DEFAULT_ESTIMATOR_OPTIONS`.
 
-    Invalid values raise ``ValueError`` naming the argument; unknown keywords raise ``TypeError``.
+    Each keyword's rule is declared once, in :mod:`vo_gym.settings`. Invalid values raise
+    ``ValueError`` naming the argument; unknown keywords raise ``TypeError``.
 
     ## Version History
 
@@ -254,97 +231,33 @@ class StereoVOEnv(gym.Env):
         **estimator_options: Any,
     ) -> None:
         super().__init__()
-        given = dict(
-            sampling=sampling, reward_mode=reward_mode, render_mode=render_mode, action_bound=action_bound,
+        s = check_settings(
+            _OWNER, sampling=sampling, reward_mode=reward_mode, render_mode=render_mode, action_bound=action_bound,
             logit_scale=logit_scale, success_bonus=success_bonus, hypothesis_cost=hypothesis_cost,
-            failure_reward=failure_reward, max_correspondences=max_correspondences,
+            failure_reward=failure_reward, kitti_lengths=kitti_lengths, max_correspondences=max_correspondences,
             estimator_noise_sigma=estimator_noise_sigma, budget=budget, batch_size=batch_size,
         )
-        checked = check_options(_ENV_RULES, given, prefix=_PREFIX)
-        self.sampling = checked["sampling"]
-        self.reward_mode = checked["reward_mode"]
-        self.render_mode = checked["render_mode"]
-        self.action_bound = float(checked["action_bound"])
-        self.logit_scale = float(checked["logit_scale"])
-        if self.action_bound * self.logit_scale > 300:
-            raise ValueError(
-                f"StereoVOEnv: action_bound * logit_scale must be <= 300 (weights exp(+-300) stay representable), "
-                f"got {self.action_bound * self.logit_scale:g}"
-            )
-        self.success_bonus = float(checked["success_bonus"])
-        self.hypothesis_cost = float(checked["hypothesis_cost"])
-        self.failure_reward = float(checked["failure_reward"])
-        try:
-            self.kitti_lengths = tuple(float(x) for x in kitti_lengths)
-        except (TypeError, ValueError):
-            raise ValueError(f"StereoVOEnv: kitti_lengths must be positive numbers (m), got {kitti_lengths!r}") from None
-        if not self.kitti_lengths or not all(math.isfinite(x) and x > 0 for x in self.kitti_lengths):
-            raise ValueError(f"StereoVOEnv: kitti_lengths must be positive numbers (m), got {kitti_lengths!r}")
-
-        try:
-            self.sim_config = SimulationConfig(
-                preset=preset, world=world, n_frames=n_frames, n_correspondences=n_correspondences,
-                noise_sigma=noise_sigma, outlier_ratio=outlier_ratio, outlier_mix=outlier_mix,
-                score_auc=score_auc, z_min=z_min, z_max=z_max,
-                camera=StereoCamera() if camera is None else camera, speed=speed,
-                outliers=outliers, noise_dof=noise_dof,
-            )
-        except (TypeError, ValueError) as err:
-            raise ValueError(f"StereoVOEnv: invalid simulator setting: {err}") from None
+        self.sampling, self.reward_mode, self.render_mode = s["sampling"], s["reward_mode"], s["render_mode"]
+        self.action_bound, self.logit_scale = s["action_bound"], s["logit_scale"]
+        self.success_bonus, self.hypothesis_cost = s["success_bonus"], s["hypothesis_cost"]
+        self.failure_reward, self.kitti_lengths = s["failure_reward"], s["kitti_lengths"]
+        self.sim_config = simulation_config(_OWNER, dict(
+            preset=preset, world=world, n_frames=n_frames, n_correspondences=n_correspondences,
+            noise_sigma=noise_sigma, outlier_ratio=outlier_ratio, outlier_mix=outlier_mix, score_auc=score_auc,
+            z_min=z_min, z_max=z_max, camera=camera, speed=speed, outliers=outliers, noise_dof=noise_dof,
+        ))
         # One spare frame pair: the observation returned at truncation is the next real frame.
         self._sequence_config = dataclasses.replace(self.sim_config, n_frames=self.sim_config.n_frames + 1)
-        n = self.sim_config.n_correspondences
-        self.n_correspondences = n
-        self.max_correspondences = n if checked["max_correspondences"] is None else checked["max_correspondences"]
-        if self.max_correspondences < n:
-            raise ValueError(
-                f"StereoVOEnv: max_correspondences={self.max_correspondences} is smaller than "
-                f"n_correspondences={n}: every frame has exactly n_correspondences matches and all must fit"
-            )
-
-        if checked["estimator_noise_sigma"] is None:
-            if self.sim_config.noise_sigma <= 0:
-                raise ValueError(
-                    "StereoVOEnv: noise_sigma=0 (noise-free frames) needs estimator_noise_sigma > 0: "
-                    "the estimator's gates and the features' uncertainties need a positive pixel noise"
-                )
-            self.estimator_noise_sigma = self.sim_config.noise_sigma
-        else:
-            self.estimator_noise_sigma = float(checked["estimator_noise_sigma"])
-        try:
-            spec = method_spec(method)
-        except ValueError as err:
-            raise ValueError(f"StereoVOEnv: method: {err}") from None
-        self.method = method
-        self.budget = checked["budget"]
-        self.batch_size = checked["batch_size"]
-        if self.batch_size is None:
-            self.batch_size = self.budget if self.budget is not None else EstimatorOptions.batch_size
-        known = {f.name for f in dataclasses.fields(EstimatorOptions)}
-        reserved = {"noise_sigma", "budget", "batch_size"}
-        unknown = sorted(set(estimator_options) - (known - reserved) - set(spec.extra_options))
-        if unknown:
-            allowed = sorted((known - reserved) | set(spec.extra_options))
-            raise TypeError(
-                f"StereoVOEnv got unexpected keyword argument(s) {unknown}: not an environment or simulator "
-                f"argument nor an option of estimator method {method!r} (its options: {allowed})"
-                f"{keyword_hint(unknown, StereoVOEnv, allowed)}"
-            )
-        options = {**DEFAULT_ESTIMATOR_OPTIONS, **estimator_options}
-        # Validity comes from the options' declarations (the one contract), never from running the
-        # method: the shared options, the method's own, and whether it takes this sampling's input.
-        try:
-            self.estimator_options, extra = validate_options(
-                method,
-                {**options, "noise_sigma": self.estimator_noise_sigma, "budget": self.budget,
-                 "batch_size": self.batch_size},
-            )
-        except (TypeError, ValueError) as err:
-            raise ValueError(f"StereoVOEnv: invalid estimator setting: {err}") from None
-        try:
-            spec.check_inputs(priors=self.sampling == "guided", order=self.sampling == "prosac")
-        except ValueError as err:
-            raise ValueError(f"StereoVOEnv: estimator method {method!r} with sampling={self.sampling!r}: {err}") from None
+        self.n_correspondences = self.sim_config.n_correspondences
+        self.max_correspondences = observation_rows(_OWNER, s["max_correspondences"], self.n_correspondences)
+        self.estimator_noise_sigma = estimator_noise(_OWNER, s["estimator_noise_sigma"], self.sim_config.noise_sigma)
+        self.method, self.budget = method, s["budget"]
+        self.batch_size = s["batch_size"] if s["batch_size"] is not None else (
+            self.budget if self.budget is not None else EstimatorOptions.batch_size)
+        _, self.estimator_options, extra = estimator_settings(
+            _OWNER, StereoVOEnv, method, estimator_options, sampling=self.sampling,
+            fixed={"noise_sigma": self.estimator_noise_sigma, "budget": self.budget, "batch_size": self.batch_size},
+        )
         self._estimator_kwargs = {
             **{f.name: getattr(self.estimator_options, f.name) for f in dataclasses.fields(EstimatorOptions)},
             **extra,

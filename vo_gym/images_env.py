@@ -22,7 +22,7 @@ from stereovo.options import Choice, Integer, Number, Option, check_options
 from stereovo.simulation import Frame
 from vo_gym.env import StereoVOEnv
 
-__all__ = ["StereoVOImagesEnv", "EpisodeFrames"]
+__all__ = ["StereoVOImagesEnv", "EpisodeFrames", "ReplayedFrames"]
 
 _PREFIX = "StereoVOImagesEnv: "
 _RULES: dict[str, Option] = {
@@ -49,6 +49,25 @@ def top_rows(frame: Frame, index: int, limit: int) -> Frame:
                                     outlier_ratio=float(1.0 - truth.inlier[keep].mean()))
     return dataclasses.replace(frame, index=index, prev=frame.prev[keep], curr=frame.curr[keep],
                                scores=frame.scores[keep], truth=truth)
+
+
+class ReplayedFrames:
+    """Frames computed once (rendered, matched), served as a frame sequence for ``source=``, so that
+    every sampler of a comparison sees the identical frames.
+
+    Args:
+        frames: the frame pairs ``1 .. len(frames)`` in order. camera: their rig.
+        true_poses: ``(len(frames) + 1, 4, 4)`` camera-to-world poses. noise_sigma: their pixel noise (px).
+    """
+
+    def __init__(self, frames: list[Frame], camera: Any, true_poses: Any, noise_sigma: float) -> None:
+        self.frames, self.camera, self.true_poses, self.noise_sigma = frames, camera, true_poses, noise_sigma
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    def frame(self, k: int) -> Frame:
+        return self.frames[k - 1]
 
 
 class EpisodeFrames:

@@ -60,41 +60,52 @@ def _action(logits: np.ndarray, mask: np.ndarray, stop: bool) -> np.ndarray:
     return out
 
 
-class BudgetPolicy:
+class FrameLogitsPolicy:
+    """The base of the one-shot samplers' policies: logits ``logits_fn(obs)`` computed at each
+    frame's first step and kept for the frame's later steps."""
+
+    def __init__(self, name: str, logits_fn: Callable[[dict], np.ndarray]) -> None:
+        self.name, self.logits_fn = name, logits_fn
+        self._logits: np.ndarray | None = None
+
+    def frame_logits(self, obs: dict, step: dict) -> np.ndarray:
+        if step["new_frame"] or self._logits is None:
+            self._logits = self.logits_fn(obs)
+        return self._logits
+
+
+class BudgetPolicy(FrameLogitsPolicy):
     """Fixed logits per frame (``logits_fn(obs)`` at the frame's first step), stop at ``budget``."""
 
     def __init__(self, name: str, budget: int, logits_fn: Callable[[dict], np.ndarray]) -> None:
-        self.name, self.budget, self.logits_fn = name, int(budget), logits_fn
-        self._logits: np.ndarray | None = None
+        super().__init__(name, logits_fn)
+        self.budget = int(budget)
 
     def act(self, obs: dict, step: dict) -> np.ndarray:
-        if step["new_frame"] or self._logits is None:
-            self._logits = self.logits_fn(obs)
-        return _action(self._logits, obs["mask"], step["frame_hypotheses"] >= self.budget)
+        return _action(self.frame_logits(obs, step), obs["mask"], step["frame_hypotheses"] >= self.budget)
 
 
-class PriorAwareStopPolicy:
+class PriorAwareStopPolicy(FrameLogitsPolicy):
     """A one-shot sampler's fixed logits with the prior-aware stop: stop once
     ``1 - (1 - q)^k >= confidence``, ``q = (sum of the weights of the best model's consensus)^3`` the
     chance that one draw from these weights is three points of that consensus (with replacement)."""
 
     def __init__(self, name: str, confidence: float, logits_fn: Callable[[dict], np.ndarray]) -> None:
-        self.name, self.confidence, self.logits_fn = name, float(confidence), logits_fn
-        self._logits: np.ndarray | None = None
+        super().__init__(name, logits_fn)
+        self.confidence = float(confidence)
 
     def act(self, obs: dict, step: dict) -> np.ndarray:
-        if step["new_frame"] or self._logits is None:
-            self._logits = self.logits_fn(obs)
+        frame_logits = self.frame_logits(obs, step)
         mask = np.asarray(obs["mask"], bool)
         drawn = step["frame_hypotheses"]
         stop = False
         if drawn:
-            logits = np.clip(self._logits[mask], -LOGIT_BOUND, LOGIT_BOUND)
+            logits = np.clip(frame_logits[mask], -LOGIT_BOUND, LOGIT_BOUND)
             w = np.exp(logits - logits.max())
             in_best = np.asarray(obs["features"][mask, IN_BEST]) > 0.5
             q = min(float(w[in_best].sum() / w.sum()) ** 3, 1 - 1e-12)
             stop = q > 0 and drawn >= math.log1p(-self.confidence) / math.log1p(-q)
-        return _action(self._logits, obs["mask"], stop)
+        return _action(frame_logits, obs["mask"], stop)
 
 
 def _priors(obs: dict, n: int, logits_fn: Callable[[dict], np.ndarray] | None) -> np.ndarray:

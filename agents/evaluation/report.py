@@ -362,6 +362,33 @@ def write_plots(summary: Mapping[str, Any], out: str | os.PathLike, fmt: str = "
     return paths
 
 
+def plot_success_vs_budget(path: str | os.PathLike, rows: Sequence[Mapping[str, Any]], label_key: str,
+                           title: str) -> None:
+    """Success (%) against the fixed budgets, one line per ``rows[i][label_key]``, the Wilson 95 %
+    intervals as error bars; rows carry ``budget``, ``success``, ``ci_low``, ``ci_high`` (a budget
+    ``"adaptive"`` has no place on the axis and is left out)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7, 4.2))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    for label in dict.fromkeys(r[label_key] for r in rows):
+        own = [r for r in rows if r[label_key] == label and r["budget"] != "adaptive"]
+        budgets = np.array([r["budget"] for r in own], float)
+        success = 100 * np.array([r["success"] for r in own])
+        err = 100 * np.array([[r["success"] - r["ci_low"], r["ci_high"] - r["success"]] for r in own]).T
+        ax.errorbar(budgets, success, yerr=err, marker="o", capsize=3, label=label)
+    ax.set_xscale("log", base=2)
+    ax.set_xlabel("hypotheses per frame (fixed budget)")
+    ax.set_ylabel("frames within 1 deg / 5 cm (%)")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
 def write_evaluation(result: EvaluationResult, out: str | os.PathLike, plots: bool = True,
                      plot_format: str = "png") -> list[Path]:
     """``frames.csv`` (per-frame rows), ``summary.json``, ``summary.md`` and the plots (``plot_format``:

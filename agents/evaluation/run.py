@@ -159,7 +159,7 @@ def classical_estimators_for(config: EvalConfig, budget: int, adaptive: bool) ->
     """``(label, kind, estimator)`` of the classical methods at one budget (and adaptive ones if asked)."""
     from stereovo import benchmark as bm
     from stereovo.estimation import method_spec
-    from vo_gym.env import DEFAULT_ESTIMATOR_OPTIONS
+    from vo_gym.settings import DEFAULT_ESTIMATOR_OPTIONS
 
     out = []
     for name in config.methods:

@@ -13,10 +13,27 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from stereovo.options import Integer
+from stereovo.options import Choice, Integer, Number, Option, check_options
 from vo_gym.features import FEATURE_LAYOUT_VERSION, FEATURE_NAMES
+from vo_gym.settings import ContaminationRange
 
 VEC_ENVS = ("dummy", "subproc")
+
+_PPO_RULES: dict[str, Option] = {
+    **{name: Integer(low=1) for name in ("n_envs", "timesteps", "n_frames", "n_correspondences", "budget", "n_steps",
+                                         "batch_size", "n_epochs", "width", "blocks", "critic_hidden", "eval_every",
+                                         "eval_frames", "checkpoint_every")},
+    "eval_n_correspondences": Integer(low=3, allow_none=True),
+    "max_wall_s": Number(low=0.0, low_open=True, allow_none=True, unit="s"),
+    "vec_env": Choice(choices=VEC_ENVS),
+    "epsilon_range": ContaminationRange(),
+    "eval_epsilon": Number(low=0.0, high=1.0, high_open=True),
+    "learning_rate": Number(low=0.0, low_open=True),
+    "clip_range": Number(low=0.0, low_open=True),
+    "gamma": Number(low=0.0, high=1.0),
+    "gae_lambda": Number(low=0.0, high=1.0),
+}
+"""The declarations :class:`PPOConfig` is checked and normalised by (:mod:`stereovo.options`)."""
 
 
 @dataclass
@@ -31,12 +48,11 @@ class PPOConfig:
     network serves any N, so training on fewer matches and evaluating on more is legitimate).
     The remaining fields are SB3 ``PPO`` arguments and the policy's sizes.
 
-    Defaults are what trained in minutes on 2 CPU cores (measured, see the probes in the PPO report):
-    exploration is Gaussian noise on every logit, and the share of a frame's outcome that one
-    correspondence's noise explains shrinks with N, so PPO trains on N = 100 (about 5x faster steps
-    too) and is evaluated on N = 500; a wide initial std (log-std 1) and a learning rate of 1e-4 keep
-    the PPO ratio, a product over all N slots, inside the clip range (approx. KL ~0.02 per update).
-    With N = 500 and log-std 0 nothing was learnt in 6000 steps.
+    Why the defaults are these: exploration is Gaussian noise on every logit, and the share of a
+    frame's outcome that one correspondence's noise explains shrinks with N, so PPO trains on a small
+    N and is evaluated on N = 500; a wide initial std (log-std 1) and a small learning rate keep the
+    PPO ratio, a product over all N slots, inside the clip range. The probes behind them are in
+    ``docs/results.md`` (How the shipped samplers were trained).
     """
 
     env_id: str = "vo_gym/StereoVO-v0"
@@ -80,30 +96,13 @@ class PPOConfig:
     max_wall_s: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("n_envs", "timesteps", "n_frames", "n_correspondences", "budget", "n_steps", "batch_size",
-                     "n_epochs", "width", "blocks", "critic_hidden", "eval_every", "eval_frames", "checkpoint_every"):
-            setattr(self, name, Integer(low=1).check(name, getattr(self, name), prefix="PPO: "))
-        Integer(low=3, allow_none=True).check("eval_n_correspondences", self.eval_n_correspondences, prefix="PPO: ")
-        if self.max_wall_s is not None and not self.max_wall_s > 0:
-            raise ValueError(f"PPO: max_wall_s must be None or > 0 seconds, got {self.max_wall_s!r}")
-        if self.vec_env not in VEC_ENVS:
-            raise ValueError(f"PPO: vec_env must be one of {VEC_ENVS}, got {self.vec_env!r}")
-        lo, hi = (float(x) for x in self.epsilon_range)
-        if not 0.0 <= lo <= hi < 1.0:
-            raise ValueError(f"PPO: epsilon_range must satisfy 0 <= low <= high < 1, got {self.epsilon_range}")
-        self.epsilon_range = (lo, hi)
-        if not 0.0 <= self.eval_epsilon < 1.0:
-            raise ValueError(f"PPO: eval_epsilon must be in [0, 1), got {self.eval_epsilon}")
+        for name, value in check_options(_PPO_RULES, vars(self), prefix="PPO: ", only=_PPO_RULES).items():
+            setattr(self, name, value)
         if self.batch_size > self.n_steps * self.n_envs:
             raise ValueError(
                 f"PPO: batch_size={self.batch_size} exceeds the rollout size n_steps * n_envs = "
                 f"{self.n_steps * self.n_envs}"
             )
-        for name in ("learning_rate", "clip_range"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"PPO: {name} must be > 0, got {getattr(self, name)!r}")
-        if not (0.0 <= self.gamma <= 1.0 and 0.0 <= self.gae_lambda <= 1.0):
-            raise ValueError(f"PPO: gamma and gae_lambda must be in [0, 1], got {self.gamma}, {self.gae_lambda}")
         self.env_kwargs = dict(self.env_kwargs)
 
     def train_env_kwargs(self) -> dict[str, Any]:

@@ -198,7 +198,7 @@ def train_ppo(config: PPOConfig, out: str | Path, resume: str | Path | None = No
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    # One intra-op thread: on a small shared machine OpenMP threads contend and run 10-100x slower.
+    # One intra-op thread: on a small shared machine OpenMP threads contend (docs/results.md, training).
     torch.set_num_threads(1)
     history: list[dict[str, Any]] = []
     baseline: dict[str, float] = {}

@@ -31,7 +31,9 @@ before it):
   that explain the verdicts;
 - :mod:`~stereovo.benchmark.tables` and :mod:`~stereovo.benchmark.plots`: the
   report's markdown and figures;
-- :mod:`~stereovo.benchmark.outputs`: the files of a run folder.
+- :mod:`~stereovo.benchmark.outputs`: the files of a run folder;
+- :mod:`~stereovo.benchmark.baseline_report`: ``docs/baselines.md`` rebuilt from a run
+  folder (the claims recomputed, the figures copied or redrawn).
 
 Every public name of the modules is importable from the package itself.
 """
@@ -67,6 +69,7 @@ from stereovo.benchmark.claims import (
     ClaimCheck,
     check_claims,
     preemptive_miss_probability,
+    thresholds_text,
 )
 from stereovo.benchmark.diagnostics import DIAGNOSTIC_FRAMES, claim_diagnostics
 from stereovo.benchmark.grid import (
@@ -85,6 +88,12 @@ from stereovo.benchmark.grid import (
     stable_int,
 )
 from stereovo.benchmark.outputs import write_outputs
+from stereovo.benchmark.baseline_report import (
+    REPORT_NAME,
+    enhancement_pairs,
+    enhancement_section,
+    write_baseline_report,
+)
 from stereovo.benchmark.plots import (
     FAMILY_TITLES,
     METHOD_FAMILIES,
@@ -118,6 +127,7 @@ from stereovo.benchmark.runner import (
 from stereovo.benchmark.tables import (
     breakdown_table,
     claims_markdown,
+    format_stat,
     markdown_table,
     overall_table,
     success_definition,
@@ -156,4 +166,5 @@ __all__ = [
     "claims_markdown",
     "write_plots",
     "write_outputs",
+    "write_baseline_report",
 ]

@@ -51,6 +51,19 @@ class ClaimCheck:
     diagnosis: str = ""  # a measured figure of the method on these frames that explains the verdict
 
 
+def thresholds_text() -> str:
+    """The verdicts' thresholds in words, as every claims report states them."""
+    return (
+        f"Thresholds: \"cuts\" / \"saves\" = at most {CUT_RATIO:g}x the reference; \"costs\" = at least"
+        f" {COST_RATIO:g}x; \"gains accuracy\" = a median error at most {ACCURACY_RATIO:g}x or success"
+        f" +{100 * SUCCESS_MARGIN:g} points, nothing worse by as much; \"constant time\" = slowest/fastest"
+        f" per-epsilon median time at most {CONSTANT_TIME_SPREAD:g}x; \"unreliable\" = success at the heaviest"
+        f" epsilon below {100 * UNRELIABLE_MAX:g} % and {100 * UNRELIABLE_DROP:g} points below the lightest;"
+        f" \"robust\" = success at the heaviest epsilon within {100 * ROBUST_MARGIN:g} points of the reference's;"
+        f" \"quadratic\" = log-log slope of median time vs N at least {QUADRATIC_SLOPE:g}."
+    )
+
+
 def _ratio(a: float | None, b: float | None) -> float | None:
     if a is None or b is None or b <= 0:
         return None

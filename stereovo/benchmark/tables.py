@@ -10,21 +10,7 @@ import math
 from typing import Any, Mapping, Sequence
 
 from stereovo.benchmark.aggregation import STAT_LABELS, BenchmarkSummary
-from stereovo.benchmark.claims import (
-    ACCURACY_RATIO,
-    AGREES,
-    CONSTANT_TIME_SPREAD,
-    COST_RATIO,
-    CUT_RATIO,
-    DISAGREES,
-    NOT_MEASURED,
-    QUADRATIC_SLOPE,
-    ROBUST_MARGIN,
-    SUCCESS_MARGIN,
-    UNRELIABLE_DROP,
-    UNRELIABLE_MAX,
-    ClaimCheck,
-)
+from stereovo.benchmark.claims import AGREES, DISAGREES, NOT_MEASURED, ClaimCheck, thresholds_text
 from stereovo.metrics import SUCCESS_ROT_DEG, SUCCESS_TRANS_M, SUCCESS_TRANS_REL
 
 def markdown_table(headers: Sequence[str], rows: Sequence[Sequence[Any]], align: str | None = None) -> str:
@@ -36,7 +22,8 @@ def markdown_table(headers: Sequence[str], rows: Sequence[Sequence[Any]], align:
     return "\n".join(lines)
 
 
-def _fmt_stat(key: str, value: Any) -> str:
+def format_stat(key: str, value: Any) -> str:
+    """A statistic (:data:`~stereovo.benchmark.aggregation.STAT_LABELS`' keys) in the tables' units; ``n/a`` if missing."""
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "n/a"
     if key == "frames":
@@ -55,7 +42,7 @@ def _fmt_stat(key: str, value: Any) -> str:
 def overall_table(summary: BenchmarkSummary) -> str:
     """The headline table: one row per method."""
     keys = list(STAT_LABELS)
-    rows = [[f"`{m}`", *(_fmt_stat(k, summary.overall[m].get(k)) for k in keys)] for m in summary.methods]
+    rows = [[f"`{m}`", *(format_stat(k, summary.overall[m].get(k)) for k in keys)] for m in summary.methods]
     return markdown_table(["method", *STAT_LABELS.values()], rows)
 
 
@@ -66,7 +53,7 @@ def breakdown_table(summary: BenchmarkSummary, axis: str, key: str) -> str:
     label = {"epsilon": "epsilon", "n": "N", "auc": "AUC"}[axis]
     headers = ["method", *(f"{label} = {v:g}" for v in values)]
     rows = [
-        [f"`{m}`", *(_fmt_stat(key, per.get(m, {}).get(v, {}).get(key)) for v in values)]
+        [f"`{m}`", *(format_stat(key, per.get(m, {}).get(v, {}).get(key)) for v in values)]
         for m in summary.methods
     ]
     return markdown_table(headers, rows)
@@ -127,14 +114,8 @@ def claims_markdown(claims: Sequence[ClaimCheck], heading: str = "# Claims of th
     lines = [
         heading,
         "",
-        f"{counts[AGREES]} agree, {counts[DISAGREES]} do not agree, {counts[NOT_MEASURED]} not measured."
-        f" Thresholds: \"cuts\" / \"saves\" = at most {CUT_RATIO:g}x the reference; \"costs\" = at least"
-        f" {COST_RATIO:g}x; \"gains accuracy\" = a median error at most {ACCURACY_RATIO:g}x or success"
-        f" +{100 * SUCCESS_MARGIN:g} points, nothing worse by as much; \"constant time\" = slowest/fastest"
-        f" per-epsilon median time at most {CONSTANT_TIME_SPREAD:g}x; \"unreliable\" = success at the heaviest"
-        f" epsilon below {100 * UNRELIABLE_MAX:g} % and {100 * UNRELIABLE_DROP:g} points below the lightest;"
-        f" \"robust\" = success at the heaviest epsilon within {100 * ROBUST_MARGIN:g} points of the reference's;"
-        f" \"quadratic\" = log-log slope of median time vs N at least {QUADRATIC_SLOPE:g}.",
+        f"{counts[AGREES]} agree, {counts[DISAGREES]} do not agree, {counts[NOT_MEASURED]} not measured. "
+        + thresholds_text(),
         "",
         markdown_table(
             ["claim", "source", "verdict"],

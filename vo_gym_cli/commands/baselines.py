@@ -39,15 +39,15 @@ from typing import Any, Callable
 
 
 from vo_gym_cli.commands.common import (
-    EXIT_INTERRUPTED,
-    EXIT_USAGE,
     RunStart,
     UsageError,
     check_output_dir,
     flag_error,
     csv_list,
+    interrupted_run,
     positive_int,
     seed as parse_seed,
+    stoppable,
 )
 
 # stereovo.reporting.PLOT_FORMATS, spelled out so that building the parser imports no numerical code
@@ -136,11 +136,6 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     add_backend_options(parser, "frames")
 
 
-def _error(message: str) -> int:
-    print(f"vo-gym baselines: error: {message}", file=sys.stderr)
-    return EXIT_USAGE
-
-
 def _json_safe(value: Any) -> Any:
     if isinstance(value, dict):
         return {str(k): _json_safe(v) for k, v in value.items()}
@@ -152,13 +147,7 @@ def _json_safe(value: Any) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
-    from stereovo.trials.runner import sigterm_as_interrupt
-
-    try:
-        with sigterm_as_interrupt():  # kill / a scheduler's stop: the same clean stop as Ctrl-C
-            return _run(args)
-    except UsageError as err:
-        return _error(str(err))
+    return stoppable("baselines", lambda: _run(args))
 
 
 def _stored_rows(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
@@ -235,12 +224,12 @@ def _run(args: argparse.Namespace) -> int:
             max_iterations=args.max_iterations, preset=args.preset,
         )
     except ValueError as err:
-        return _error(str(err))
+        raise UsageError(str(err)) from None
     options = {} if grid.max_iterations is None else {"max_iterations": grid.max_iterations}
     try:
         estimators = bm.classical_estimators(args.methods, **options)
     except ValueError as err:
-        return _error(f"--methods: {err}")
+        raise UsageError(f"--methods: {err}") from None
     if args.address is not None and args.backend != "ray":
         raise UsageError(f"--address {args.address!r} needs --backend ray")
     from stereovo.trials import TrialJournal
@@ -287,16 +276,8 @@ def _benchmark(args, grid, estimators, options, out, journal) -> int:
         finally:
             backend.close()
         wall = time.perf_counter() - start
-    except RunInterrupted as stop:
-        journal.close()
-        print(stop.message(), file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except KeyboardInterrupt:
-        journal.close()
-        from stereovo.trials.runner import interrupted_message
-
-        print(interrupted_message(len(journal.read()), len(trials), out), file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except (RunInterrupted, KeyboardInterrupt) as stop:
+        return interrupted_run(journal, stop, len(trials), out)
     journal.close()
     # The final files come from the journal, so a resumed run writes exactly what an uninterrupted one does.
     stored = journal.read()

@@ -267,20 +267,24 @@ def missing_extra(err: ModuleNotFoundError) -> str | None:
     return f"this needs the '{extra}' extra ({root} is not installed): pip install 'vo-gym[{extra}]'"
 
 
+def installed(module: str) -> bool:
+    """Whether ``module`` can be imported (found without importing it)."""
+    import importlib.util
+
+    try:
+        return importlib.util.find_spec(module) is not None
+    except (ImportError, ValueError):  # a parent that is no package, a half-removed module
+        return False
+
+
 def require_extras(*modules: str) -> None:
     """Check, before anything is written, that the optional modules a command will import are installed.
 
     Raises:
         UsageError: the one-line ``pip install 'vo-gym[EXTRA]'`` hint of the first one missing.
     """
-    import importlib.util
-
     for module in modules:
-        try:
-            found = importlib.util.find_spec(module) is not None
-        except (ImportError, ValueError):
-            found = False
-        if not found:
+        if not installed(module):
             raise UsageError(missing_extra(ModuleNotFoundError(name=module)) or f"{module} is not installed")
 
 
@@ -291,14 +295,8 @@ def require_extra(extra: str, *modules: str, context: str = "") -> None:
     Raises:
         UsageError: ``CONTEXT: this needs the 'EXTRA' extra (MODULE is not installed): pip install ...``.
     """
-    import importlib.util
-
     for module in modules:
-        try:
-            found = importlib.util.find_spec(module) is not None
-        except (ImportError, ValueError):
-            found = False
-        if not found:
+        if not installed(module):
             lead = f"{context}: " if context else ""
             raise UsageError(f"{lead}this needs the '{extra}' extra ({module} is not installed): "
                              f"pip install 'vo-gym[{extra}]'")
@@ -324,3 +322,26 @@ def guarded(command: str, run: Callable[[], int]) -> int:
     if code == EXIT_INTERRUPTED:
         sys.unraisablehook = quiet_pool_exit
     return code
+
+
+def stoppable(command: str, run: Callable[[], int]) -> int:
+    """:func:`guarded`, with SIGTERM (``kill``, a scheduler's stop) stopping the run as Ctrl-C does:
+    for the commands that journal their work and stop cleanly."""
+    from stereovo.trials.runner import sigterm_as_interrupt
+
+    with sigterm_as_interrupt():
+        return guarded(command, run)
+
+
+def interrupted_run(journal: Any, stop: BaseException, total: int, out: Path) -> int:
+    """Close the journal of a run that stopped (a worker's ``RunInterrupted``, or Ctrl-C / SIGTERM as
+    ``KeyboardInterrupt``), print its one line (what is kept, how to resume) and return
+    :data:`EXIT_INTERRUPTED`; ``total`` is the run's units of work, ``out`` its folder."""
+    from stereovo.trials import RunInterrupted
+    from stereovo.trials.runner import interrupted_message
+
+    journal.close()
+    message = stop.message() if isinstance(stop, RunInterrupted) else interrupted_message(len(journal.read()), total, out)
+    print(message, file=sys.stderr)
+    return EXIT_INTERRUPTED
+

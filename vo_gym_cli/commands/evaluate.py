@@ -24,12 +24,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
 from vo_gym_cli.commands.baselines import PLOT_FORMATS, add_backend_options, backend_from_args, open_run_folder
-from vo_gym_cli.commands.common import EXIT_INTERRUPTED, EXIT_USAGE, RunStart, UsageError, flag_error
+from vo_gym_cli.commands.common import RunStart, UsageError, flag_error, interrupted_run, stoppable
 from vo_gym_cli.commands.common import csv_list as _csv_list
 from vo_gym_cli.commands.common import positive_int as _positive_int
 from vo_gym_cli.commands.common import seed as _seed
@@ -110,19 +109,8 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     add_backend_options(parser, "episodes")
 
 
-def _error(message: str) -> int:
-    print(f"vo-gym evaluate: error: {message}", file=sys.stderr)
-    return EXIT_USAGE
-
-
 def run(args: argparse.Namespace) -> int:
-    from stereovo.trials.runner import sigterm_as_interrupt
-
-    try:
-        with sigterm_as_interrupt():  # kill / a scheduler's stop: the same clean stop as Ctrl-C
-            return _run(args)
-    except UsageError as err:
-        return _error(str(err))
+    return stoppable("evaluate", lambda: _run(args))
 
 
 # EvalConfig's field (how its errors start) -> the flag that sets it.
@@ -191,14 +179,14 @@ def _run(args: argparse.Namespace) -> int:
         try:
             env_kwargs = json.loads(args.env_kwargs)
         except json.JSONDecodeError as err:
-            return _error(f"--env-kwargs is not valid JSON: {err}")
+            raise UsageError(f"--env-kwargs is not valid JSON: {err}") from None
         if not isinstance(env_kwargs, dict):
-            return _error("--env-kwargs must be a JSON object")
+            raise UsageError("--env-kwargs must be a JSON object") from None
     methods = DEFAULT_METHODS if args.methods is None else tuple(m for m in args.methods if m.lower() != "none")
     try:
         agents = resolve_agents(args.agent or DEFAULT_AGENTS)
     except (ValueError, FileNotFoundError) as err:
-        return _error(f"--agent: {err}")
+        raise UsageError(f"--agent: {err}") from None
     try:
         config = EvalConfig(
             env_id=args.env_id, episodes=args.episodes, frames_per_episode=args.frames_per_episode, seed=args.seed,
@@ -234,7 +222,6 @@ def _evaluate(args, config, agents, out, journal) -> int:
     from agents.evaluation.setup import EvaluationResult
     from stereovo.benchmark import default_workers
     from stereovo.trials import RunInterrupted
-    from stereovo.trials.runner import interrupted_message
     from stereovo.trials.store import RunFolderError
 
     workers = args.workers or default_workers()
@@ -264,14 +251,8 @@ def _evaluate(args, config, agents, out, journal) -> int:
                                     journal=journal, done=done)
         finally:
             backend.close()
-    except RunInterrupted as stop:
-        journal.close()
-        print(stop.message(), file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except KeyboardInterrupt:
-        journal.close()
-        print(interrupted_message(len(journal.read()), len(units), out), file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except (RunInterrupted, KeyboardInterrupt) as stop:
+        return interrupted_run(journal, stop, len(units), out)
     except (ValueError, TypeError) as err:
         raise UsageError(str(err)) from None
     journal.close()

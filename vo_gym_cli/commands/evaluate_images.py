@@ -20,22 +20,10 @@ from typing import Any
 from vo_gym_cli.commands.common import UsageError, check_output_dir, require_extra
 
 
-class _Frames:
-    """An episode's frames, computed once, served as a frame sequence to the images environment."""
-
-    def __init__(self, frames: list, camera: Any, true_poses: Any, noise_sigma: float) -> None:
-        self.frames, self.camera, self.true_poses, self.noise_sigma = frames, camera, true_poses, noise_sigma
-
-    def __len__(self) -> int:
-        return len(self.frames)
-
-    def frame(self, k: int):
-        return self.frames[k - 1]
-
-
-def _render(args: argparse.Namespace, preset: str, progress: bool) -> list[_Frames]:
+def _render(args: argparse.Namespace, preset: str, progress: bool) -> list:
     from stereovo.sequences.rendered import RenderedSequence
     from stereovo.sequences.rendering import RenderingUnavailable
+    from vo_gym.images_env import ReplayedFrames
 
     episodes = []
     bar = None
@@ -56,7 +44,7 @@ def _render(args: argparse.Namespace, preset: str, progress: bool) -> list[_Fram
                 frames.append(seq.frame(k))
                 if bar is not None:
                     bar.update()
-            episodes.append(_Frames(frames, seq.camera, seq.true_poses, seq.noise_sigma))
+            episodes.append(ReplayedFrames(frames, seq.camera, seq.true_poses, seq.noise_sigma))
         finally:
             seq.close()
     if bar is not None:
@@ -161,7 +149,10 @@ def _write(out: Path, args: argparse.Namespace, rows: list[dict], summary: list[
     (out / "summary.md").write_text(table)
     written = ["frames.csv", "summary.json", "summary.md"]
     if not args.no_plots:
-        _plot(out / f"success_vs_budget.{args.plot_format}", summary, labels)
+        from agents.evaluation.report import plot_success_vs_budget
+
+        plot_success_vs_budget(out / f"success_vs_budget.{args.plot_format}", summary, "agent",
+                               "rendered images: success vs budget (Wilson 95 % CI)")
         written.append(f"success_vs_budget.{args.plot_format}")
     if args.json:
         print(json.dumps({"settings": settings, "rows": summary}, indent=2))
@@ -169,27 +160,3 @@ def _write(out: Path, args: argparse.Namespace, rows: list[dict], summary: list[
     print()
     print(table)
     print(f"wrote {out}/: {', '.join(written)}")
-
-
-def _plot(path: Path, summary: list[dict], labels: list[str]) -> None:
-    import numpy as np
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(7, 4.2))
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot(1, 1, 1)
-    for label in labels:
-        own = [s for s in summary if s["agent"] == label]
-        b = np.array([s["budget"] for s in own], float)
-        p = 100 * np.array([s["success"] for s in own])
-        err = 100 * np.array([[s["success"] - s["ci_low"], s["ci_high"] - s["success"]] for s in own]).T
-        ax.errorbar(b, p, yerr=err, marker="o", capsize=3, label=label)
-    ax.set_xscale("log", base=2)
-    ax.set_xlabel("hypotheses per frame (fixed budget)")
-    ax.set_ylabel("frames within 1 deg / 5 cm (%)")
-    ax.set_title("rendered images: success vs budget (Wilson 95 % CI)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="lower right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)

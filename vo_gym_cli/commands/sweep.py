@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 
 from vo_gym_cli.commands.common import (
-    EXIT_INTERRUPTED, EXIT_USAGE, UsageError, check_output_dir, positive_int, require_extras,
+    EXIT_INTERRUPTED, UsageError, check_output_dir, guarded, positive_int, require_extras,
 )
 
 
@@ -41,16 +41,8 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     talk.add_argument("--quiet", action="store_true", help="no progress bar either")
 
 
-def _error(message: str) -> int:
-    print(f"vo-gym sweep: error: {message}", file=sys.stderr)
-    return EXIT_USAGE
-
-
 def run(args: argparse.Namespace) -> int:
-    try:
-        return _run(args)
-    except UsageError as err:
-        return _error(str(err))
+    return guarded("sweep", lambda: _run(args))
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -255,14 +255,7 @@ def run(args: argparse.Namespace) -> int:
     from stereovo.simulation import Sequence, SimulationConfig
 
     try:
-        config = SimulationConfig(
-            preset=args.preset,
-            n_frames=args.frames,
-            n_correspondences=args.n,
-            noise_sigma=args.noise,
-            outlier_ratio=args.outliers,
-            score_auc=args.auc,
-        )
+        config = SimulationConfig(**{field: getattr(args, flag[2:]) for field, flag in _CONFIG_FLAGS.items()})
         sequence = Sequence(config, seed=args.seed)
     except ValueError as err:
         # Invalid settings (the config validates them, naming its field): the message names the flag.
@@ -317,6 +310,7 @@ def _write_trajectory(out: Path, estimate: Any, settings: dict[str, Any], header
     from matplotlib.figure import Figure
 
     from stereovo.io import write_frame_csv, write_kitti, write_tum
+    from stereovo.plotting import plot_trajectories
 
     write_tum(out / "trajectory_est.tum", estimate.poses)
     write_kitti(out / "trajectory_est.kitti.txt", estimate.poses)
@@ -327,13 +321,7 @@ def _write_trajectory(out: Path, estimate: Any, settings: dict[str, Any], header
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     poses = np.asarray(estimate.poses)
-    ax.plot(poses[:, 0, 3], poses[:, 2, 3], color="tab:blue", lw=1.2, label=f"estimate ({estimate.method})")
-    ax.plot(poses[0, 0, 3], poses[0, 2, 3], "o", color="tab:green", ms=6, label="start")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("z [m]")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc="best", fontsize="small")
+    plot_trajectories(ax, poses, None, label=f"estimate ({estimate.method})")
     ax.set_title("estimated trajectory (no ground-truth poses: no drift)")
     fig.savefig(out / "odometry.png", dpi=110)
     steps = np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1)

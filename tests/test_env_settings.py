@@ -1,0 +1,108 @@
+"""vo_gym.settings: one rule per keyword, the same in both environments, and plain attributes after it."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from stereovo.estimation import available_methods
+from stereovo.simulation import SimulationConfig
+from vo_gym.adaptive_env import StereoVOAdaptiveEnv
+from vo_gym.env import StereoVOEnv
+from vo_gym.names import constructor_keywords
+from vo_gym.settings import RULES, SIMULATOR_KEYWORDS, Lengths, check_settings
+
+SMALL = dict(n_frames=2, n_correspondences=60)
+BOTH = (StereoVOEnv, StereoVOAdaptiveEnv)
+
+
+def _message(cls, **kwargs) -> str:
+    with pytest.raises(ValueError) as err:
+        cls(**SMALL, **kwargs)
+    return str(err.value)
+
+
+@pytest.mark.parametrize("kwargs, rule", [
+    ({"hypothesis_cost": 1.5}, "hypothesis_cost must be a finite number in [0, 1], got 1.5"),
+    ({"hypothesis_cost": -1}, "hypothesis_cost must be a finite number in [0, 1], got -1"),
+    ({"action_bound": 0.0}, "action_bound must be a finite number > 0, got 0.0"),
+    ({"logit_scale": float("nan")}, "logit_scale must be a finite number > 0, got nan"),
+    ({"success_bonus": "0.5"}, "success_bonus must be a finite number in [0, 1], got '0.5'"),
+    ({"failure_reward": -2}, "failure_reward must be a finite number in [-1, 1], got -2"),
+    ({"reward_mode": "vibes"}, "reward_mode must be one of 'supervised', 'inliers', 'msac', got 'vibes'"),
+    ({"batch_size": 0}, "batch_size must be None or an integer >= 1 and <= 1000000000, got 0"),
+    ({"max_correspondences": 10}, "max_correspondences=10 is smaller than n_correspondences=60: every frame"),
+    ({"estimator_noise_sigma": -1.0}, "estimator_noise_sigma must be None or a finite number in [0.001, 1000] (px)"),
+    ({"action_bound": 30.0, "logit_scale": 20.0}, "action_bound * logit_scale must be <= 300 (weights exp(+-300) "
+                                                  "stay representable), got 600"),
+    ({"noise_sigma": 0.0}, "noise_sigma=0 (noise-free frames) needs estimator_noise_sigma > 0"),
+    ({"outlier_ratio": 1.5}, "invalid simulator setting: SimulationConfig.outlier_ratio"),
+    ({"threshold_px": -1.0}, "invalid estimator setting:"),
+])
+def test_a_keyword_both_environments_take_is_refused_by_one_rule_with_one_message(kwargs, rule):
+    for cls in BOTH:
+        assert _message(cls, **kwargs).startswith(f"{cls.__name__}: {rule}")
+
+
+def test_the_constructors_keep_the_checked_values_as_plain_attributes():
+    env = StereoVOAdaptiveEnv(**SMALL, batch_size=None, max_hypotheses=12, action_bound=np.float32(2.0),
+                              estimator_noise_sigma=2, hypothesis_cost=0)
+    assert env.batch_size == 12  # None: the whole cap in one step, as StereoVOEnv's None is the whole budget
+    assert type(env.action_bound) is float and env.action_bound == 2.0
+    assert type(env.hypothesis_cost) is float and env.hypothesis_cost == 0.0
+    assert env.estimator_noise_sigma == 2.0 and env.estimator_options.noise_sigma == 2.0
+    assert env.max_correspondences == 60 and env.sim_config.n_frames == 2
+    one_shot = StereoVOEnv(**SMALL, budget=8, kitti_lengths=[5, 10])
+    assert (one_shot.budget, one_shot.batch_size, one_shot.kitti_lengths) == (8, 8, (5.0, 10.0))
+
+
+def test_the_adaptive_environment_takes_the_simulators_fields_with_the_simulators_defaults():
+    env = StereoVOAdaptiveEnv()
+    fields = {f.name: getattr(env.sim_config, f.name) for f in dataclasses.fields(SimulationConfig)}
+    assert fields == {f.name: getattr(SimulationConfig(), f.name) for f in dataclasses.fields(SimulationConfig)}
+    assert set(SIMULATOR_KEYWORDS) == set(fields)
+
+
+@pytest.mark.skipif("mlesac" not in available_methods(), reason="the classical methods are not registered")
+def test_a_methods_own_options_reach_the_adaptive_search_and_are_checked_as_in_the_one_shot_env():
+    env = StereoVOAdaptiveEnv(**SMALL, method="mlesac", mlesac_em_iterations=2)
+    assert env._extra == {"mlesac_em_iterations": 2}
+    for cls in BOTH:
+        assert "mlesac_em_iterations" in _message(cls, method="mlesac", mlesac_em_iterations=0)
+        with pytest.raises(TypeError, match="sprt_t_m"):
+            cls(**SMALL, method="mlesac", sprt_t_m=10)
+
+
+def test_an_unknown_keyword_is_a_type_error_with_a_hint_in_both():
+    for cls, typo, hint in ((StereoVOEnv, "n_correspondence", "n_correspondences"),
+                            (StereoVOAdaptiveEnv, "n_correspondence", "n_correspondences"),
+                            (StereoVOAdaptiveEnv, "max_hypothesis", "max_hypotheses")):
+        with pytest.raises(TypeError, match=rf"'{typo}' \(did you mean '{hint}'\?\)"):
+            cls(**{typo: 10})
+    with pytest.raises(TypeError) as err:  # the adaptive env's own batch_size is not listed as an estimator option
+        StereoVOAdaptiveEnv(zzz=1)
+    assert "'batch_size'" not in str(err.value) and "did you mean" not in str(err.value)
+
+
+def test_every_environment_keyword_has_its_rule_here():
+    for cls in BOTH:
+        own = set(constructor_keywords(cls)) - set(SIMULATOR_KEYWORDS) - {"method"}
+        assert own <= set(RULES), own - set(RULES)
+
+
+@pytest.mark.parametrize("value", [(), (0.0,), (5.0, -1.0), (float("inf"),), "ab", 3, None, ("x",)])
+def test_lengths_refuse_what_is_not_positive_finite_lengths(value):
+    with pytest.raises(ValueError, match=rf"^E: kitti_lengths must be positive numbers \(m\), got "):
+        check_settings("E", kitti_lengths=value)
+    assert Lengths().check("x", (1, 2.5)) == (1.0, 2.5)
+
+
+@pytest.mark.parametrize("value", [(0.9, 0.5), (-0.1, 0.5), (0.2, 1.0), (0.5,), "ab", (0.1, "0.5"), (True, 0.5), None])
+def test_a_contamination_range_is_a_pair_within_zero_and_one(value):
+    from vo_gym.settings import ContaminationRange
+
+    with pytest.raises(ValueError, match=r"^epsilons must be a \(low, high\) pair with 0 <= low <= high < 1, got "):
+        ContaminationRange().check("epsilons", value, prefix="")
+    assert ContaminationRange().check("epsilons", [0, np.float32(0.5)], prefix="") == (0.0, 0.5)

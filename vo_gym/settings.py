@@ -1,0 +1,226 @@
+"""The environments' keywords, each checked by one rule, declared once, the same in every environment.
+
+:class:`vo_gym.env.StereoVOEnv` (and :class:`vo_gym.images_env.StereoVOImagesEnv` above it) and
+:class:`vo_gym.adaptive_env.StereoVOAdaptiveEnv` accept the same kinds of keywords, and each one
+is checked by the same rule wherever it enters, with the same message
+(``StereoVOEnv: hypothesis_cost must be a finite number in [0, 1], got 2``):
+
+- the environment's own (:data:`RULES`, the declarations of :mod:`stereovo.options`), checked by
+  :func:`check_settings`, which also applies the rules between two of them;
+- the simulator's: the fields of :class:`~stereovo.simulation.SimulationConfig`, whose defaults and
+  rules are its own (:func:`simulation_config`);
+- the estimator's: the :class:`~stereovo.estimation.EstimatorOptions` fields and the method's own
+  options, declared by the estimator (:func:`estimator_settings`); the environments' defaults for
+  them are :data:`DEFAULT_ESTIMATOR_OPTIONS`.
+
+A constructor hands its keywords to these functions and keeps what they return as plain attributes;
+its signature keeps the defaults (those of the simulator's keywords are SimulationConfig's).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, Iterable, Mapping
+
+from stereovo.camera import StereoCamera
+from stereovo.estimation import EstimatorOptions, method_spec, validate_options
+from stereovo.estimation.estimator_options import ESTIMATOR_OPTION_RULES, MAX_COUNT, SHARED_OPTIONS
+from stereovo.estimation.registry import MethodSpec
+from stereovo.options import Choice, Integer, Number, Option, check_options, is_real
+from stereovo.simulation import SimulationConfig
+from vo_gym.names import constructor_keywords, keyword_hint
+from vo_gym.rewards import REWARD_MODES
+
+__all__ = [
+    "SAMPLING_MODES", "DEFAULT_ESTIMATOR_OPTIONS", "SIMULATOR_KEYWORDS", "RULES", "Lengths", "ContaminationRange",
+    "check_settings", "simulation_config", "observation_rows", "estimator_noise", "estimator_settings",
+]
+
+SAMPLING_MODES: tuple[str, ...] = ("guided", "prosac")
+
+DEFAULT_ESTIMATOR_OPTIONS: dict[str, Any] = {
+    "polish_iterations": 2, "refine": True, "local_refit": False, "refine_iterations": 3, "refine_rounds": 2,
+}
+"""The environments' defaults for :class:`~stereovo.estimation.EstimatorOptions` fields (the rest
+keep the method's defaults): two of the core's enhancements, named explicitly because the named
+methods default to their papers' recipes: the sample polish and the final LM refinement (with
+fewer iterations and rounds); no per-hypothesis local refit, which keeps a step fast. Pass any of
+them as a keyword to change it."""
+
+SIMULATOR_KEYWORDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(SimulationConfig))
+"""The simulator's keywords: the :class:`~stereovo.simulation.SimulationConfig` fields (their defaults are its)."""
+
+# exp(+-300) is representable in float64; a larger logit range overflows the sampling weights.
+MAX_LOGIT = 300.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Lengths(Option):
+    """A non-empty sequence of positive finite lengths (m), normalised to a tuple of floats."""
+
+    @property
+    def rule(self) -> str:
+        return "positive numbers (m)"
+
+    def _accepts(self, value: Any) -> tuple[bool, Any]:
+        try:
+            lengths = tuple(float(x) for x in value)
+        except (TypeError, ValueError):
+            return False, None
+        return bool(lengths) and all(math.isfinite(x) and x > 0 for x in lengths), lengths
+
+
+@dataclasses.dataclass(frozen=True)
+class ContaminationRange(Option):
+    """A ``(low, high)`` range of outlier ratios with ``0 <= low <= high < 1``, normalised to floats
+    (the range a trainer draws each episode's or frame's contamination from)."""
+
+    @property
+    def rule(self) -> str:
+        return "a (low, high) pair with 0 <= low <= high < 1"
+
+    def _accepts(self, value: Any) -> tuple[bool, Any]:
+        if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
+            return False, None
+        low, high = value
+        if not (is_real(low) and is_real(high)):
+            return False, None
+        low, high = float(low), float(high)
+        return 0.0 <= low <= high < 1.0, (low, high)
+
+
+RULES: dict[str, Option] = {
+    "sampling": Choice(choices=SAMPLING_MODES),
+    "reward_mode": Choice(choices=REWARD_MODES),
+    "render_mode": Choice(choices=("rgb_array",), allow_none=True),
+    "action_bound": Number(low=0.0, low_open=True),
+    "logit_scale": Number(low=0.0, low_open=True),
+    "success_bonus": Number(low=0.0, high=1.0),
+    # Rewards are clipped to [-1, 1]: a cost above 1 per hypothesis would pin every reward at the floor.
+    "hypothesis_cost": Number(low=0.0, high=1.0),
+    "failure_reward": Number(low=-1.0, high=1.0),
+    "max_correspondences": Integer(low=1, high=MAX_COUNT, allow_none=True),
+    "kitti_lengths": Lengths(),
+    "estimator_noise_sigma": dataclasses.replace(ESTIMATOR_OPTION_RULES["noise_sigma"], allow_none=True),
+    "budget": dataclasses.replace(ESTIMATOR_OPTION_RULES["budget"], allow_none=True),
+    "batch_size": dataclasses.replace(ESTIMATOR_OPTION_RULES["batch_size"], allow_none=True),
+    "max_hypotheses": Integer(low=1, high=10**6),  # a frame keeps an (H, N) bool inlier mask per hypothesis
+}
+"""One declaration per environment keyword (:mod:`stereovo.options`). ``batch_size`` is the
+hypotheses fitted together: per vectorised batch in :class:`~vo_gym.env.StereoVOEnv`, per step
+in :class:`~vo_gym.adaptive_env.StereoVOAdaptiveEnv`; None means all of them in one batch
+(the ``budget``, or ``max_hypotheses``)."""
+
+
+def check_settings(owner: str, **given: Any) -> dict[str, Any]:
+    """``given`` (names of :data:`RULES`) checked and normalised, numbers as floats.
+
+    Also ``action_bound * logit_scale <= 300`` when both are given.
+
+    Raises:
+        ValueError: ``"{owner}: NAME must be RULE, got VALUE"`` for the first bad value.
+    """
+    checked = check_options(RULES, given, prefix=f"{owner}: ")
+    for name, value in checked.items():
+        if isinstance(RULES[name], Number) and value is not None:
+            checked[name] = float(value)
+    if "action_bound" in checked and "logit_scale" in checked:
+        product = checked["action_bound"] * checked["logit_scale"]
+        if product > MAX_LOGIT:
+            raise ValueError(f"{owner}: action_bound * logit_scale must be <= 300 (weights exp(+-300) stay "
+                             f"representable), got {product:g}")
+    return checked
+
+
+def simulation_config(owner: str, fields: Mapping[str, Any]) -> SimulationConfig:
+    """The :class:`SimulationConfig` of ``fields`` (a subset of :data:`SIMULATOR_KEYWORDS`; ``camera``
+    None means the KITTI-like :class:`StereoCamera`).
+
+    Raises:
+        ValueError: ``"{owner}: invalid simulator setting: ..."`` naming the field.
+    """
+    fields = dict(fields)
+    if fields.get("camera", None) is None:
+        fields["camera"] = StereoCamera()
+    try:
+        return SimulationConfig(**fields)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{owner}: invalid simulator setting: {err}") from None
+
+
+def observation_rows(owner: str, max_correspondences: int | None, n_correspondences: int) -> int:
+    """The observation's rows: ``max_correspondences`` (checked), None meaning ``n_correspondences``.
+
+    Raises:
+        ValueError: fewer rows than a frame's matches.
+    """
+    if max_correspondences is None:
+        return n_correspondences
+    if max_correspondences < n_correspondences:
+        raise ValueError(
+            f"{owner}: max_correspondences={max_correspondences} is smaller than "
+            f"n_correspondences={n_correspondences}: every frame has exactly n_correspondences matches and all must fit"
+        )
+    return max_correspondences
+
+
+def estimator_noise(owner: str, estimator_noise_sigma: float | None, noise_sigma: float) -> float:
+    """The pixel noise the estimator and the features assume (px): ``estimator_noise_sigma``, or the
+    simulator's ``noise_sigma`` when it is None.
+
+    Raises:
+        ValueError: None on noise-free frames.
+    """
+    if estimator_noise_sigma is not None:
+        return float(estimator_noise_sigma)
+    if noise_sigma <= 0:
+        raise ValueError(
+            f"{owner}: noise_sigma=0 (noise-free frames) needs estimator_noise_sigma > 0: "
+            "the estimator's gates and the features' uncertainties need a positive pixel noise"
+        )
+    return float(noise_sigma)
+
+
+def estimator_settings(owner: str, cls: type, method: str, options: Mapping[str, Any], fixed: Mapping[str, Any],
+                       sampling: str | None = None, also_known: Iterable[str] = ()) -> tuple[
+                           MethodSpec, EstimatorOptions, dict[str, Any]]:
+    """The method, its :class:`EstimatorOptions` and its own options, validated by their declarations
+    (never by running the method).
+
+    Args:
+        owner: the environment's name, the messages' prefix. cls: its class (for did-you-mean hints).
+        method: a registered method name.
+        options: the user's estimator keywords; the environments' defaults are
+            :data:`DEFAULT_ESTIMATOR_OPTIONS`.
+        fixed: the options the environment sets itself (``noise_sigma``, ...), which the user
+            passes through the environment's own keywords, not here.
+        sampling: ``"guided"`` (priors) or ``"prosac"`` (an order): checks that the method takes it.
+        also_known: further keywords the environment accepts (for the hints).
+
+    Raises:
+        TypeError: a keyword that is no option of the method. ValueError: a bad value, named.
+    """
+    try:
+        spec = method_spec(method)
+    except ValueError as err:
+        raise ValueError(f"{owner}: method: {err}") from None
+    # the environment's own keywords never reach here (a constructor parameter takes them)
+    allowed = sorted((SHARED_OPTIONS - set(fixed) - set(constructor_keywords(cls))) | set(spec.extra_options))
+    unknown = sorted(set(options) - set(allowed))
+    if unknown:
+        raise TypeError(
+            f"{owner} got unexpected keyword argument(s) {unknown}: not an environment or simulator "
+            f"argument nor an option of estimator method {method!r} (its options: {allowed})"
+            f"{keyword_hint(unknown, cls, [*allowed, *also_known])}"
+        )
+    try:
+        shared, extra = validate_options(method, {**DEFAULT_ESTIMATOR_OPTIONS, **options, **fixed})
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{owner}: invalid estimator setting: {err}") from None
+    if sampling is not None:
+        try:
+            spec.check_inputs(priors=sampling == "guided", order=sampling == "prosac")
+        except ValueError as err:
+            raise ValueError(f"{owner}: estimator method {method!r} with sampling={sampling!r}: {err}") from None
+    return spec, shared, extra
