@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from stereovo.estimation import available_methods
+from stereovo.estimation import available_methods, method_spec
 from stereovo.simulation import SimulationConfig
 from vo_gym.adaptive_env import StereoVOAdaptiveEnv
 from vo_gym.env import StereoVOEnv
@@ -68,7 +68,9 @@ def test_the_adaptive_environment_takes_the_simulators_fields_with_the_simulator
 @pytest.mark.skipif("mlesac" not in available_methods(), reason="the classical methods are not registered")
 def test_a_methods_own_options_reach_the_adaptive_search_and_are_checked_as_in_the_one_shot_env():
     env = StereoVOAdaptiveEnv(**SMALL, method="mlesac", mlesac_em_iterations=2)
-    assert env._extra == {"mlesac_em_iterations": 2}
+    # the given option, and every other option of the method at its declared default
+    declared = {name: method_spec("mlesac").option_rule(name).default for name in method_spec("mlesac").extra_options}
+    assert env._extra == {**declared, "mlesac_em_iterations": 2}
     for cls in BOTH:
         assert "mlesac_em_iterations" in _message(cls, method="mlesac", mlesac_em_iterations=0)
         with pytest.raises(TypeError, match="sprt_t_m"):
