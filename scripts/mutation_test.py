@@ -6,31 +6,20 @@
     .venv/bin/python scripts/mutation_test.py --report-only          # rewrite the report from the last run
 
 mutmut changes one thing in the code (an operator, a constant, a comparison, an argument) and runs
-the tests that call the changed function; a mutant the tests let pass ("survived") is a change of
-behaviour nobody would notice. The run happens in copies of the repository (``--workdir``), never in
-the working tree: mutmut writes its ``mutants/`` folder there. Each module is checked in its own
-copy against a fast subset of the suite, in order of importance, each within ``--minutes``; mutmut
-runs the tests of a mutant fastest first and stops at the first failure.
+the tests that call the changed function; a mutant they let pass ("survived") is a change of
+behaviour nobody would notice. Each module runs in its own copy of the repository (``--workdir``,
+never the working tree, where mutmut would write its ``mutants/``) against a fast subset of the
+suite, in order of importance, within ``--minutes``. The modules, their tests and the verdicts on
+survivors (equivalent with the reason, left on purpose, targeted by a later test) are data:
+``docs/mutation-verdicts.toml``, beside the report ``docs/mutation-testing.md`` written from it and
+from the run's results (kill rate: killed and timed out over the checked, non-equivalent mutants).
 
-What is mutated and against which tests, and the verdicts on surviving mutants (equivalent ones with
-the reason, ones left on purpose, ones a later test targets), are data: ``docs/mutation-verdicts.toml``
-(``--verdicts``), read beside the report it explains.
-
-Not mutated: the numba kernels (the package ``stereovo/estimation/kernels/`` and
-``stereovo/estimation/kernels_verification.py``, never listed as modules; and any ``@njit`` function:
-mutmut leaves decorated functions alone, so also properties and ``lru_cache``d helpers).
-
-Compiled kernels are reused, not recompiled: numba caches its machine code beside each source
-(``cache=True``), which a copy elsewhere would lose; the copies keep the sources' mtimes, so the
-working tree's caches are carried into the base copy, and what a module's run compiles goes back
-into it for the next module. A pytest plugin (``-p``) loads every cached kernel into mutmut's fork
-server once tests are collected, so a mutant's tests do not each load them again (about 0.9 s of
-2 s per mutant on the samplers).
-
-Writes the kill rate and every surviving mutant (its diff, and for an equivalent one why it is
-equivalent) to ``docs/mutation-testing.md``. The kill rate counts killed and timed-out mutants over
-the checked ones that are not equivalent. A developer's tool: a full run takes hours on two cores,
-far beyond CI's budget.
+Not mutated: the numba kernels (``stereovo/estimation/kernels/``, ``kernels_verification.py``) and
+any decorated function (mutmut leaves ``@njit``, properties and ``lru_cache``d helpers alone).
+Compiled kernels are reused: numba's caches beside the sources are carried into the copies (which
+keep the sources' mtimes) and back, and a pytest plugin loads every cached kernel into mutmut's fork
+server once tests are collected (about 0.9 s of 2 s per mutant on the samplers). A developer's
+tool: a full run takes hours on two cores, far beyond CI's budget.
 """
 
 from __future__ import annotations
@@ -301,6 +290,15 @@ def carry_from_report(report: Path, store: Path, modules: tuple[Module, ...]) ->
     return sorted(results)
 
 
+def selection_cell(tests: tuple[str, ...]) -> list[str]:
+    """A module's selected tests for the report: each test named, or a file and its count past three."""
+    by_file: dict[str, list[str]] = {}
+    for test in tests:
+        by_file.setdefault(test.split("::")[0].removeprefix("tests/"), []).append(test.removeprefix("tests/"))
+    return [f"{file} ({len(picked)} of its tests)" if len(picked) > 3 else ", ".join(picked)
+            for file, picked in by_file.items()]
+
+
 def write_report(path: Path, store: Path, verdicts: Verdicts) -> dict[str, dict]:
     """The report over every module of the data file from the results file (modules never run: "not run")."""
     stored = json.loads(store.read_text()) if store.is_file() else {}
@@ -333,7 +331,7 @@ def write_report(path: Path, store: Path, verdicts: Verdicts) -> dict[str, dict]
     for module in modules:
         c = summary[module.name]
         rate = "-" if c["kill rate"] is None else f"{100 * c['kill rate']:.1f} %"
-        tests = ", ".join(t.removeprefix("tests/") for t in module.tests)
+        tests = ", ".join(selection_cell(module.tests))
         lines.append(f"| `{module.path}` | {tests} | {c['total']} | {c['killed']} | {c['timeout']} | {c['survived']} "
                      f"| {c['equivalent']} | {c['no tests']} | {c['not checked']} | {rate} "
                      f"| {notes.get(module.name, 'not run')} |")
@@ -384,7 +382,7 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         parser.error(f"--only: unknown module(s) {', '.join(unknown)}; the data file lists "
                      f"{', '.join(m.name for m in verdicts.modules)}")
-    if shutil.which("mutmut", path=str(Path(sys.executable).parent)) is None:
+    if not args.report_only and shutil.which("mutmut", path=str(Path(sys.executable).parent)) is None:
         print("mutmut is not installed in this environment: pip install -e '.[dev]'", file=sys.stderr)
         return 2
     modules = [m for m in verdicts.modules if args.only is None or m.name in args.only]
@@ -400,9 +398,13 @@ def main(argv: list[str] | None = None) -> int:
             if not (workdir / "mutants").is_dir():
                 print(f"{module.name}: no earlier run in {workdir} to recheck", file=sys.stderr)
                 return 1
-            # Only the module's own test files: others may need sources newer than the copy's.
-            for test in sorted({t.split("::")[0] for t in module.tests}):
+            # Only the module's own test files (and the packages' __init__ and support modules they
+            # import): others may need sources newer than the copy's.
+            helpers = [p.relative_to(ROOT).as_posix() for p in (*(ROOT / "tests").rglob("__init__.py"),
+                                                                *(ROOT / "tests" / "support").glob("*.py"))]
+            for test in sorted({t.split("::")[0] for t in module.tests} | set(helpers)):
                 for target in (workdir, workdir / "mutants"):
+                    (target / test).parent.mkdir(parents=True, exist_ok=True)
                     shutil.copy2(ROOT / test, target / test)
             write_config(workdir, [module])
             previous = json.loads(args.results.read_text()).get(module.name, {}).get("note", "") \
@@ -412,12 +414,12 @@ def main(argv: list[str] | None = None) -> int:
             fresh = read_results(workdir, module)
             results = json.loads(args.results.read_text()) if args.results.is_file() else {}
             entry = results.setdefault(module.name, {"note": "", "status": {}, "diff": {}})
-            verdicts = {n: fresh[n] for n in names if fresh.get(n, "not checked") != "not checked"}
-            entry["status"].update(verdicts)
-            killed = sum(v in ("killed", "timeout") for v in verdicts.values())
-            entry["note"] = f"{previous}; {len(verdicts)} survivors rechecked with later tests, {killed} killed"
+            rechecked = {n: fresh[n] for n in names if fresh.get(n, "not checked") != "not checked"}
+            entry["status"].update(rechecked)
+            killed = sum(v in ("killed", "timeout") for v in rechecked.values())
+            entry["note"] = f"{previous}; {len(rechecked)} survivors rechecked with later tests, {killed} killed"
             args.results.write_text(json.dumps(results, indent=1, ensure_ascii=False), encoding="utf-8")
-            print(f"{module.name}: {len(verdicts)} rechecked, {killed} killed ({note})", flush=True)
+            print(f"{module.name}: {len(rechecked)} rechecked, {killed} killed ({note})", flush=True)
     elif not args.report_only:
         base = args.workdir / "base"
         if not (args.keep and base.is_dir()):
