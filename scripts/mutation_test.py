@@ -111,31 +111,7 @@ def copy_tree(destination: Path, commit: str | None) -> None:
 
 
 _NUMBA_CACHE = ("*.nbi", "*.nbc")
-_WARM_PLUGIN = "vo_gym_mutmut_numba_warm"
-_WARM_PLUGIN_SOURCE = '''"""pytest plugin written by scripts/mutation_test.py: once tests are collected, load the cached
-machine code of every numba kernel the imported modules hold, so mutmut's forked children inherit it."""
-import sys
-
-
-def pytest_collection_finish(session):
-    try:
-        from numba.core.registry import CPUDispatcher
-    except ImportError:
-        return
-    for name, module in list(sys.modules.items()):
-        if module is None or not name.startswith(("stereovo", "vo_gym", "agents")):
-            continue
-        for value in list(vars(module).values()):
-            if not isinstance(value, CPUDispatcher) or value.overloads:
-                continue
-            try:  # numba's cache index: {(signature, codegen magic, hashes): file}; a stale one is empty
-                magic = value.targetctx.codegen().magic_tuple()
-                for key in value._cache._cache_file._load_index():
-                    if key[1] == magic:
-                        value.compile(key[0])
-            except Exception:  # an uncached or uncacheable kernel compiles on first call, as without the plugin
-                pass
-'''
+_WARM_PLUGIN = "vo_gym_mutmut_numba_warm"  # tests/support/mutmut_numba_warm.py, copied under this name
 
 
 def copy_numba_cache(source: Path, destination: Path, skip: str | None = None) -> int:
@@ -180,7 +156,7 @@ def write_config(workdir: Path, modules: list[Module]) -> None:
     (workdir / "setup.cfg").unlink(missing_ok=True)
     plugins = workdir / "_mutmut_plugins"
     plugins.mkdir(exist_ok=True)
-    (plugins / f"{_WARM_PLUGIN}.py").write_text(_WARM_PLUGIN_SOURCE, encoding="utf-8")
+    shutil.copy2(ROOT / "tests" / "support" / "mutmut_numba_warm.py", plugins / f"{_WARM_PLUGIN}.py")
 
 
 def mutmut_environment(workdir: Path | None = None) -> dict[str, str]:
