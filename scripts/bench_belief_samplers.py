@@ -3,7 +3,7 @@
 
 On the same seeded frames (N 500, eps 0.5 by default; half the frames with informative priors),
 each method runs with the compiled samplers and, for bansac / p-bansac / ars, with the numpy
-samplers they replaced (tests/reference_belief_samplers.py, patched in), the runs of a frame
+samplers they replaced (tests/support/belief_samplers.py, patched in), the runs of a frame
 alternating ``--repeats`` times, each keeping its fastest (a shared machine only adds time), timed
 in process CPU time. It checks that both give the same estimate and prints, per method, the
 median time per frame, the time per hypothesis (total over total), and the ratios: compiled over
@@ -31,8 +31,8 @@ from stereovo.estimation.methods import ars, bansac
 from stereovo.estimation import estimate_motion
 from stereovo.simulation import SimulationConfig, simulate_frame
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from reference_belief_samplers import ReferenceArsSampler, ReferenceBansacSampler  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root, for the tests' package
+from tests.support.belief_samplers import ReferenceArsSampler, ReferenceBansacSampler  # noqa: E402
 
 METHODS = (
     ("ransac", {}, False),

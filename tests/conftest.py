@@ -1,4 +1,4 @@
-"""Shared fixtures: the default camera and reproducible noise-free / noisy frames."""
+"""Shared fixtures: the default camera and a simulated frame."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import pytest
 from hypothesis import settings
 
 from stereovo.camera import StereoCamera
+from stereovo.simulation import SimulationConfig, simulate_frame
 
 # CI machines have 2 shared cores: keep property-based tests bounded and deterministic.
 settings.register_profile("ci", max_examples=60, deadline=None, derandomize=True)
@@ -18,3 +19,9 @@ settings.load_profile("ci" if os.environ.get("CI") else "dev")
 @pytest.fixture
 def camera() -> StereoCamera:
     return StereoCamera()
+
+
+@pytest.fixture(scope="module")
+def frame():
+    """A frame of 300 correspondences at eps 0.3 (seed 11), made once per module."""
+    return simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.3), rng=11)

@@ -1,0 +1,278 @@
+"""agents.adaptive, the learned in-frame sampler: equivariance, checkpoints by name, acting in the env,
+training as a library call with a time budget, loading either kind of sampler, policies."""
+
+from __future__ import annotations
+
+import importlib.resources
+import json
+
+import numpy as np
+import pytest
+import torch
+
+import agents
+from agents import LearnedEstimator, checkpoint
+from agents.adaptive import (
+    AdaptiveSamplerNet,
+    AdaptiveSamplerPolicy,
+    AdaptiveTrainConfig,
+    load_adaptive,
+    right_hypothesis,
+    save_adaptive,
+    train_adaptive,
+    train_in_frame,
+)
+from agents.checkpoint import SHIPPED_IN_FRAME_SAMPLERS, SHIPPED_SAMPLERS, LearnedPolicy
+from agents.evaluation.in_frame import (
+    ArsPolicy,
+    BansacPolicy,
+    BudgetPolicy,
+    merge_comparisons,
+    run_policy,
+    summarise,
+)
+from stereovo.simulation import SimulationConfig, simulate_frame
+from vo_gym.adaptive_env import StereoVOAdaptiveEnv
+
+
+def _obs_tensors(obs):
+    return (torch.as_tensor(obs["features"], dtype=torch.float32)[None], torch.as_tensor(obs["mask"]).bool()[None],
+            torch.as_tensor(obs["globals"], dtype=torch.float32)[None])
+
+
+def tiny(**kw) -> AdaptiveTrainConfig:
+    return AdaptiveTrainConfig(minutes=10.0, frames_per_episode=2, n=60, max_hypotheses=8, log_every_s=0.0, **kw)
+
+
+def shipped(name: str):
+    return importlib.resources.as_file(importlib.resources.files("agents").joinpath("checkpoints", f"{name}.pt"))
+
+
+def test_network_is_permutation_equivariant_and_ignores_padding():
+    torch.manual_seed(0)
+    net = AdaptiveSamplerNet(n_features=5, n_globals=3, width=16, blocks=2).eval()
+    x, g = torch.randn(1, 30, 5), torch.randn(1, 3)
+    mask = torch.ones(1, 30, dtype=torch.bool)
+    logits, stop = net(x, mask, g)
+    perm = torch.randperm(30)
+    logits_p, stop_p = net(x[:, perm], mask[:, perm], g)
+    torch.testing.assert_close(logits_p, logits[:, perm], atol=1e-5, rtol=1e-5)
+    torch.testing.assert_close(stop_p, stop, atol=1e-5, rtol=1e-5)
+    padded = torch.cat([x, 100 * torch.randn(1, 10, 5)], dim=1)
+    pmask = torch.cat([mask, torch.zeros(1, 10, dtype=torch.bool)], dim=1)
+    logits_pad, stop_pad = net(padded, pmask, g)
+    torch.testing.assert_close(logits_pad[:, :30], logits, atol=1e-5, rtol=1e-5)
+    torch.testing.assert_close(stop_pad, stop, atol=1e-5, rtol=1e-5)
+
+
+def test_shipped_checkpoint_loads_by_name_and_acts_in_the_env():
+    net, payload = load_adaptive("adaptive-pg")
+    assert payload["config"]["minutes"] <= 30 and payload["log"]
+    env = StereoVOAdaptiveEnv(n_frames=2, n_correspondences=120, outlier_ratio=0.5)
+    policy = AdaptiveSamplerPolicy(net, confidence=0.9)
+    obs, _ = env.reset(seed=0)
+    action = policy.act(obs)
+    assert action.shape == env.action_space.shape and env.action_space.contains(action)
+    with pytest.raises(FileNotFoundError):
+        load_adaptive("adaptive-missing")
+    with pytest.raises(ValueError, match="confidence"):
+        AdaptiveSamplerPolicy(net, confidence=1.0)
+
+
+def test_checkpoint_round_trip_and_layout_check(tmp_path):
+    net = AdaptiveSamplerNet(width=8, blocks=1)
+    path = save_adaptive(tmp_path / "a.pt", net, {"minutes": 1})
+    loaded, payload = load_adaptive(path)
+    for key, value in net.state_dict().items():
+        torch.testing.assert_close(loaded.state_dict()[key], value)
+    payload["feature_names"] = ["x"]
+    torch.save(payload, tmp_path / "b.pt")
+    with pytest.raises(ValueError, match="feature layout"):
+        load_adaptive(tmp_path / "b.pt")
+
+
+def test_right_hypothesis_label():
+    inlier = np.array([1, 1, 1, 1, 0, 0, 0, 0], bool)
+    masks = np.array([[1, 1, 0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 1, 1, 1, 0]], bool)
+    assert not right_hypothesis(masks, np.full(8, 1 / 8), inlier, 0.9, 0.3)  # largest = the outliers' consensus
+    weights = np.array([0.2, 0.2, 0.2, 0.2, 0.05, 0.05, 0.05, 0.05])
+    assert right_hypothesis(masks, weights, inlier, 0.9, 0.3)
+
+
+def test_training_runs_and_writes_a_loadable_checkpoint(tmp_path):
+    config = AdaptiveTrainConfig(minutes=0.05, n=60, frames_per_episode=2, width=8, blocks=1, log_every_s=0.0)
+    path = train_adaptive(config, tmp_path / "t.pt", tmp_path / "t.log")
+    net, payload = load_adaptive(path)
+    assert payload["config"]["n"] == 60 and (tmp_path / "t.log").read_text().strip()
+
+
+def test_training_starts_from_an_init_checkpoint_on_a_cpu_clock(tmp_path):
+    torch.manual_seed(1)
+    start = save_adaptive(tmp_path / "init.pt", AdaptiveSamplerNet(width=8, blocks=1), {"minutes": 1})
+    # lr 0: Adam's steps are zero, so the result must hold the init weights, not fresh ones
+    config = AdaptiveTrainConfig(minutes=0.01, n=60, frames_per_episode=2, width=8, blocks=1, lr=0.0,
+                                 clock="cpu", init=str(start), seed=5)
+    net, payload = load_adaptive(train_adaptive(config, tmp_path / "t.pt"))
+    init, _ = load_adaptive(start)
+    for key, value in init.state_dict().items():
+        torch.testing.assert_close(net.state_dict()[key], value)
+    assert payload["config"]["init"] == str(start) and payload["config"]["clock"] == "cpu"
+    with pytest.raises(ValueError, match="width"):
+        train_adaptive(AdaptiveTrainConfig(minutes=0.01, width=16, blocks=1, init=str(start)), tmp_path / "u.pt")
+    with pytest.raises(ValueError, match="clock"):
+        train_adaptive(AdaptiveTrainConfig(minutes=0.01, clock="gpu"), tmp_path / "v.pt")
+
+
+def test_a_prior_network_starts_as_the_one_shot_sampler_and_travels_in_its_checkpoint(tmp_path, capsys):
+    from agents.adaptive import main as train_main
+    from agents.checkpoint import load_sampler
+    from vo_gym.features import N_FEATURES
+
+    env = StereoVOAdaptiveEnv(n_frames=2, n_correspondences=150, outlier_ratio=0.8)
+    obs, _ = env.reset(seed=3)
+    net = AdaptiveSamplerNet.with_prior("ngransac-supervised", width=8, blocks=1)
+    action = AdaptiveSamplerPolicy(net, confidence=0.9).act(obs)
+    one_shot = load_sampler("ngransac-supervised").act({"features": obs["features"][:, :N_FEATURES], "mask": obs["mask"]})
+    valid = obs["mask"].astype(bool)
+    np.testing.assert_allclose(action[:-1][valid], one_shot[valid], atol=1e-5)  # the own head starts at zero
+    assert np.ptp(one_shot[valid]) > 1.0  # the comparison has something to compare
+    assert not any(p.requires_grad for p in net.prior.parameters())
+    loaded, payload = load_adaptive(save_adaptive(tmp_path / "p.pt", net, {"prior": "ngransac-supervised"}))
+    assert payload["network"]["prior"] == net.prior.config()
+    for got, want in zip(loaded(*_obs_tensors(obs)), net(*_obs_tensors(obs))):
+        torch.testing.assert_close(got, want)
+    with pytest.raises(SystemExit):
+        train_main(["--prior", "ngransac-nope", "--minutes", "0.01", "--out", str(tmp_path / "x.pt")])
+    err = capsys.readouterr().err
+    assert "--prior must be a shipped one-shot sampler" in err and "'ngransac-nope'" in err
+    with pytest.raises(SystemExit):
+        train_main(["--prior", "ngransac-supervised", "--init", "adaptive-pg", "--out", str(tmp_path / "x.pt")])
+    assert "--prior starts a fresh network" in capsys.readouterr().err
+
+
+def test_merge_comparisons_restores_the_order_and_later_rows_win():
+    def row(family, point, order, success):
+        return {"family": family, "point": point, "order": order, "success": success}
+
+    part0 = {"config": {}, "s": [row("a", 1, 0, 0.5), row("c", None, 2, 0.7)]}
+    part1 = {"config": {}, "s": [row("b", 2, 1, 0.6)], "t": [row("a", 1, 0, 0.1)]}
+    candidate = {"config": {}, "s": [row("a", 1, 0, 0.9)]}
+    merged = merge_comparisons([part0, part1, candidate])
+    assert [(r["family"], r["success"]) for r in merged["s"]] == [("a", 0.9), ("b", 0.6), ("c", 0.7)]
+    assert [r["success"] for r in merged["t"]] == [0.1]
+
+
+@pytest.mark.parametrize("policy", [BansacPolicy(0.99), ArsPolicy(0.99), BudgetPolicy("uniform", 8, lambda o: np.zeros(len(o["mask"])))])
+def test_classical_samplers_act_as_policies_of_the_env(policy):
+    env = StereoVOAdaptiveEnv(n_frames=2, n_correspondences=150, outlier_ratio=0.5, max_hypotheses=32)
+    rows = run_policy(env, policy, seed=3)
+    again = run_policy(env, policy, seed=3)
+    assert rows == again and len(rows) == 2
+    assert all(1 <= r["n_hypotheses"] <= 32 for r in rows)
+    if isinstance(policy, BudgetPolicy):
+        assert all(r["n_hypotheses"] == 8 and r["stopped"] for r in rows)
+    summary = summarise(rows)
+    assert summary["frames"] == 2 and 0 <= summary["success"] <= 1
+
+
+def test_the_summary_carries_the_wilson_interval_of_its_success_rate():
+    rows = [{"success": i < 99, "stopped": False, "n_hypotheses": 4, "all_inlier_drawn": None} for i in range(100)]
+    low, high = summarise(rows)["success_ci95"]
+    assert low == pytest.approx(0.9455, abs=1e-3) and high == pytest.approx(0.9982, abs=1e-3)
+
+
+def test_the_comparison_figure_has_two_panels_of_at_most_eight_lines_with_every_family():
+    from agents.evaluation.in_frame import AdaptiveComparison, figure_panels, policies
+    from stereovo.reporting import MAX_LINES_PER_PANEL
+
+    families = list(dict.fromkeys(family for family, _, _ in policies(AdaptiveComparison())))
+    panels = figure_panels(families)
+    assert len(panels) == 2 and all(len(members) <= MAX_LINES_PER_PANEL for _, members in panels)
+    assert set().union(*(members for _, members in panels)) == set(families) | {"uniform"}
+    assert all(any(f.startswith("learned") for f in members) for _, members in panels)
+
+
+def test_a_short_run_writes_a_loadable_checkpoint_and_its_log(tmp_path):
+    threads = torch.get_num_threads()
+    try:
+        result = train_in_frame(tiny(max_episodes=2, seed=3), tmp_path / "run", progress=False)
+    finally:
+        torch.set_num_threads(threads)
+    assert result.episodes == 2 and result.frames == 4
+    assert result.checkpoint == tmp_path / "run" / "adaptive.pt"
+    net, payload = load_adaptive(result.checkpoint)
+    assert payload["config"]["max_episodes"] == 2 and payload["config"]["seed"] == 3
+    lines = (tmp_path / "run" / "training.jsonl").read_text().splitlines()
+    assert len(lines) == 2 and json.loads(lines[-1])["episodes"] == 2  # one log window per episode here
+    summary = json.loads((tmp_path / "run" / "training.json").read_text())
+    assert summary["algo"] == "adaptive" and summary["episodes"] == 2 and summary["frames"] == 4
+    # what it wrote runs through the public estimator
+    frame = simulate_frame(SimulationConfig(n_correspondences=60, outlier_ratio=0.3), rng=1)
+    est = LearnedEstimator(result.checkpoint, budget=8).estimate(frame.prev, frame.curr, frame.camera, frame.scores)
+    assert est.sampler == "adaptive" and est.n_hypotheses == 8
+
+
+def test_the_same_seed_trains_the_same_weights(tmp_path):
+    threads = torch.get_num_threads()
+    try:
+        a = train_in_frame(tiny(max_episodes=1, seed=5), tmp_path / "a", progress=False)
+        b = train_in_frame(tiny(max_episodes=1, seed=5), tmp_path / "b", progress=False)
+    finally:
+        torch.set_num_threads(threads)
+    wa, wb = load_adaptive(a.checkpoint)[0].state_dict(), load_adaptive(b.checkpoint)[0].state_dict()
+    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    assert any(not torch.equal(wa[k], torch.zeros_like(wa[k])) for k in wa)
+
+
+@pytest.mark.parametrize("kw, match", [
+    ({"minutes": 0}, "minutes"), ({"minutes": float("nan")}, "minutes"), ({"clock": "gpu"}, "clock"),
+    ({"max_episodes": 0}, "max_episodes"), ({"epsilons": (0.9, 0.5)}, "epsilons"), ({"n": 0}, "n must"),
+    ({"prior": "ngransac-supervised", "init": "adaptive-pg"}, "prior starts a fresh network"),
+])
+def test_bad_settings_are_named(kw, match):
+    with pytest.raises(ValueError, match=match):
+        AdaptiveTrainConfig(**kw)
+
+
+@pytest.mark.parametrize("name", SHIPPED_SAMPLERS + SHIPPED_IN_FRAME_SAMPLERS)
+def test_either_kind_loads_by_name_and_by_path(name):
+    expected = LearnedPolicy if name in SHIPPED_SAMPLERS else AdaptiveSamplerPolicy
+    by_name = agents.load_sampler(name)
+    assert isinstance(by_name, expected) and by_name.name == name
+    assert by_name.kind == ("one-shot" if name in SHIPPED_SAMPLERS else "in-frame")
+    with shipped(name) as path:
+        by_path = agents.load_sampler(path)
+    assert isinstance(by_path, expected) and by_path.name == name
+
+
+@pytest.mark.parametrize("name", SHIPPED_IN_FRAME_SAMPLERS)
+def test_the_one_shot_loader_names_the_loader_of_an_in_frame_sampler(name):
+    with pytest.raises(ValueError, match="in-frame sampler: load it with agents.load_sampler"):
+        checkpoint.load_sampler(name)
+    with shipped(name) as path, pytest.raises(ValueError, match="in-frame sampler: load it with agents.load_sampler"):
+        checkpoint.load_sampler(path)
+
+
+def test_kind_is_checked():
+    with pytest.raises(ValueError, match="'adaptive-pg' is an in-frame sampler, not one-shot"):
+        agents.load_sampler("adaptive-pg", kind="one-shot")
+    with pytest.raises(ValueError, match="'ppo' is an one-shot sampler, not in-frame"):
+        agents.load_sampler("ppo", kind="in-frame")
+    with pytest.raises(ValueError, match="kind must be"):
+        agents.load_sampler("ppo", kind="both")
+    with pytest.raises(ValueError, match="unknown sampler 'adaptive-nope'.*adaptive-pg-prior"):
+        agents.load_sampler("adaptive-nope")
+
+
+def test_policies_refuse_the_wrong_observation_with_a_clear_error():
+    one_shot, in_frame = agents.load_sampler("ngransac-supervised"), agents.load_sampler("adaptive-pg-prior")
+    with pytest.raises(ValueError, match="act\\(\\) takes the observation dict"):
+        one_shot.act(np.zeros((50, 14), np.float32))
+    with pytest.raises(ValueError, match="mask of the leading shape"):
+        one_shot.act({"features": np.zeros((50, 14), np.float32), "mask": np.ones(49)})
+    with pytest.raises(ValueError, match="adaptive observation"):
+        in_frame.act({"features": np.zeros((50, 14), np.float32), "mask": np.ones(50)})
+    with pytest.raises(ValueError, match="expected 18 adaptive features"):
+        in_frame.act({"features": np.zeros((50, 14), np.float32), "mask": np.ones(50), "globals": np.zeros(7)})
+    with pytest.raises(ValueError, match="temperature"):
+        agents.load_sampler("ppo", temperature=0.0)

@@ -1,0 +1,131 @@
+"""``vo-gym sweep``: sweep files are checked key by key (safe YAML only), and a tiny sweep of each
+trainer runs on Ray Tune end to end, writes its table, plot, best config and checkpoint, and restores."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+
+from agents.sweep import load_sweep, parse_sweep
+from vo_gym_cli.main import main
+
+ROOT = Path(__file__).resolve().parents[2]
+
+NGRANSAC = """
+name: tiny
+algo: ngransac
+fixed: {frames: 6, n_correspondences: 60, pools: 2, eval_frames: 1}
+space:
+  seed: {grid: [0, 1]}
+  learning_rate: {loguniform: [0.0001, 0.001]}
+report_every: 3
+metric: {epsilon: 0.5, budget: 8, n: 60, episodes: 1, frames_per_episode: 2}
+scheduler: {type: fifo}
+"""
+
+PPO = """
+name: tiny-ppo
+algo: ppo
+fixed: {timesteps: 32, n_envs: 1, n_steps: 16, batch_size: 16, n_epochs: 1, n_correspondences: 40, n_frames: 4,
+        eval_n_correspondences: 60}
+space:
+  seed: {grid: [0]}
+report_every: 16
+metric: {epsilon: 0.5, budget: 8, n: 60, episodes: 1, frames_per_episode: 2}
+"""
+
+
+def _write(tmp_path: Path, text: str, name: str = "sweep.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("name", ["example.yaml", "realistic.yaml"])
+def test_shipped_sweep_files_parse(name):
+    spec = load_sweep(ROOT / "configs" / "sweeps" / name)
+    assert spec.algo == "ngransac" and "seed" in spec.space and spec.scheduler["type"] == "asha"
+    assert spec.n_reports == -(-spec.total_steps // spec.report_every)
+
+
+@pytest.mark.parametrize(
+    "change, needle",
+    [
+        ({"colour": 1}, "unknown key(s) ['colour']"),
+        ({"algo": "dqn"}, "algo must be one of"),
+        ({"space": {"seed": {"spiral": [1]}}}, "space.seed: unknown axis kind 'spiral'"),
+        ({"space": {"learning_rate": {"uniform": [0.1, 0.01]}}}, "space.learning_rate.uniform must be [low, high]"),
+        ({"space": {"wingspan": {"grid": [1, 2]}}}, "unknown NGRansacConfig field(s) ['wingspan']"),
+        ({"metric": {"name": "reward"}}, "metric.name must be 'success'"),
+        ({"metric": {"budget": 0}}, "metric.budget must be an integer >= 1"),
+        ({"scheduler": {"type": "hyperband"}}, "scheduler.type must be 'asha' or 'fifo'"),
+        ({"report_every": None}, "report_every must be an integer >= 1"),
+        ({"fixed": {"seed": 3}}, "['seed'] both fixed and searched"),
+    ],
+)
+def test_bad_sweep_files_name_the_key(change, needle):
+    import yaml
+
+    data = {**yaml.safe_load(NGRANSAC), **change}
+    with pytest.raises(ValueError) as err:
+        parse_sweep(data, "s.yaml")
+    assert needle in str(err.value)
+
+
+def test_yaml_that_would_build_objects_is_refused(tmp_path):
+    path = _write(tmp_path, NGRANSAC + "\nextra: !!python/object/apply:os.system ['echo pwned']\n")
+    with pytest.raises(ValueError, match="not valid YAML"):
+        load_sweep(path)
+
+
+def test_the_command_reports_a_bad_file_in_one_line(tmp_path, capsys):
+    assert main(["sweep", str(_write(tmp_path, "algo: ngransac\n")), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("vo-gym sweep: error:") and "space" in err[0]
+    assert main(["sweep", str(tmp_path / "missing.yaml")]) == 2
+
+
+def _results(out: Path) -> list[dict[str, str]]:
+    with (out / "results.csv").open(newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_a_tiny_ngransac_sweep_runs_writes_its_outputs_and_restores(tmp_path, capsys):
+    pytest.importorskip("ray")
+    from agents.checkpoint import load_checkpoint
+
+    config, out = _write(tmp_path, NGRANSAC), tmp_path / "out"
+    assert main(["sweep", str(config), "--out", str(out), "--workers", "2", "--quiet"]) == 0
+    rows = _results(out)
+    assert len(rows) == 2 and {r["seed"] for r in rows} == {"0", "1"}
+    assert all(r["reports"] == "2" and r["steps"] == "6" and r["status"] == "finished" for r in rows)
+    best = json.loads((out / "best.json").read_text())
+    assert best["config"]["frames"] == 6 and best["params"]["seed"] in (0, 1)
+    assert 1e-4 <= best["params"]["learning_rate"] <= 1e-3 and best["config"]["n_correspondences"] == 60
+    assert best["success"] == max(float(r["best_success"]) for r in rows)
+    net, payload = load_checkpoint(out / "best_checkpoint" / "ngransac.pt")
+    assert payload["config"]["seed"] == best["params"]["seed"]
+    assert (out / "metric_over_training.png").stat().st_size > 0
+    assert "Sweep tiny (ngransac)" in (out / "results.md").read_text()
+
+    capsys.readouterr()
+    assert main(["sweep", str(config), "--out", str(out), "--quiet"]) == 2  # not empty
+    assert "--resume" in capsys.readouterr().err
+    (out / "results.csv").unlink()
+    assert main(["sweep", str(config), "--out", str(out), "--workers", "2", "--quiet", "--resume"]) == 0
+    assert _results(out) == rows  # restored from Tune's saved experiment, nothing re-run
+
+
+def test_a_tiny_ppo_sweep_runs_with_a_quiet_console(tmp_path, capfd):
+    pytest.importorskip("ray")
+    out = tmp_path / "out"
+    assert main(["sweep", str(_write(tmp_path, PPO)), "--out", str(out), "--workers", "1"]) == 0
+    # without --verbose: one progress bar and the summary, none of Ray's or Tune's coloured console
+    printed = "".join(capfd.readouterr())
+    assert "\x1b[" not in printed and "Trial status" not in printed and "\u256d" not in printed, printed[-2000:]
+    [row] = _results(out)
+    assert row["reports"] == "2" and row["steps"] == "32"
+    assert (out / "best_checkpoint" / "ppo.zip").is_file() and (out / "best_checkpoint" / "ppo.pt").is_file()

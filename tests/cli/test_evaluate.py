@@ -1,0 +1,58 @@
+"""``vo-gym evaluate`` (vo_gym_cli.commands.evaluate and evaluate_images): shipped samplers found by
+name, bad samplers and sources named in one line before computing, rendered images replayed to every agent."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+from tests.support.cli import one_line_error
+from vo_gym_cli.main import main
+
+
+def test_evaluate_finds_a_shipped_sampler_by_name():
+    from agents.evaluation.setup import resolve_agent
+
+    spec = resolve_agent("ngransac-supervised")
+    assert spec.kind == "checkpoint" and spec.label == "ngransac-supervised"
+
+
+@pytest.mark.parametrize("content", [None, b"not a checkpoint", b"PK\x03\x04 truncated"])
+def test_a_bad_adaptive_sampler_is_named_before_computing(tmp_path, capsys, content):
+    path = tmp_path / "sampler.pt"
+    if content is not None:
+        path.write_bytes(content)
+    out = tmp_path / "out"
+    assert main(["evaluate", "--adaptive", "--adaptive-sampler", str(path), "--out", str(out)]) == 2
+    line = one_line_error(capsys, "evaluate")
+    assert "--adaptive-sampler" in line and str(path) in line
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_evaluate_on_rendered_images_replays_the_same_frames_to_every_agent(tmp_path, capsys, short):
+    argv = ["evaluate", "--source", "rendered", "--resolution", "vga", "--episodes", "1", "--frames-per-episode", "2",
+            "--budgets", "1,4", "--agent", "uniform", "--agent", "oracle", "--seed", "4", "--no-progress"]
+    assert main([*argv, "--out", str(tmp_path / "a")]) == 0
+    with (tmp_path / "a" / "frames.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 2 * 2 * 2  # agents x budgets x frames
+    assert all(int(r["n_hypotheses"]) == int(r["budget"]) for r in rows)
+    summary = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert summary["settings"]["env_id"] == "vo_gym/StereoVOImages-v0"
+    cells = {(r["agent"], r["budget"]): r for r in summary["rows"]}
+    oracle = cells[("oracle (upper bound)", 1)]
+    assert oracle["success"] >= cells[("uniform", 1)]["success"] and oracle["ci_low"] <= oracle["success"] <= oracle["ci_high"]
+    assert (tmp_path / "a" / "success_vs_budget.png").stat().st_size > 0
+    assert "Wilson 95 %" in capsys.readouterr().out
+    assert main([*argv, "--no-plots", "--out", str(tmp_path / "b")]) == 0  # same seed, same rows
+    assert (tmp_path / "b" / "frames.csv").read_text() == (tmp_path / "a" / "frames.csv").read_text()
+
+
+@pytest.mark.parametrize("source, needle", [("kitti:/data", "evaluate runs on rendered images"),
+                                            ("bogus", "--source must be one of rendered")])
+def test_evaluate_source_errors_are_one_line(tmp_path, capsys, source, needle):
+    assert main(["evaluate", "--source", source, "--out", str(tmp_path / "e")]) == 2
+    assert needle in one_line_error(capsys, "evaluate")
+    assert not (tmp_path / "e").exists()

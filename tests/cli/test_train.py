@@ -1,0 +1,115 @@
+"""``vo-gym train`` (vo_gym_cli.commands.train): --algo ngransac flags reach the config and resume
+works, --algo ppo options, and --algo adaptive within a time budget."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import pytest
+
+from agents.checkpoint import load_checkpoint
+from agents.ngransac import NGRansacConfig
+from agents.ppo.config import PPOConfig
+from tests.support.cli import ROOT, one_line_error
+from vo_gym_cli.commands import train
+from vo_gym_cli.main import main
+
+
+TINY = ["--frames", "4", "--budget", "4", "--pools", "2", "--eval-every", "2", "--eval-frames", "2",
+        "--frames-per-sequence", "3", "--no-progress"]
+
+
+pytest.importorskip("stable_baselines3")
+
+
+def _config(*argv: str) -> PPOConfig:
+    parser = argparse.ArgumentParser()
+    train.add_parser(parser)
+    return train.ppo_config_from_args(parser.parse_args(["--algo", "ppo", *argv]))
+
+
+def test_train_ngransac_writes_checkpoint_with_flags_and_defaults_and_resumes(tmp_path):
+    assert main(["train", "--algo", "ngransac", "--out", str(tmp_path), "--lr", "2e-4", "--max-grad-norm", "0", *TINY]) == 0
+    checkpoint = tmp_path / "ngransac-supervised.pt"
+    _, payload = load_checkpoint(checkpoint)
+    config = payload["config"]
+    assert (config["budget"], config["pools"], config["frames"], config["learning_rate"]) == (4, 2, 4, 2e-4)
+    assert config["max_grad_norm"] is None  # 0 switches clipping off
+    assert config["entropy_weight"] == NGRansacConfig().entropy_weight  # not given: the config's default
+    summary = json.loads((tmp_path / "training.json").read_text())
+    assert summary["steps"] == 4 and [h["step"] for h in summary["history"]] == [2, 4]
+
+    assert main(["train", "--algo", "ngransac", "--out", str(tmp_path), "--resume", str(checkpoint),
+                 "--frames", "6", "--no-progress"]) == 0
+    assert json.loads((tmp_path / "training.json").read_text())["steps"] == 6
+
+
+def test_train_ngransac_rejects_bad_settings(tmp_path, capsys):
+    assert main(["train", "--algo", "ngransac", "--out", str(tmp_path), "--pools", "1", "--no-progress"]) == 2
+    assert "pools" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("every", [250, 1000, 2000, 3])
+def test_eval_every_is_taken_as_given(every):
+    # 250 was once the shared option's default, and a given 250 silently became PPOConfig's 2000.
+    assert _config("--eval-every", str(every)).eval_every == every
+
+
+def test_options_left_out_keep_the_config_defaults():
+    config, default = _config(), PPOConfig()
+    assert config == default
+    assert config.eval_every == 2000
+
+
+def test_ppo_options_are_mapped_to_their_fields():
+    config = _config("--epsilon", "0.4:0.7", "--frames-per-episode", "5", "--ppo-lr", "3e-4", "--max-minutes", "2",
+                     "--eval-n", "200", "--n-envs", "1", "--batch-size", "64")
+    assert config.epsilon_range == (0.4, 0.7)
+    assert (config.n_frames, config.learning_rate, config.max_wall_s) == (5, 3e-4, 120.0)
+    assert (config.eval_n_correspondences, config.n_envs, config.batch_size) == (200, 1, 64)
+
+
+def test_train_adaptive_within_a_time_budget_writes_a_usable_in_frame_sampler(tmp_path, capsys):
+    torch = pytest.importorskip("torch")
+    from agents import LearnedEstimator
+    from agents.adaptive import load_adaptive
+    from stereovo.simulation import SimulationConfig, simulate_frame
+
+    out = tmp_path / "ad"
+    threads = torch.get_num_threads()
+    try:
+        assert main(["train", "--algo", "adaptive", "--minutes", "0.5", "--clock", "cpu", "--max-episodes", "2",
+                     "--frames-per-episode", "2", "--n-correspondences", "60", "--seed", "3", "--no-progress",
+                     "--out", str(out)]) == 0
+    finally:
+        torch.set_num_threads(threads)
+    summary = json.loads((out / "training.json").read_text())
+    assert summary["algo"] == "adaptive" and summary["episodes"] == 2 and summary["frames"] == 4
+    assert summary["config"]["minutes"] == 0.5 and summary["config"]["clock"] == "cpu"
+    assert summary["config"]["seed"] == 3 and summary["config"]["n"] == 60
+    _, payload = load_adaptive(out / "adaptive.pt")
+    assert payload["config"]["max_episodes"] == 2
+    assert f"checkpoint: {out / 'adaptive.pt'}" in capsys.readouterr().out
+    frame = simulate_frame(SimulationConfig(n_correspondences=60, outlier_ratio=0.3), rng=1)
+    est = LearnedEstimator(out / "adaptive.pt", budget=8).estimate(frame.prev, frame.curr, frame.camera, frame.scores)
+    assert est.sampler_kind == "in-frame" and est.n_hypotheses == 8
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["--prior", "nope"], "--prior 'nope' is not a shipped one-shot sampler; shipped: ngransac-supervised"),
+    (["--resume", str(ROOT / "agents" / "checkpoints" / "ppo.pt")], "a one-shot checkpoint; --algo adaptive"),
+    (["--prior", "ppo", "--resume", str(ROOT / "agents" / "checkpoints" / "adaptive-pg.pt")], "--prior starts a fresh network, --resume continues"),
+])
+def test_train_adaptive_errors_are_one_line(tmp_path, capsys, argv, needle):
+    pytest.importorskip("torch")
+    assert main(["train", "--algo", "adaptive", "--minutes", "0.01", *argv, "--out", str(tmp_path / "t")]) == 2
+    assert needle in one_line_error(capsys, "train")
+    assert not (tmp_path / "t" / "adaptive.pt").exists()
+
+
+def test_train_adaptive_minutes_must_be_positive(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["train", "--algo", "adaptive", "--minutes", "0", "--out", str(tmp_path / "t")])
+    assert exc.value.code == 2
+    assert "--minutes must be > 0.0" in one_line_error(capsys, "train")

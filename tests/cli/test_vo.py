@@ -1,0 +1,264 @@
+"""``vo-gym vo`` (vo_gym_cli.commands.vo) end to end: its outputs (trajectories, frames, covariances,
+plot), every method and learned sampler, image sources, and its argument errors."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stereovo.io import read_kitti, read_tum
+from tests.support.cli import ROOT, one_line_error
+from vo_gym_cli.commands.vo import parse_outliers
+from vo_gym_cli.main import main
+
+
+OUTPUTS = [
+    "trajectory_est.tum", "trajectory_true.tum", "trajectory_est.kitti.txt",
+    "trajectory_true.kitti.txt", "frames.csv", "odometry.png", "summary.json",
+]
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("vo") / "run"
+    argv = ["vo", "--frames", "10", "--n", "200", "--outliers", "0.3:0.6", "--seed", "3",
+            "--out", str(out), "--no-progress"]
+    return out, main(argv)
+
+
+def _hypotheses(out: Path) -> list[int]:
+    with (out / "frames.csv").open() as fh:
+        return [int(float(r["n_hypotheses"])) for r in csv.DictReader(fh)]
+
+
+SOURCE_OUTPUTS = ["trajectory_est.tum", "trajectory_true.tum", "trajectory_est.kitti.txt", "trajectory_true.kitti.txt",
+           "frames.csv", "covariances.npy", "odometry.png", "summary.json"]
+
+
+def test_tiny_run_writes_everything(tiny_run, capsys):
+    out, code = tiny_run
+    assert code == 0
+    for name in OUTPUTS:
+        assert (out / name).is_file() and (out / name).stat().st_size > 0, name
+    with (out / "frames.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 10 and [int(r["frame"]) for r in rows] == list(range(1, 11))
+    assert {"rot_err_deg", "trans_err_m", "success", "precision", "recall", "fallback"} <= set(rows[0])
+    est, ts = read_tum(out / "trajectory_est.tum")
+    true, _ = read_tum(out / "trajectory_true.tum")
+    assert est.shape == true.shape == (11, 4, 4) and ts.tolist() == list(range(11))
+    np.testing.assert_allclose(read_kitti(out / "trajectory_est.kitti.txt"), est, atol=1e-12)
+    np.testing.assert_allclose(true[0], np.eye(4), atol=1e-15)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["settings"]["outliers"] == [0.3, 0.6]
+    metrics = summary["metrics"]
+    assert metrics["frames"] == 10 and metrics["method"] == "probabilistic"
+    assert metrics["success_rate"] >= 0.8
+    # 10 m is too short for KITTI segments: NaN becomes JSON null, never invalid JSON.
+    assert metrics["kitti_segments"] == 0 and metrics["kitti_t_percent"] is None
+
+
+def test_summary_table_states_units(tmp_path, capsys):
+    assert main(["vo", "--frames", "3", "--n", "100", "--method", "msac", "--out", str(tmp_path), "--no-progress"]) == 0
+    text = capsys.readouterr().out
+    for needle in ("success rate", "deg", " m", "ms", "ATE", "RPE", "KITTI", "msac"):
+        assert needle in text, needle
+
+
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["--outliers", "1.5"], "outlier ratio 1.5"),
+        (["--outliers", "0.9:0.3"], "lo <= hi"),
+        (["--outliers", "half"], "not a number"),
+        (["--frames", "0"], "--frames must be >= 1"),
+        (["--method", "nonsense"], "invalid choice: 'nonsense'"),
+        (["--preset", "boat"], "invalid choice: 'boat'"),
+    ],
+)
+def test_bad_arguments_exit_nonzero_with_message(tmp_path, capsys, argv, needle):
+    with pytest.raises(SystemExit) as exc:
+        main(["vo", *argv, "--out", str(tmp_path / "x"), "--no-progress"])
+    assert exc.value.code != 0
+    assert needle in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
+
+def test_config_error_is_reported_not_raised(tmp_path, capsys):
+    # The AUC range is the simulator's rule: its ValueError becomes a message and exit code 2.
+    code = main(["vo", "--auc", "0.3", "--frames", "2", "--out", str(tmp_path / "x"), "--no-progress"])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "error: --auc must be a finite number in [0.5, 1), got 0.3" in err and "Traceback" not in err
+    assert not (tmp_path / "x").exists()
+
+
+def test_parse_outliers():
+    assert parse_outliers("0.5") == 0.5
+    assert parse_outliers("0") == 0.0
+    assert parse_outliers("0.3:0.9") == (0.3, 0.9)
+    for bad in ("1", "-0.1", "0.1:0.2:0.3", ":0.5", "0.5:1.0"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            parse_outliers(bad)
+
+
+def test_method_choices_follow_the_registry(capsys):
+    from stereovo.estimation import available_methods
+
+    with pytest.raises(SystemExit) as exc:
+        main(["vo", "--help"])
+    assert exc.value.code == 0
+    text = capsys.readouterr().out
+    assert all(name in text for name in available_methods())
+
+
+def test_vo_runs_an_in_frame_sampler_by_name_and_by_path_as_the_estimator_api_does(tmp_path, capsys):
+    from agents import LearnedEstimator
+    from stereovo.simulation import Sequence, SimulationConfig
+
+    argv = ["--method", "msac", "--frames", "4", "--n", "150", "--outliers", "0.8", "--seed", "2", "--no-progress"]
+    assert main(["vo", "--agent", "adaptive-pg-prior", *argv, "--out", str(tmp_path / "name")]) == 0
+    mine = tmp_path / "mine.pt"
+    shutil.copy(ROOT / "agents" / "checkpoints" / "adaptive-pg-prior.pt", mine)
+    assert main(["vo", "--agent", str(mine), *argv, "--out", str(tmp_path / "path")]) == 0
+    summary = json.loads((tmp_path / "name" / "summary.json").read_text())
+    assert summary["settings"]["agent"] == "adaptive-pg-prior" and summary["metrics"]["frames"] == 4
+    assert summary["metrics"]["success_rate"] == 1.0
+    by_name, by_path = _hypotheses(tmp_path / "name"), _hypotheses(tmp_path / "path")
+    assert by_name == by_path
+
+    # the command's estimates are LearnedEstimator's on the same frames and random stream
+    sequence = Sequence(SimulationConfig(preset="car", n_frames=4, n_correspondences=150, outlier_ratio=0.8), seed=2)
+    estimator = LearnedEstimator("adaptive-pg-prior", method="msac")
+    rng = np.random.default_rng(2)
+    direct = [estimator.estimate(f.prev, f.curr, f.camera, f.scores, rng=rng).n_hypotheses for f in sequence]
+    assert by_name == direct and max(direct) <= 64
+    est = np.loadtxt(tmp_path / "name" / "trajectory_est.kitti.txt")
+    true = np.loadtxt(tmp_path / "name" / "trajectory_true.kitti.txt")
+    assert est.shape == true.shape == (5, 12) and np.abs(est - true).max() < 0.05
+
+
+def test_vo_in_frame_sampler_needs_a_sampling_method(tmp_path, capsys):
+    assert main(["vo", "--agent", "adaptive-pg", "--method", "inlier-detection", "--frames", "2",
+                 "--out", str(tmp_path / "v")]) == 2
+    assert "does not sample" in one_line_error(capsys, "vo")
+    assert not (tmp_path / "v").exists()
+
+
+def test_vo_on_a_rendered_source_writes_trajectory_drift_and_plot(tmp_path, capsys, short):
+    from stereovo.io import read_tum
+
+    out = tmp_path / "r"
+    assert main(["vo", "--source", "rendered", "--resolution", "vga", "--frames", "3", "--seed", "4",
+                 "--no-progress", "--out", str(out)]) == 0
+    for name in SOURCE_OUTPUTS:
+        assert (out / name).is_file() and (out / name).stat().st_size > 0, name
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["settings"]["source"] == "rendered" and summary["settings"]["resolution"] == "vga"
+    assert summary["metrics"]["frames"] == 3 and summary["metrics"]["success_rate"] == 1.0
+    assert "kitti_t_percent" in summary["metrics"]
+    true, _ = read_tum(out / "trajectory_true.tum")
+    assert np.allclose(true, short.true_poses, atol=1e-6)  # the rendered sequence of that seed
+    est, _ = read_tum(out / "trajectory_est.tum")
+    assert np.abs(est[:, :3, 3] - true[:, :3, 3]).max() < 0.05
+    assert "rendered, 3 frames" in capsys.readouterr().out
+
+
+def test_vo_on_a_kitti_folder_with_and_without_poses(tmp_path, capsys, short):
+    from tests.support.images import write_kitti
+
+    write_kitti(tmp_path / "data", short, "05")
+    out = tmp_path / "k"
+    # --frames 2 takes the first 2 of the 3 pairs
+    assert main(["vo", "--source", f"kitti:{tmp_path / 'data'}:05", "--frames", "2", "--no-progress",
+                 "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["metrics"]["frames"] == 2 and summary["metrics"]["success_rate"] == 1.0
+    est = np.loadtxt(out / "trajectory_est.kitti.txt")
+    true = np.loadtxt(out / "trajectory_true.kitti.txt")
+    assert est.shape == true.shape == (3, 12) and np.abs(est - true).max() < 0.05
+
+    write_kitti(tmp_path / "bare", short, "00", with_poses=False)
+    out = tmp_path / "b"
+    assert main(["vo", "--source", f"kitti:{tmp_path / 'bare'}", "--method", "msac", "--no-progress",
+                 "--out", str(out)]) == 0
+    assert not (out / "trajectory_true.tum").exists()
+    for name in ("trajectory_est.tum", "trajectory_est.kitti.txt", "frames.csv", "odometry.png", "summary.json"):
+        assert (out / name).is_file(), name
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["metrics"]["frames"] == 3 and summary["metrics"]["kitti_t_percent"] is None
+    with (out / "frames.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 3 and all(int(r["n_inliers"]) > 0 for r in rows)
+    assert "no ground-truth poses" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("source, needle", [
+    ("bogus", "--source must be one of rendered, rendered:PRESET, kitti:PATH, kitti:PATH:SEQ, got 'bogus'"),
+    ("rendered:plane", "--source 'rendered:plane': the rendered preset must be one of car, free, got 'plane'"),
+])
+def test_bad_source_strings_are_one_line_and_write_nothing(tmp_path, capsys, source, needle):
+    with pytest.raises(SystemExit) as exc:
+        main(["vo", "--source", source, "--out", str(tmp_path / "v")])
+    assert exc.value.code == 2
+    assert needle in one_line_error(capsys, "vo")
+    assert not (tmp_path / "v").exists()
+
+
+def test_a_missing_kitti_folder_is_one_line_naming_source(tmp_path, capsys):
+    pytest.importorskip("cv2")
+    assert main(["vo", "--source", f"kitti:{tmp_path / 'none'}", "--out", str(tmp_path / "v")]) == 2
+    line = one_line_error(capsys, "vo")
+    assert "--source kitti:" in line and "no folder" in line
+    assert not (tmp_path / "v").exists()
+
+
+@pytest.mark.parametrize("missing, source, extra", [("moderngl", "rendered", "render"),
+                                                    ("cv2", "rendered", "images"),
+                                                    ("cv2", "kitti:/data", "images")])
+def test_a_missing_extra_is_one_line_naming_it(tmp_path, capsys, monkeypatch, missing, source, extra):
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == missing else real(name, *a))
+    assert main(["vo", "--source", source, "--out", str(tmp_path / "v")]) == 2
+    line = one_line_error(capsys, "vo")
+    assert f"'{extra}' extra ({missing} is not installed): pip install 'vo-gym[{extra}]'" in line
+    assert not (tmp_path / "v").exists()
+
+
+def test_vo_command_writes_one_covariance_per_frame(tmp_path):
+    from vo_gym_cli.main import main
+
+    out = tmp_path / "run"
+    assert main(["vo", "--frames", "6", "--n", "200", "--outliers", "0.4", "--seed", "2", "--out", str(out),
+                 "--no-progress"]) == 0
+    cov = np.load(out / "covariances.npy")
+    assert cov.shape == (6, 6, 6)
+    ok = np.all(np.isfinite(cov), axis=(1, 2))
+    assert ok.all()  # an easy sequence: every frame estimated
+    assert np.all(np.linalg.eigvalsh(cov) > 0)
+
+
+@pytest.mark.parametrize("argv", [["--method", "prosac"], ["--method", "guided-mlesac"],
+                                  ["--method", "msac", "--agent", "ngransac-supervised"]])
+def test_vo_runs_score_methods_and_learned_samplers(tmp_path, capsys, argv):
+    out = tmp_path / "vo"
+    assert main(["vo", *argv, "--frames", "4", "--n", "150", "--no-progress", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["metrics"]["frames"] == 4 and summary["metrics"]["success_rate"] > 0
+    assert (out / "trajectory_est.tum").read_text().count("\n") == 5
+
+
+def test_vo_agent_errors_are_one_line(tmp_path, capsys):
+    assert main(["vo", "--agent", "nope", "--frames", "2", "--out", str(tmp_path / "v")]) == 2
+    assert "--agent" in one_line_error(capsys, "vo")
+    assert main(["vo", "--agent", "ppo", "--method", "inlier-detection", "--frames", "2",
+                 "--out", str(tmp_path / "v")]) == 2
+    assert "does not sample" in one_line_error(capsys, "vo")

@@ -1,0 +1,177 @@
+"""The shared loop (stereovo/estimation/loop.py): batches, new bests, the feedback hook, and the
+final report that rolls back a refinement losing support."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from stereovo import estimate_motion
+from stereovo.estimation import EstimatorOptions, StereoProblem, method_spec
+from stereovo.estimation.loop import RansacSearch, run_ransac, final_report
+from stereovo.estimation.roles.refinement import ReprojectionRefiner
+from stereovo.estimation.roles.scoring import InlierCount, ReprojectionResidual
+from stereovo.geometry import random_rotation, rotation_error, so3_exp
+from stereovo.simulation import SimulationConfig, simulate_frame
+from tests.support.frames import CAMERA, noise_free_pair, belief_frames
+
+
+class _CountingSampler:
+    """A uniform sampler that records what the feedback hook shows it."""
+
+    def __init__(self, inner):
+        self.inner, self.n, self.seen = inner, inner.n, []
+
+    def draw(self, batch, rng):
+        return self.inner.draw(batch, rng)
+
+    def on_hypotheses(self, R, t, inlier_masks, residual_sq, state):
+        self.seen.append((R.shape[0], inlier_masks.shape, residual_sq.shape, state.samples.shape, state.n_hypotheses))
+
+    def counters(self):
+        return {"batches_seen": len(self.seen)}
+
+
+COUNTS = dict(n_hypotheses=1, n_scored=1, n_degenerate=0, n_local_optimizations=0, best_found_at=1)
+
+
+class _Refiner:
+    """A refiner whose result is given: the pose it returns, whatever it is handed."""
+
+    gate = None
+    rounds = 1
+
+    def __init__(self, R: np.ndarray, t: np.ndarray) -> None:
+        self.R, self.t = R, t
+
+    def refine_with_residuals(self, problem, R, t, inliers, residual_model, threshold_sq):
+        return self.R, self.t, inliers, None
+
+
+def test_small_first_batch_and_refit_skipped_only_in_the_batch_that_ends_the_search():
+    """A low-contamination frame ends after its first batch: the light refit of that batch's
+    best is left to the final refinement, but Lo-RANSAC's inner RANSAC (a search) still runs,
+    and so does the refit when later batches follow."""
+    rng = np.random.default_rng(5)
+    R_true = random_rotation(rng, 0.05)
+    prev, curr = noise_free_pair(rng, R_true, np.array([0.1, 0.0, -1.0]), 200)
+    curr = curr + rng.normal(0, 0.5, curr.shape)
+    curr[:, 3] = curr[:, 1]
+    curr[:20] = curr[rng.permutation(20)]  # 10 % mismatched: the bound falls below one batch at once
+    refitting = dict(polish_iterations=2, local_refit=True, refine=True)  # msac's paper recipe has no local refit
+    ends_at_once = estimate_motion(prev, curr, CAMERA, method="msac", rng=0, **refitting)
+    # one first batch of first_batch_size (16) hypotheses, not batch_size (128): the bound is met
+    assert ends_at_once.n_hypotheses == 16 and ends_at_once.report.n_local_optimizations == 0
+    assert estimate_motion(prev, curr, CAMERA, method="msac", rng=0, **refitting, first_batch_size=32).n_hypotheses == 32
+    assert estimate_motion(prev, curr, CAMERA, method="msac", rng=0, **refitting, budget=40).n_hypotheses == 40
+    assert np.degrees(rotation_error(ends_at_once.rotation, R_true)) < 0.1  # the refinement did its work
+    searching = estimate_motion(prev, curr, CAMERA, method="msac", rng=0, **refitting, batch_size=1)
+    assert searching.report.n_local_optimizations >= 1  # new bests before the last batch are refit
+    lo = estimate_motion(prev, curr, CAMERA, method="lo-ransac", rng=0)
+    assert lo.report.n_local_optimizations >= 1
+    assert ends_at_once.ok and searching.ok and lo.ok
+
+def test_adaptive_batches_double_from_the_first_up_to_batch_size():
+    from stereovo.estimation.loop import run_ransac
+    from stereovo.estimation.estimator_options import EstimatorOptions
+    from stereovo.estimation.registry import method_spec
+
+    class BatchRecorder:
+        def __init__(self):
+            self.drawn = []
+
+        def on_new_best(self, inliers, state):
+            pass
+
+        def on_batch(self, state):
+            self.drawn.append(state.n_hypotheses)
+
+    rng = np.random.default_rng(2)
+    prev, _ = noise_free_pair(rng, np.eye(3), np.zeros(3), 60)
+    curr, _ = noise_free_pair(rng, np.eye(3), np.zeros(3), 60)  # unrelated points: no consensus ends the search
+    problem = StereoProblem.build(prev, curr, CAMERA)
+    drawn = {}
+    for batch_size, budget in ((128, None), (128, 300), (8, None)):
+        options = EstimatorOptions(max_iterations=300, batch_size=batch_size, budget=budget)
+        components = method_spec("msac").build(problem, options, None, None, {})
+        recorder = BatchRecorder()
+        components.listeners.append(recorder)
+        run_ransac(problem, components, np.random.default_rng(0))
+        drawn[batch_size, budget] = recorder.drawn
+    assert drawn[128, None] == [16, 48, 112, 240, 300]  # 16, 32, 64, 128, then what the cap leaves
+    assert drawn[128, 300] == [128, 256, 300]  # a fixed budget keeps batch_size throughout
+    assert drawn[8, None] == list(range(8, 301, 8)) + [300]  # batch_size caps the first batch too
+
+
+def test_new_best_inliers_come_from_the_batch_scores_exactly():
+    """Scoring caps residuals at the gate; the inlier mask read from the capped batch residuals
+    must equal the one from the hypothesis' own residuals."""
+    from stereovo.estimation.roles.scoring import InlierCount, MahalanobisResidual
+    from stereovo.estimation.roles.solvers import minimal_hypotheses
+    from stereovo.estimation.roles.verification import ScoringContext
+    from stereovo.simulation import SimulationConfig, simulate_frame
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.5), np.random.default_rng(3))
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    samples = np.stack([np.random.default_rng(i).choice(problem.n, 3, replace=False) for i in range(40)])
+    R, t, valid = minimal_hypotheses(problem, samples)
+    R, t = R[valid], t[valid]
+    ctx = ScoringContext(problem, MahalanobisResidual(7.81), InlierCount(), 7.81)
+    scores = ctx.score(R, t)
+    for i in range(len(R)):
+        reused, computed = ctx.inliers_of(R, t, i)
+        assert not computed
+        np.testing.assert_array_equal(reused, ctx.residuals(R[i : i + 1], t[i : i + 1])[0] < 7.81)
+        assert reused.sum() == scores[i]
+    fresh, computed = ctx.inliers_of(R.copy(), t, 0)  # another batch: computed afresh
+    assert computed and fresh.sum() == scores[0]
+
+
+def test_feedback_hook_sees_every_verified_batch_and_counters_are_merged():
+    frame = belief_frames(0.5, 1)[0]
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, 0.5)
+    options = EstimatorOptions(budget=12, batch_size=4)
+    components = method_spec("msac").build(problem, options, None, None, {})
+    plain = run_ransac(problem, components, np.random.default_rng(0))
+    components = method_spec("msac").build(problem, options, None, None, {})
+    components.sampler = _CountingSampler(components.sampler)
+    search = RansacSearch(problem, components, np.random.default_rng(0))
+    while not search.done:
+        search.step()
+    hooked = search.finish()
+    np.testing.assert_array_equal(plain.rotation, hooked.rotation)  # the hook changes no draw
+    seen = components.sampler.seen
+    assert [s[4] for s in seen] == [4, 8, 12]
+    assert all(s[1] == (s[0], problem.n) and s[2] == (s[0], problem.n) and s[3] == (s[0], 3) for s in seen)
+    assert hooked.counters == {"batches_seen": 3, "refine_rolled_back": 0}
+    # the hook's residuals are counted: full residuals of every scored hypothesis once more
+    assert hooked.n_point_checks == plain.n_point_checks + hooked.n_scored * problem.n
+
+
+@pytest.mark.parametrize("bad", ["diverged", "nan"])
+def test_a_refinement_that_loses_support_or_diverges_is_rolled_back(bad):
+    frame = simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.3), 2)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    gate = ReprojectionResidual(9.0)
+    R, t = frame.truth.rotation, frame.truth.translation
+    good = gate.squared(problem, R[None], t[None])[0] < 9.0
+    away = (so3_exp(np.array([0.0, 0.2, 0.0])) @ R, t + 2.0) if bad == "diverged" else (np.full((3, 3), np.nan), t)
+    report = final_report(problem, R, t, good, float(good.sum()), _Refiner(*away), gate, InlierCount(), 9.0, 6, {},
+                          **COUNTS)
+    assert report.status == "ok" and report.counters["refine_rolled_back"] == 1
+    np.testing.assert_array_equal(report.rotation, R)
+    np.testing.assert_array_equal(report.inliers, good)  # re-selected under the pose it kept
+    # a refinement that is no worse is kept, and its inliers are selected under its pose
+    kept = final_report(problem, R, t, good, float(good.sum()), ReprojectionRefiner(rounds=1), gate, InlierCount(),
+                        9.0, 6, {}, **COUNTS)
+    assert kept.counters["refine_rolled_back"] == 0 and kept.inliers.sum() >= good.sum()
+    np.testing.assert_array_equal(kept.inliers, gate.squared(problem, kept.rotation[None], kept.translation[None])[0] < 9.0)
+
+
+def test_a_non_finite_best_model_fails():
+    frame = simulate_frame(SimulationConfig(n_correspondences=100, outlier_ratio=0.3), 3)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    R = np.full((3, 3), np.nan)
+    report = final_report(problem, R, np.zeros(3), np.ones(100, dtype=bool), 100.0, None, ReprojectionResidual(9.0),
+                          InlierCount(), 9.0, 6, {}, **COUNTS)
+    assert report.status.startswith("failed") and not report.inliers.any()

@@ -1,0 +1,63 @@
+"""stereovo.sequences.kitti: the KITTI loader on a folder written in KITTI's layout, and its errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from stereovo.estimation import estimate_motion
+from stereovo.metrics import frame_metrics
+from stereovo.sequences import KittiOdometry
+from tests.support.images import write_kitti
+
+
+pytest.importorskip("cv2", reason="the image front end needs OpenCV: pip install 'vo-gym[images]'")
+
+
+@pytest.fixture(scope="module")
+def kitti_root(tmp_path_factory, short):
+    root = tmp_path_factory.mktemp("kitti")
+    write_kitti(root, short, "07")
+    return root
+
+
+def test_kitti_loader_reads_the_rig_the_images_and_the_poses(kitti_root, short):
+    seq = KittiOdometry(kitti_root, 7)
+    cam, ref = seq.camera, short.camera
+    assert (cam.width, cam.height) == (ref.width, ref.height)
+    assert cam.fx == pytest.approx(ref.fx) and cam.cx == pytest.approx(ref.cx) and cam.cy == pytest.approx(ref.cy)
+    assert cam.baseline == pytest.approx(ref.baseline)
+    assert len(seq) == 3 and np.allclose(seq.true_poses, short.true_poses, atol=1e-9)
+    for k in range(4):
+        assert np.array_equal(seq.images(k)[0], short.images(k)[0])
+    frame = seq.frame(2)
+    assert np.array_equal(frame.prev, short.frame(2).prev)
+    est = estimate_motion(frame.prev, frame.curr, frame.camera, noise_sigma=0.5, rng=np.random.default_rng(0))
+    metrics = frame_metrics(est, frame.truth)
+    assert metrics.success and frame.truth.inlier.mean() > 0.6
+
+
+def test_kitti_loader_takes_a_sequence_folder_and_a_range(kitti_root):
+    seq = KittiOdometry(kitti_root / "sequences" / "07", None, start=1)
+    assert len(seq) == 2 and seq.poses_file is not None  # ../../poses/07.txt
+    assert np.allclose(seq.true_poses[0], np.eye(4))
+
+
+def test_kitti_errors_name_the_file(tmp_path, short):
+    with pytest.raises(FileNotFoundError, match="no folder"):
+        KittiOdometry(tmp_path / "missing")
+    folder = write_kitti(tmp_path, short, "01")
+    with pytest.raises(FileNotFoundError, match="no sequence folder"):
+        KittiOdometry(tmp_path, "02")
+    calib = folder / "calib.txt"
+    text = calib.read_text()
+    calib.write_text(text.replace("P1:", "P9:"))
+    with pytest.raises(ValueError, match=r"calib.txt: no P1 line"):
+        KittiOdometry(tmp_path, "01")
+    calib.write_text(text.replace("P1:", "P1: oops"))
+    with pytest.raises(ValueError, match=r"calib.txt, line 2: P1 must be 12 numbers"):
+        KittiOdometry(tmp_path, "01")
+    calib.write_text(text)
+    (folder / "image_1" / "000003.png").unlink()
+    with pytest.raises(ValueError, match="4 left images but 3 right images"):
+        KittiOdometry(tmp_path, "01")

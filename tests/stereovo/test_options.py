@@ -1,0 +1,66 @@
+"""One contract for options (stereovo.options): Integer, Boolean, Number and Choice refuse a value
+naming it, and worker counts and seeds follow one rule in every layer."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from stereovo.options import Boolean, Choice, Integer, Number, OptionError
+
+
+def test_integer_accepts_integers_only():
+    rule = Integer(low=1)
+    assert rule.check("k", 3) == 3 and type(rule.check("k", np.int64(3))) is int
+    for bad in (True, np.bool_(True), 1.5, 3.0, "3", None, float("inf"), complex(3, 0), 0):
+        with pytest.raises(OptionError, match=r"^option k must be an integer >= 1, got "):
+            rule.check("k", bad)
+    assert Integer(allow_none=True).check("k", None) is None
+
+
+def test_boolean_accepts_bools_only():
+    rule = Boolean()
+    assert rule.check("b", True) is True and rule.check("b", np.bool_(False)) is False
+    for bad in ("no", "False", 0, 1, None, 1.0):
+        with pytest.raises(OptionError, match=r"^option b must be True or False, got "):
+            rule.check("b", bad)
+
+
+def test_number_is_finite_real_and_in_range():
+    rule = Number(low=0.0, high=1.0, low_open=True, high_open=True)
+    assert rule.check("p", 0.5) == 0.5 and rule.check("p", np.float32(0.25)) == 0.25
+    for bad in (0.0, 1.0, math.nan, math.inf, -math.inf, "0.9", True, complex(0.5, 0), None, [0.5]):
+        with pytest.raises(OptionError, match=r"^option p must be a finite number in \(0, 1\), got "):
+            rule.check("p", bad)
+
+
+def test_choice_lists_the_valid_values():
+    with pytest.raises(OptionError, match=r"must be one of 'a', 'b', got 'c'"):
+        Choice(choices=("a", "b")).check("mode", "c")
+
+
+@pytest.mark.parametrize("value", [0, -1, 1.5, math.nan, True, "2"])
+def test_worker_counts_and_seeds_of_every_layer_follow_the_contract(value):
+    """One rule for counts everywhere: the backends, the benchmark grid, the agents' evaluation and sweeps."""
+    from agents.evaluation.setup import EvalConfig
+    from agents.sweep import MetricSpec
+    import dataclasses
+
+    from stereovo.benchmark import DEFAULT_GRID, check_seed
+    from stereovo.trials.backend import LocalBackend, chunked
+
+    cases = [
+        (lambda: LocalBackend(value), r"^workers must be an integer >= 1, got "),
+        (lambda: chunked([], value), r"^chunk size must be an integer >= 1, got "),
+        (lambda: dataclasses.replace(DEFAULT_GRID, frames_per_cell=value), r"^BenchmarkGrid\.frames_per_cell must be an integer >= 1"),
+        (lambda: EvalConfig(episodes=value), r"^episodes must be an integer >= 1, got "),
+        (lambda: MetricSpec(budget=value), r"^sweep metric\.budget must be an integer >= 1, got "),
+    ]
+    if value != 0:  # 0 is a valid seed
+        cases += [(lambda: check_seed(value), r"^seed must be an integer >= 0, got "),
+                  (lambda: EvalConfig(seed=value), r"^seed must be an integer >= 0, got ")]
+    for make, message in cases:
+        with pytest.raises(ValueError, match=message):
+            make()

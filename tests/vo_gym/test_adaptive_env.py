@@ -1,0 +1,146 @@
+"""The in-frame adaptive environment (vo_gym.adaptive_env): spaces, checkers, determinism, frame ends,
+rewards, selection, the agent's prior sampler."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from stereovo.estimation.loop import LoopState
+from stereovo.metrics import FrameMetrics
+from vo_gym.adaptive_env import (
+    GLOBAL_FEATURE_NAMES,
+    LOOP_FEATURE_NAMES,
+    AgentPriorSampler,
+    StereoVOAdaptiveEnv,
+)
+from vo_gym.features import N_FEATURES
+from vo_gym.registration import HARD_SETTINGS
+from vo_gym.rewards import supervised_reward
+
+
+def small(**kwargs) -> StereoVOAdaptiveEnv:
+    return StereoVOAdaptiveEnv(**{"n_frames": 3, "n_correspondences": 80, "outlier_ratio": 0.5, **kwargs})
+
+
+def act(env, stop: bool, logits: np.ndarray | None = None) -> np.ndarray:
+    a = np.zeros(env.action_space.shape, dtype=np.float32)
+    if logits is not None:
+        a[: len(logits)] = logits
+    a[-1] = 1.0 if stop else -1.0
+    return a
+
+
+def rollout(env, seed: int, stop_at: int):
+    obs, _ = env.reset(seed=seed)
+    out = [obs]
+    while True:
+        obs, reward, terminated, truncated, info = env.step(act(env, env.frame_hypotheses >= stop_at))
+        out.append((obs, reward, info))
+        if truncated:
+            return out
+
+
+def test_spaces_and_both_checkers_pass():
+    from gymnasium.utils.env_checker import check_env
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+    env = small(max_correspondences=96)
+    assert env.observation_space["features"].shape == (96, N_FEATURES + len(LOOP_FEATURE_NAMES))
+    assert env.observation_space["globals"].shape == (len(GLOBAL_FEATURE_NAMES),)
+    assert env.action_space.shape == (97,)
+    check_env(env, skip_render_check=True)
+    sb3_check_env(small(), warn=False)
+
+
+def test_registered_ids():
+    env = gym.make("vo_gym/StereoVOAdaptiveHard-v0", n_frames=2, n_correspondences=60)
+    assert env.unwrapped.sim_config.outlier_mix == HARD_SETTINGS["outlier_mix"]
+    assert env.unwrapped.sim_config.score_auc == HARD_SETTINGS["score_auc"]
+    assert isinstance(gym.make("vo_gym/StereoVOAdaptive-v0", n_frames=2).unwrapped, StereoVOAdaptiveEnv)
+
+
+def test_same_seed_same_episode():
+    a, b = rollout(small(), 7, 8), rollout(small(), 7, 8)
+    assert len(a) == len(b)
+    for x, y in zip(a[1:], b[1:]):
+        np.testing.assert_array_equal(x[0]["features"], y[0]["features"])
+        np.testing.assert_array_equal(x[0]["globals"], y[0]["globals"])
+        assert x[1] == y[1]
+        assert x[2].keys() == y[2].keys()
+        np.testing.assert_array_equal(x[2]["batch_samples"], y[2]["batch_samples"])
+    c = rollout(small(), 8, 8)
+    assert any(not np.array_equal(x[0]["features"], y[0]["features"]) for x, y in zip(a[1:], c[1:]))
+
+
+def test_stop_before_any_hypothesis_draws_a_batch_then_stop_and_cap_end_the_frame():
+    env = small(batch_size=3, max_hypotheses=7, hypothesis_cost=0.01)
+    obs, _ = env.reset(seed=1)
+    assert obs["globals"][0] == 0 and not obs["features"][:, N_FEATURES:].any()
+    _, reward, _, _, info = env.step(act(env, True))
+    assert not info["frame_done"] and info["frame_hypotheses"] == 3 and info["batch_samples"].shape == (3, 3)
+    assert reward == pytest.approx(-0.03)
+    obs, reward, _, _, info = env.step(act(env, True))  # the agent stops: no new hypotheses
+    assert info["frame_done"] and info["stopped"] and info["n_hypotheses"] == 3 and info["batch_samples"].shape == (0, 3)
+    metrics = FrameMetrics(**{k: info[k] for k in FrameMetrics.__dataclass_fields__ if k != "time_s"}, time_s=0.0)
+    assert reward == pytest.approx(supervised_reward(metrics, 0.5, 0.0, -1.0))
+    assert info["frame"] == 1 and env.frame_hypotheses == 0 and obs["globals"][5] == float(not info["fallback"])
+    for expected in (3, 6):  # the cap: 3 + 3 + 1
+        _, _, _, _, info = env.step(act(env, False))
+        assert info["frame_hypotheses"] == expected and not info["frame_done"]
+    _, _, _, _, info = env.step(act(env, False))
+    assert info["frame_done"] and not info["stopped"] and info["n_hypotheses"] == 7
+
+
+def test_loop_features_follow_the_search():
+    env = small(batch_size=4)
+    env.reset(seed=2)
+    obs, _, _, _, info = env.step(act(env, False))
+    votes = info["batch_inliers"].sum(axis=0)
+    n = env.current_frame.n
+    np.testing.assert_allclose(obs["features"][:n, N_FEATURES + 1], votes / 4, rtol=1e-6)
+    np.testing.assert_allclose(obs["features"][:n, N_FEATURES + 2], np.log1p(votes), rtol=1e-6)
+    best = obs["features"][:n, N_FEATURES + 3].astype(bool)
+    assert best.sum() == info["batch_inliers"].sum(axis=1).max()
+    assert obs["globals"][1] == pytest.approx(best.sum() / n)
+
+
+def test_selection_weights_consensus_by_the_agents_beliefs():
+    sampler = AgentPriorSampler(6)
+    big = np.array([[1, 1, 1, 1, 0, 0]], dtype=bool)  # a larger consensus (e.g. a moving object)
+    small_ = np.array([[0, 0, 0, 0, 1, 1]], dtype=bool)
+    for mask in (big, small_):  # two scored hypotheses, reported through the loop's feedback hook
+        state = LoopState(1, 0.0, samples=np.zeros((1, 3), dtype=np.int64))
+        sampler.on_hypotheses(np.eye(3)[None], np.zeros((1, 3)), mask, None, state)
+    np.testing.assert_array_equal(sampler.scored_masks, np.concatenate([big, small_]))
+    assert sampler.select(np.full(6, 1 / 6)) == 0  # uniform beliefs: the larger consensus
+    assert sampler.select(np.array([0.01, 0.01, 0.01, 0.01, 0.48, 0.48])) == 1
+
+
+def test_bad_actions_and_arguments_raise_naming_them():
+    env = small()
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.zeros(5))
+    bad = act(env, False)
+    bad[0] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        env.step(bad)
+    for kwargs, name in (({"batch_size": 0}, "batch_size"), ({"hypothesis_cost": -1}, "hypothesis_cost"),
+                         ({"reward_mode": "x"}, "reward_mode"), ({"max_correspondences": 10}, "max_correspondences")):
+        with pytest.raises(ValueError, match=name):
+            small(**kwargs)
+    with pytest.raises(RuntimeError, match="reset"):
+        small().step(np.zeros(81))
+
+
+def test_agent_sampler_keeps_every_scored_mask_in_order_across_its_buffer_growth():
+    sampler = AgentPriorSampler(5)
+    rng = np.random.default_rng(1)
+    masks = [rng.random((k, 5)) < 0.5 for k in (40, 30, 7)]  # 77 rows: the 64-row buffer doubles
+    for m in masks:
+        sampler.on_hypotheses(None, None, m, None, LoopState(0, 0.0, samples=np.zeros((m.shape[0], 3), dtype=np.int64)))
+    np.testing.assert_array_equal(sampler.scored_masks, np.concatenate(masks))
+    w = rng.random(5)
+    assert sampler.select(w) == int(np.argmax(np.concatenate(masks) @ w)) and sampler.n_scored() == 77

@@ -1,0 +1,151 @@
+"""``vo_gym/StereoVOImages-v0``: Gymnasium's checkers, the observation layout of StereoVO-v0,
+same seed same episode, shipped samplers on it, a recorded source, and its argument errors."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from tests.support.images import rendered, write_kitti
+
+pytest.importorskip("cv2", reason="the image front end needs OpenCV: pip install 'vo-gym[images]'")
+pytest.importorskip("moderngl", reason="rendered sequences need moderngl: pip install 'vo-gym[render]'")
+
+import vo_gym  # noqa: E402,F401
+from stereovo.estimation import StereoProblem  # noqa: E402
+from vo_gym.features import FEATURE_NAMES, N_FEATURES  # noqa: E402
+from vo_gym.images_env import StereoVOImagesEnv  # noqa: E402
+
+SMALL = dict(n_frames=2, resolution="vga", max_correspondences=600)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def egl():
+    sequence = rendered(n_frames=1, resolution="vga")  # skips loudly where EGL is missing
+    sequence.close()
+
+
+def test_gymnasiums_checkers_pass():
+    env = StereoVOImagesEnv(**SMALL)
+    check_env(env, skip_render_check=True)
+    env.close()
+    made = gym.make("vo_gym/StereoVOImages-v0", **SMALL)  # wrapped in the passive checker
+    obs, info = made.reset(seed=3)
+    assert made.observation_space.contains(obs)
+    obs, reward, terminated, truncated, info = made.step(made.action_space.sample())
+    assert made.observation_space.contains(obs) and -1.0 <= reward <= 1.0 and not terminated
+    made.close()
+
+
+def test_the_observation_layout_is_the_simulated_environments():
+    images = StereoVOImagesEnv(**SMALL)
+    simulated = gym.make("vo_gym/StereoVO-v0", n_correspondences=600).unwrapped
+    assert images.observation_space["features"].shape == (600, N_FEATURES)
+    assert images.feature_names == simulated.feature_names == FEATURE_NAMES
+    assert images.feature_layout_version == simulated.feature_layout_version
+    assert images.observation_space == simulated.observation_space
+    assert images.action_space == simulated.action_space
+    obs, _ = images.reset(seed=0)
+    frame = images.current_frame
+    # the rows with a resolvable depth (the estimator's rule), none past the frame's own rows
+    usable = StereoProblem.build(frame.prev, frame.curr, frame.camera, images.estimator_noise_sigma).usable_mask
+    np.testing.assert_array_equal(obs["mask"][: frame.n], usable)
+    assert usable.mean() > 0.9 and not obs["mask"][frame.n:].any()
+    assert not obs["features"][frame.n:].any()
+    images.close()
+
+
+def _episode(env, seed, actions):
+    obs, info = env.reset(seed=seed)
+    out = [(obs["features"].copy(), obs["mask"].copy(), info)]
+    done = False
+    i = 0
+    while not done:
+        obs, reward, terminated, truncated, info = env.step(actions[i])
+        out.append((obs["features"].copy(), obs["mask"].copy(), reward, info))
+        done = terminated or truncated
+        i += 1
+    return out
+
+
+def _same(a, b):
+    assert len(a) == len(b)
+    for x, y in zip(a, b):
+        assert np.array_equal(x[0], y[0]) and np.array_equal(x[1], y[1])
+        assert x[2:] == y[2:]
+
+
+def test_same_seed_same_episode_in_a_fresh_environment_and_from_the_cache():
+    actions = np.random.default_rng(0).uniform(-3, 3, (2, 600)).astype(np.float32)
+    first, second = StereoVOImagesEnv(**SMALL), StereoVOImagesEnv(**SMALL)
+    a = _episode(first, 7, actions)
+    _same(a, _episode(second, 7, actions))
+    _same(a, _episode(first, 7, actions))  # the cached frames of seed 7
+    other = _episode(first, 8, actions)
+    assert not np.array_equal(a[0][0], other[0][0])
+    assert a[-1][-1]["trajectory"]["success_rate"] == 1.0
+    first.close()
+    second.close()
+
+
+def test_a_shipped_sampler_runs_on_it_unchanged():
+    pytest.importorskip("torch", reason="the learned samplers need torch: pip install 'vo-gym[train]'")
+    from agents.checkpoint import load_sampler
+
+    policy = load_sampler("ngransac-supervised")
+    env = StereoVOImagesEnv(**SMALL)
+    obs, _ = env.reset(seed=1)
+    logits = np.asarray(policy.act(obs), dtype=np.float32)
+    assert logits.shape == (600,)
+    obs, reward, terminated, truncated, info = env.step(np.clip(logits, -10, 10))
+    assert info["success"] and reward > 0.5
+    env.close()
+
+
+def test_a_recorded_source_gives_windows_placed_by_the_seed(tmp_path):
+    from stereovo.sequences import KittiOdometry
+
+    source_frames = rendered(n_frames=5, resolution="vga", seed=2)
+    write_kitti(tmp_path, source_frames, "03")
+    source = KittiOdometry(tmp_path, "03")
+    env = StereoVOImagesEnv(source=source, n_frames=2, max_correspondences=600)
+    offsets = set()
+    for seed in range(6):
+        env.reset(seed=seed)
+        offsets.add(env.sequence.offset)
+        assert np.allclose(env.true_poses[0], source.true_poses[env.sequence.offset])
+    assert len(offsets) > 1 and offsets <= {0, 1, 2}
+    obs, reward, terminated, truncated, info = env.step(np.zeros(600, np.float32))
+    assert info["success"]
+    env.close()
+    source_frames.close()
+
+
+@pytest.mark.parametrize("kwargs, error, message", [
+    ({"n_correspondences": 100}, TypeError, "are simulator settings"),
+    ({"max_correspondences": 2}, ValueError, "StereoVOImagesEnv: max_correspondences must be an integer >= 3"),
+    ({"resolution": "hd"}, ValueError, "StereoVOImagesEnv: resolution must be one of 'kitti', 'vga', got 'hd'"),
+    ({"frontend_options": {"detector": "surf"}}, ValueError, "FrontendOptions.detector must be one of"),
+    ({"frontend_options": {"colour": True}}, TypeError, "StereoVOImagesEnv: frontend_options"),
+    ({"source": 5}, ValueError, "source must be a frame sequence with known poses"),
+    ({"method": "nope"}, ValueError, "StereoVOEnv: method"),
+])
+def test_bad_arguments_are_named(kwargs, error, message):
+    with pytest.raises(error) as err:
+        StereoVOImagesEnv(**{**SMALL, **kwargs})
+    assert message in str(err.value)
+
+
+def test_frames_beyond_the_rows_keep_their_best_scored_matches():
+    wide = StereoVOImagesEnv(n_frames=1, resolution="vga", max_correspondences=1000)
+    narrow = StereoVOImagesEnv(n_frames=1, resolution="vga", max_correspondences=50)
+    wide.reset(seed=4)
+    obs, _ = narrow.reset(seed=4)
+    full, cut = wide.current_frame, narrow.current_frame
+    assert full.n > 50 and cut.n == 50 and obs["mask"].sum() <= 50
+    best = np.sort(np.argsort(-full.scores, kind="stable")[:50])
+    assert np.array_equal(cut.prev, full.prev[best]) and np.array_equal(cut.truth.inlier, full.truth.inlier[best])
+    wide.close()
+    narrow.close()
