@@ -29,24 +29,3 @@ def test_tiny_bench_prints_every_estimator_and_writes_the_csv(tmp_path, capsys):
     assert all(float(r["success"]) == 1.0 and float(r["median_rot_deg"]) < 0.2 for r in ours)
     # our own row's ratio to itself is 1.00
     assert all(line.split()[-1] == "1.00" for line in printed.splitlines() if "ours:probabilistic" in line)
-
-
-@pytest.mark.parametrize(
-    "argv, needle",
-    [
-        (["--frames", "0"], "--frames must be >= 1"),
-        (["--ns", "a,b"], "--ns 'a' is not an integer"),
-        (["--method", "nope"], "unknown method 'nope'"),
-        (["--ns", "-1"], "--ns must be >= 3"),
-        (["--ns", "2"], "--ns must be >= 3"),
-        (["--epsilons", "2"], "--epsilons must be < 1.0"),
-        (["--noise", "-1"], "--noise must be >= 0.001"),
-        (["--seed", "-1"], "--seed must be >= 0"),
-    ],
-)
-def test_bad_bench_arguments_exit_with_a_message(argv, needle, capsys):
-    with pytest.raises(SystemExit) as exc:
-        main(["bench", "--no-peers", *argv])
-    assert exc.value.code == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("vo-gym bench: error:") and needle in err[0], err

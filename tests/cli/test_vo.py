@@ -71,25 +71,6 @@ def test_summary_table_states_units(tmp_path, capsys):
         assert needle in text, needle
 
 
-@pytest.mark.parametrize(
-    "argv, needle",
-    [
-        (["--outliers", "1.5"], "outlier ratio 1.5"),
-        (["--outliers", "0.9:0.3"], "lo <= hi"),
-        (["--outliers", "half"], "not a number"),
-        (["--frames", "0"], "--frames must be >= 1"),
-        (["--method", "nonsense"], "invalid choice: 'nonsense'"),
-        (["--preset", "boat"], "invalid choice: 'boat'"),
-    ],
-)
-def test_bad_arguments_exit_nonzero_with_message(tmp_path, capsys, argv, needle):
-    with pytest.raises(SystemExit) as exc:
-        main(["vo", *argv, "--out", str(tmp_path / "x"), "--no-progress"])
-    assert exc.value.code != 0
-    assert needle in capsys.readouterr().err
-    assert not (tmp_path / "x").exists()
-
-
 def test_config_error_is_reported_not_raised(tmp_path, capsys):
     # The AUC range is the simulator's rule: its ValueError becomes a message and exit code 2.
     code = main(["vo", "--auc", "0.3", "--frames", "2", "--out", str(tmp_path / "x"), "--no-progress"])
