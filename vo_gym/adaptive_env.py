@@ -32,6 +32,7 @@ from stereovo.compilation import announce_compiling
 from stereovo.estimation import StereoProblem
 from stereovo.geometry import PoseChain
 from stereovo.metrics import frame_metrics
+from stereovo.options import real_array
 from stereovo.simulation import Frame, Sequence
 from vo_gym.features import FEATURE_BOUND, N_FEATURES, compute_features
 from vo_gym.in_frame import (
@@ -287,15 +288,8 @@ class StereoVOAdaptiveEnv(gym.Env):
 
     def _validate_action(self, action) -> tuple[np.ndarray, bool]:
         M, n = self.max_correspondences, self._frame.n
-        try:
-            a = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(f"StereoVOAdaptiveEnv: the action must be a numeric array of shape ({M + 1},)") from None
-        if a.shape != (M + 1,):
-            raise ValueError(
-                f"StereoVOAdaptiveEnv: the action must have shape ({M + 1},): a logit per slot and the stop slot, "
-                f"got {a.shape}"
-            )
+        a = real_array("the action", action, (M + 1,), entries="values", per="a logit per slot and the stop slot",
+                       what=f"a numeric array of shape ({M + 1},)", prefix="StereoVOAdaptiveEnv: ")
         valid = np.concatenate([a[:n], a[M:]])
         if not np.all(np.isfinite(valid)):
             raise ValueError("StereoVOAdaptiveEnv: the action has NaN or inf in a valid slot or the stop slot")

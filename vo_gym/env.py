@@ -22,6 +22,7 @@ from stereovo.compilation import announce_compiling
 from stereovo.estimation import EstimatorOptions, StereoProblem, estimate_problem
 from stereovo.geometry import PoseChain
 from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, frame_metrics, trajectory_metrics
+from stereovo.options import real_array
 from stereovo.simulation import Frame, Sequence
 from vo_gym.features import FEATURE_BOUND, FEATURE_LAYOUT_VERSION, FEATURE_NAMES, N_FEATURES, compute_features
 from vo_gym.rewards import inlier_reward, msac_reward, pose_error_ratio, supervised_reward
@@ -421,18 +422,8 @@ class StereoVOEnv(gym.Env):
     def _validate_action(self, action) -> np.ndarray:
         # the frame's own count: image frames have fewer matches than slots, the simulator's exactly n
         M, n = self.max_correspondences, self._frame.n if self._frame is not None else self.n_correspondences
-        if np.iscomplexobj(action):  # a cast would drop the imaginary part with only a warning
-            raise ValueError(f"StereoVOEnv: the action must be real, got complex dtype {np.asarray(action).dtype}")
-        try:
-            a = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(
-                f"StereoVOEnv: the action must be a numeric array of shape ({M},), got {type(action).__name__}"
-            ) from None
-        if a.shape != (M,):
-            raise ValueError(
-                f"StereoVOEnv: the action must have shape ({M},), one value per correspondence slot, got {a.shape}"
-            )
+        a = real_array("the action", action, (M,), entries="values", per="one value per correspondence slot",
+                       what=f"a numeric array of shape ({M},)", prefix=f"{_OWNER}: ")
         a = a[:n]
         finite = np.isfinite(a)
         if not np.all(finite):

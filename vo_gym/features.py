@@ -69,6 +69,7 @@ from stereovo.estimation.estimator_options import ESTIMATOR_OPTION_RULES
 from stereovo.estimation.problem import StereoProblem, as_measurements
 from stereovo.estimation.roles.reprojection import reprojection_sq
 from stereovo.estimation.kernels.rigidity import distance_change_sq_jit, rigid_distance_consistent_jit
+from stereovo.options import real_array
 
 __all__ = [
     "FEATURE_NAMES",
@@ -263,14 +264,9 @@ def compute_features(
     n = prev.shape[0]
     if curr.shape[0] != n:
         raise ValueError(f"prev and curr must have the same number of rows, got {n} and {curr.shape[0]}")
-    if np.iscomplexobj(scores):
-        raise ValueError(f"scores must be real, got complex dtype {np.asarray(scores).dtype}")
-    try:
-        scores = np.asarray(scores, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"scores must be a finite ({n},) array of numbers, got {type(scores).__name__}") from None
-    if scores.shape != (n,) or not np.all(np.isfinite(scores)):
-        raise ValueError(f"scores must be a finite ({n},) array, got shape {scores.shape}")
+    scores = real_array("scores", scores, (n,), what=f"a finite ({n},) array of numbers")
+    if not np.all(np.isfinite(scores)):
+        raise ValueError(f"scores must be finite, got NaN or inf in {np.count_nonzero(~np.isfinite(scores))} row(s)")
     # The estimator's own rule for noise_sigma (the one options contract), so both accept the same values.
     noise_sigma = ESTIMATOR_OPTION_RULES["noise_sigma"].check("noise_sigma", noise_sigma, prefix="")
     motion = _validate_motion(previous_motion)

@@ -521,7 +521,7 @@ def test_complex_and_non_numeric_actions_are_refused_by_type():
     env.reset(seed=2)
     with pytest.raises(ValueError) as err:
         env.step(np.zeros(120, dtype=complex))
-    assert str(err.value) == "StereoVOEnv: the action must be real, got complex dtype complex128"
+    assert str(err.value) == "StereoVOEnv: the action must be real values, got complex dtype complex128"
     with pytest.raises(ValueError) as err:
         env.step(["left"] * 120)
     assert str(err.value) == "StereoVOEnv: the action must be a numeric array of shape (120,), got list"

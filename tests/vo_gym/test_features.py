@@ -419,7 +419,10 @@ def test_two_and_one_matches_and_the_input_checks():
               r"^prev and curr must have the same number of rows, got 30 and 29$"),
              ((frame.prev, frame.curr, "abc", cam, sigma), r"^scores must be a finite \(30,\) array of numbers, got str$"),
              ((frame.prev, frame.curr, frame.scores.astype(complex), cam, sigma),
-              r"^scores must be real, got complex dtype complex128$")]
+              r"^scores must be real numbers, got complex dtype complex128$"),
+             ((frame.prev, frame.curr, frame.scores[:29], cam, sigma), r"^scores must have shape \(30,\), got \(29,\)$"),
+             ((frame.prev, frame.curr, np.where(np.arange(30) < 2, np.nan, frame.scores), cam, sigma),
+              r"^scores must be finite, got NaN or inf in 2 row\(s\)$")]
     for args, message in cases:
         with pytest.raises(ValueError, match=message):
             compute_features(*args)
