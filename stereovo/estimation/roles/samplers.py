@@ -7,6 +7,7 @@ Priors and orderings are how the Gymnasium agents reach the estimator.
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import ClassVar, Protocol
 
@@ -183,16 +184,22 @@ class WeightedSampler:
         return np.sum(np.log(picked) - left, axis=1)
 
 
+@functools.lru_cache(maxsize=64)
 def prosac_growth(n: int, sample_size: int = SAMPLE_SIZE, t_n: float = 200_000) -> np.ndarray:
     """PROSAC's T'_n for n = 0..N (Chum & Matas 2005); entries below ``sample_size`` are 0.
 
     ``T_m = T_N prod_{i<m} (m-i)/(N-i)``, ``T_{k+1} = T_k (k+1)/(k+1-m)``,
     ``T'_m = 1``, ``T'_{k+1} = T'_k + ceil(T_{k+1} - T_k)``.
+
+    The recursion is sequential (a cumulative product would round differently and move the
+    ceilings), so it runs as a Python loop over n; the same N recurs on every frame of a sequence,
+    hence the cache. The returned ``(n + 1,)`` int64 array is shared and read-only.
     """
     m = sample_size
     T = np.zeros(n + 1)
     T_prime = np.zeros(n + 1, dtype=np.int64)
     if n < m:
+        T_prime.flags.writeable = False
         return T_prime
     i = np.arange(m)
     T[m] = t_n * np.prod((m - i) / (n - i))
@@ -200,6 +207,7 @@ def prosac_growth(n: int, sample_size: int = SAMPLE_SIZE, t_n: float = 200_000) 
     for k in range(m, n):
         T[k + 1] = T[k] * (k + 1) / (k + 1 - m)
         T_prime[k + 1] = T_prime[k] + int(np.ceil(T[k + 1] - T[k]))
+    T_prime.flags.writeable = False
     return T_prime
 
 

@@ -109,6 +109,15 @@ def test_prosac_samples_respect_n_max():
     assert later.max() < 40
 
 
+def test_prosac_growth_is_computed_once_per_length_and_shared_read_only():
+    first, again = prosac_growth(300), prosac_growth(300)
+    assert first is again and not first.flags.writeable
+    np.testing.assert_array_equal(first, prosac_growth.__wrapped__(300))
+    with pytest.raises(ValueError, match="read-only"):
+        first[5] = 0
+    assert not prosac_growth(2).flags.writeable and prosac_growth(2).tolist() == [0, 0, 0]
+
+
 def test_prosac_growth_matches_the_hand_listed_schedule():
     # N = 500, T_N = 200000: T_3 = 200000 * 3 * 2 * 1 / (500 * 499 * 498), T_{k+1} = T_k (k+1) / (k+1-3),
     # T'_3 = 1, T'_{k+1} = T'_k + ceil(T_{k+1} - T_k), worked out once on paper and listed here.
