@@ -35,6 +35,11 @@ before it):
 - :mod:`~stereovo.benchmark.baseline_report`: ``docs/baselines.md`` rebuilt from a run
   folder (the claims recomputed, the figures copied or redrawn).
 
+Beside the grid: :mod:`~stereovo.benchmark.on_images` runs the estimators on an image sequence's
+own frames (``vo-gym baselines --source rendered``), and :mod:`~stereovo.benchmark.peers` and
+:mod:`~stereovo.benchmark.speed_accuracy` time the core against other libraries. These three are
+imported by their module path.
+
 Every public name of the modules is importable from the package itself.
 """
 

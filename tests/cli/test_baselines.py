@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from stereovo.benchmark import PLOT_FILES, TIME_COLUMNS, benchmark_methods
+from tests.support.cli import one_line_error
 from vo_gym_cli.main import main
 
 TINY = ["--methods", "ransac,msac", "--epsilons", "0.2,0.6", "--aucs", "0.9", "--ns", "80", "--frames-per-cell", "2",
@@ -342,3 +343,44 @@ def test_ray_backend_stops_on_sigterm_or_ctrl_c_in_one_line_and_resumes(tmp_path
     assert f"resuming: {saved} of {total} frames" in capsys.readouterr().out
     for name in ("trials.csv", "cells.csv", "summary.csv"):
         assert _timeless(out / name) == _timeless(reference / name), name
+
+
+# --- baselines --source rendered: the classical family on rendered stereo images ---
+
+def test_baselines_on_rendered_images_writes_rows_summary_and_plot_and_repeats_bit_for_bit(tmp_path, capsys, short):
+    argv = ["baselines", "--source", "rendered", "--resolution", "vga", "--frames", "3", "--seed", "4",
+            "--methods", "ransac,probabilistic", "--no-progress"]
+    assert main([*argv, "--out", str(tmp_path / "a")]) == 0
+    printed = capsys.readouterr().out
+    assert "2 methods on 3 rendered pairs (car, vga, seed 4)" in printed and "| probabilistic | 3 |" in printed
+    for name in ("frames.csv", "summary.json", "summary.md", "success_vs_time.png"):
+        assert (tmp_path / "a" / name).stat().st_size > 0, name
+    rows = _rows(tmp_path / "a" / "frames.csv")
+    assert [(r["frame"], r["method"]) for r in rows] == [(str(k), m) for k in (1, 2, 3) for m in ("ransac", "probabilistic")]
+    # the rendered pairs of seed 4 are easy: both methods within 1 deg / 5 cm of the true motion
+    assert all(r["success"] == "True" and float(r["rot_err_deg"]) < 1.0 for r in rows)
+    assert all(0.0 <= float(r["outlier_ratio"]) < 1.0 and int(r["n"]) == int(short.frame(int(r["frame"])).n) for r in rows)
+    summary = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert summary["settings"]["frames"] == 3 and [s["method"] for s in summary["summary"]] == ["ransac", "probabilistic"]
+    assert all(s["success"] == 1.0 and s["ci_low"] < 1.0 for s in summary["summary"])
+    # same seed, same rows (wall time aside), whatever the order of the methods
+    assert main([*argv[:-2], "probabilistic,ransac", "--no-progress", "--no-plots", "--out", str(tmp_path / "b")]) == 0
+    again = {(r["frame"], r["method"]): r for r in _without_time(_rows(tmp_path / "b" / "frames.csv"))}
+    assert {(r["frame"], r["method"]): r for r in _without_time(rows)} == again
+    assert not (tmp_path / "b" / "success_vs_time.png").exists()
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["--source", "kitti:/nowhere"], "baselines needs per-match ground truth"),
+    (["--source", "rendered:plane"], "the rendered preset must be one of car, free, got 'plane'"),
+    (["--source", "rendered", "--methods", "nosac"], "--methods: unknown method(s): nosac"),
+    (["--source", "rendered", "--frames", "0"], "--frames must be >= 1"),
+])
+def test_baselines_on_images_refuses_what_it_cannot_run_in_one_line(tmp_path, capsys, argv, needle):
+    try:
+        code = main(["baselines", *argv, "--no-progress", "--out", str(tmp_path / "x")])
+    except SystemExit as exc:
+        code = exc.code
+    assert code == 2
+    assert needle in one_line_error(capsys, "baselines")
+    assert not (tmp_path / "x").exists()

@@ -22,8 +22,9 @@ cluster with ``--address``). The rows never depend on the backend or the worker 
 
 The default grid (epsilon {0.2, 0.5, 0.8} x sigma 0.5 px x AUC {0.75, 0.9} x N {200, 500},
 the simulator's outlier mix, 10 frames per cell = 120 frames, at most 2000 hypotheses)
-takes one to two minutes on two cores; ``--full`` runs the issue's whole grid (1296 cells,
-many hours).
+takes one to two minutes on two cores; ``--full`` runs the whole grid (1296 cells,
+many hours). ``--source rendered[:PRESET]`` runs the methods on rendered stereo images instead
+(:mod:`vo_gym_cli.commands.baselines_images`).
 """
 
 from __future__ import annotations
@@ -39,12 +40,15 @@ from typing import Any, Callable
 
 
 from vo_gym_cli.commands.common import (
+    PRESETS,
     RunStart,
     UsageError,
     check_output_dir,
     flag_error,
     csv_list,
     interrupted_run,
+    open_run_folder,
+    parse_source,
     positive_int,
     seed as parse_seed,
     stoppable,
@@ -53,10 +57,6 @@ from vo_gym_cli.commands.common import (
 # stereovo.reporting.PLOT_FORMATS, spelled out so that building the parser imports no numerical code
 # (a test checks that the two agree).
 PLOT_FORMATS = ("png", "pdf", "svg")
-
-# Kept for modules that imported the old private names.
-_csv_list, _positive_int, _seed = csv_list, positive_int, parse_seed
-
 
 def add_backend_options(parser: argparse.ArgumentParser, what: str = "trials") -> None:
     """``--backend``, ``--workers``, ``--address``, ``--resume``, ``--overwrite``: shared by every grid command."""
@@ -85,17 +85,6 @@ def backend_from_args(args: argparse.Namespace, workers: int):
         raise UsageError(str(err)) from None
 
 
-def open_run_folder(args: argparse.Namespace) -> Path:
-    """``--out`` refused when not empty (unless --resume / --overwrite), then proved writable."""
-    from stereovo.trials import RunFolderError, prepare_run_folder
-
-    try:
-        prepare_run_folder(args.out, resume=args.resume, overwrite=args.overwrite)
-    except RunFolderError as err:
-        raise UsageError(str(err)) from None
-    return check_output_dir(args.out)
-
-
 def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = (
@@ -104,26 +93,34 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
         "--full:       epsilon 0.1..0.9 x sigma 0.25,0.5,1,2 x AUC 0.5,0.75,0.9 x N 100,500,1000 x"
         " outliers mix,random,stereo,moving, 10 frames per cell, core's hypothesis cap (hours)"
     )
-    parser.add_argument("--methods", type=_csv_list(str, "--methods"), default=None, metavar="A,B,...",
+    parser.add_argument("--methods", type=csv_list(str, "--methods"), default=None, metavar="A,B,...",
                         help="comma-separated methods (default: all; see --list-methods)")
     parser.add_argument("--list-methods", action="store_true", help="list the methods and exit")
     parser.add_argument("--full", action="store_true", help="run the issue's whole grid (hours)")
-    parser.add_argument("--frames-per-cell", type=_positive_int("--frames-per-cell"), default=None, metavar="F",
+    parser.add_argument("--frames-per-cell", type=positive_int("--frames-per-cell"), default=None, metavar="F",
                         help="frames (seeds) per grid cell (default: 10)")
-    parser.add_argument("--epsilons", type=_csv_list(float, "--epsilons"), default=None, metavar="E,...",
+    parser.add_argument("--epsilons", type=csv_list(float, "--epsilons"), default=None, metavar="E,...",
                         help="override the grid's contamination values")
-    parser.add_argument("--sigmas", type=_csv_list(float, "--sigmas"), default=None, metavar="S,...",
+    parser.add_argument("--sigmas", type=csv_list(float, "--sigmas"), default=None, metavar="S,...",
                         help="override the grid's pixel noise values [px]")
-    parser.add_argument("--aucs", type=_csv_list(float, "--aucs"), default=None, metavar="A,...",
+    parser.add_argument("--aucs", type=csv_list(float, "--aucs"), default=None, metavar="A,...",
                         help="override the grid's match-score AUC values")
-    parser.add_argument("--ns", type=_csv_list(int, "--ns"), default=None, metavar="N,...",
+    parser.add_argument("--ns", type=csv_list(int, "--ns"), default=None, metavar="N,...",
                         help="override the grid's correspondence counts")
-    parser.add_argument("--outlier-kinds", type=_csv_list(str, "--outlier-kinds"), default=None, metavar="K,...",
+    parser.add_argument("--outlier-kinds", type=csv_list(str, "--outlier-kinds"), default=None, metavar="K,...",
                         help="override the grid's outlier kinds (mix, random, stereo, moving)")
-    parser.add_argument("--max-iterations", type=_positive_int("--max-iterations"), default=None, metavar="K",
+    parser.add_argument("--max-iterations", type=positive_int("--max-iterations"), default=None, metavar="K",
                         help="hypothesis cap for every method (default: 2000; --full: the core's default)")
-    parser.add_argument("--preset", default="car", choices=["car", "free"], help="motion preset (default: car)")
-    parser.add_argument("--seed", type=_seed, default=0, help="base seed of frames and estimators (default: 0)")
+    parser.add_argument("--preset", default="car", choices=list(PRESETS), help="motion preset (default: car)")
+    parser.add_argument("--source", type=parse_source, default=None, metavar="rendered[:PRESET]",
+                        help="run on rendered stereo images through the front end instead of the simulated grid "
+                             "(needs the 'images' and 'render' extras; PRESET car or free, else --preset); "
+                             "uses --methods, --max-iterations, --frames, --resolution, --seed, --out")
+    parser.add_argument("--frames", type=positive_int("--frames"), default=40,
+                        help="with --source: rendered frame pairs (default: 40)")
+    parser.add_argument("--resolution", default="kitti", choices=["kitti", "vga"],
+                        help="with --source: image size, kitti (1241x376) or vga (640x480)")
+    parser.add_argument("--seed", type=parse_seed, default=0, help="base seed of frames and estimators (default: 0)")
     parser.add_argument("--out", type=Path, default=Path("runs/baselines"), help="output folder (default: runs/baselines)")
     parser.add_argument("--no-plots", action="store_true", help="skip the figures")
     parser.add_argument("--format", choices=PLOT_FORMATS, default="png", dest="plot_format",
@@ -204,6 +201,10 @@ def _run(args: argparse.Namespace) -> int:
         return 0
     if args.report_only is not None:
         return _report_only(args)
+    if args.source is not None:
+        from vo_gym_cli.commands.baselines_images import run_on_images  # imports this module
+
+        return run_on_images(args)
 
     base = bm.FULL_GRID if args.full else bm.DEFAULT_GRID
     # Each axis alone first, so that a value out of range is named by its flag.

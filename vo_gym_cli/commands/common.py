@@ -126,6 +126,63 @@ def finite_float(name: str, low: float | None = None, high: float | None = None,
     return parse
 
 
+PRESETS = ("car", "free")
+"""The motion presets of the simulator and of rendered sequences (``--preset``, ``rendered:PRESET``)."""
+
+
+def parse_source(text: str) -> str:
+    """``--source``: ``rendered``, ``rendered:PRESET`` or ``kitti:PATH[:SEQ]`` (checked, returned as given)."""
+    from stereovo.sequences.sources import parse_source as parse
+
+    try:
+        kind, named = parse(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(f"--{err}") from None
+    if kind == "rendered" and named.get("preset", "car") not in PRESETS:
+        raise argparse.ArgumentTypeError(f"--source {text!r}: the rendered preset must be one of "
+                                         f"{', '.join(PRESETS)}, got {named['preset']!r}")
+    return text
+
+
+def render_pairs(source: str, preset: str, n_frames: int, seed: int, resolution: str,
+                 advance: Callable[[], None] | None = None) -> tuple[list, Any]:
+    """Frame pairs ``1..n_frames`` of a rendered sequence, matched by the front end, and the
+    (closed) sequence, whose ``camera``, ``true_poses`` and ``noise_sigma`` stay readable.
+
+    ``advance`` is called after each pair (a progress bar's ``update``).
+
+    Raises:
+        UsageError: naming ``--source`` when the machine cannot render headless.
+    """
+    from stereovo.sequences.rendered import RenderedSequence
+    from stereovo.sequences.rendering import RenderingUnavailable
+
+    try:
+        sequence = RenderedSequence(preset, n_frames=n_frames, seed=seed, resolution=resolution)
+    except RenderingUnavailable as err:
+        raise UsageError(f"--source {source}: {' '.join(str(err).split())}") from None
+    try:
+        frames = []
+        for k in range(1, n_frames + 1):
+            frames.append(sequence.frame(k))
+            if advance is not None:
+                advance()
+    finally:
+        sequence.close()
+    return frames, sequence
+
+
+def open_run_folder(args: argparse.Namespace) -> Path:
+    """``--out`` refused when not empty (unless --resume / --overwrite), then proved writable."""
+    from stereovo.trials import RunFolderError, prepare_run_folder
+
+    try:
+        prepare_run_folder(args.out, resume=args.resume, overwrite=args.overwrite)
+    except RunFolderError as err:
+        raise UsageError(str(err)) from None
+    return check_output_dir(args.out)
+
+
 def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
     """Create ``path`` if needed and prove it writable, before any computing starts.
 

@@ -27,7 +27,8 @@ import json
 from pathlib import Path
 
 from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
-from vo_gym_cli.commands.baselines import PLOT_FORMATS, add_backend_options, backend_from_args, open_run_folder
+from vo_gym_cli.commands.baselines import PLOT_FORMATS, add_backend_options, backend_from_args
+from vo_gym_cli.commands.common import open_run_folder
 from vo_gym_cli.commands.common import RunStart, UsageError, flag_error, interrupted_run, stoppable
 from vo_gym_cli.commands.common import csv_list as _csv_list
 from vo_gym_cli.commands.common import positive_int as _positive_int

@@ -17,38 +17,27 @@ import json
 from pathlib import Path
 from typing import Any
 
-from vo_gym_cli.commands.common import UsageError, check_output_dir, require_extra
+from vo_gym_cli.commands.common import UsageError, check_output_dir, render_pairs, require_extra
 
 
 def _render(args: argparse.Namespace, preset: str, progress: bool) -> list:
-    from stereovo.sequences.rendered import RenderedSequence
-    from stereovo.sequences.rendering import RenderingUnavailable
     from vo_gym.images_env import ReplayedFrames
 
-    episodes = []
     bar = None
     if progress:
         from tqdm.auto import tqdm
 
         bar = tqdm(total=args.episodes * (args.frames_per_episode + 1), desc="rendering + matching", unit="frame")
-    for i in range(args.episodes):
-        try:
+    episodes = []
+    try:
+        for i in range(args.episodes):
             # one pair more than an episode: the environment draws the episode's start from its seed
-            seq = RenderedSequence(preset, n_frames=args.frames_per_episode + 1, seed=args.seed + i,
-                                   resolution=args.resolution)
-        except RenderingUnavailable as err:
-            raise UsageError(f"--source {args.source}: {' '.join(str(err).split())}") from None
-        try:
-            frames = []
-            for k in range(1, args.frames_per_episode + 2):
-                frames.append(seq.frame(k))
-                if bar is not None:
-                    bar.update()
+            frames, seq = render_pairs(args.source, preset, args.frames_per_episode + 1, args.seed + i,
+                                       args.resolution, advance=None if bar is None else bar.update)
             episodes.append(ReplayedFrames(frames, seq.camera, seq.true_poses, seq.noise_sigma))
-        finally:
-            seq.close()
-    if bar is not None:
-        bar.close()
+    finally:
+        if bar is not None:
+            bar.close()
     return episodes
 
 

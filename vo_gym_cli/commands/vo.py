@@ -25,11 +25,13 @@ from typing import Any, Iterator
 
 from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
 from vo_gym_cli.commands.common import (
+    PRESETS,
     UsageError,
     bounded_int,
     check_output_dir,
     finite_float,
     flag_error,
+    parse_source,
     positive_int,
     require_extra,
     score_inputs,
@@ -76,23 +78,6 @@ def parse_outliers(text: str) -> float | tuple[float, float]:
             raise argparse.ArgumentTypeError(f"outlier range {text!r} must have lo <= hi")
         return values[0], values[1]
     return values[0]
-
-
-PRESETS = ("car", "free")
-
-
-def parse_source(text: str) -> str:
-    """``--source``: ``rendered``, ``rendered:PRESET`` or ``kitti:PATH[:SEQ]`` (checked, returned as given)."""
-    from stereovo.sequences.sources import parse_source as parse
-
-    try:
-        kind, named = parse(text)
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(f"--{err}") from None
-    if kind == "rendered" and named.get("preset", "car") not in PRESETS:
-        raise argparse.ArgumentTypeError(f"--source {text!r}: the rendered preset must be one of "
-                                         f"{', '.join(PRESETS)}, got {named['preset']!r}")
-    return text
 
 
 def add_parser(parser: argparse.ArgumentParser) -> None:
