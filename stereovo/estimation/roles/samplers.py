@@ -184,7 +184,6 @@ class WeightedSampler:
         return np.sum(np.log(picked) - left, axis=1)
 
 
-@functools.lru_cache(maxsize=64)
 def prosac_growth(n: int, sample_size: int = SAMPLE_SIZE, t_n: float = 200_000) -> np.ndarray:
     """PROSAC's T'_n for n = 0..N (Chum & Matas 2005); entries below ``sample_size`` are 0.
 
@@ -192,14 +191,12 @@ def prosac_growth(n: int, sample_size: int = SAMPLE_SIZE, t_n: float = 200_000) 
     ``T'_m = 1``, ``T'_{k+1} = T'_k + ceil(T_{k+1} - T_k)``.
 
     The recursion is sequential (a cumulative product would round differently and move the
-    ceilings), so it runs as a Python loop over n; the same N recurs on every frame of a sequence,
-    hence the cache. The returned ``(n + 1,)`` int64 array is shared and read-only.
+    ceilings), so it runs as a Python loop over n; :func:`shared_prosac_growth` keeps its results.
     """
     m = sample_size
     T = np.zeros(n + 1)
     T_prime = np.zeros(n + 1, dtype=np.int64)
     if n < m:
-        T_prime.flags.writeable = False
         return T_prime
     i = np.arange(m)
     T[m] = t_n * np.prod((m - i) / (n - i))
@@ -207,8 +204,16 @@ def prosac_growth(n: int, sample_size: int = SAMPLE_SIZE, t_n: float = 200_000) 
     for k in range(m, n):
         T[k + 1] = T[k] * (k + 1) / (k + 1 - m)
         T_prime[k + 1] = T_prime[k] + int(np.ceil(T[k + 1] - T[k]))
-    T_prime.flags.writeable = False
     return T_prime
+
+
+@functools.lru_cache(maxsize=64)
+def shared_prosac_growth(n: int, sample_size: int = SAMPLE_SIZE, t_n: float = 200_000) -> np.ndarray:
+    """:func:`prosac_growth` computed once per arguments, as one shared read-only ``(n + 1,)``
+    array: the same N recurs on every frame of a sequence, and the loop over n is not free."""
+    growth = prosac_growth(n, sample_size, t_n)
+    growth.flags.writeable = False
+    return growth
 
 
 def validate_order(order: np.ndarray, n: int) -> np.ndarray:
@@ -238,7 +243,7 @@ class ProsacSampler:
         self.n = self.order.shape[0]
         if self.n < SAMPLE_SIZE:
             raise ValueError(f"need at least {SAMPLE_SIZE} correspondences to sample, got {self.n}")
-        self.growth = prosac_growth(self.n, SAMPLE_SIZE, t_n)
+        self.growth = shared_prosac_growth(self.n, SAMPLE_SIZE, t_n)
         self.n_max = self.n
         self.t = 0
         # Draws by their largest rank (0-based), for drawn_within; batches wait in _pending and are

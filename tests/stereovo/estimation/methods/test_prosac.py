@@ -429,3 +429,26 @@ def test_ransac_with_a_prosac_order_stops_by_its_schedule_not_at_the_cap():
     assert max(h for h, _ in random_order) < 10_000, random_order
     assert np.median([h for h, _ in random_order]) <= 1.5 * np.median([h for h, _ in uniform]), (random_order, uniform)
     assert sum(r for _, r in random_order) >= sum(r for _, r in uniform) - 1
+
+
+def test_prosac_method_options_reach_its_sampler_and_its_stop_and_order_is_required():
+    from stereovo.estimation.registry import validate_options
+    from stereovo.estimation.roles.samplers import prosac_growth
+
+    frame, order = perfect_order_frame(epsilon=0.5)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    given = {"prosac_t_n": 5000.0, "prosac_beta": 0.07, "prosac_psi": 0.02, "prosac_min_n": 31}
+    options, extra = validate_options("prosac", {"noise_sigma": frame.noise_sigma, "max_iterations": 777, **given})
+    components = method_spec("prosac").build(problem, options, None, order, extra)
+    stop, sampler = components.termination, components.sampler
+    assert isinstance(stop, ProsacTermination) and stop.sampler is sampler
+    np.testing.assert_array_equal(sampler.growth, prosac_growth(problem.n, 3, 5000.0))
+    assert (stop.beta, stop.psi, stop.min_n, stop.max_iterations) == (0.07, 0.02, 31, 777)
+    assert stop.confidence == options.confidence
+    # under a fixed budget the stop still listens (it lowers n_max to n*), and the budget ends the search
+    options, extra = validate_options("prosac", {"noise_sigma": frame.noise_sigma, "budget": 12})
+    budgeted = method_spec("prosac").build(problem, options, None, order, extra)
+    assert not isinstance(budgeted.termination, ProsacTermination)
+    assert [type(x) for x in budgeted.listeners if isinstance(x, ProsacTermination)] == [ProsacTermination]
+    with pytest.raises(ValueError, match="method 'prosac' needs order="):
+        method_spec("prosac").build(problem, options, None, None, extra)

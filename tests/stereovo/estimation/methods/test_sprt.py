@@ -477,3 +477,20 @@ def test_sprt_verifier_hands_the_kernel_float64_motions_and_int64_samples():
     assert run(R, t, samples) == expected
     assert run(R.astype(float), t.astype(float), samples.astype(np.float16)) == expected
     assert run(R.astype(float), t.astype(float), samples.astype(np.int32)) == expected
+
+
+def test_waldsac_method_options_reach_its_verifier():
+    from stereovo.estimation.estimator_options import EstimatorOptions
+    from stereovo.estimation.problem import StereoProblem
+    from stereovo.estimation.registry import method_spec, validate_options
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=80, outlier_ratio=0.3), rng=2)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    given = {"sprt_t_m": 123.0, "sprt_epsilon0": 0.2, "sprt_delta0": 0.03, "sprt_chunk": 7}
+    options, extra = validate_options("waldsac", given)
+    verifier = method_spec("waldsac").build(problem, options, None, None, extra).verifier
+    assert isinstance(verifier, SprtVerification) and verifier.n == problem.n
+    assert (verifier.t_m, verifier.epsilon0, verifier.delta0, verifier.chunk) == (123.0, 0.2, 0.03, 7)
+    defaults = method_spec("waldsac").build(problem, EstimatorOptions(), None, None, validate_options("waldsac", {})[1])
+    assert (defaults.verifier.t_m, defaults.verifier.epsilon0, defaults.verifier.delta0, defaults.verifier.chunk) == (
+        500.0, 0.1, 0.01, 16)

@@ -18,6 +18,7 @@ from stereovo.estimation.roles.samplers import (
     WeightedSampler,
     distinct_uniform_triplets,
     prosac_growth,
+    shared_prosac_growth,
     ReplaySampler,
     UniformSampler,
     normalised_weights,
@@ -109,13 +110,14 @@ def test_prosac_samples_respect_n_max():
     assert later.max() < 40
 
 
-def test_prosac_growth_is_computed_once_per_length_and_shared_read_only():
-    first, again = prosac_growth(300), prosac_growth(300)
+def test_the_samplers_prosac_growth_is_computed_once_per_length_and_shared_read_only():
+    first, again = shared_prosac_growth(300, 3, 200_000), shared_prosac_growth(300, 3, 200_000)
     assert first is again and not first.flags.writeable
-    np.testing.assert_array_equal(first, prosac_growth.__wrapped__(300))
+    np.testing.assert_array_equal(first, prosac_growth(300))
     with pytest.raises(ValueError, match="read-only"):
         first[5] = 0
-    assert not prosac_growth(2).flags.writeable and prosac_growth(2).tolist() == [0, 0, 0]
+    assert shared_prosac_growth(2).tolist() == [0, 0, 0]
+    assert ProsacSampler(np.arange(300)).growth is first
 
 
 def test_prosac_growth_matches_the_hand_listed_schedule():
