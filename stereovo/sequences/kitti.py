@@ -36,6 +36,21 @@ from stereovo.simulation import FrameTruth, OutlierKind
 _IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".pgm", ".ppm", ".bmp", ".tif", ".tiff")
 
 
+def _three_by_four(text: str, what: str, shown: str) -> np.ndarray:
+    """The 12 numbers of one line of KITTI's calibration or pose file as a ``(3, 4)`` matrix.
+
+    Raises:
+        ValueError: ``{what} must be 12 numbers, got {shown}`` or ``... 12 finite numbers, got COUNT``.
+    """
+    try:
+        numbers = np.array([float(x) for x in text.split()])
+    except ValueError:
+        raise ValueError(f"{what} must be 12 numbers, got {shown}") from None
+    if numbers.size != 12 or not np.all(np.isfinite(numbers)):
+        raise ValueError(f"{what} must be 12 finite numbers, got {numbers.size}")
+    return numbers.reshape(3, 4)
+
+
 def read_calibration(path: Path) -> StereoCamera:
     """A :class:`StereoCamera` (size 1x1, set later) from KITTI's ``calib.txt`` (P0 and P1)."""
     rows: dict[str, np.ndarray] = {}
@@ -47,13 +62,7 @@ def read_calibration(path: Path) -> StereoCamera:
             key = key.strip()
             if key not in ("P0", "P1"):
                 continue
-            try:
-                numbers = np.array([float(x) for x in values.split()])
-            except ValueError:
-                raise ValueError(f"{path}, line {number}: {key} must be 12 numbers, got {values.strip()!r}") from None
-            if numbers.size != 12 or not np.all(np.isfinite(numbers)):
-                raise ValueError(f"{path}, line {number}: {key} must be 12 finite numbers, got {numbers.size}")
-            rows[key] = numbers.reshape(3, 4)
+            rows[key] = _three_by_four(values, f"{path}, line {number}: {key}", repr(values.strip()))
     missing = [key for key in ("P0", "P1") if key not in rows]
     if missing:
         raise ValueError(f"{path}: no {' and no '.join(missing)} line (KITTI's 'P0: 12 numbers' projections)")
@@ -74,14 +83,8 @@ def read_poses(path: Path) -> np.ndarray:
         for number, line in enumerate(handle, 1):
             if not line.strip():
                 continue
-            try:
-                values = np.array([float(x) for x in line.split()])
-            except ValueError:
-                raise ValueError(f"{path}, line {number}: a pose must be 12 numbers, got {line.strip()[:60]!r}") from None
-            if values.size != 12 or not np.all(np.isfinite(values)):
-                raise ValueError(f"{path}, line {number}: a pose must be 12 finite numbers, got {values.size}")
             pose = np.eye(4)
-            pose[:3, :] = values.reshape(3, 4)
+            pose[:3, :] = _three_by_four(line, f"{path}, line {number}: a pose", repr(line.strip()[:60]))
             poses.append(pose)
     if not poses:
         raise ValueError(f"{path}: no poses")

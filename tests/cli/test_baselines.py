@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from stereovo.benchmark import PLOT_FILES, TIME_COLUMNS, benchmark_methods
-from tests.support.cli import one_line_error
+from tests.support.cli import exit_code, one_line_error
 from vo_gym_cli.main import main
 
 TINY = ["--methods", "ransac,msac", "--epsilons", "0.2,0.6", "--aucs", "0.9", "--ns", "80", "--frames-per-cell", "2",
@@ -377,10 +377,6 @@ def test_baselines_on_rendered_images_writes_rows_summary_and_plot_and_repeats_b
     (["--source", "rendered", "--frames", "0"], "--frames must be >= 1"),
 ])
 def test_baselines_on_images_refuses_what_it_cannot_run_in_one_line(tmp_path, capsys, argv, needle):
-    try:
-        code = main(["baselines", *argv, "--no-progress", "--out", str(tmp_path / "x")])
-    except SystemExit as exc:
-        code = exc.code
-    assert code == 2
+    assert exit_code(["baselines", *argv, "--no-progress", "--out", str(tmp_path / "x")]) == 2
     assert needle in one_line_error(capsys, "baselines")
     assert not (tmp_path / "x").exists()

@@ -18,7 +18,7 @@ import pytest
 from hypothesis import given, strategies as st
 
 import vo_gym
-from tests.support.cli import one_line_error
+from tests.support.cli import exit_code, one_line_error
 from tests.support.fuzz import FUZZ
 from vo_gym_cli import main as cli
 from vo_gym_cli.main import main
@@ -98,13 +98,6 @@ BAD_ARGUMENTS = [
 ]
 """Bad values of every command: rejected while parsing (argparse's exit) or by the command's own
 check (its return code), alike for the user: exit 2, one line naming the flag, nothing written."""
-
-
-def exit_code(argv: list[str]) -> int:
-    try:
-        return main(argv)
-    except SystemExit as exc:
-        return exc.code
 
 
 @pytest.mark.parametrize("command, argv, needle", BAD_ARGUMENTS)

@@ -61,3 +61,21 @@ def test_kitti_errors_name_the_file(tmp_path, short):
     (folder / "image_1" / "000003.png").unlink()
     with pytest.raises(ValueError, match="4 left images but 3 right images"):
         KittiOdometry(tmp_path, "01")
+
+
+def test_kitti_pose_and_calibration_lines_need_twelve_finite_numbers(tmp_path):
+    from stereovo.sequences.kitti import read_calibration, read_poses
+
+    poses = tmp_path / "00.txt"
+    poses.write_text("1 0 0 0 0 1 0 0 0 0 1 0\n\n1 0 0 0 0 1 0 0 0 0 1 2.5\n")
+    assert read_poses(poses).shape == (2, 4, 4) and read_poses(poses)[1, 2, 3] == 2.5
+    for line, message in (("1 0 0 0 0 1 0 0 0 0 1 x", r"line 1: a pose must be 12 numbers, got '1 0 0 0 0 1 0 0 0 0 1 x'$"),
+                          ("1 0 0 0 0 1 0 0 0 0 1", r"line 1: a pose must be 12 finite numbers, got 11$"),
+                          ("1 0 0 0 0 1 0 0 0 0 1 nan", r"line 1: a pose must be 12 finite numbers, got 12$")):
+        poses.write_text(line + "\n")
+        with pytest.raises(ValueError, match=message):
+            read_poses(poses)
+    calib = tmp_path / "calib.txt"
+    calib.write_text("P0: 700 0 600 0 0 700 180 0 0 0 1 0\nP1: 700 0 600 -378 0 700 180 0 0 0 1 inf\n")
+    with pytest.raises(ValueError, match=r"calib.txt, line 2: P1 must be 12 finite numbers, got 12$"):
+        read_calibration(calib)
