@@ -18,7 +18,13 @@ Protocol:
   :mod:`stereovo.benchmark`'s :class:`~stereovo.benchmark.ClassicalEstimator`.
   Frames of one epsilon are also identical across budgets.
 - Agents act through the environment (so learned and constant-velocity agents
-  get their features from their own previous estimates, as in training).
+  get their features from their own previous estimates, as in training). An
+  in-frame sampler (``adaptive-pg-prior``, ...) steers the search inside a frame,
+  which the per-frame environment has no action for: it runs on the episode's
+  frames through :class:`agents.LearnedEstimator` (the environments' estimator
+  options, its previous estimate feeding the next frame's features, as in the
+  environment), at the setting's budget batch after batch and, with
+  ``adaptive_agents``, under its own stop (:func:`run_in_frame_episode`).
   Classical methods run three ways: with the environment's estimator settings at
   the same fixed budget (``"<method> (fixed)"``, the like-for-like comparison);
   with their own adaptive stopping and the environment's recipe (sample polish and
@@ -58,6 +64,7 @@ from agents.evaluation.setup import (
     KIND_TEXTBOOK,
     ROW_COLUMNS,
     AgentSpec,
+    IN_FRAME_KIND,
     EvalConfig,
     EvaluationResult,
 )
@@ -219,6 +226,49 @@ def run_classical_episode(
     return rows
 
 
+_IN_FRAME_TAG = 0x696E6672  # "infr"
+
+
+def run_in_frame_episode(
+    agent: AgentSpec, env_id: str, env_kwargs: Mapping[str, Any], seed: int, episode: int = 0,
+    base_seed: int = 0, adaptive: bool = False, budget_column: int | None = None,
+) -> list[dict[str, Any]]:
+    """An in-frame sampler on the frames of the episode an agent would see from ``seed``: one row per frame.
+
+    It runs through :class:`agents.LearnedEstimator` at ``env_kwargs["budget"]`` hypotheses (batch
+    after batch, its stop unused) or, with ``adaptive``, under its own stop (its training cap, 64).
+    One generator per episode, seeded from ``(base_seed, epsilon, budget, seed, label)``; the
+    estimator keeps its previous motion from frame to frame and forgets it at the episode's start.
+    """
+    from agents.estimator import LearnedEstimator
+    from stereovo.benchmark import measure_estimator, quantize, stable_int
+
+    env = make_env(env_id, **env_kwargs)
+    try:
+        frames = episode_frames(env, seed)
+        budget = env_kwargs["budget"] if budget_column is None else budget_column
+        common = _setting_columns(env_kwargs["outlier_ratio"], budget, env)
+    finally:
+        env.close()
+    estimator = LearnedEstimator(agent.source, budget=None if adaptive else int(env_kwargs["budget"]))
+    label = f"{agent.label} (adaptive)" if adaptive else agent.label
+    rng = np.random.default_rng(np.random.SeedSequence(
+        base_seed, spawn_key=(_IN_FRAME_TAG, quantize(common["epsilon"]), common["budget"], seed, stable_int(label))))
+
+    def call(frame, generator):
+        return estimator.estimate(frame.prev, frame.curr, frame.camera, frame.scores, rng=generator)
+
+    rows = []
+    for frame in frames:
+        metrics, elapsed = measure_estimator(call, frame, rng)
+        row = {**common, "episode": episode, "seed": seed, "frame": frame.index, "method": label,
+               "kind": KIND_AGENT_ADAPTIVE if adaptive else KIND_AGENT, **{k: metrics[k] for k in _METRIC_KEYS},
+               "n_true_inliers": int(np.count_nonzero(frame.truth.inlier)),
+               "frame_outlier_ratio": float(frame.truth.outlier_ratio), "reward": math.nan, "time_s": elapsed}
+        rows.append({c: row[c] for c in ROW_COLUMNS})
+    return rows
+
+
 @dataclass(frozen=True)
 class _Unit:
     """One piece of work: an agent's episode, or the classical methods on one episode's frames."""
@@ -234,6 +284,9 @@ class _Unit:
 
 def _run_unit(unit: _Unit, config: EvalConfig) -> list[dict[str, Any]]:
     kwargs = config.env_kwargs_for(unit.epsilon, unit.budget)
+    if unit.agent is not None and unit.agent.kind == IN_FRAME_KIND:
+        return run_in_frame_episode(unit.agent, config.env_id, kwargs, unit.seed, unit.episode, config.seed,
+                                    adaptive=unit.adaptive)
     if unit.agent is not None and unit.adaptive:
         kwargs = {**kwargs, "budget": None, "max_iterations": config.max_iterations}
         return run_agent_episode(unit.agent, config.env_id, kwargs, unit.seed, unit.episode,
@@ -287,7 +340,10 @@ def warm_up_worker(config: EvalConfig, agents: Sequence[AgentSpec]) -> None:
     kwargs = {**config.env_kwargs_for(config.sweep_epsilon, config.budget), "n_frames": 1}
     for agent in agents:
         try:
-            run_agent_episode(agent, config.env_id, kwargs, seed=0)
+            if agent.kind == IN_FRAME_KIND:
+                run_in_frame_episode(agent, config.env_id, kwargs, seed=0)
+            else:
+                run_agent_episode(agent, config.env_id, kwargs, seed=0)
         except Exception:  # noqa: BLE001 - the evaluation itself reports a failing agent
             pass
 

@@ -1,7 +1,7 @@
 """What an evaluation of sampling agents compares, on which settings, and the format of its rows.
 
-:class:`AgentSpec` names an agent (a heuristic, the oracle or a checkpoint) and rebuilds it in any
-worker process; :func:`resolve_agent` turns a command-line name into one, loading a checkpoint once
+:class:`AgentSpec` names an agent (a heuristic, the oracle, a one-shot checkpoint or an in-frame
+sampler) and rebuilds it in any worker process; :func:`resolve_agent` turns a command-line name into one, loading a checkpoint once
 so that a bad file is refused before anything runs. :class:`EvalConfig` holds the settings of both
 sweeps and the classical methods (:func:`normalize_methods`). :data:`ROW_COLUMNS` are the columns
 of a per-frame row, ``KIND_*`` the kinds a row can have, :func:`parse_row_value` reads a stored
@@ -25,6 +25,7 @@ ORACLE_LABEL = "oracle (upper bound)"
 DEFAULT_METHODS: tuple[str, ...] = ("ransac", "msac", "prosac", "ransac+guided")
 METHOD_ALIASES: dict[str, str] = {"guided": "ransac+guided", "guided-ransac": "ransac+guided"}
 CHECKPOINT_SUFFIXES = (".pt", ".zip")
+IN_FRAME_KIND = "in-frame"
 
 KIND_AGENT = "agent"
 KIND_ORACLE = "upper bound"
@@ -51,9 +52,13 @@ class AgentSpec:
 
     Attributes:
         label: the name in tables and rows.
-        kind: ``"heuristic"``, ``"oracle"`` or ``"checkpoint"``.
-        source: the heuristic's name, or the checkpoint path (``.pt`` from
-            :func:`agents.checkpoint.save_checkpoint`, or a PPO ``.zip``).
+        kind: ``"heuristic"``, ``"oracle"``, ``"checkpoint"`` (a one-shot sampler, which sets a
+            frame's priors through the environment) or ``"in-frame"`` (a sampler that steers the
+            search batch by batch; it runs through :class:`agents.LearnedEstimator` on the episode's
+            frames, see :func:`agents.evaluation.run.run_in_frame_episode`).
+        source: the heuristic's name, the checkpoint path (``.pt`` from
+            :func:`agents.checkpoint.save_checkpoint`, or a PPO ``.zip``), or the in-frame sampler's
+            shipped name or path.
     """
 
     label: str
@@ -73,6 +78,9 @@ class AgentSpec:
             return OraclePolicy(lambda: base.current_frame.truth.inlier)
         if self.kind == "checkpoint":
             return load_agent_checkpoint(self.source, self.label)
+        if self.kind == IN_FRAME_KIND:
+            raise ValueError(f"agent {self.label!r} is an in-frame sampler: it runs through "
+                             "agents.LearnedEstimator (agents.evaluation.run.run_in_frame_episode), not as an env policy")
         raise ValueError(f"unknown agent kind {self.kind!r}")
 
 
@@ -95,7 +103,8 @@ def load_agent_checkpoint(path: str | os.PathLike, name: str | None = None):
 
 def resolve_agent(text: str) -> AgentSpec:
     """``uniform``/``match-score``/``consistency``/``constant-velocity``, ``oracle``, a shipped sampler's
-    name (:data:`agents.catalog.SHIPPED_SAMPLERS`) or a checkpoint path.
+    name (one-shot, :data:`agents.catalog.SHIPPED_SAMPLERS`, or in-frame,
+    :data:`agents.catalog.IN_FRAME_SAMPLERS`) or a checkpoint path of either kind.
 
     A checkpoint is loaded once here, so a missing file, a foreign file or another feature
     layout is reported before anything runs.
@@ -115,15 +124,27 @@ def resolve_agent(text: str) -> AgentSpec:
         with shipped_checkpoint(name) as shipped:
             load_agent_checkpoint(shipped)
             return AgentSpec(name, "checkpoint", str(shipped))
+    if name in IN_FRAME_SAMPLERS:
+        from agents.adaptive import load_adaptive
+
+        load_adaptive(name)  # a broken installation is reported here, before anything runs
+        return AgentSpec(name, IN_FRAME_KIND, name)
     path = Path(name).expanduser()
     looks_like_path = path.suffix in CHECKPOINT_SUFFIXES or os.sep in name or path.exists()
     if not looks_like_path:
         raise ValueError(
             f"unknown agent {name!r}: not a heuristic ({', '.join(HEURISTICS)}), not {ORACLE!r}, not a shipped "
-            f"sampler ({', '.join(SHIPPED_SAMPLERS)}) and not a checkpoint file (.pt or PPO .zip)"
+            f"sampler ({', '.join(SHIPPED_SAMPLERS + IN_FRAME_SAMPLERS)}) and not a checkpoint file (.pt or PPO .zip)"
         )
     if not path.is_file():
         raise FileNotFoundError(f"agent {name!r}: no checkpoint at {path}")
+    if path.suffix == ".pt":
+        from agents.checkpoint import IN_FRAME, resolve_sampler
+        from agents.samplers import load_sampler
+
+        if resolve_sampler(path)[0] == IN_FRAME:
+            load_sampler(path)  # raises with a clear message on another feature layout
+            return AgentSpec(checkpoint_label(path), IN_FRAME_KIND, str(path))
     load_agent_checkpoint(path)  # raises with a clear message on a foreign file or feature layout
     return AgentSpec(checkpoint_label(path), "checkpoint", str(path))
 
@@ -153,7 +174,7 @@ def resolve_agents(texts: Sequence[str]) -> list[AgentSpec]:
         seen[s.label] = seen.get(s.label, 0) + 1
     out = []
     for s in specs:
-        if s.kind == "checkpoint" and seen[s.label] > 1:
+        if s.kind in ("checkpoint", IN_FRAME_KIND) and seen[s.label] > 1 and s.source != s.label:
             s = AgentSpec(f"{Path(s.source).parent.name}/{s.label}", s.kind, s.source)
         out.append(s)
     labels = [s.label for s in out]

@@ -8,6 +8,8 @@
   built from :mod:`~stereovo.sequences.world` (geometry), :mod:`~stereovo.sequences.textures`
   (procedural textures), :mod:`~stereovo.sequences.rendering` (moderngl + EGL on the CPU) and
   :mod:`~stereovo.sequences.labels` (per-match labels from depth and motion).
+- :mod:`~stereovo.sequences.contamination`: :func:`contaminate`, an image frame's outlier
+  fraction raised to a chosen epsilon with wrong temporal matches (the contamination sweeps).
 - :mod:`~stereovo.sequences.kitti`: :class:`KittiOdometry`, a KITTI odometry sequence on disk.
 - :mod:`~stereovo.sequences.sources`: :func:`open_source` (``"rendered"``, ``"kitti:PATH[:SEQ]"``)
   and :func:`run_image_odometry` (odometry and drift over any of them).
@@ -17,6 +19,7 @@ Importing this package imports neither until a sequence is made.
 """
 
 from stereovo.sequences.base import FRONTEND_SCORE_AUC, FrameSequence, ImageSequence, SimulatedSequence, as_frame_sequence
+from stereovo.sequences.contamination import contaminate
 
 __all__ = [
     "FRONTEND_SCORE_AUC",
@@ -26,6 +29,7 @@ __all__ = [
     "RenderedSequence",
     "SimulatedSequence",
     "as_frame_sequence",
+    "contaminate",
     "open_source",
     "run_image_odometry",
 ]

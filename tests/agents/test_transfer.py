@@ -21,6 +21,7 @@ from agents.transfer import (
     transfer_markdown,
     write_csv,
 )
+from tests.support.images import rendered
 
 TINY = TransferConfig(budgets=(4,), sequences=1, cap=24, samplers=("ngransac-supervised", "adaptive-pg-prior"))
 
@@ -94,5 +95,19 @@ def test_a_registered_domain_joins_the_matrix(monkeypatch):
     config = TransferConfig(domains=("weak-scores",), budgets=(4,), sequences=1, samplers=("ppo",), classical=False)
     rows = run_cell("weak-scores", 0.5, config, build_rows(config))
     assert {r["point"] for r in rows} == {"4", OWN_STOP} and all(r["domain"] == "weak-scores" for r in rows)
-    with pytest.raises(ValueError, match="unknown domain 'rendered'"):
-        run_cell("rendered", 0.5, config, [])
+    with pytest.raises(ValueError, match="unknown domain 'nowhere'"):
+        run_cell("nowhere", 0.5, config, [])
+
+
+def test_the_rendered_domain_gives_front_end_frames_at_the_cells_contamination():
+    rendered(preset="car", n_frames=1, resolution="vga", seed=0).close()  # or a skip naming what is missing
+    frames = transfer.rendered_domain(resolution="vga", n_frames=2)
+    first = [list(seq) for seq in frames(0.8, 11, 2)]
+    again = [list(seq) for seq in frames(0.8, 11, 2)]
+    assert [len(seq) for seq in first] == [2, 2]
+    for seq, seq_again in zip(first, again):
+        for frame, frame_again in zip(seq, seq_again):
+            assert abs(frame.truth.outlier_ratio - 0.8) <= 2.0 / frame.n
+            assert np.array_equal(frame.curr, frame_again.curr) and np.array_equal(frame.scores, frame_again.scores)
+    # two sequences are two drives, not one drive twice
+    assert not np.array_equal(first[0][0].prev[:5], first[1][0].prev[:5])

@@ -33,11 +33,14 @@ def test_a_bad_adaptive_sampler_is_named_before_computing(tmp_path, capsys, cont
 
 def test_evaluate_on_rendered_images_replays_the_same_frames_to_every_agent(tmp_path, capsys, short):
     argv = ["evaluate", "--source", "rendered", "--resolution", "vga", "--episodes", "1", "--frames-per-episode", "2",
-            "--budgets", "1,4", "--agent", "uniform", "--agent", "oracle", "--seed", "4", "--no-progress"]
+            "--budgets", "1,4", "--agent", "uniform", "--agent", "oracle", "--agent", "adaptive-pg-prior",
+            "--methods", "msac", "--seed", "4", "--no-progress"]
     assert main([*argv, "--out", str(tmp_path / "a")]) == 0
     with (tmp_path / "a" / "frames.csv").open() as fh:
         rows = list(csv.DictReader(fh))
-    assert len(rows) == 2 * 2 * 2  # agents x budgets x frames
+    # three agents (one of them in-frame) and one classical method, at two budgets, on two frames
+    assert len(rows) == 4 * 2 * 2
+    assert {r["agent"] for r in rows} == {"uniform", "oracle (upper bound)", "adaptive-pg-prior", "msac (fixed)"}
     assert all(int(r["n_hypotheses"]) == int(r["budget"]) for r in rows)
     summary = json.loads((tmp_path / "a" / "summary.json").read_text())
     assert summary["settings"]["env_id"] == "vo_gym/StereoVOImages-v0"

@@ -42,9 +42,11 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.epilog = (
         "agents: heuristics uniform, match-score, consistency, constant-velocity (no torch needed);"
         " oracle (upper bound, reads labels);\n"
-        f"        shipped learned samplers {', '.join(ONE_SHOT_SAMPLERS)} (needs the train extra);"
-        " or a checkpoint path (.pt, PPO .zip)\n"
-        f"--adaptive: shipped in-frame samplers {', '.join(IN_FRAME_SAMPLERS)}\n"
+        f"        shipped learned samplers {', '.join(ONE_SHOT_SAMPLERS)} (one-shot: the env's priors) and"
+        f" {', '.join(IN_FRAME_SAMPLERS)} (in-frame: through agents.LearnedEstimator on the same frames, at each"
+        " budget batch after batch, and with --adaptive-agents under their own stop) (needs the train extra);"
+        " or a checkpoint path of either kind (.pt, PPO .zip)\n"
+        f"--adaptive: the in-frame comparison (BANSAC, ARS, ... beside {', '.join(IN_FRAME_SAMPLERS)})\n"
         "classical rows: '<method> (fixed)' at the agents' budget and recipe; '<method> (adaptive)' with its own"
         " stop and the environment's recipe (sample polish + final refinement), as the agents;"
         " '<method> (adaptive, textbook)' with its own stop and the core's defaults\n"
@@ -52,7 +54,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--agent", action="append", default=None, metavar="NAME|CHECKPOINT",
                         help=f"agent to evaluate, repeatable: a heuristic, oracle, a shipped sampler"
-                             f" ({', '.join(ONE_SHOT_SAMPLERS)}) or a checkpoint path"
+                             f" ({', '.join(ONE_SHOT_SAMPLERS + IN_FRAME_SAMPLERS)}) or a checkpoint path of either kind"
                              f" (default: {', '.join(DEFAULT_AGENTS)})")
     parser.add_argument("--env-id", default="vo_gym/StereoVO-v0", help="environment id (default: vo_gym/StereoVO-v0)")
     parser.add_argument("--episodes", type=_positive_int("--episodes"), default=10,

@@ -2,7 +2,10 @@
 
 Each episode's frames are rendered once (``--seed + episode``) and matched by the image front end,
 then replayed to every agent at every budget through ``vo_gym/StereoVOImages-v0`` (``source=`` those
-frames, guided sampling), so every agent sees identical frames. Contamination is the front end's,
+frames, guided sampling), so every agent sees identical frames. In-frame samplers run on those frames
+through :class:`agents.LearnedEstimator` (batch after batch up to the budget), and the classical
+``--methods`` (default ransac, msac, prosac, guided) at the same fixed budget with the environments'
+recipe (``"<method> (fixed)"`` rows, as in the simulated evaluation). Contamination is the front end's,
 not a chosen one, so there is no contamination sweep. Success is the environment's (within 1 deg /
 5 cm of the truth), with Wilson 95 % intervals over the frames.
 
@@ -48,7 +51,7 @@ def run_on_images(args: argparse.Namespace, default_agents: tuple[str, ...]) -> 
     import numpy as np
 
     import vo_gym  # noqa: F401  (registers the ids)
-    from agents.evaluation.setup import resolve_agents
+    from agents.evaluation.setup import DEFAULT_METHODS, IN_FRAME_KIND, normalize_methods, resolve_agents
     from stereovo.reporting import wilson_interval
     from stereovo.sequences.sources import parse_source
 
@@ -67,52 +70,126 @@ def run_on_images(args: argparse.Namespace, default_agents: tuple[str, ...]) -> 
         agents = resolve_agents(args.agent or default_agents)
     except (ValueError, FileNotFoundError) as err:
         raise UsageError(f"--agent: {err}") from None
+    try:
+        methods = normalize_methods(DEFAULT_METHODS if args.methods is None else args.methods)
+    except ValueError as err:
+        raise UsageError(f"--methods: {err}") from None
     budgets = sorted(set(args.budgets))
     if any(b < 1 for b in budgets):
         raise UsageError(f"--budgets must be integers >= 1, got {args.budgets}")
     out: Path = check_output_dir(args.out)
-    if any(a.kind == "checkpoint" for a in agents):
+    if any(a.kind in ("checkpoint", IN_FRAME_KIND) for a in agents):
         import torch
 
         torch.set_num_threads(1)
     progress = not args.no_progress
     episodes = _render(args, preset, progress)
-    print(f"vo-gym evaluate: {len(agents)} agent(s) ({', '.join(a.label for a in agents)}) on {args.source} images "
+    print(f"vo-gym evaluate: {len(agents)} agent(s) ({', '.join(a.label for a in agents)}) and "
+          f"{len(methods)} classical method(s) ({', '.join(methods) or 'none'}) on {args.source} images "
           f"({args.resolution}); {args.episodes} episodes x {args.frames_per_episode} frames; budgets "
           f"{','.join(map(str, budgets))}; seed {args.seed}", flush=True)
     rows: list[dict[str, Any]] = []
-    units = [(a, b) for b in budgets for a in agents]
+    units = [(a, b) for b in budgets for a in agents] + [(m, b) for b in budgets for m in methods]
     if progress:
         from tqdm.auto import tqdm
 
-        units = tqdm(units, desc="evaluating", unit="agent x budget")
-    for agent, budget in units:
+        units = tqdm(units, desc="evaluating", unit="row x budget")
+    played = [_episode_frames(frames, args.frames_per_episode, args.seed + e) for e, frames in enumerate(episodes)]
+    for who, budget in units:
         for e, frames in enumerate(episodes):
-            env = gym.make("vo_gym/StereoVOImages-v0", source=frames, n_frames=args.frames_per_episode,
-                           sampling="guided",
-                           budget=budget)
-            policy = agent.build(env)
-            obs, _ = env.reset(seed=args.seed + e)
-            done, k = False, 0
-            while not done:
-                action = np.clip(np.asarray(policy.act(obs), dtype=np.float32), -10, 10)
-                obs, _, terminated, truncated, info = env.step(action)
-                k += 1
-                rows.append({"agent": agent.label, "budget": budget, "episode": e, "frame": k,
-                             "success": bool(info["success"]), "n_hypotheses": int(info["n_hypotheses"])})
-                done = terminated or truncated
-            env.close()
+            if isinstance(who, str):
+                outcomes = _classical(who, budget, played[e], args.seed + e)
+                label = f"{who} (fixed)"
+            elif who.kind == IN_FRAME_KIND:
+                outcomes = _in_frame(who, budget, played[e], args.seed + e)
+                label = who.label
+            else:
+                outcomes = _through_env(who, budget, frames, args.frames_per_episode, args.seed + e)
+                label = who.label
+            rows += [{"agent": label, "budget": budget, "episode": e, "frame": k, "success": bool(ok),
+                      "n_hypotheses": int(hyps)} for k, (ok, hyps) in enumerate(outcomes, start=1)]
+    labels = [a.label for a in agents] + [f"{m} (fixed)" for m in methods]
     summary = []
-    for agent in agents:
+    for label in labels:
         for budget in budgets:
-            own = [r for r in rows if r["agent"] == agent.label and r["budget"] == budget]
+            own = [r for r in rows if r["agent"] == label and r["budget"] == budget]
             hits = sum(r["success"] for r in own)
             low, high = wilson_interval(hits, len(own))
-            summary.append({"agent": agent.label, "budget": budget, "frames": len(own), "success": hits / len(own),
+            summary.append({"agent": label, "budget": budget, "frames": len(own), "success": hits / len(own),
                             "ci_low": float(low), "ci_high": float(high),
                             "mean_hypotheses": float(np.mean([r["n_hypotheses"] for r in own]))})
-    _write(out, args, rows, summary, budgets, [a.label for a in agents])
+    _write(out, args, rows, summary, budgets, labels)
     return 0
+
+
+def _episode_frames(frames, n_frames: int, seed: int) -> list:
+    """The frames an agent sees in the episode from ``seed`` (the environment picks the window)."""
+    import gymnasium as gym
+    import numpy as np
+
+    env = gym.make("vo_gym/StereoVOImages-v0", source=frames, n_frames=n_frames, sampling="guided", budget=1)
+    try:
+        env.reset(seed=seed)
+        base = env.unwrapped
+        out, done = [], False
+        while not done:
+            out.append(base.current_frame)
+            _, _, terminated, truncated, _ = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+            done = terminated or truncated
+        return out
+    finally:
+        env.close()
+
+
+def _through_env(agent, budget: int, frames, n_frames: int, seed: int) -> list[tuple[bool, int]]:
+    """A one-shot agent or heuristic acting through the environment: ``(success, hypotheses)`` a frame."""
+    import gymnasium as gym
+    import numpy as np
+
+    env = gym.make("vo_gym/StereoVOImages-v0", source=frames, n_frames=n_frames, sampling="guided", budget=budget)
+    try:
+        policy = agent.build(env)
+        obs, _ = env.reset(seed=seed)
+        out, done = [], False
+        while not done:
+            action = np.clip(np.asarray(policy.act(obs), dtype=np.float32), -10, 10)
+            obs, _, terminated, truncated, info = env.step(action)
+            out.append((info["success"], info["n_hypotheses"]))
+            done = terminated or truncated
+        return out
+    finally:
+        env.close()
+
+
+def _in_frame(agent, budget: int, frames: list, seed: int) -> list[tuple[bool, int]]:
+    """An in-frame sampler through :class:`agents.LearnedEstimator` on the episode's frames, at the
+    budget batch after batch (its previous estimate feeding the next frame's features)."""
+    from agents.estimator import LearnedEstimator
+    from stereovo.metrics import frame_metrics
+
+    estimator = LearnedEstimator(agent.source, budget=budget, seed=seed)
+    out = []
+    for frame in frames:
+        est = estimator.estimate(frame.prev, frame.curr, frame.camera, frame.scores)
+        out.append((frame_metrics(est, frame.truth).success, est.n_hypotheses))
+    return out
+
+
+def _classical(method: str, budget: int, frames: list, seed: int) -> list[tuple[bool, int]]:
+    """A classical method at the budget with the environments' recipe, on the episode's frames."""
+    import numpy as np
+
+    from stereovo import benchmark as bm
+    from stereovo.metrics import frame_metrics
+    from vo_gym.settings import DEFAULT_ESTIMATOR_OPTIONS
+
+    [(_, estimator)] = bm.classical_estimators([method], **DEFAULT_ESTIMATOR_OPTIONS, budget=int(budget),
+                                               batch_size=int(budget))
+    out = []
+    for frame in frames:
+        est = estimator(frame, np.random.default_rng([seed, frame.index, budget]))
+        out.append((frame_metrics(est, frame.truth).success, est.n_hypotheses))
+    return out
 
 
 def _write(out: Path, args: argparse.Namespace, rows: list[dict], summary: list[dict], budgets: list[int],

@@ -209,3 +209,35 @@ def test_evaluate_runs_agents_adaptively_beside_the_classical_adaptive_rows():
     assert {"prosac (adaptive)", "match-score (adaptive)"} <= set(table)
     with pytest.raises(ValueError, match="adaptive_agents"):
         EvalConfig(adaptive_agents=1)
+
+
+def test_an_in_frame_sampler_is_evaluated_on_the_agents_frames_at_each_budget_and_under_its_own_stop(tmp_path):
+    import shutil
+    from pathlib import Path
+
+    from agents.evaluation.run import run_evaluation
+    from agents.evaluation.setup import IN_FRAME_KIND, KIND_AGENT, KIND_AGENT_ADAPTIVE, resolve_agents
+
+    mine = tmp_path / "mine.pt"
+    shutil.copy(Path(__file__).parents[3] / "agents" / "checkpoints" / "adaptive-pg.pt", mine)
+    agents = resolve_agents(["adaptive-pg-prior", str(mine), "uniform"])
+    assert [(a.label, a.kind) for a in agents[:2]] == [("adaptive-pg-prior", IN_FRAME_KIND), ("mine", IN_FRAME_KIND)]
+    config = EvalConfig(episodes=1, frames_per_episode=3, epsilons=(0.8,), budgets=(2, 8), budget=8,
+                        sweep_epsilon=0.8, n=200, methods=(), max_iterations=300, adaptive_agents=True)
+    result = run_evaluation(config, agents, workers=1, progress=False)
+    rows = {(r["method"], r["budget"], r["frame"]): r for r in result.rows}
+    uniform = [r for r in result.rows if r["method"] == "uniform" and r["budget"] == 8]
+    for label in ("adaptive-pg-prior", "mine"):
+        for budget in (2, 8):
+            fixed = [rows[(label, budget, k)] for k in (1, 2, 3)]
+            assert all(r["kind"] == KIND_AGENT and r["n_hypotheses"] == budget for r in fixed)
+        own = [rows[(f"{label} (adaptive)", 8, k)] for k in (1, 2, 3)]
+        assert all(r["kind"] == KIND_AGENT_ADAPTIVE and 1 <= r["n_hypotheses"] <= 64 for r in own)
+    # the same frames as the env agents'
+    for a, u in zip([rows[("adaptive-pg-prior", 8, k)] for k in (1, 2, 3)], uniform):
+        assert (a["n_true_inliers"], a["frame_outlier_ratio"]) == (u["n_true_inliers"], u["frame_outlier_ratio"])
+    # the in-frame sampler at 8 hypotheses beats uniform sampling at eps 0.8 on these frames
+    assert sum(rows[("adaptive-pg-prior", 8, k)]["success"] for k in (1, 2, 3)) >= sum(u["success"] for u in uniform)
+    # rows are a function of the seed
+    again = run_evaluation(config, agents, workers=1, progress=False)
+    assert _strip_time(again.rows) == _strip_time(result.rows)
