@@ -46,7 +46,7 @@ from torch import nn
 
 from agents.checkpoint import IN_FRAME, IN_FRAME_FORMAT, CheckpointError, read_payload, shipped_checkpoint
 from agents.network import PAD_LOGIT, CorrespondenceNet
-from agents.ngransac import ordered_triplet_log_prob
+from agents.ngransac import ordered_triplet_log_prob, randomised_settings
 from stereovo.options import Choice, Integer, Number, Option, check_options
 from vo_gym.adaptive_env import ADAPTIVE_FEATURE_NAMES, GLOBAL_FEATURE_NAMES, StereoVOAdaptiveEnv
 from vo_gym.registration import HARD_SETTINGS
@@ -79,11 +79,15 @@ class AdaptiveSamplerNet(nn.Module):
 
     @classmethod
     def with_prior(cls, sampler: str, width: int = 48, blocks: int = 3) -> "AdaptiveSamplerNet":
-        """A fresh network over the shipped one-shot ``sampler`` (a name of ``agents.checkpoint.SHIPPED_SAMPLERS``)."""
-        from agents.checkpoint import load_checkpoint
+        """A fresh network over the one-shot ``sampler``: a shipped name (``agents.checkpoint.SHIPPED_SAMPLERS``)
+        or a one-shot ``.pt`` file of :func:`agents.checkpoint.save_checkpoint`."""
+        from agents.checkpoint import SHIPPED_SAMPLERS, load_checkpoint
 
-        with shipped_checkpoint(sampler) as path:
-            one_shot, _ = load_checkpoint(path)
+        if sampler in SHIPPED_SAMPLERS:
+            with shipped_checkpoint(sampler) as path:
+                one_shot, _ = load_checkpoint(path)
+        else:
+            one_shot, _ = load_checkpoint(Path(sampler).expanduser())
         net = cls(width=width, blocks=blocks, prior=one_shot.config())
         net.prior.load_state_dict(one_shot.state_dict())
         return net
@@ -253,8 +257,14 @@ class AdaptiveTrainConfig:
             the budget that stays the same on a busy machine).
         init: checkpoint whose weights training starts from (``None``: fresh weights); its own
             training time adds to this run's in the budget of the result.
-        prior: shipped one-shot sampler whose logits a fresh network adds to its own (``None``: none;
-            see :class:`AdaptiveSamplerNet`); that sampler's training time is its own.
+        prior: one-shot sampler (a shipped name or a ``.pt`` path) whose logits a fresh network adds
+            to its own (``None``: none; see :class:`AdaptiveSamplerNet`); that sampler's training time
+            is its own.
+        domain_randomisation: each episode draws its own match-error process
+            (:func:`agents.ngransac.randomised_settings`: outlier-kind weights over every simulated
+            kind, the hostile ones included, a Student-t noise tail on half the episodes, a score
+            AUC in [0.55, 0.9]) in place of the standard and hard settings' mixes; the hard /
+            standard split then only picks the contamination range.
         max_episodes: stop after this many episodes if the time budget lasts that long (None: the
             budget alone).
     """
@@ -283,6 +293,7 @@ class AdaptiveTrainConfig:
     init: str | None = None
     prior: str | None = None
     max_episodes: int | None = None
+    domain_randomisation: bool = False
     extra: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -291,12 +302,21 @@ class AdaptiveTrainConfig:
             raise ValueError("prior starts a fresh network; init continues a checkpoint (which keeps its own prior)")
 
 
-def _training_env(config: AdaptiveTrainConfig, episode: int) -> tuple[StereoVOAdaptiveEnv, dict]:
+def episode_settings(config: AdaptiveTrainConfig, episode: int) -> tuple[dict[str, Any], bool]:
+    """The adaptive environment's simulator keywords for training episode ``episode`` (a function of
+    ``config.seed`` and ``episode``), and whether it is a hard-setting episode."""
     rng = np.random.default_rng([config.seed, episode])
     hard = rng.random() < config.hard_fraction
     low, high = config.hard_epsilons if hard else config.epsilons
     kwargs = dict(HARD_SETTINGS) if hard else {}
+    if config.domain_randomisation:
+        kwargs = randomised_settings(rng)
     kwargs["outlier_ratio"] = float(rng.uniform(low, high))
+    return kwargs, hard
+
+
+def _training_env(config: AdaptiveTrainConfig, episode: int) -> tuple[StereoVOAdaptiveEnv, dict]:
+    kwargs, hard = episode_settings(config, episode)
     env = StereoVOAdaptiveEnv(
         batch_size=config.batch_size, max_hypotheses=config.max_hypotheses, hypothesis_cost=config.hypothesis_cost,
         n_frames=config.frames_per_episode, n_correspondences=config.n, **kwargs,
@@ -480,14 +500,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--init", default=None, metavar="CHECKPOINT",
                         help="start from this checkpoint's weights (path or shipped name)")
     parser.add_argument("--prior", default=None, metavar="SAMPLER",
-                        help="a fresh network adds this shipped one-shot sampler's logits to its own "
-                             "(e.g. ngransac-supervised)")
+                        help="a fresh network adds this one-shot sampler's logits to its own "
+                             "(a shipped name, e.g. ngransac-supervised, or a one-shot .pt file)")
+    parser.add_argument("--domain-randomisation", action="store_true",
+                        help="each episode draws its own outlier kinds, noise tail and score AUC")
     args = parser.parse_args(argv)
     if args.prior is not None:
-        from agents.checkpoint import SHIPPED_SAMPLERS
+        from agents.checkpoint import ONE_SHOT, SHIPPED_SAMPLERS, resolve_sampler
 
-        if args.prior not in SHIPPED_SAMPLERS:
-            parser.error(f"--prior must be a shipped one-shot sampler ({', '.join(SHIPPED_SAMPLERS)}), got {args.prior!r}")
+        try:
+            kind = resolve_sampler(args.prior)[0]
+        except (ValueError, FileNotFoundError) as err:
+            parser.error(f"--prior: {err}")
+        if kind != ONE_SHOT:
+            parser.error(f"--prior must be a one-shot sampler (shipped: {', '.join(SHIPPED_SAMPLERS)}, or a .pt file), "
+                         f"got the {kind} {args.prior!r}")
         if args.init is not None:
             parser.error("--prior starts a fresh network; --init continues a checkpoint (which keeps its own prior)")
     if not math.isfinite(args.minutes) or args.minutes <= 0:
@@ -509,7 +536,8 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--{name.replace('_', '-')} must be in [0, 1], got {getattr(args, name)}")
     config = AdaptiveTrainConfig(minutes=args.minutes, seed=args.seed, n=args.n, hard_fraction=args.hard_fraction,
                                  right_precision=args.right_precision, right_recall=args.right_recall, lr=args.lr,
-                                 clock=args.clock, init=args.init, prior=args.prior, **ranges)
+                                 clock=args.clock, init=args.init, prior=args.prior,
+                                 domain_randomisation=args.domain_randomisation, **ranges)
     train_adaptive(config, args.out, args.log)
     return 0
 

@@ -24,7 +24,7 @@ import itertools
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Any, Callable, Iterator
 
 import numpy as np
 import torch
@@ -147,11 +147,20 @@ def randomised_frame_stream(config: "NGRansacConfig", seed: int) -> Iterator[Fra
     rng = np.random.default_rng([seed, 17])
     base = config.simulation()
     for i in itertools.count():
-        mix = dict(zip(OUTLIER_KINDS, rng.dirichlet(np.ones(len(OUTLIER_KINDS))).tolist()))
-        dof = float(rng.uniform(*RANDOMISED_DOF)) if rng.random() < 0.5 else None
-        auc = float(rng.uniform(*RANDOMISED_AUC))
-        sim = dataclasses.replace(base, outlier_mix=mix, noise_dof=dof, score_auc=auc)
+        sim = dataclasses.replace(base, **randomised_settings(rng))
         yield from Sequence(sim, seed=np.random.SeedSequence([seed, i]))
+
+
+def randomised_settings(rng: np.random.Generator) -> dict[str, Any]:
+    """One randomised sequence's match-error process as :class:`SimulationConfig` fields:
+    ``outlier_mix`` (flat Dirichlet weights over :data:`stereovo.simulation.OUTLIER_KINDS`),
+    ``noise_dof`` (``U(3, 12)`` on half the draws, else None: Gaussian) and ``score_auc``
+    (``U(0.55, 0.9)``), drawn from ``rng`` in that order. The in-frame trainer draws its
+    randomised episodes from it too (``AdaptiveTrainConfig.domain_randomisation``)."""
+    mix = dict(zip(OUTLIER_KINDS, rng.dirichlet(np.ones(len(OUTLIER_KINDS))).tolist()))
+    dof = float(rng.uniform(*RANDOMISED_DOF)) if rng.random() < 0.5 else None
+    auc = float(rng.uniform(*RANDOMISED_AUC))
+    return {"outlier_mix": mix, "noise_dof": dof, "score_auc": auc}
 
 
 def pose_loss(estimate: MotionEstimate, frame: Frame) -> float:

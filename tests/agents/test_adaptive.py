@@ -144,7 +144,10 @@ def test_a_prior_network_starts_as_the_one_shot_sampler_and_travels_in_its_check
     with pytest.raises(SystemExit):
         train_main(["--prior", "ngransac-nope", "--minutes", "0.01", "--out", str(tmp_path / "x.pt")])
     err = capsys.readouterr().err
-    assert "--prior must be a shipped one-shot sampler" in err and "'ngransac-nope'" in err
+    assert "--prior: unknown sampler 'ngransac-nope'" in err and "ngransac-supervised" in err
+    with pytest.raises(SystemExit):  # an in-frame sampler cannot be a prior
+        train_main(["--prior", "adaptive-pg", "--minutes", "0.01", "--out", str(tmp_path / "x.pt")])
+    assert "--prior must be a one-shot sampler" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         train_main(["--prior", "ngransac-supervised", "--init", "adaptive-pg", "--out", str(tmp_path / "x.pt")])
     assert "--prior starts a fresh network" in capsys.readouterr().err
@@ -276,3 +279,25 @@ def test_policies_refuse_the_wrong_observation_with_a_clear_error():
         in_frame.act({"features": np.zeros((50, 14), np.float32), "mask": np.ones(50), "globals": np.zeros(7)})
     with pytest.raises(ValueError, match="temperature"):
         agents.load_sampler("ppo", temperature=0.0)
+
+
+def test_domain_randomised_episodes_draw_their_own_match_errors():
+    from agents.adaptive import AdaptiveTrainConfig, episode_settings
+    from agents.ngransac import RANDOMISED_AUC
+    from stereovo.simulation import OUTLIER_KINDS
+
+    plain = [episode_settings(AdaptiveTrainConfig(seed=2), e) for e in range(20)]
+    randomised = [episode_settings(AdaptiveTrainConfig(seed=2, domain_randomisation=True), e) for e in range(20)]
+    assert all("noise_dof" not in kwargs for kwargs, _ in plain)
+    # the hard / standard split and its contamination ranges are kept
+    assert [hard for _, hard in plain] == [hard for _, hard in randomised]
+    for (kwargs, hard) in randomised:
+        low, high = AdaptiveTrainConfig().hard_epsilons if hard else AdaptiveTrainConfig().epsilons
+        assert low <= kwargs["outlier_ratio"] <= high
+        assert set(kwargs["outlier_mix"]) == set(OUTLIER_KINDS)
+        assert sum(kwargs["outlier_mix"].values()) == pytest.approx(1.0)
+        assert RANDOMISED_AUC[0] <= kwargs["score_auc"] <= RANDOMISED_AUC[1]
+    assert len({round(k["score_auc"], 9) for k, _ in randomised}) == 20
+    tails = [k["noise_dof"] is not None for k, _ in randomised]
+    assert 0 < sum(tails) < 20  # Student-t on some episodes, Gaussian on the others
+    assert randomised == [episode_settings(AdaptiveTrainConfig(seed=2, domain_randomisation=True), e) for e in range(20)]

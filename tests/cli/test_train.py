@@ -96,8 +96,27 @@ def test_train_adaptive_within_a_time_budget_writes_a_usable_in_frame_sampler(tm
     assert est.sampler_kind == "in-frame" and est.n_hypotheses == 8
 
 
+def test_train_adaptive_with_a_prior_file_and_randomised_episodes(tmp_path, capsys):
+    torch = pytest.importorskip("torch")
+    from agents.adaptive import load_adaptive
+
+    out = tmp_path / "ad"
+    threads = torch.get_num_threads()
+    try:
+        assert main(["train", "--algo", "adaptive", "--minutes", "0.5", "--clock", "cpu", "--max-episodes", "2",
+                     "--frames-per-episode", "2", "--n-correspondences", "60", "--seed", "3", "--no-progress",
+                     "--prior", str(ROOT / "agents" / "checkpoints" / "ngransac-supervised.pt"),
+                     "--domain-randomisation", "--out", str(out)]) == 0
+    finally:
+        torch.set_num_threads(threads)
+    net, payload = load_adaptive(out / "adaptive.pt")
+    assert payload["config"]["domain_randomisation"] is True and net.prior is not None
+    assert "domain-randomised episodes" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("argv, needle", [
-    (["--prior", "nope"], "--prior 'nope' is not a shipped one-shot sampler; shipped: ngransac-supervised"),
+    (["--prior", "nope"], "--prior 'nope' is not a shipped one-shot sampler (shipped: ngransac-supervised"),
+    (["--prior", str(ROOT / "agents" / "checkpoints" / "adaptive-pg.pt")], "adaptive-pg.pt' is an in-frame sampler; a prior is a one-shot one"),
     (["--resume", str(ROOT / "agents" / "checkpoints" / "ppo.pt")], "a one-shot checkpoint; --algo adaptive"),
     (["--prior", "ppo", "--resume", str(ROOT / "agents" / "checkpoints" / "adaptive-pg.pt")], "--prior starts a fresh network, --resume continues"),
 ])

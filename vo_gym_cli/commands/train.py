@@ -104,9 +104,12 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     ad.add_argument("--clock", choices=("wall", "cpu"), default=None,
                     help="what --minutes counts: wall time, or this process' CPU time (the same budget on a busy "
                          "machine) (default wall)")
-    ad.add_argument("--prior", default=None, metavar="NAME",
-                    help="a shipped one-shot sampler whose logits a fresh network adds to its own "
-                         "(e.g. ngransac-supervised; default: none)")
+    ad.add_argument("--prior", default=None, metavar="NAME|PATH",
+                    help="a one-shot sampler whose logits a fresh network adds to its own: a shipped name "
+                         "(e.g. ngransac-supervised) or a one-shot .pt file (default: none)")
+    ad.add_argument("--domain-randomisation", action="store_true",
+                    help="each episode draws its own outlier kinds (the hostile ones included), noise tail and "
+                         "score AUC (agents.ngransac.randomised_settings)")
     ad.add_argument("--max-episodes", type=positive_int("--max-episodes"), default=None,
                     help="stop after this many episodes even within --minutes (default: the time budget alone)")
 
@@ -239,13 +242,21 @@ def _train_adaptive(args: argparse.Namespace, out: Path) -> int:
     from agents.catalog import ONE_SHOT_SAMPLERS
 
     if args.prior is not None and args.prior not in ONE_SHOT_SAMPLERS:
-        raise UsageError(f"--prior {args.prior!r} is not a shipped one-shot sampler; shipped: "
-                         f"{', '.join(ONE_SHOT_SAMPLERS)}")
+        from agents.checkpoint import ONE_SHOT, resolve_sampler
+
+        try:
+            kind = resolve_sampler(args.prior)[0]
+        except (ValueError, FileNotFoundError) as err:
+            raise UsageError(f"--prior {args.prior!r} is not a shipped one-shot sampler (shipped: "
+                             f"{', '.join(ONE_SHOT_SAMPLERS)}) nor a usable checkpoint: {err}") from None
+        if kind != ONE_SHOT:
+            raise UsageError(f"--prior {args.prior!r} is an {kind} sampler; a prior is a one-shot one")
     if args.prior is not None and args.resume is not None:
         raise UsageError("--prior starts a fresh network, --resume continues a checkpoint (which keeps its own "
                          "prior): give one of them")
     given = {"minutes": args.minutes, "clock": args.clock, "prior": args.prior, "max_episodes": args.max_episodes,
-             "frames_per_episode": args.frames_per_episode, "n": args.n_correspondences, "init": args.resume}
+             "frames_per_episode": args.frames_per_episode, "n": args.n_correspondences, "init": args.resume,
+             "domain_randomisation": args.domain_randomisation or None}
     flags = {"minutes": "--minutes", "clock": "--clock", "prior": "--prior", "max_episodes": "--max-episodes",
              "frames_per_episode": "--frames-per-episode", "n": "--n-correspondences", "init": "--resume"}
     try:
@@ -264,7 +275,8 @@ def _train_adaptive(args: argparse.Namespace, out: Path) -> int:
             raise UsageError(f"--resume {args.resume}: a {kind} checkpoint; --algo adaptive continues an in-frame one")
     clock = "CPU" if config.clock == "cpu" else "wall"
     print(f"vo-gym train: in-frame sampler, {config.minutes:g} min of {clock} time, seed {config.seed}"
-          + (f", prior {config.prior}" if config.prior else "") + (f", from {config.init}" if config.init else ""))
+          + (f", prior {config.prior}" if config.prior else "") + (f", from {config.init}" if config.init else "")
+          + (", domain-randomised episodes" if config.domain_randomisation else ""))
     result = train_in_frame(config, out, progress=not args.no_progress)
     print(f"checkpoint: {result.checkpoint}")
     line = f"{result.episodes} episodes, {result.frames} frames in {result.wall_s:.0f} s wall / {result.cpu_s:.0f} s CPU"
