@@ -212,18 +212,23 @@ def run_classical_episode(
     eps_key = quantize(common["epsilon"])
     rows = []
     for frame in frames:
-        n_true = int(np.count_nonzero(frame.truth.inlier))
         for label, kind, estimator in estimators:
             ss = np.random.SeedSequence(
                 base_seed, spawn_key=(_CLASSICAL_TAG, eps_key, common["budget"], seed, frame.index,
                                       stable_int(label))
             )
             metrics, elapsed = measure_estimator(estimator, frame, np.random.default_rng(ss))
-            row = {**common, "episode": episode, "seed": seed, "frame": frame.index, "method": label, "kind": kind,
-                   **{k: metrics[k] for k in _METRIC_KEYS}, "n_true_inliers": n_true,
-                   "frame_outlier_ratio": float(frame.truth.outlier_ratio), "reward": math.nan, "time_s": elapsed}
-            rows.append({c: row[c] for c in ROW_COLUMNS})
+            rows.append(_estimate_row(common, episode, seed, frame, label, kind, metrics, elapsed))
     return rows
+
+
+def _estimate_row(common: Mapping[str, Any], episode: int, seed: int, frame, label: str, kind: str,
+                  metrics: Mapping[str, Any], elapsed: float) -> dict[str, Any]:
+    """The row of an estimator run outside the environment on one of an episode's frames (no reward)."""
+    row = {**common, "episode": episode, "seed": seed, "frame": frame.index, "method": label, "kind": kind,
+           **{k: metrics[k] for k in _METRIC_KEYS}, "n_true_inliers": int(np.count_nonzero(frame.truth.inlier)),
+           "frame_outlier_ratio": float(frame.truth.outlier_ratio), "reward": math.nan, "time_s": elapsed}
+    return {c: row[c] for c in ROW_COLUMNS}
 
 
 _IN_FRAME_TAG = 0x696E6672  # "infr"
@@ -258,15 +263,9 @@ def run_in_frame_episode(
     def call(frame, generator):
         return estimator.estimate(frame.prev, frame.curr, frame.camera, frame.scores, rng=generator)
 
-    rows = []
-    for frame in frames:
-        metrics, elapsed = measure_estimator(call, frame, rng)
-        row = {**common, "episode": episode, "seed": seed, "frame": frame.index, "method": label,
-               "kind": KIND_AGENT_ADAPTIVE if adaptive else KIND_AGENT, **{k: metrics[k] for k in _METRIC_KEYS},
-               "n_true_inliers": int(np.count_nonzero(frame.truth.inlier)),
-               "frame_outlier_ratio": float(frame.truth.outlier_ratio), "reward": math.nan, "time_s": elapsed}
-        rows.append({c: row[c] for c in ROW_COLUMNS})
-    return rows
+    kind = KIND_AGENT_ADAPTIVE if adaptive else KIND_AGENT
+    return [_estimate_row(common, episode, seed, frame, label, kind, *measure_estimator(call, frame, rng))
+            for frame in frames]
 
 
 @dataclass(frozen=True)

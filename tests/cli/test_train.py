@@ -70,20 +70,26 @@ def test_ppo_options_are_mapped_to_their_fields():
     assert (config.eval_n_correspondences, config.n_envs, config.batch_size) == (200, 1, 64)
 
 
+def _train_tiny_adaptive(torch, tmp_path, *extra: str):
+    """``vo-gym train --algo adaptive`` for two 2-frame episodes of 60 matches; the output folder."""
+    out = tmp_path / "ad"
+    threads = torch.get_num_threads()
+    try:
+        assert main(["train", "--algo", "adaptive", "--minutes", "0.5", "--clock", "cpu", "--max-episodes", "2",
+                     "--frames-per-episode", "2", "--n-correspondences", "60", "--seed", "3", "--no-progress",
+                     *extra, "--out", str(out)]) == 0
+    finally:
+        torch.set_num_threads(threads)
+    return out
+
+
 def test_train_adaptive_within_a_time_budget_writes_a_usable_in_frame_sampler(tmp_path, capsys):
     torch = pytest.importorskip("torch")
     from agents import LearnedEstimator
     from agents.adaptive import load_adaptive
     from stereovo.simulation import SimulationConfig, simulate_frame
 
-    out = tmp_path / "ad"
-    threads = torch.get_num_threads()
-    try:
-        assert main(["train", "--algo", "adaptive", "--minutes", "0.5", "--clock", "cpu", "--max-episodes", "2",
-                     "--frames-per-episode", "2", "--n-correspondences", "60", "--seed", "3", "--no-progress",
-                     "--out", str(out)]) == 0
-    finally:
-        torch.set_num_threads(threads)
+    out = _train_tiny_adaptive(torch, tmp_path)
     summary = json.loads((out / "training.json").read_text())
     assert summary["algo"] == "adaptive" and summary["episodes"] == 2 and summary["frames"] == 4
     assert summary["config"]["minutes"] == 0.5 and summary["config"]["clock"] == "cpu"
@@ -100,15 +106,8 @@ def test_train_adaptive_with_a_prior_file_and_randomised_episodes(tmp_path, caps
     torch = pytest.importorskip("torch")
     from agents.adaptive import load_adaptive
 
-    out = tmp_path / "ad"
-    threads = torch.get_num_threads()
-    try:
-        assert main(["train", "--algo", "adaptive", "--minutes", "0.5", "--clock", "cpu", "--max-episodes", "2",
-                     "--frames-per-episode", "2", "--n-correspondences", "60", "--seed", "3", "--no-progress",
-                     "--prior", str(ROOT / "agents" / "checkpoints" / "ngransac-supervised.pt"),
-                     "--domain-randomisation", "--out", str(out)]) == 0
-    finally:
-        torch.set_num_threads(threads)
+    out = _train_tiny_adaptive(torch, tmp_path, "--prior", str(ROOT / "agents" / "checkpoints" / "ngransac-supervised.pt"),
+                               "--domain-randomisation")
     net, payload = load_adaptive(out / "adaptive.pt")
     assert payload["config"]["domain_randomisation"] is True and net.prior is not None
     assert "domain-randomised episodes" in capsys.readouterr().out

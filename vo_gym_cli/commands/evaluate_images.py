@@ -51,6 +51,7 @@ def run_on_images(args: argparse.Namespace, default_agents: tuple[str, ...]) -> 
     import numpy as np
 
     import vo_gym  # noqa: F401  (registers the ids)
+    from agents.evaluation.run import episode_frames
     from agents.evaluation.setup import DEFAULT_METHODS, IN_FRAME_KIND, normalize_methods, resolve_agents
     from stereovo.reporting import wilson_interval
     from stereovo.sequences.sources import parse_source
@@ -94,7 +95,13 @@ def run_on_images(args: argparse.Namespace, default_agents: tuple[str, ...]) -> 
         from tqdm.auto import tqdm
 
         units = tqdm(units, desc="evaluating", unit="row x budget")
-    played = [_episode_frames(frames, args.frames_per_episode, args.seed + e) for e, frames in enumerate(episodes)]
+    played = []  # each episode's frames as the environment serves them from its seed
+    for e, frames in enumerate(episodes):
+        env = gym.make("vo_gym/StereoVOImages-v0", source=frames, n_frames=args.frames_per_episode)
+        try:
+            played.append(episode_frames(env, args.seed + e))
+        finally:
+            env.close()
     for who, budget in units:
         for e, frames in enumerate(episodes):
             if isinstance(who, str):
@@ -120,25 +127,6 @@ def run_on_images(args: argparse.Namespace, default_agents: tuple[str, ...]) -> 
                             "mean_hypotheses": float(np.mean([r["n_hypotheses"] for r in own]))})
     _write(out, args, rows, summary, budgets, labels)
     return 0
-
-
-def _episode_frames(frames, n_frames: int, seed: int) -> list:
-    """The frames an agent sees in the episode from ``seed`` (the environment picks the window)."""
-    import gymnasium as gym
-    import numpy as np
-
-    env = gym.make("vo_gym/StereoVOImages-v0", source=frames, n_frames=n_frames, sampling="guided", budget=1)
-    try:
-        env.reset(seed=seed)
-        base = env.unwrapped
-        out, done = [], False
-        while not done:
-            out.append(base.current_frame)
-            _, _, terminated, truncated, _ = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
-            done = terminated or truncated
-        return out
-    finally:
-        env.close()
 
 
 def _through_env(agent, budget: int, frames, n_frames: int, seed: int) -> list[tuple[bool, int]]:
