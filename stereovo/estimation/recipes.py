@@ -161,7 +161,7 @@ PROBABILISTIC_RECIPE: dict[str, Any] = {
     "Brink et al.",
     defaults=PROBABILISTIC_RECIPE,
 )
-def _build_probabilistic(problem, options, priors, order, extra) -> RansacComponents:
+def build_probabilistic(problem, options, priors, order, extra) -> RansacComponents:
     threshold = options.mahalanobis_threshold_sq
     components = base_components(
         problem, options, priors, order, MahalanobisResidual(threshold), InlierCount(), threshold

@@ -4,8 +4,11 @@ failure update (:mod:`stereovo.estimation.methods.ars`).
 
 Each kernel computes, element for element and in the same order, what the numpy formulation in
 those modules' docstrings computes (``np.logaddexp`` as numpy defines it, products left to right,
-``np.clip`` as ``min(max(x, lo), hi)``), so the draws and estimates are bit for bit those of the
-numpy code; ``tests/test_belief_kernels.py`` holds them to that numpy code on fixed seeds.
+``np.clip`` as ``min(max(x, lo), hi)``, ``exp`` and ``log`` from the C library), so the draws and
+estimates are bit for bit those of the numpy code; ``tests/stereovo/estimation/kernels/test_beliefs.py``
+holds them to that numpy code on fixed seeds. (Where the CPU has AVX-512, numpy's own float64 ``exp``
+and ``log`` are vectorised and differ from the C library's in the last bit for a few per cent of
+arguments; the reference in ``tests/support/belief_samplers.py`` therefore takes the C library's.)
 
 ARS's set of tried samples is an open-addressing hash table of int64 codes ``(a N + b) N + c`` for
 the sorted triple ``a < b < c`` (empty slots hold -1), so a lookup costs a few loads instead of a

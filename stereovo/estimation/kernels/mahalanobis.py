@@ -78,6 +78,65 @@ def _covariance_at(x, y, z, inv_fx, inv_fy, inv_fb, v_variance, s2):
     )
 
 
+@inline_jit
+def point_mahalanobis_sq(r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t,
+                         x0, x1, x2, y0, y1, y2, inv_depth, norm_x, norm_y,
+                         inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, cap):
+    """One point's squared Mahalanobis distance under one motion, as :func:`mahalanobis_sq` defines it.
+
+    ``X = (x0, x1, x2)`` at k-1, ``Y = (y0, y1, y2)`` at k; ``inv_depth = 1 / y2``, ``norm_x = |X|``,
+    ``norm_y = |Y|``, ``norm_t = |t|`` and the camera terms are computed once by the caller (the
+    per-point and per-hypothesis constants of the loops that call this). Shared by full scoring
+    and the compiled SPRT (:mod:`stereovo.estimation.kernels.verification`), so both agree bit for bit.
+    """
+    p0 = r00 * x0 + r01 * x1 + r02 * x2 + t0
+    p1 = r10 * x0 + r11 * x1 + r12 * x2 + t1
+    p2 = r20 * x0 + r21 * x1 + r22 * x2 + t2
+    x, y, z = y0 - p0, y1 - p1, y2 - p2
+    behind = p2 <= MIN_DEPTH  # a select, not a branch: the loop stays vectorisable
+    if cap > 0.0 and not behind:
+        r2 = x * x + y * y + z * z
+        far = max(norm_x + norm_t, norm_y)  # bounds |Q|
+        far_prev = max(norm_x, norm_y + norm_t)  # bounds the fused point at k-1
+        far2 = far * far
+        near2 = far_prev * far_prev
+        bound_trace = sigma_sq * (c_lateral * (far2 + near2) + c_depth * (far2 * far2 + near2 * near2))
+        if r2 >= cap * bound_trace:
+            return r2 / max(bound_trace, 1e-300)
+    ip, iy = 1.0 / (MIN_DEPTH if behind else p2), inv_depth
+    iq = 1.0 / (ip + iy)
+    q0, q1, q2 = (p0 * ip + y0 * iy) * iq, (p1 * ip + y1 * iy) * iq, 2.0 * iq
+    # the fused point at k-1, fused there as Q is at k: X and W = R^T (Y - t), the k point
+    # carried back, with the mean of their disparities. (Carrying Q back instead, an absurd
+    # motion that sends P kilometres away put the k-1 point there too, and its covariance
+    # then passed any residual.)
+    d0, d1, d2 = y0 - t0, y1 - t1, y2 - t2
+    w0 = r00 * d0 + r10 * d1 + r20 * d2
+    w1 = r01 * d0 + r11 * d1 + r21 * d2
+    w2 = r02 * d0 + r12 * d1 + r22 * d2
+    if w2 <= MIN_DEPTH:  # the k point carried back has no depth at k-1 (odd motions): the measured one
+        k0, k1, k2 = x0, x1, x2
+    else:
+        ix, iw = 1.0 / x2, 1.0 / w2
+        ik = 1.0 / (ix + iw)
+        k0, k1, k2 = (x0 * ix + w0 * iw) * ik, (x1 * ix + w1 * iw) * ik, 2.0 * ik
+    sx00, sx01, sx02, sx11, sx12, sx22 = _covariance_at(k0, k1, k2, inv_fx, inv_fy, inv_fb, v_variance, sigma_sq)
+    sy00, sy01, sy02, sy11, sy12, sy22 = _covariance_at(q0, q1, q2, inv_fx, inv_fy, inv_fb, v_variance, sigma_sq)
+    if cap > 0.0:
+        r2 = x * x + y * y + z * z
+        trace = sx00 + sx11 + sx22 + sy00 + sy11 + sy22
+        if r2 >= cap * trace or behind:  # no division: |r|^2 / trace >= cap
+            return np.inf if behind else r2 / max(trace, 1e-300)
+    c00, c01, c02, c11, c12, c22 = _congruence(  # R S_X R^T, plus S_Y below
+        r00, r01, r02, r10, r11, r12, r20, r21, r22,
+        sx00, sx01, sx02, sx11, sx12, sx22,
+    )
+    d2 = _symmetric_quadratic(
+        c00 + sy00, c01 + sy01, c02 + sy02, c11 + sy11, c12 + sy12, c22 + sy22, x, y, z,
+    )
+    return np.inf if behind else d2
+
+
 @jit
 def mahalanobis_sq(R, t, X, Y, cam, sigma_sq, cap):
     """``(H, N)`` squared Mahalanobis distances of ``r = Y - (R X + t)`` under ``R S_X R^T + S_Y``.
@@ -118,56 +177,11 @@ def mahalanobis_sq(R, t, X, Y, cam, sigma_sq, cap):
         r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2 = _motion_entries(R, t, h)
         norm_t = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
         for n in range(N):
-            x0, x1, x2 = X[n, 0], X[n, 1], X[n, 2]
-            p0 = r00 * x0 + r01 * x1 + r02 * x2 + t0
-            p1 = r10 * x0 + r11 * x1 + r12 * x2 + t1
-            p2 = r20 * x0 + r21 * x1 + r22 * x2 + t2
-            y0, y1, y2 = Y[n, 0], Y[n, 1], Y[n, 2]
-            x, y, z = y0 - p0, y1 - p1, y2 - p2
-            behind = p2 <= MIN_DEPTH  # a select, not a branch: the loop stays vectorisable
-            if cap > 0.0 and not behind:
-                r2 = x * x + y * y + z * z
-                far = max(norm_x[n] + norm_t, norm_y[n])  # bounds |Q|
-                far_prev = max(norm_x[n], norm_y[n] + norm_t)  # bounds the fused point at k-1
-                far2 = far * far
-                near2 = far_prev * far_prev
-                bound_trace = sigma_sq * (c_lateral * (far2 + near2) + c_depth * (far2 * far2 + near2 * near2))
-                if r2 >= cap * bound_trace:
-                    out[h, n] = r2 / max(bound_trace, 1e-300)
-                    continue
-            ip, iy = 1.0 / (MIN_DEPTH if behind else p2), inv_depth[n]
-            iq = 1.0 / (ip + iy)
-            q0, q1, q2 = (p0 * ip + y0 * iy) * iq, (p1 * ip + y1 * iy) * iq, 2.0 * iq
-            # the fused point at k-1, fused there as Q is at k: X and W = R^T (Y - t), the k point
-            # carried back, with the mean of their disparities. (Carrying Q back instead, an absurd
-            # motion that sends P kilometres away put the k-1 point there too, and its covariance
-            # then passed any residual.)
-            d0, d1, d2 = y0 - t0, y1 - t1, y2 - t2
-            w0 = r00 * d0 + r10 * d1 + r20 * d2
-            w1 = r01 * d0 + r11 * d1 + r21 * d2
-            w2 = r02 * d0 + r12 * d1 + r22 * d2
-            if w2 <= MIN_DEPTH:  # the k point carried back has no depth at k-1 (odd motions): the measured one
-                k0, k1, k2 = x0, x1, x2
-            else:
-                ix, iw = 1.0 / x2, 1.0 / w2
-                ik = 1.0 / (ix + iw)
-                k0, k1, k2 = (x0 * ix + w0 * iw) * ik, (x1 * ix + w1 * iw) * ik, 2.0 * ik
-            sx00, sx01, sx02, sx11, sx12, sx22 = _covariance_at(k0, k1, k2, inv_fx, inv_fy, inv_fb, v_variance, sigma_sq)
-            sy00, sy01, sy02, sy11, sy12, sy22 = _covariance_at(q0, q1, q2, inv_fx, inv_fy, inv_fb, v_variance, sigma_sq)
-            if cap > 0.0:
-                r2 = x * x + y * y + z * z
-                trace = sx00 + sx11 + sx22 + sy00 + sy11 + sy22
-                if r2 >= cap * trace or behind:  # no division: |r|^2 / trace >= cap
-                    out[h, n] = np.inf if behind else r2 / max(trace, 1e-300)
-                    continue
-            c00, c01, c02, c11, c12, c22 = _congruence(  # R S_X R^T, plus S_Y below
-                r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                sx00, sx01, sx02, sx11, sx12, sx22,
+            out[h, n] = point_mahalanobis_sq(
+                r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t,
+                X[n, 0], X[n, 1], X[n, 2], Y[n, 0], Y[n, 1], Y[n, 2], inv_depth[n], norm_x[n], norm_y[n],
+                inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, cap,
             )
-            d2 = _symmetric_quadratic(
-                c00 + sy00, c01 + sy01, c02 + sy02, c11 + sy11, c12 + sy12, c22 + sy22, x, y, z,
-            )
-            out[h, n] = np.inf if behind else d2
     return out
 
 

@@ -5,13 +5,15 @@ saves time only if a hypothesis costs what its point checks say. Run point by po
 each check is a Python-level round; here each hypothesis walks its points in one compiled loop,
 computes a point's residual in registers and stops at the decision, so a hypothesis rejected
 after j points costs j residuals. The residual is the forward stereo reprojection error of
-:func:`stereovo.estimation.kernels.residuals.forward_reprojection_sq` (px^2, ``inf`` behind the camera),
-with the same arithmetic, so a compiled check agrees with full scoring bit for bit.
+:func:`stereovo.estimation.kernels.residuals.forward_reprojection_sq` (px^2, ``inf`` behind the camera)
+or, for the SPRT under ``probabilistic``'s judge, the 3-D Mahalanobis distance of
+:func:`stereovo.estimation.kernels.mahalanobis.mahalanobis_sq`, each with the same arithmetic as
+full scoring (one point function), so a compiled check agrees with full scoring bit for bit.
 
 The wrappers in :mod:`stereovo.estimation.methods.tdd`, :mod:`stereovo.estimation.methods.sprt` and
 :mod:`stereovo.estimation.roles.samplers` fix the shapes and meaning; nothing else calls this module.
 Array arguments are float64 / int64 and C-contiguous (the wrappers ensure it); ``cam`` is
-``(fx, fy, cx, cy, baseline)``. No kernel draws random numbers: the callers pass uniforms or a
+``(fx, fy, cx, cy, baseline, ...)``. No kernel draws random numbers: the callers pass uniforms or a
 permutation drawn from their generator.
 """
 
@@ -20,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from stereovo.estimation.kernels.base import inline_jit, jit
+from stereovo.estimation.kernels.mahalanobis import point_mahalanobis_sq
 from stereovo.estimation.kernels.residuals import point_reprojection_sq
 
 
@@ -93,6 +96,39 @@ def tdd_pretest(R, t, X, mc, cam, threshold_sq, samples, u, stop_at_failure):
     return passed, checks, consistent
 
 
+@inline_jit
+def _first_block(N, log_inconsistent, log_A):
+    """The fewest checks that can reach ``log_A`` (inconsistent points only), at least 8, or N: the
+    sample's own points are skipped, so a first block this long may decide nothing, never too much."""
+    first = N
+    if log_inconsistent > 0.0:
+        need = log_A / log_inconsistent
+        if need < N:
+            first = max(int(need) + 1, 8)
+    return first
+
+
+@inline_jit
+def _walk_block(buf, perm, start, stop, s0, s1, s2, threshold_sq, log_lambda, n_checked, n_consistent,
+                log_consistent, log_inconsistent, log_A):
+    """Wald's decisions on the residuals ``buf[start:stop]`` (points ``perm[start:stop]``), skipping the
+    sample's own points ``s0, s1, s2``: ``(log_lambda, n_checked, n_consistent, alive)`` after the
+    block, ``alive`` False at the first crossing of ``log_A`` (the counts include that point)."""
+    for j in range(start, stop):
+        n = perm[j]
+        if n == s0 or n == s1 or n == s2:
+            continue
+        n_checked += 1
+        if buf[j] < threshold_sq:
+            n_consistent += 1
+            log_lambda += log_consistent
+        else:
+            log_lambda += log_inconsistent
+            if log_lambda > log_A:
+                return log_lambda, n_checked, n_consistent, False
+    return log_lambda, n_checked, n_consistent, True
+
+
 @jit
 def sprt_verify(R, t, X, mc, cam, threshold_sq, samples, perm, log_consistent, log_inconsistent, log_A):
     """Wald's SPRT on each of ``H`` hypotheses, points in the order ``perm (N,)``, own sample skipped.
@@ -121,13 +157,7 @@ def sprt_verify(R, t, X, mc, cam, threshold_sq, samples, perm, log_consistent, l
     X0, X1, X2 = np.empty(N), np.empty(N), np.empty(N)
     M0, M1, M2, M3 = np.empty(N), np.empty(N), np.empty(N), np.empty(N)
     copied = 0
-    # the fewest checks that can reach log_A (inconsistent points only); the sample's own points
-    # are skipped, so the first block may decide nothing, never too much
-    first = N
-    if log_inconsistent > 0.0:
-        need = log_A / log_inconsistent
-        if need < N:
-            first = max(int(need) + 1, 8)
+    first = _first_block(N, log_inconsistent, log_A)
     accepted = np.zeros(H, dtype=np.bool_)
     checked = np.zeros(H, dtype=np.int64)
     consistent = np.zeros(H, dtype=np.int64)
@@ -157,19 +187,82 @@ def sprt_verify(R, t, X, mc, cam, threshold_sq, samples, perm, log_consistent, l
                     r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2,
                     X0[j], X1[j], X2[j], M0[j], M1[j], M2[j], M3[j], fx, fy, cx, cy, b,
                 )
+            log_lambda, n_checked, n_consistent, alive = _walk_block(
+                buf, perm, start, stop, s0, s1, s2, threshold_sq, log_lambda, n_checked, n_consistent,
+                log_consistent, log_inconsistent, log_A,
+            )
+            block = 8 if start == 0 else min(2 * block, 128)
+            start = stop
+        accepted[h] = alive
+        checked[h] = n_checked
+        consistent[h] = n_consistent
+        if alive:
+            row = out[h]
+            for j in range(N):
+                row[perm[j]] = buf[j]
+    return accepted, checked, consistent, out
+
+
+@jit
+def sprt_verify_mahalanobis(R, t, X, Y, cam, sigma_sq, cap, threshold_sq, samples, perm, log_consistent,
+                            log_inconsistent, log_A):
+    """:func:`sprt_verify` with the 3-D Mahalanobis residual of :func:`~stereovo.estimation.kernels.mahalanobis.mahalanobis_sq`.
+
+    ``X``, ``Y``: ``(N, 3)`` the points triangulated at k-1 and k; ``cam`` the camera's parameters
+    (``(fx, fy, cx, cy, baseline, v measurements per match)``); ``sigma_sq`` the pixel noise variance;
+    ``cap`` as in ``mahalanobis_sq`` (the gate, when the quality saturates there: a residual at or
+    above it may come back as any value >= cap). The walk, the blocks and the returns are those of
+    :func:`sprt_verify`; an accepted hypothesis' residuals equal ``mahalanobis_sq``'s bit for bit
+    (the same point function).
+    """
+    H, N = R.shape[0], X.shape[0]
+    inv_fx, inv_fy, inv_fb = 1.0 / cam[0], 1.0 / cam[1], 1.0 / (cam[0] * cam[4])
+    v_variance = 1.0 / cam[5]
+    c_lateral = 2.0 * inv_fx * inv_fx + v_variance * inv_fy * inv_fy
+    c_depth = 3.0 * inv_fb * inv_fb
+    X0, X1, X2 = np.empty(N), np.empty(N), np.empty(N)
+    Y0, Y1, Y2 = np.empty(N), np.empty(N), np.empty(N)
+    inv_depth, norm_x, norm_y = np.empty(N), np.empty(N), np.empty(N)
+    copied = 0
+    first = _first_block(N, log_inconsistent, log_A)
+    accepted = np.zeros(H, dtype=np.bool_)
+    checked = np.zeros(H, dtype=np.int64)
+    consistent = np.zeros(H, dtype=np.int64)
+    out = np.empty((H, N))
+    buf = np.empty(N)
+    for h in range(H):
+        r00, r01, r02 = R[h, 0, 0], R[h, 0, 1], R[h, 0, 2]
+        r10, r11, r12 = R[h, 1, 0], R[h, 1, 1], R[h, 1, 2]
+        r20, r21, r22 = R[h, 2, 0], R[h, 2, 1], R[h, 2, 2]
+        t0, t1, t2 = t[h, 0], t[h, 1], t[h, 2]
+        norm_t = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+        s0, s1, s2 = samples[h, 0], samples[h, 1], samples[h, 2]
+        log_lambda = 0.0
+        n_checked = 0
+        n_consistent = 0
+        alive = True
+        start = 0
+        block = first
+        while start < N and alive:
+            stop = min(start + block, N)
+            while copied < stop:
+                n = perm[copied]
+                X0[copied], X1[copied], X2[copied] = X[n, 0], X[n, 1], X[n, 2]
+                Y0[copied], Y1[copied], Y2[copied] = Y[n, 0], Y[n, 1], Y[n, 2]
+                inv_depth[copied] = 1.0 / Y[n, 2]
+                norm_x[copied] = np.sqrt(X[n, 0] ** 2 + X[n, 1] ** 2 + X[n, 2] ** 2)
+                norm_y[copied] = np.sqrt(Y[n, 0] ** 2 + Y[n, 1] ** 2 + Y[n, 2] ** 2)
+                copied += 1
             for j in range(start, stop):
-                n = perm[j]
-                if n == s0 or n == s1 or n == s2:
-                    continue
-                n_checked += 1
-                if buf[j] < threshold_sq:
-                    n_consistent += 1
-                    log_lambda += log_consistent
-                else:
-                    log_lambda += log_inconsistent
-                    if log_lambda > log_A:
-                        alive = False
-                        break
+                buf[j] = point_mahalanobis_sq(
+                    r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t,
+                    X0[j], X1[j], X2[j], Y0[j], Y1[j], Y2[j], inv_depth[j], norm_x[j], norm_y[j],
+                    inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, cap,
+                )
+            log_lambda, n_checked, n_consistent, alive = _walk_block(
+                buf, perm, start, stop, s0, s1, s2, threshold_sq, log_lambda, n_checked, n_consistent,
+                log_consistent, log_inconsistent, log_A,
+            )
             block = 8 if start == 0 else min(2 * block, 128)
             start = stop
         accepted[h] = alive

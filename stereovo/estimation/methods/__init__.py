@@ -13,7 +13,8 @@
 
 Importing this package registers them, in the order above (the order of
 :func:`~stereovo.estimation.registry.available_methods` and of the baseline report), and then
-the ``+`` variants of :mod:`stereovo.estimation.recipes`, whose bases must be registered first.
+the ``+`` variants of :mod:`stereovo.estimation.recipes`, whose bases must be registered first, and
+``probabilistic+sprt`` (:func:`~stereovo.estimation.methods.sprt.register_probabilistic_sprt`).
 """
 
 # isort: off  (one import a line, in the registration order above: the reports' row order)
@@ -31,3 +32,4 @@ from stereovo.estimation.methods import ars  # noqa: F401
 from stereovo.estimation.recipes import register_enhanced_variants
 
 register_enhanced_variants()
+sprt.register_probabilistic_sprt()

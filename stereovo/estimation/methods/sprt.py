@@ -17,7 +17,9 @@ hypothesis is a ``cumsum`` and each hypothesis stops at its first crossing.
 Marginally each hypothesis sees a uniformly random order, which is all the
 test's error bounds use; a hypothesis' own three sample points are skipped.
 
-This module also declares the ``sprt_*`` options (shared with ``usac``) and registers ``waldsac``.
+This module also declares the ``sprt_*`` options (shared with ``usac``) and registers ``waldsac``;
+:func:`register_probabilistic_sprt` registers ``probabilistic+sprt`` (the project's recipe with this
+verification and stop, an enhancement) among the ``+`` variants.
 """
 
 from __future__ import annotations
@@ -31,13 +33,12 @@ import numpy as np
 from scipy.optimize import brentq
 
 from stereovo.estimation.estimator_options import MAX_COUNT
-from stereovo.estimation.kernels.verification import sprt_verify
+from stereovo.estimation.kernels.verification import sprt_verify, sprt_verify_mahalanobis
 from stereovo.estimation.loop import LoopState
-from stereovo.estimation.recipes import base_components, reprojection_judge
+from stereovo.estimation.recipes import PROBABILISTIC_RECIPE, base_components, build_probabilistic, reprojection_judge
 from stereovo.estimation.registry import declare_options, register_method
 from stereovo.estimation.roles.partial import residuals_on
-from stereovo.estimation.roles.scoring import InlierCount
-from stereovo.estimation.roles.scoring import ReprojectionResidual
+from stereovo.estimation.roles.scoring import InlierCount, MahalanobisResidual, ReprojectionResidual
 from stereovo.estimation.roles.termination import SampleProbability, check_bound
 from stereovo.estimation.roles.verification import ScoringContext
 from stereovo.options import Integer, Number
@@ -269,7 +270,7 @@ class SprtVerification:
         self.n_tests += H
 
         perm = rng.permutation(n)
-        if isinstance(ctx.residual_model, ReprojectionResidual):
+        if isinstance(ctx.residual_model, (ReprojectionResidual, MahalanobisResidual)):
             return self._verify_compiled(ctx, R, t, samples, perm, log_consistent, log_inconsistent, log_A)
         own = np.zeros((H, n), dtype=bool)
         own[np.arange(H)[:, None], samples] = True
@@ -305,14 +306,23 @@ class SprtVerification:
         return self._conclude(ctx, R, alive, checked, consistent, sq_all)
 
     def _verify_compiled(self, ctx, R, t, samples, perm, log_consistent, log_inconsistent, log_A):
-        """The SPRT point by point in one compiled pass (reprojection residuals): a rejected
-        hypothesis costs exactly the points it was checked on."""
+        """The SPRT point by point in one compiled pass (reprojection or 3-D Mahalanobis residuals):
+        a rejected hypothesis costs exactly the points it was checked on."""
         p = ctx.problem
-        alive, checked, consistent, sq_all = sprt_verify(
-            np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float), p.points_prev, p.curr,
-            p.camera.parameters, float(ctx.threshold_sq), np.ascontiguousarray(samples, dtype=np.int64),
-            np.ascontiguousarray(perm, dtype=np.int64), float(log_consistent), float(log_inconsistent), float(log_A),
-        )
+        R, t = np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float)
+        samples, perm = np.ascontiguousarray(samples, dtype=np.int64), np.ascontiguousarray(perm, dtype=np.int64)
+        steps = (float(log_consistent), float(log_inconsistent), float(log_A))
+        if isinstance(ctx.residual_model, MahalanobisResidual):
+            # capped at the gate where the quality saturates there, as full scoring is
+            cap = float(ctx.threshold_sq) if ctx.quality.saturates else 0.0
+            alive, checked, consistent, sq_all = sprt_verify_mahalanobis(
+                R, t, p.points_prev, p.points_curr, p.camera.parameters, p.noise_sigma**2, cap,
+                float(ctx.threshold_sq), samples, perm, *steps,
+            )
+        else:
+            alive, checked, consistent, sq_all = sprt_verify(
+                R, t, p.points_prev, p.curr, p.camera.parameters, float(ctx.threshold_sq), samples, perm, *steps,
+            )
         return self._conclude(ctx, R, alive, checked, consistent, sq_all)
 
     def _conclude(self, ctx, R, alive, checked, consistent, sq_all):
@@ -450,6 +460,18 @@ def sprt_verifier(problem, extra: dict) -> SprtVerification:
     )
 
 
+def with_sprt(components, problem, options, extra):
+    """``components`` with the SPRT as verifier and, for an adaptive search, the SPRT-aware stop (its
+    sampler's all-inlier chance kept: prior-aware with priors or a PROSAC order)."""
+    verifier = sprt_verifier(problem, extra)
+    components.verifier = verifier
+    components.listeners.append(verifier)
+    if options.budget is None:
+        components.termination = SprtTermination(verifier, options.confidence, int(options.max_iterations),
+                                                 components.sampler)
+    return components
+
+
 @register_method(
     "waldsac",
     "randomized RANSAC with the SPRT: early rejection, adaptive epsilon/delta, SPRT-aware stopping",
@@ -458,10 +480,26 @@ def sprt_verifier(problem, extra: dict) -> SprtVerification:
 )
 def _build_waldsac(problem, options, priors, order, extra):
     components = base_components(problem, options, priors, order, *reprojection_judge(options, InlierCount()))
-    verifier = sprt_verifier(problem, extra)
-    components.verifier = verifier
-    components.listeners.append(verifier)
-    if options.budget is None:
-        components.termination = SprtTermination(verifier, options.confidence, int(options.max_iterations),
-                                                 components.sampler)
-    return components
+    return with_sprt(components, problem, options, extra)
+
+
+def build_probabilistic_sprt(problem, options, priors, order, extra):
+    """``probabilistic+sprt``: the project's recipe with :func:`with_sprt`."""
+    # The SPRT bounds its error on good models (alpha = A^-h, folded into the stop), so the cost of a
+    # contaminated frame falls with the points checked per bad hypothesis (docs/performance.md).
+    return with_sprt(build_probabilistic(problem, options, priors, order, extra), problem, options, extra)
+
+
+def register_probabilistic_sprt() -> str:
+    """Register ``probabilistic+sprt`` (after the papers' methods, with the ``+`` variants: the
+    methods package calls this last). Returns its name."""
+    register_method(
+        "probabilistic+sprt",
+        "probabilistic with the SPRT's early rejection (adaptive epsilon/delta, each hypothesis checked "
+        "point by point under the 3-D Mahalanobis gate until rejected) and the SPRT-aware stop; "
+        "the project's recipe otherwise",
+        "Brink et al.; Matas & Chum 2005; Chum & Matas 2008",
+        extra_options=SPRT_OPTIONS,
+        defaults=PROBABILISTIC_RECIPE,
+    )(build_probabilistic_sprt)
+    return "probabilistic+sprt"

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from tests.support.belief_samplers import ReferenceArsSampler, ReferenceBansacSampler
+from tests.support.belief_samplers import ReferenceArsSampler, ReferenceBansacSampler, reference_logistic
 
 from stereovo.estimation.methods import ars, bansac
 from stereovo.estimation import estimate_motion
@@ -31,7 +31,7 @@ def test_compiled_logaddexp_update_and_logistic_equal_numpys_bit_for_bit():
             got, verdicts, log_c, bansac.LOG_GATED_IN + log_1mc, bansac.LOG_GATED_OUT + log_1mc, log_1mc - log_c)
         assert gated == np.count_nonzero(verdicts)
         np.testing.assert_array_equal(got, expected)
-    np.testing.assert_array_equal(belief_kernels.logistic_beliefs(log_odds), np.exp(-np.logaddexp(0.0, -log_odds)))
+    np.testing.assert_array_equal(belief_kernels.logistic_beliefs(log_odds), reference_logistic(log_odds))
 
 
 def test_compiled_baysac_draw_equals_the_numpy_update():
@@ -119,7 +119,7 @@ def test_discretised_weights_take_the_exact_ceiling_at_every_rounding_edge():
     edges = np.log(k) - np.log1p(-k)  # the log-odds whose belief is k / 100: the ceiling's edges
     log_odds = np.concatenate([edges, np.nextafter(edges, -np.inf), np.nextafter(edges, np.inf),
                                np.linspace(-60, 60, 5001), [-40.0, 40.0, -36.8, 36.8]])
-    beliefs = np.exp(-np.logaddexp(0.0, -log_odds))
+    beliefs = reference_logistic(log_odds)
     for discretised, expected in ((True, np.maximum(np.ceil(100 * beliefs), 1.0)), (False, np.maximum(beliefs, 1e-12))):
         weights, w, cdf, before = belief_kernels.bansac_draw_arrays(log_odds, discretised, 100.0, 1e-12)
         np.testing.assert_array_equal(weights, expected)

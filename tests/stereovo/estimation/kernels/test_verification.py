@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from stereovo.estimation.kernels.residuals import forward_reprojection_sq
-from stereovo.estimation.kernels.verification import sprt_verify
+from stereovo.estimation.kernels.mahalanobis import mahalanobis_sq
+from stereovo.estimation.kernels.verification import sprt_verify, sprt_verify_mahalanobis
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.methods.sprt import SprtTermination, SprtTest
 from stereovo.estimation.methods.tdd import TddVerification
@@ -64,6 +65,36 @@ def test_compiled_sprt_equals_the_point_by_point_test(n, design):
     if design == (0.1, 0.001, 4.0) and n == 300:
         assert np.any(accepted) and not np.all(accepted)  # both outcomes were exercised
         assert np.min(checked[~accepted]) == int(4.0 / log_inconsistent) + 1
+
+
+@pytest.mark.parametrize("n", [5, 40, 300])
+@pytest.mark.parametrize("design", [(0.4, 0.05, 1.5), (0.1, 0.001, 4.0), (0.1, 0.01, 60.0), (0.5, 0.6, 2.0)])
+@pytest.mark.parametrize("cap", [0.0, 7.8])
+def test_compiled_mahalanobis_sprt_equals_the_point_by_point_test(n, design, cap):
+    # The 3-D Mahalanobis route (probabilistic's judge): the same walk as the reprojection one, on the
+    # distances mahalanobis_sq computes (capped at the gate or not), which an accepted row repeats bit for bit.
+    epsilon, delta, log_A = design
+    log_consistent, log_inconsistent = math.log(delta / epsilon), math.log((1 - delta) / (1 - epsilon))
+    frame, problem = problem_of(n)
+    rng = np.random.default_rng(n + 1)
+    R, t = hypotheses(frame, rng, 3, 6, 12)
+    threshold_sq = 7.8
+    points = (problem.points_prev, problem.points_curr, problem.camera.parameters, problem.noise_sigma**2)
+    sq = mahalanobis_sq(R, t, *points, cap)
+    perm = rng.permutation(n).astype(np.int64)
+    samples = np.stack([rng.choice(n, 3, replace=False) for _ in range(R.shape[0])]).astype(np.int64)
+    samples[0] = perm[:3]
+    accepted, checked, consistent, residual_sq = sprt_verify_mahalanobis(
+        R, t, *points, cap, threshold_sq, samples, perm, log_consistent, log_inconsistent, log_A,
+    )
+    expected = sprt_by_hand(sq, samples, perm, threshold_sq, log_consistent, log_inconsistent, log_A)
+    np.testing.assert_array_equal(accepted, expected[0])
+    np.testing.assert_array_equal(checked, expected[1])
+    np.testing.assert_array_equal(consistent, expected[2])
+    np.testing.assert_array_equal(residual_sq[accepted], sq[accepted])
+    if design == (0.1, 0.001, 4.0) and n == 300:
+        assert np.any(accepted) and not np.all(accepted)
+        assert np.all(accepted[:3])  # the true motion survives
 
 
 def test_compiled_sprt_with_no_hypotheses():

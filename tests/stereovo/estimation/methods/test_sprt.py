@@ -494,3 +494,64 @@ def test_waldsac_method_options_reach_its_verifier():
     defaults = method_spec("waldsac").build(problem, EstimatorOptions(), None, None, validate_options("waldsac", {})[1])
     assert (defaults.verifier.t_m, defaults.verifier.epsilon0, defaults.verifier.delta0, defaults.verifier.chunk) == (
         500.0, 0.1, 0.01, 16)
+
+
+class _OtherMahalanobis:
+    """Stands in for MahalanobisResidual in the sprt module's type test: the numpy route is taken."""
+
+
+def test_compiled_mahalanobis_sprt_decides_like_the_numpy_route(monkeypatch):
+    # probabilistic's judge (the 3-D Mahalanobis gate, inlier count): the compiled pass and the chunked
+    # numpy route reject the same hypotheses, pay the same checks and give the accepted ones the same scores.
+    import stereovo.estimation.methods.sprt as sprt_module
+    from stereovo.estimation.problem import StereoProblem
+    from stereovo.estimation.roles.scoring import CHI2_3_95, InlierCount, MahalanobisResidual
+    from stereovo.estimation.roles.verification import ScoringContext
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.6), 4)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    ctx = ScoringContext(problem, MahalanobisResidual(CHI2_3_95), InlierCount(), CHI2_3_95)
+    rng = np.random.default_rng(3)
+    R, t = good_and_bad(frame, 5, 120, rng)
+    samples = np.stack([rng.choice(problem.n, 3, replace=False) for _ in range(R.shape[0])])
+    results = []
+    for route in ("compiled", "numpy"):
+        if route == "numpy":
+            monkeypatch.setattr(sprt_module, "MahalanobisResidual", _OtherMahalanobis)
+        verifier = SprtVerification(problem.n, t_m=200.0, epsilon0=0.4, delta0=0.05)
+        scores, checks = verifier.verify(ctx, R, t, np.random.default_rng(9), samples=samples)
+        results.append((scores, checks, verifier._n_rejected, verifier._ratio_sum))
+    np.testing.assert_array_equal(results[0][0], results[1][0])
+    assert results[0][1:3] == results[1][1:3]
+    assert 0 < results[0][2] < R.shape[0]  # both outcomes exercised
+    assert results[0][3] == pytest.approx(results[1][3])
+    full = np.sum(ctx.residuals(R, t) < CHI2_3_95, axis=1)
+    kept = np.isfinite(results[0][0])
+    np.testing.assert_array_equal(results[0][0][kept], full[kept])
+
+
+def test_probabilistic_sprt_succeeds_on_hostile_frames_with_a_fraction_of_the_checks():
+    # The project's recipe with the SPRT: on hostile frames at eps 0.9 it finds the truth where
+    # probabilistic does, checks a fraction of the points, and is deterministic per seed.
+    config = SimulationConfig(n_correspondences=500, outlier_ratio=0.9, outliers="hostile")
+    checks = {"probabilistic": 0, "probabilistic+sprt": 0}
+    for i in range(4):
+        frame = simulate_frame(config, 1000 + i)
+        for method in checks:
+            est = estimate(frame, method, i)
+            assert succeeded(est, frame), (method, i)
+            checks[method] += est.n_point_checks
+        assert est.counters["sprt_tested"] > 0 and est.counters["sprt_rejected"] > 0
+        again = estimate(frame, "probabilistic+sprt", i)
+        np.testing.assert_array_equal(again.rotation, est.rotation)
+        np.testing.assert_array_equal(again.inliers, est.inliers)
+    assert checks["probabilistic+sprt"] < 0.3 * checks["probabilistic"], checks
+
+
+def test_probabilistic_sprt_options_reach_its_verifier():
+    frame = simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.5), 2)
+    est = estimate_motion(frame.prev, frame.curr, frame.camera, method="probabilistic+sprt", rng=0,
+                          sprt_epsilon0=0.3, sprt_delta0=0.02)
+    assert est.ok and est.counters["sprt_designs"] >= 1
+    with pytest.raises(ValueError, match="sprt_delta0"):
+        estimate_motion(frame.prev, frame.curr, frame.camera, method="probabilistic+sprt", rng=0, sprt_delta0=1.5)
