@@ -1,7 +1,10 @@
 """Print SHA-256 digests of simulated frames, estimates and environment episodes.
 
 A developer's check that a change is bit for bit: run it before and after and
-compare the three lines (``python scripts/digests.py``). Times are left out.
+compare the three lines (``python scripts/digests.py``). Times are left out. Compare digests made on
+the same kind of CPU: numpy's float64 ``exp`` and ``log`` are vectorised where the CPU has AVX-512 and
+differ there from the C library's in the last bit, so estimates that use them (MLESAC's likelihood, the
+features) hash differently on such a machine (e.g. an AMD EPYC against an Intel one without AVX-512).
 """
 
 from __future__ import annotations
