@@ -8,7 +8,8 @@ periodically and write checkpoints that carry their config and feature layout;
 ``--resume CHECKPOINT`` continues from one. ``--algo adaptive`` trains the in-frame
 sampler (:func:`agents.adaptive.train_in_frame`) within a time budget (``--minutes``)
 into ``<out>/adaptive.pt``, ``training.jsonl`` and ``training.json``; ``--resume``
-starts from an in-frame checkpoint's weights.
+starts from an in-frame checkpoint's weights. An option of another trainer than ``--algo``'s is
+refused in one line before anything runs (:data:`USED_BY`), never silently ignored.
 """
 
 from __future__ import annotations
