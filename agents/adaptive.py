@@ -350,9 +350,11 @@ def train_in_frame(config: AdaptiveTrainConfig, out: str | Path, progress: bool 
 
     The library side of ``vo-gym train --algo adaptive``, laid out as the PPO trainer's folder:
     ``out/adaptive.pt`` (the checkpoint, rewritten at every log window, so an interrupted run leaves
-    its latest weights), ``out/training.jsonl`` (one line per log window: minutes, episodes, frames,
-    success, mean hypotheses, stop share, baseline) and ``out/training.json`` (the config and the
-    totals). ``progress`` shows a bar over the time budget.
+    its latest weights), ``out/training.jsonl`` (one line per log window, the last one partial:
+    minutes, episodes, frames, success, mean hypotheses, stop share, baseline) and
+    ``out/training.json`` (the config and the totals). ``progress`` shows a bar over the time budget.
+    The same config run to the same episode count trains the same weights (the stop draws come
+    from a generator seeded by ``config.seed``; the caller's torch generator is left as it was).
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -379,21 +381,27 @@ def _train(config: AdaptiveTrainConfig, out: str | Path, log_path: str | Path | 
            progress: bool) -> tuple[Path, dict[str, Any]]:
     from tqdm import tqdm
 
-    torch.manual_seed(config.seed)
     torch.set_num_threads(1)  # small per-step batches: more threads only contend on a shared machine
     if config.clock not in ("wall", "cpu"):
         raise ValueError(f"clock must be 'wall' or 'cpu', got {config.clock!r}")
     clock = time.time if config.clock == "wall" else time.process_time
-    if config.init is not None:
-        net, payload = load_adaptive(config.init)
-        if (net.width, net.blocks) != (config.width, config.blocks):
-            raise ValueError(f"init checkpoint {config.init} has width {net.width}, blocks {net.blocks}; "
-                             f"the config asks for {config.width}, {config.blocks}")
-        net.train()
-    elif config.prior is not None:
-        net = AdaptiveSamplerNet.with_prior(config.prior, width=config.width, blocks=config.blocks)
-    else:
-        net = AdaptiveSamplerNet(width=config.width, blocks=config.blocks)
+    # The network's initialisation draws from torch's global generator (nn.Module has no other way),
+    # seeded and then restored so that the caller's stream is untouched; the stop draws come from
+    # ``stop_rng``, which continues that seeded stream (the draws of earlier versions, seed for seed).
+    with torch.random.fork_rng():
+        torch.manual_seed(config.seed)
+        if config.init is not None:
+            net, payload = load_adaptive(config.init)
+            if (net.width, net.blocks) != (config.width, config.blocks):
+                raise ValueError(f"init checkpoint {config.init} has width {net.width}, blocks {net.blocks}; "
+                                 f"the config asks for {config.width}, {config.blocks}")
+            net.train()
+        elif config.prior is not None:
+            net = AdaptiveSamplerNet.with_prior(config.prior, width=config.width, blocks=config.blocks)
+        else:
+            net = AdaptiveSamplerNet(width=config.width, blocks=config.blocks)
+        stop_rng = torch.Generator()
+        stop_rng.set_state(torch.get_rng_state())
     optimiser = torch.optim.Adam(net.parameters(), lr=config.lr)
     bce = nn.BCEWithLogitsLoss()
     baseline, log, start, last_log = 0.0, [], clock(), time.time()
@@ -403,6 +411,18 @@ def _train(config: AdaptiveTrainConfig, out: str | Path, log_path: str | Path | 
     budget_s = 60 * config.minutes
     bar = tqdm(total=round(budget_s), desc=f"in-frame sampler ({config.clock} s)", unit="s", disable=not progress)
     total_frames = 0
+
+    def log_window(window: dict[str, int]) -> None:
+        frames = max(window["frames"], 1)
+        row = {"minutes": round((clock() - start) / 60, 2), "episodes": episode, "frames": window["frames"],
+               "success": round(window["success"] / frames, 3), "mean_hypotheses": round(window["hypotheses"] / frames, 1),
+               "stopped": round(window["stops"] / frames, 3), "baseline": round(baseline, 3)}
+        log.append(row)
+        bar.set_postfix(success=row["success"], hypotheses=row["mean_hypotheses"])
+        if log_file:
+            log_file.write(json.dumps(row) + "\n")
+            log_file.flush()
+
     while clock() - start < budget_s and (config.max_episodes is None or episode < config.max_episodes):
         bar.n = min(round(clock() - start), bar.total)
         bar.refresh()
@@ -422,7 +442,7 @@ def _train(config: AdaptiveTrainConfig, out: str | Path, log_path: str | Path | 
             valid_logits = logits[0, :n]
             stop_p = torch.sigmoid(stop_logit[0])
             can_stop = env.frame_hypotheses > 0
-            stop = bool(can_stop and torch.rand(()) < stop_p.detach())
+            stop = bool(can_stop and torch.rand((), generator=stop_rng) < stop_p.detach())
             weights = torch.softmax(valid_logits.detach(), dim=0).numpy()
             # auxiliary labels: inlier log-odds, and whether stopping now would end on a right hypothesis
             frame_aux.append(config.inlier_weight * bce(valid_logits, torch.as_tensor(inlier, dtype=torch.float32)))
@@ -459,17 +479,11 @@ def _train(config: AdaptiveTrainConfig, out: str | Path, log_path: str | Path | 
             done = truncated
         if time.time() - last_log >= config.log_every_s:
             last_log = time.time()
-            frames = max(stats["frames"], 1)
-            row = {"minutes": round((clock() - start) / 60, 2), "episodes": episode, "frames": stats["frames"],
-                   "success": round(stats["success"] / frames, 3), "mean_hypotheses": round(stats["hypotheses"] / frames, 1),
-                   "stopped": round(stats["stops"] / frames, 3), "baseline": round(baseline, 3)}
-            log.append(row)
-            bar.set_postfix(success=row["success"], hypotheses=row["mean_hypotheses"])
-            if log_file:
-                log_file.write(json.dumps(row) + "\n")
-                log_file.flush()
+            log_window(stats)
             stats = {"frames": 0, "success": 0, "hypotheses": 0, "stops": 0}
             save_adaptive(out, net, asdict(config), log)
+    if stats["frames"]:  # the last, partial window: a run shorter than one window still reports
+        log_window(stats)
     bar.close()
     if log_file:
         log_file.close()

@@ -326,7 +326,7 @@ class LearnedPolicy:
             out[valid] = np.exp(logits[valid] - logits[valid].max())
         return out
 
-    def priors(self, prev: np.ndarray, curr: np.ndarray, camera, scores: np.ndarray,
+    def priors(self, prev: np.ndarray, curr: np.ndarray, camera, scores: np.ndarray | None = None,
                previous_motion: tuple[np.ndarray, np.ndarray] | None = None, noise_sigma: float = 0.5) -> np.ndarray:
         """The sampler's guided-sampling weights ``(N,)`` for N stereo matches, ready for
         ``stereovo.estimate_motion(prev, curr, camera, method="msac", priors=...)``.
@@ -334,7 +334,8 @@ class LearnedPolicy:
         Args:
             prev, curr: ``(N, 4)`` measurements ``(uL, vL, uR, vR)`` in pixels at k-1 and k.
             camera: the :class:`stereovo.StereoCamera`.
-            scores: ``(N,)`` match scores in (0, 1), higher = better.
+            scores: ``(N,)`` match scores in (0, 1), higher = better; None: unknown, every row gets
+                the uninformative score (:mod:`agents.matches`, as :class:`agents.LearnedEstimator`).
             previous_motion: ``(R (3, 3), t (3,) m)`` estimated for the previous frame pair
                 (``x_k = R x_{k-1} + t``), the constant-velocity feature; None if unknown.
             noise_sigma: the pixel noise (px) the features assume.
@@ -344,9 +345,10 @@ class LearnedPolicy:
         Raises:
             ValueError: malformed input (as :func:`vo_gym.features.compute_features`).
         """
-        from vo_gym.features import compute_features, usable_rows
+        from agents.matches import match_features
+        from vo_gym.features import usable_rows
 
-        features = compute_features(prev, curr, scores, camera, noise_sigma, previous_motion)
+        features = match_features(prev, curr, camera, scores, noise_sigma, previous_motion)
         return self.weights(features, usable_rows(features))
 
 

@@ -33,26 +33,22 @@ from typing import Any
 import numpy as np
 
 from agents.checkpoint import IN_FRAME, ONE_SHOT, CheckpointError
+from agents.matches import UNINFORMATIVE_SCORE, match_features
 from agents.samplers import load_sampler
 from stereovo.camera import StereoCamera
 from stereovo.estimation import StereoProblem, estimate_problem, method_spec, validate_options
 from stereovo.estimation.api import MotionEstimate, as_generator
 from stereovo.estimation.roles.solvers import SAMPLE_SIZE
 from vo_gym.settings import DEFAULT_ESTIMATOR_OPTIONS
-from vo_gym.features import compute_features, feature_index
 from vo_gym.in_frame import InFrameSearch
 
 __all__ = ["LearnedEstimator", "LearnedMotionEstimate", "UNINFORMATIVE_SCORE", "DEFAULT_CONFIDENCE"]
-
-UNINFORMATIVE_SCORE = 0.5
-"""The match score every row gets when ``scores`` is None (and a mid rank, 0.5, for all)."""
 
 DEFAULT_CONFIDENCE = {ONE_SHOT: 0.99, IN_FRAME: 0.9}
 """``confidence`` when not given: the prior-aware stop's (one-shot) or the stop belief's (in-frame)."""
 
 IN_FRAME_BATCH = 4  # the adaptive environment's batch, which the in-frame samplers were trained with
 IN_FRAME_CAP = 64  # its per-frame cap, which the 'spent' global is relative to
-_RANK = feature_index("score_rank")
 
 
 @dataclass
@@ -69,6 +65,18 @@ class LearnedMotionEstimate(MotionEstimate):
         out.__dict__.update(estimate.__dict__)  # keeps a covariance not computed yet lazy
         out.sampler, out.sampler_kind = sampler, kind
         return out
+
+
+def _is_seed(value: Any) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0
+
+
+def _generator(label: str, value: Any) -> np.random.Generator:
+    """``value`` (a Generator, a seed >= 0 or a SeedSequence) as a Generator; anything else is a
+    ValueError naming ``label`` and the value (numpy's own TypeError names neither)."""
+    if not (isinstance(value, (np.random.Generator, np.random.SeedSequence)) or _is_seed(value)):
+        raise ValueError(f"{label} must be a numpy.random.Generator or an integer seed >= 0, got {value!r}")
+    return as_generator(value)
 
 
 def _bad_sampler(sampler: Any, err: Exception) -> ValueError:
@@ -90,27 +98,34 @@ class LearnedEstimator:
             stop belief at which an in-frame sampler stops (default 0.9).
         method: the core method that fits and judges hypotheses (default ``"msac"``, the
             environments' judge, with which every shipped sampler was trained).
-        max_hypotheses: an in-frame search's cap (default 64, its training cap); a ``budget`` above
-            it raises the cap to the budget.
+        max_hypotheses: an in-frame search's cap (None: 64, its training cap); a ``budget`` above
+            it raises the cap to the budget. Not for one-shot samplers (their adaptive stop is
+            capped by ``max_iterations``).
         batch_size: hypotheses per batch of an in-frame search (default 4, its training batch).
-        temperature: one-shot logits are divided by it (1: as trained).
+        temperature: one-shot logits are divided by it (1: as trained); applied when the sampler is
+            loaded here, so neither an in-frame sampler nor an already loaded policy takes another.
         **estimator_options: :class:`stereovo.estimation.EstimatorOptions` fields and the method's
             own options, over the environments' defaults (:data:`vo_gym.settings.DEFAULT_ESTIMATOR_OPTIONS`);
             ``noise_sigma`` (px, default 0.5) is also the noise the features assume. A one-shot
             sampler's adaptive search starts with batches of 4 (``first_batch_size``) doubling to 8
             (``batch_size``) unless given, so that its stop can act after a few hypotheses.
-        seed: seeds the estimator's own generator, used when :meth:`estimate` gets no ``rng``
-            (restarted by :meth:`reset`).
+        seed: an integer >= 0 seeding the estimator's own generator, used when :meth:`estimate`
+            gets no ``rng`` (restarted by :meth:`reset`).
 
     Raises:
         ValueError: an unknown sampler name, a missing or unusable file (one line naming it), a bad
-            option (naming it and its value).
+            option or one the sampler's kind does not use (naming it and its value).
     """
 
     def __init__(self, sampler: Any, *, budget: int | None = None, confidence: float | None = None,
-                 method: str = "msac", max_hypotheses: int = IN_FRAME_CAP, batch_size: int | None = None,
+                 method: str = "msac", max_hypotheses: int | None = None, batch_size: int | None = None,
                  temperature: float = 1.0, seed: int = 0, **estimator_options: Any) -> None:
+        if not _is_seed(seed):
+            raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
         if hasattr(sampler, "act") and getattr(sampler, "kind", None) in (ONE_SHOT, IN_FRAME):
+            if temperature != 1.0:
+                raise ValueError(f"temperature {temperature!r}: the loaded sampler {sampler.name!r} keeps the "
+                                 "temperature it was loaded with; pass its name or path to load it with another")
             self.policy = sampler
         else:
             if not isinstance(sampler, (str, os.PathLike)):
@@ -122,6 +137,15 @@ class LearnedEstimator:
                 raise _bad_sampler(sampler, err) from None
         self.kind: str = self.policy.kind
         self.name: str = self.policy.name
+        # options that the other kind would use are refused rather than silently ignored
+        if self.kind == IN_FRAME and temperature != 1.0:
+            raise ValueError(f"temperature {temperature!r}: in-frame sampler {self.name!r} has no temperature "
+                             "(it applies to one-shot samplers)")
+        if self.kind == ONE_SHOT and max_hypotheses is not None:
+            raise ValueError(f"max_hypotheses {max_hypotheses!r}: caps an in-frame search; one-shot sampler "
+                             f"{self.name!r} stops adaptively within max_iterations")
+        if max_hypotheses is None:
+            max_hypotheses = IN_FRAME_CAP
         if confidence is None:
             confidence = DEFAULT_CONFIDENCE[self.kind]
         if isinstance(confidence, bool) or not isinstance(confidence, (int, float)) or not 0 < confidence < 1:
@@ -190,7 +214,7 @@ class LearnedEstimator:
                 with scores of ROC AUC 0.6-0.75, so they lose that signal and rely on geometry
                 alone (and, with more than 256 matches, the rigid-consistency anchors are the
                 first 256 rows instead of the best-scored ones).
-            rng: a ``numpy.random.Generator`` or a seed for this call's draws; None uses the
+            rng: a ``numpy.random.Generator`` or a seed (int >= 0) for this call's draws; None uses the
                 estimator's own generator (``seed``; so the same calls after :meth:`reset` give the
                 same estimates).
 
@@ -204,19 +228,14 @@ class LearnedEstimator:
 
         Raises:
             ValueError: malformed input (shapes, mismatched N, complex or non-numeric values, scores of
-                the wrong shape); NaN and inf rows are unusable rows, not errors.
+                the wrong shape, an ``rng`` that is neither a Generator nor a seed); NaN and inf rows
+                are unusable rows, not errors.
         """
         start = time.perf_counter()
         problem = StereoProblem.build(prev, curr, camera, self.noise_sigma, self._shared.min_disparity_sigmas)
-        generator = self._rng if rng is None else as_generator(rng)
-        if scores is None:
-            given = np.full(problem.n, UNINFORMATIVE_SCORE)
-        else:
-            given = scores
-        features = compute_features(problem.prev, problem.curr, given, camera, self.noise_sigma,
-                                    self.previous_motion, problem=problem)
-        if scores is None:
-            features[:, _RANK] = 0.5
+        generator = self._rng if rng is None else _generator("rng", rng)
+        features = match_features(problem.prev, problem.curr, camera, scores, self.noise_sigma,
+                                  self.previous_motion, problem=problem)
         if self.kind == ONE_SHOT:
             estimate = self._one_shot(problem, features, generator)
         else:
@@ -261,6 +280,6 @@ class LearnedEstimator:
         """Estimates for consecutive frame pairs ``[(prev, curr, camera, scores), ...]`` of one
         sequence, after a :meth:`reset`; one generator for all of them."""
         self.reset()
-        generator = self._rng if rng is None else as_generator(rng)
+        generator = self._rng if rng is None else _generator("rng", rng)
         return [self.estimate(prev, curr, camera, scores, rng=generator) for prev, curr, camera, scores in frames]
 

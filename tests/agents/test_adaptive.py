@@ -3,6 +3,7 @@ training as a library call with a time budget, loading either kind of sampler, p
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.resources
 import json
 
@@ -218,13 +219,32 @@ def test_a_short_run_writes_a_loadable_checkpoint_and_its_log(tmp_path):
 def test_the_same_seed_trains_the_same_weights(tmp_path):
     threads = torch.get_num_threads()
     try:
+        torch.manual_seed(11)
+        expected = torch.rand(4)
+        torch.manual_seed(11)
         a = train_in_frame(tiny(max_episodes=1, seed=5), tmp_path / "a", progress=False)
+        caller = torch.rand(4)  # the caller's global stream is where it was: training draws from its own
         b = train_in_frame(tiny(max_episodes=1, seed=5), tmp_path / "b", progress=False)
+        c = train_in_frame(tiny(max_episodes=1, seed=6), tmp_path / "c", progress=False)
     finally:
         torch.set_num_threads(threads)
-    wa, wb = load_adaptive(a.checkpoint)[0].state_dict(), load_adaptive(b.checkpoint)[0].state_dict()
+    assert torch.equal(caller, expected)
+    wa, wb, wc = (load_adaptive(r.checkpoint)[0].state_dict() for r in (a, b, c))
     assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    assert any(not torch.equal(wa[k], wc[k]) for k in wa)
     assert any(not torch.equal(wa[k], torch.zeros_like(wa[k])) for k in wa)
+
+
+def test_a_run_shorter_than_one_log_window_still_logs_it(tmp_path):
+    config = dataclasses.replace(tiny(max_episodes=2, seed=3), log_every_s=3600.0)
+    threads = torch.get_num_threads()
+    try:
+        result = train_in_frame(config, tmp_path / "run", progress=False)
+    finally:
+        torch.set_num_threads(threads)
+    lines = [json.loads(line) for line in (tmp_path / "run" / "training.jsonl").read_text().splitlines()]
+    assert len(lines) == 1 and (lines[0]["episodes"], lines[0]["frames"]) == (2, 4)
+    assert result.log == lines and json.loads((tmp_path / "run" / "training.json").read_text())["log"] == lines
 
 
 @pytest.mark.parametrize("kw, match", [

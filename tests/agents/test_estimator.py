@@ -166,6 +166,25 @@ def test_priors_on_raw_matches_are_the_estimators_weights():
         policy.act(np.zeros((10, 14), np.float32))
 
 
+def test_priors_without_scores_follow_the_rows_and_match_the_estimators_recipe():
+    # N 200: below the 256 rigid-consistency anchors, so every row is an anchor and the features
+    # are exactly permutation-equivariant; equal scores would otherwise be ranked by row index
+    prev, curr, camera, _, inlier, R, t = hand_built_frame(np.random.default_rng(6), n=200, outliers=0.6)
+    policy = load_sampler(ONE_SHOT)
+    priors = policy.priors(prev, curr, camera)  # scores left out: unknown
+    order = np.random.default_rng(0).permutation(200)
+    np.testing.assert_allclose(policy.priors(prev[order], curr[order], camera, None), priors[order], atol=1e-5)
+    assert priors[inlier].mean() > 5 * priors[~inlier].mean()  # geometry alone still tells them apart
+    # the estimator samples from these very priors: the core given them draws the same and its
+    # prior-aware stop (which reads the priors) stops at the same count
+    mine = LearnedEstimator(ONE_SHOT).estimate(prev, curr, camera, None, rng=4)
+    stop = {**DEFAULT_ESTIMATOR_OPTIONS, "confidence": 0.99, "first_batch_size": 4, "batch_size": 8}
+    core = estimate_motion(prev, curr, camera, method="msac", priors=priors, rng=4, **stop)
+    np.testing.assert_array_equal(mine.inliers, core.inliers)
+    assert (mine.n_hypotheses, mine.n_point_checks) == (core.n_hypotheses, core.n_point_checks)
+    assert pose_is_right(mine, R, t)
+
+
 @pytest.mark.parametrize("bad, match", [
     ("no-such-sampler", "unknown sampler 'no-such-sampler'"),
     ("missing/sampler.pt", "missing/sampler.pt"),
@@ -192,9 +211,19 @@ def test_bad_files_and_options_get_one_line(tmp_path):
         assert "\n" not in str(info.value)
     for kw, match in (({"budget": 0}, "budget"), ({"confidence": 1.0}, "confidence"),
                       ({"threshold_px": -1.0}, "threshold_px"), ({"method": "inlier-detection"}, "does not sample"),
-                      ({"method": "nope"}, "nope")):
+                      ({"method": "nope"}, "nope"), ({"seed": "a"}, "seed must be .* got 'a'"),
+                      ({"seed": -1}, "seed must be .* got -1"), ({"max_hypotheses": 32}, "max_hypotheses 32: caps an in-frame")):
         with pytest.raises(ValueError, match=match):
             LearnedEstimator(ONE_SHOT, **kw)
+    # an option only the other kind uses is refused, not silently ignored
+    with pytest.raises(ValueError, match="temperature 2.0: in-frame sampler 'adaptive-pg-prior'"):
+        LearnedEstimator(IN_FRAME, temperature=2.0)
+    with pytest.raises(ValueError, match="temperature 2.0: the loaded sampler"):
+        LearnedEstimator(load_sampler(ONE_SHOT), temperature=2.0)
+    prev, curr, camera, scores, *_ = hand_built_frame(np.random.default_rng(7), n=50)
+    for sampler in (ONE_SHOT, IN_FRAME):
+        with pytest.raises(ValueError, match="rng must be .* got 'abc'"):
+            LearnedEstimator(sampler).estimate(prev, curr, camera, scores, rng="abc")
 
 
 def test_a_shipped_sampler_through_the_api_beats_uniform_by_the_shipped_margin():

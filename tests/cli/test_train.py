@@ -131,3 +131,24 @@ def test_train_adaptive_minutes_must_be_positive(tmp_path, capsys):
         main(["train", "--algo", "adaptive", "--minutes", "0", "--out", str(tmp_path / "t")])
     assert exc.value.code == 2
     assert "--minutes must be > 0.0" in one_line_error(capsys, "train")
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["--algo", "adaptive", "--max-minutes", "1"], "--algo adaptive does not take --max-minutes 1.0 (an option of ppo; here: --minutes)"),
+    (["--algo", "adaptive", "--frames", "10", "--lr", "0.1"], "--frames 10 (an option of ngransac; here: --max-episodes or --minutes), --lr 0.1"),
+    (["--algo", "ppo", "--minutes", "3"], "--algo ppo does not take --minutes 3.0 (an option of adaptive; here: --max-minutes)"),
+    (["--algo", "ngransac", "--timesteps", "5", "--prior", "ppo"], "--algo ngransac does not take --prior ppo (an option of adaptive), --timesteps 5"),
+    (["--algo", "adaptive", "--epsilon", "0.5"], "--epsilon 0.5 (an option of ngransac and ppo)"),
+])
+def test_an_option_of_another_trainer_is_refused_not_ignored(tmp_path, capsys, argv, needle):
+    assert main(["train", *argv, "--out", str(tmp_path / "t")]) == 2
+    assert needle in one_line_error(capsys, "train")
+    assert not (tmp_path / "t").exists()  # refused before anything ran
+
+
+def test_every_option_belongs_to_a_trainer():
+    parser = argparse.ArgumentParser()
+    train.add_parser(parser)
+    common = {"algo", "out", "seed", "resume", "no_progress"}
+    dests = set(vars(parser.parse_args([]))) - common
+    assert dests == set().union(*train.USED_BY.values())

@@ -8,7 +8,8 @@ periodically and write checkpoints that carry their config and feature layout;
 ``--resume CHECKPOINT`` continues from one. ``--algo adaptive`` trains the in-frame
 sampler (:func:`agents.adaptive.train_in_frame`) within a time budget (``--minutes``)
 into ``<out>/adaptive.pt``, ``training.jsonl`` and ``training.json``; ``--resume``
-starts from an in-frame checkpoint's weights.
+starts from an in-frame checkpoint's weights. An option of another trainer than ``--algo``'s is
+refused in one line before anything runs (:data:`USED_BY`), never silently ignored.
 """
 
 from __future__ import annotations
@@ -289,6 +290,43 @@ def _train_adaptive(args: argparse.Namespace, out: Path) -> int:
     return 0
 
 
+# The options each trainer reads (argparse dests); --algo, --out, --seed, --resume and --no-progress
+# serve all three. An option of another trainer is refused rather than silently ignored: a
+# researcher who gives --algo adaptive PPO's --max-minutes would otherwise train for 25 minutes.
+USED_BY = {
+    "ngransac": frozenset({"loss", "frames", "epsilon", "budget", "pools", "lr", "max_grad_norm", "entropy_weight",
+                           "frames_per_sequence", "eval_every", "eval_frames"}),
+    "ppo": frozenset(set(_PPO_OPTIONS) - {"seed"} | {"max_minutes", "epsilon"}),
+    "adaptive": frozenset({"minutes", "clock", "prior", "domain_randomisation", "max_episodes", "frames_per_episode",
+                           "n_correspondences"}),
+}
+# where a refused option has a counterpart in the chosen trainer
+_COUNTERPART = {("adaptive", "max_minutes"): "--minutes", ("ppo", "minutes"): "--max-minutes",
+                ("ppo", "lr"): "--ppo-lr", ("adaptive", "frames"): "--max-episodes or --minutes"}
+
+
+def _flag(dest: str) -> str:
+    return "--" + dest.replace("_", "-")
+
+
+def check_options_apply(args: argparse.Namespace) -> None:
+    """Raise a one-line UsageError naming every given option (a value other than its default) that
+    ``--algo``'s trainer does not read, the trainer(s) that do, and a counterpart if there is one."""
+    parser = argparse.ArgumentParser()
+    add_parser(parser)
+    defaults = vars(parser.parse_args([]))
+    refused = []
+    for dest in sorted(set().union(*USED_BY.values()) - USED_BY[args.algo]):
+        value = getattr(args, dest, defaults[dest])
+        if value == defaults[dest]:
+            continue
+        owners = " and ".join(algo for algo, used in USED_BY.items() if dest in used)
+        hint = _COUNTERPART.get((args.algo, dest))
+        refused.append(f"{_flag(dest)} {value}" + f" (an option of {owners}" + (f"; here: {hint})" if hint else ")"))
+    if refused:
+        raise UsageError(f"--algo {args.algo} does not take " + ", ".join(refused))
+
+
 def _check_env_id(env_id: str) -> None:
     import gymnasium as gym
 
@@ -302,6 +340,7 @@ def _check_env_id(env_id: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_options_apply(args)
     require_extras("torch", *(("tensorboard",) if args.algo != "adaptive" else ()),
                    *(("stable_baselines3",) if args.algo == "ppo" else ()))
     out = check_output_dir(args.out, "--out")  # before any computing: a bad --out loses no training
