@@ -20,6 +20,16 @@ from stereovo.frontend import roc_auc
 from stereovo.sequences import open_source, run_image_odometry
 
 
+def _value(text: str):
+    """A command-line value as int, float, None or the text itself."""
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return None if text == "None" else text
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=500)
@@ -28,10 +38,18 @@ def main() -> None:
     parser.add_argument("--resolution", default="kitti", choices=("kitti", "vga"))
     parser.add_argument("--moving-objects", type=int, default=0)
     parser.add_argument("--method", default="probabilistic")
+    parser.add_argument("--frontend", nargs="*", default=[], metavar="NAME=VALUE",
+                        help="front-end options (FrontendOptions fields), e.g. pyramid_levels=4 fast_threshold=12")
     args = parser.parse_args()
+    frontend = {}
+    for item in args.frontend:
+        name, sep, value = item.partition("=")
+        if not sep:
+            parser.error(f"--frontend takes NAME=VALUE items, got {item!r}")
+        frontend[name] = _value(value)
 
     sequence = open_source(f"rendered:{args.preset}", n_frames=args.frames, seed=args.seed,
-                           resolution=args.resolution, moving_objects=args.moving_objects)
+                           resolution=args.resolution, moving_objects=args.moving_objects, **frontend)
     aucs, inlier_rates, counts = [], [], []
 
     class Recording:

@@ -1,7 +1,9 @@
 """Keypoints and descriptors of one grey image by OpenCV: ORB, SIFT or AKAZE.
 
 - ORB: Rublee, Rabaud, Konolige & Bradski, "ORB: an efficient alternative to SIFT or SURF",
-  ICCV 2011. 256-bit binary descriptors, Hamming distance.
+  ICCV 2011. 256-bit binary descriptors, Hamming distance. One pyramid level by default
+  (``FrontendOptions.pyramid_levels``): OpenCV's ORB detects the FAST corners of the image and
+  orients them, the grid (:func:`bucket`) keeps ``n_features``, and OpenCV's ORB describes those.
 - SIFT: Lowe, "Distinctive image features from scale-invariant keypoints", IJCV 2004.
   128 floats, normalised here to unit length, Euclidean distance.
 - AKAZE: Alcantarilla, Nuevo & Bartoli, "Fast explicit diffusion for accelerated features in
@@ -20,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stereovo.frontend import kernels
 from stereovo.frontend.options import FrontendOptions
 
 
@@ -62,6 +65,7 @@ def _detector(options: FrontendOptions):
         return cv2.ORB_create(
             nfeatures=wanted, scaleFactor=1.2, nlevels=options.pyramid_levels,
             fastThreshold=options.fast_threshold,
+            scoreType=cv2.ORB_FAST_SCORE if options.orb_score == "fast" else cv2.ORB_HARRIS_SCORE,
         )
     if options.detector == "sift":
         return cv2.SIFT_create(nfeatures=wanted)
@@ -76,7 +80,7 @@ def _detector(options: FrontendOptions):
 
 
 BUCKET_OVERSAMPLING = 3
-"""With a grid, the detector proposes this many times ``n_features`` keypoints, the grid keeps ``n_features``."""
+"""With a grid, the detector proposes up to this many times ``n_features`` keypoints (those its threshold finds), the grid keeps ``n_features``."""
 
 
 def bucket(xy: np.ndarray, response: np.ndarray, shape: tuple[int, int], rows: int, cols: int,
@@ -92,20 +96,8 @@ def bucket(xy: np.ndarray, response: np.ndarray, shape: tuple[int, int], rows: i
     h, w = shape
     cell = (np.minimum((xy[:, 1] * rows / h).astype(np.int64), rows - 1) * cols
             + np.minimum((xy[:, 0] * cols / w).astype(np.int64), cols - 1))
-    order = np.lexsort((-response, cell))  # by cell, strongest first
-    sorted_cells = cell[order]
-    first = np.searchsorted(sorted_cells, sorted_cells, side="left")
-    rank = np.empty(n, np.int64)
-    rank[order] = np.arange(n) - first
     quota = -(-count // (rows * cols))
-    chosen = rank < quota
-    if chosen.sum() > count:  # more cells full than the budget allows: the strongest of the chosen
-        idx = np.flatnonzero(chosen)
-        chosen[:] = False
-        chosen[idx[np.argsort(-response[idx], kind="stable")[:count]]] = True
-    elif chosen.sum() < count:
-        rest = np.flatnonzero(~chosen)
-        chosen[rest[np.argsort(-response[rest], kind="stable")[: count - int(chosen.sum())]]] = True
+    chosen = kernels.bucket_mask(cell, np.asarray(response, dtype=np.float64), rows * cols, quota, count)
     return np.flatnonzero(chosen)
 
 
@@ -120,17 +112,17 @@ def _pack_bits(descriptors: np.ndarray) -> np.ndarray:
 
 def detect(image: np.ndarray, options: FrontendOptions) -> Keypoints:
     """Keypoints and descriptors of a checked grey uint8 image (:func:`~stereovo.frontend.images.grey_image`)."""
-    detector = _detector(options)
     cv2 = _cv2()
+    detector = _detector(options)
     keypoints = detector.detect(image, None)
     if len(keypoints) > options.n_features:
         xy = cv2.KeyPoint_convert(keypoints).reshape(-1, 2)
-        response = np.array([kp.response for kp in keypoints])
+        response = np.fromiter((kp.response for kp in keypoints), np.float64, len(keypoints))
         if options.grid_rows * options.grid_cols > 1:
             keep = bucket(xy, response, image.shape, options.grid_rows, options.grid_cols, options.n_features)
         else:
             keep = np.sort(np.argsort(-response, kind="stable")[: options.n_features])
-        keypoints = [keypoints[i] for i in keep]
+        keypoints = [keypoints[i] for i in keep.tolist()]
     keypoints, descriptors = detector.compute(image, keypoints)
     binary = options.detector != "sift"
     if descriptors is None or len(keypoints) == 0:

@@ -89,14 +89,22 @@ def window_best_two_hamming(pa, pb, order_b, vb_sorted, da, db, v_tol, du_lo, du
     b1 = np.full(nb, np.inf)
     starts = np.searchsorted(vb_sorted, pa[:, 1] - v_tol, side="left")
     stops = np.searchsorted(vb_sorted, pa[:, 1] + v_tol, side="right")
+    # the second image's columns and descriptors in the scanning order: read one after another
+    ub_sorted = np.empty(nb)
+    db_sorted = np.empty((nb, words), np.uint64)
+    for s in range(nb):
+        ub_sorted[s] = pb[order_b[s], 0]
+        for w in range(words):
+            db_sorted[s, w] = db[order_b[s], w]
     for i in range(na):
+        ua = pa[i, 0]
         for s in range(starts[i], stops[i]):
-            j = order_b[s]
-            du = pa[i, 0] - pb[j, 0]
+            du = ua - ub_sorted[s]
             if du_lo <= du <= du_hi:
+                j = order_b[s]
                 total = np.uint64(0)
                 for w in range(words):
-                    total += _popcount64(da[i, w] ^ db[j, w])
+                    total += _popcount64(da[i, w] ^ db_sorted[s, w])
                 d = float(total)
                 if d < d1[i]:
                     d2[i] = d1[i]
@@ -250,3 +258,42 @@ def refine_shift(prev, curr, up, vp, uc, vc, radius, search):
         out[i, 0] = xc + bx + dx + (up[i] - xp)
         out[i, 1] = yc + by + dy + (vp[i] - yp)
     return out
+
+
+@njit(cache=True, nogil=True)
+def bucket_mask(cell, response, n_cells, quota, count):
+    """Bucketing's choice (:func:`stereovo.frontend.detection.bucket`) in one pass: keypoints are
+    visited strongest first (ties in index order); each takes a place while its cell has fewer than
+    ``quota``; then, if more than ``count`` were taken, only the first ``count`` taken stay, and if
+    fewer, the strongest of the rest fill up to ``count``.
+
+    Returns:
+        ``(N,)`` bool, the chosen keypoints.
+    """
+    n = cell.shape[0]
+    order = np.argsort(-response, kind="mergesort")
+    taken = np.zeros(n_cells, np.int64)
+    chosen = np.zeros(n, np.bool_)
+    total = 0
+    for o in order:
+        c = cell[o]
+        if taken[c] < quota:
+            taken[c] += 1
+            chosen[o] = True
+            total += 1
+    if total > count:
+        kept = 0
+        for o in order:
+            if chosen[o]:
+                if kept < count:
+                    kept += 1
+                else:
+                    chosen[o] = False
+    elif total < count:
+        for o in order:
+            if total == count:
+                break
+            if not chosen[o]:
+                chosen[o] = True
+                total += 1
+    return chosen

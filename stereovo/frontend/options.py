@@ -17,6 +17,10 @@ DETECTORS: tuple[str, ...] = ("orb", "sift", "akaze")
 """Feature detectors and descriptors: ORB (Rublee et al., ICCV 2011; binary, Hamming distance),
 SIFT (Lowe, IJCV 2004; float, L2 distance), AKAZE (Alcantarilla et al., BMVC 2013; binary M-LDB)."""
 
+ORB_SCORES: tuple[str, ...] = ("harris", "fast")
+"""How ORB ranks its FAST corners: Harris's corner measure (Rublee et al.'s choice, OpenCV's
+default) or the FAST score itself (OpenCV's ``ORB_FAST_SCORE``)."""
+
 TEMPORAL_CHECKS: tuple[str, ...] = ("mutual", "ratio", "both")
 """How a temporal match k-1 -> k is accepted: ``"mutual"`` (each is the other's nearest
 neighbour), ``"ratio"`` (Lowe's ratio test on the nearest two), or ``"both"``."""
@@ -26,6 +30,7 @@ _RULES: dict[str, Option] = {
     "n_features": Integer(low=8, high=200_000),
     "fast_threshold": Integer(low=1, high=254),
     "pyramid_levels": Integer(low=1, high=16),
+    "orb_score": Choice(choices=ORB_SCORES),
     "grid_rows": Integer(low=1, high=64),
     "grid_cols": Integer(low=1, high=64),
     "stereo_ratio": Number(low=0.0, high=1.0, low_open=True),
@@ -49,9 +54,18 @@ class FrontendOptions:
     Args:
         detector: ``"orb"`` (default), ``"sift"`` or ``"akaze"`` (:data:`DETECTORS`).
         n_features: keypoints kept per image (ORB's and SIFT's budget; AKAZE keeps its strongest).
-        fast_threshold: ORB's FAST corner threshold (grey levels).
-        pyramid_levels: ORB's pyramid levels (scale factor 1.2 between levels).
-        grid_rows, grid_cols: bucketing grid: the detector proposes three times ``n_features``
+        fast_threshold: ORB's FAST corner threshold (grey levels). The default 7 leaves one level
+            of a rendered 1241x376 image 3000-6000 candidates, so the grid has at least 1.5 times
+            ``n_features`` to choose from.
+        pyramid_levels: ORB's pyramid levels (scale factor 1.2 between levels). Default 1: the two
+            images of a stereo pair have one scale, and consecutive frames change scale little, so
+            the front end detects and describes one level (detection about 1.7x and a streamed frame
+            pair about 1.5x faster than with 4 levels at 2000 features, with more matches on the
+            poorest rendered frames and the accuracy targets met; docs/images.md).
+            The coarser levels help when the scale changes between the frames matched.
+        orb_score: how ORB ranks its FAST corners for the budget and the grid: ``"fast"`` (the FAST
+            score, default) or ``"harris"`` (Harris's measure, OpenCV's default) (:data:`ORB_SCORES`).
+        grid_rows, grid_cols: bucketing grid: the detector proposes up to three times ``n_features``
             keypoints and each cell keeps its strongest share, so one strong (often repetitive)
             patch cannot take every feature; ``1 x 1`` keeps the strongest overall.
         stereo_ratio: Lowe's ratio test along the row band: a stereo match is kept when its
@@ -78,8 +92,9 @@ class FrontendOptions:
 
     detector: str = "orb"
     n_features: int = 2000
-    fast_threshold: int = 12
-    pyramid_levels: int = 4
+    fast_threshold: int = 7
+    pyramid_levels: int = 1
+    orb_score: str = "fast"
     grid_rows: int = 4
     grid_cols: int = 12
     stereo_ratio: float = 0.9

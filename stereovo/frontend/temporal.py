@@ -75,6 +75,10 @@ def temporal_matches(prev: StereoFeatures, curr: StereoFeatures, options: Fronte
         raise ValueError("the two frames' features come from different detectors: match them with one front end")
     r = np.inf if options.search_radius is None else options.search_radius
     pa, pb = prev.points[:, :2], curr.points[:, :2]
+    if prev.image.shape[1] > prev.image.shape[0]:
+        # The window is square, so either axis can be the one scanned in sorted order: the longer
+        # one (columns, in a wide image) leaves the fewer candidates to test.
+        pa, pb = pa[:, ::-1], pb[:, ::-1]
     ka = Keypoints(np.ascontiguousarray(pa), prev.descriptors, prev.binary, prev.max_distance)
     kb = Keypoints(np.ascontiguousarray(pb), curr.descriptors, curr.binary, curr.max_distance)
     best, d1, d2, back = window_matches(ka, kb, r, -r, r)

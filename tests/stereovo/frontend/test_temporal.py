@@ -111,3 +111,20 @@ def test_unknown_keywords_and_bad_cameras_are_named():
     with pytest.raises(ValueError, match="disparity range is empty"):
         StereoFrontend(CAM, min_disparity=500.0)
     assert FrontendOptions().detector == "orb"
+
+
+def test_default_orb_is_one_level_ranked_by_fast_score_and_the_earlier_configuration_still_runs(street):
+    from stereovo.frontend.detection import detect
+
+    options = FrontendOptions()
+    assert (options.pyramid_levels, options.orb_score, options.n_features) == (1, "fast", 2000)
+    left, right = street.images(0)
+    keypoints = detect(left, options)
+    h, w = left.shape
+    assert len(keypoints) == 2000  # the budget, chosen by the grid from more candidates
+    assert np.all((keypoints.xy >= 31) & (keypoints.xy < (w - 31, h - 31)))  # ORB's border
+    assert np.array_equal(keypoints.xy, np.rint(keypoints.xy))  # one level: FAST corners lie on pixels
+    earlier = FrontendOptions(pyramid_levels=4, fast_threshold=12, orb_score="harris")
+    assert len(match_stereo_frames(left, right, *street.images(1), street.camera, options=earlier)) > 100
+    with pytest.raises(ValueError, match="FrontendOptions.orb_score"):
+        FrontendOptions(orb_score="shi-tomasi")
