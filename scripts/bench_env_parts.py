@@ -1,7 +1,9 @@
-"""The environments' parts that this round made faster, against the formulation each replaced, in one
+"""The environments' parts that were made faster, against the formulation each replaced, in one
 process: per step of ``vo_gym/StereoVOAdaptive-v0``, a batch's draw (``WeightedSampler`` built
 from the agent's weights, then four samples, against ``WeightedDraw``) and the selection read
-twice a step (the frame's masks concatenated, against the buffer). Each is timed ``--repeats``
+twice a step (the frame's masks concatenated, against the buffer); per frame of every env, the
+rigid-consistency counts of the features (every pair through the double-precision test, against
+the single-precision screen), on the usable rows of simulated frames (default and hostile). Each is timed ``--repeats``
 times over ``--loops`` calls, the fastest kept (process CPU time); the results are checked equal
 first, on generators seeded alike. Usage::
 
@@ -15,8 +17,11 @@ import time
 
 import numpy as np
 
+from stereovo.estimation import StereoProblem
 from stereovo.estimation.methods.bansac import WeightedDraw
 from stereovo.estimation.roles.samplers import WeightedSampler
+from stereovo.simulation import SimulationConfig, simulate_frame
+from vo_gym import features as F
 
 
 def fastest(fn, loops: int, repeats: int) -> float:
@@ -53,6 +58,16 @@ def main() -> int:
          lambda: int(np.argmax(np.concatenate(masks) @ weights)),
          lambda: int(np.argmax(buffer[:32] @ weights))),
     ]
+    for outliers in ("default", "hostile"):
+        frame = simulate_frame(SimulationConfig(n_correspondences=n, outlier_ratio=0.5, outliers=outliers), rng=3)
+        problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, 0.5)
+        rows = np.flatnonzero(problem.usable_mask)
+        s2 = (np.trace(problem.cov_prev[rows], axis1=1, axis2=2) + np.trace(problem.cov_curr[rows], axis1=1, axis2=2))
+        anchors = np.sort(np.argsort(-frame.scores[rows], kind="stable")[: F.MAX_ANCHORS]).astype(np.int64)
+        inputs = (np.ascontiguousarray(problem.points_prev[rows]), np.ascontiguousarray(problem.points_curr[rows]),
+                s2, anchors, 9.0)
+        checks.append((f"consistency counts ({outliers}, {rows.size} x {anchors.size})",
+                       lambda a=inputs: F._consistent_pairs_exact(*a), lambda a=inputs: F._consistent_pairs(*a)))
     print(f"{'part':<40} {'before us':>10} {'after us':>9} {'after/before':>13}")
     for name, before, after in checks:
         assert np.array_equal(np.asarray(before()), np.asarray(after())), name
