@@ -319,6 +319,29 @@ def _consistent_pairs_exact(points_prev, points_curr, s2, anchors, gate_sq):
     return counts
 
 
+@njit(cache=True, nogil=True)
+def _plain_columns(out, scores, by_score, prev, curr, u_scale, v_scale, disparity_scale, cov_prev, cov_curr, spread):
+    """In place, the columns without a transcendental function, in one pass, each value computed as
+    numpy's column-wise formulation computes it (in float64, stored to float32): the score, its rank
+    ``rank / max(n - 1, 1)``, ``u * u_scale - 1``, ``v * v_scale - 1`` and ``(uL - uR) * disparity_scale``
+    at k-1 and k; and ``spread = sqrt(trace(cov_prev) + trace(cov_curr))`` (each trace summed in
+    ``np.trace``'s order)."""
+    n = out.shape[0]
+    denominator = float(max(n - 1, 1))
+    for position in range(n):
+        out[by_score[position], 1] = float(position) / denominator
+    for i in range(n):
+        out[i, 0] = scores[i]
+        out[i, 2] = prev[i, 0] * u_scale - 1.0
+        out[i, 3] = prev[i, 1] * v_scale - 1.0
+        out[i, 4] = (prev[i, 0] - prev[i, 2]) * disparity_scale
+        out[i, 5] = curr[i, 0] * u_scale - 1.0
+        out[i, 6] = curr[i, 1] * v_scale - 1.0
+        out[i, 7] = (curr[i, 0] - curr[i, 2]) * disparity_scale
+        spread[i] = math.sqrt((cov_prev[i, 0, 0] + cov_prev[i, 1, 1] + cov_prev[i, 2, 2])
+                              + (cov_curr[i, 0, 0] + cov_curr[i, 1, 1] + cov_curr[i, 2, 2]))
+
+
 def usable_rows(features: np.ndarray) -> np.ndarray:
     """``(N,)`` bool: the rows of :func:`compute_features`' output that have a depth (the
     others carry ``log_depth_prev = +FEATURE_BOUND``, see the module doc)."""
@@ -388,16 +411,11 @@ def compute_features(
         cov_prev, cov_curr = problem.cov_prev, problem.cov_curr
         usable = problem.usable
 
-    out[:, 0] = scores
     by_score = np.argsort(-scores, kind="stable")  # best first; also picks the consistency anchors
-    rank = np.empty(n)
-    rank[by_score] = np.arange(n)
-    out[:, 1] = rank / max(n - 1, 1)
     u_scale, v_scale = 2.0 / max(camera.width - 1, 1), 2.0 / max(camera.height - 1, 1)
-    for col, meas in ((2, prev), (5, curr)):
-        out[:, col] = meas[:, 0] * u_scale - 1.0
-        out[:, col + 1] = meas[:, 1] * v_scale - 1.0
-        out[:, col + 2] = camera.disparity(meas) * (_DISPARITY_REF / camera.fx)
+    spread = np.empty(n)  # the root of the summed covariance traces at k-1 and k
+    _plain_columns(out, scores, by_score, prev, curr, u_scale, v_scale, _DISPARITY_REF / camera.fx,
+                   cov_prev, cov_curr, spread)
     with np.errstate(invalid="ignore"):  # NaN on rows without depth, overwritten below
         out[:, 8] = np.log(points_prev[:, 2] / _DEPTH_REF_M)
         out[:, 9] = np.log(points_curr[:, 2] / _DEPTH_REF_M)
@@ -408,11 +426,6 @@ def compute_features(
         with np.errstate(over="ignore", invalid="ignore"):
             out[:, 11] = np.log1p(np.sqrt(sq / 4.0) / noise_sigma)
         out[:, 12] = 1.0
-    # the traces, summed in np.trace's order without its dispatch
-    spread = np.sqrt(
-        (cov_prev[:, 0, 0] + cov_prev[:, 1, 1] + cov_prev[:, 2, 2])
-        + (cov_curr[:, 0, 0] + cov_curr[:, 1, 1] + cov_curr[:, 2, 2])
-    )
     if usable is None:
         out[:, 13] = rigid_consistency_degree(points_prev, points_curr, spread, priority=scores, priority_order=by_score)
     else:
