@@ -455,9 +455,9 @@ def _train(config: AdaptiveTrainConfig, out: str | Path, log_path: str | Path | 
             full[:n], full[-1] = action[:n], action[-1]
             obs, reward, _, truncated, info = env.step(full)
             frame_return += reward
-            if info["batch_samples"].shape[0]:
+            if info["batch_count"]:
                 log_p = torch.log_softmax(valid_logits.clamp(-LOGIT_BOUND, LOGIT_BOUND), dim=0)
-                samples = torch.as_tensor(info["batch_samples"])
+                samples = torch.as_tensor(info["batch_samples"][: info["batch_count"]])
                 frame_terms.append(ordered_triplet_log_prob(log_p, samples).sum())
             if info["frame_done"]:
                 advantage = frame_return - baseline

@@ -8,14 +8,15 @@ sync vector env of ``--num-envs`` copies, each ``--seconds`` long, ``--repeats``
 reported), single-threaded BLAS, after a warm-up. Also printed: frames per CPU-minute (the
 training throughput: a frame is a step of the one-shot env, ``frames / steps`` of the adaptive
 one), and with ``--digest`` a digest of the adaptive environment's observations, rewards and infos
-on fixed seeds (its stream must stay the same when the code gets faster).
+on fixed seeds (its stream must stay the same when the code gets faster; the padded batch infos
+enter it cut to their ``batch_count`` rows, as they were before they were padded).
 
 To compare two versions of the code, run this once in each checkout, alternating, in the same
 minutes (``--json`` keeps the figures): a shared machine's speed drifts between runs.
 
 Usage::
 
-    python scripts/bench_env_gym.py [--seconds 3] [--repeats 3] [--num-envs 2] [--digest] [--json FILE]
+    python scripts/bench_env_gym.py [--seconds 3] [--repeats 3] [--num-envs 2] [--digest | --digest-only] [--json FILE]
 """
 
 from __future__ import annotations
@@ -53,9 +54,16 @@ def adaptive_digest(steps: int = 120) -> str:
         for key in ("features", "mask", "globals"):
             h.update(np.ascontiguousarray(obs[key]).tobytes())
         h.update(np.float64(reward).tobytes())
+        count = info.get("batch_count")
         for key in sorted(info):
-            if "time" not in key:
-                h.update(repr(np.asarray(info[key]).tolist()).encode())
+            if "time" in key or key == "batch_count":
+                continue
+            value = np.asarray(info[key])
+            if key in ("batch_samples", "batch_inliers") and count is not None:
+                # the real rows only (and the frame's columns): the digest of the stream before the
+                # infos were padded to a fixed shape
+                value = value[:count] if key == "batch_samples" else value[:count, : env.unwrapped.current_frame.n]
+            h.update(repr(value.tolist()).encode())
         if term or trunc:
             obs, _ = env.reset()
     return h.hexdigest()[:16]
@@ -82,8 +90,12 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--num-envs", type=int, default=2)
     parser.add_argument("--digest", action="store_true")
+    parser.add_argument("--digest-only", action="store_true", help="print the adaptive digest and nothing else")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
+    if args.digest_only:
+        print("adaptive digest", adaptive_digest())
+        return 0
     result = {}
     for env_id in IDS:
         env = gym.make(env_id)

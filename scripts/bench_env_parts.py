@@ -1,22 +1,31 @@
-"""The environments' parts that this round made faster, against the formulation each replaced, in one
+"""The environments' parts that were made faster, against the formulation each replaced, in one
 process: per step of ``vo_gym/StereoVOAdaptive-v0``, a batch's draw (``WeightedSampler`` built
 from the agent's weights, then four samples, against ``WeightedDraw``) and the selection read
-twice a step (the frame's masks concatenated, against the buffer). Each is timed ``--repeats``
+twice a step (the frame's masks concatenated, against the buffer); per frame of every env, the
+rigid-consistency counts of the features (every pair through the double-precision test, against
+the single-precision screen), on the usable rows of simulated frames (default and hostile); with
+``--before DIR`` (a checkout of earlier code) also a frame's whole ``compute_features``, DIR's
+``vo_gym/features.py`` against this one's. Each is timed ``--repeats``
 times over ``--loops`` calls, the fastest kept (process CPU time); the results are checked equal
 first, on generators seeded alike. Usage::
 
-    python scripts/bench_env_parts.py [--n 500] [--repeats 7] [--loops 200]
+    python scripts/bench_env_parts.py [--n 500] [--repeats 7] [--loops 200] [--before DIR]
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import time
+from pathlib import Path
 
 import numpy as np
 
+from stereovo.estimation import StereoProblem
 from stereovo.estimation.methods.bansac import WeightedDraw
 from stereovo.estimation.roles.samplers import WeightedSampler
+from stereovo.simulation import SimulationConfig, simulate_frame
+from vo_gym import features as F
 
 
 def fastest(fn, loops: int, repeats: int) -> float:
@@ -34,6 +43,7 @@ def main() -> int:
     parser.add_argument("--n", type=int, default=500)
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--loops", type=int, default=200)
+    parser.add_argument("--before", default=None, help="a checkout whose vo_gym/features.py is the 'before'")
     args = parser.parse_args()
     rng = np.random.default_rng(0)
     n = args.n
@@ -53,6 +63,27 @@ def main() -> int:
          lambda: int(np.argmax(np.concatenate(masks) @ weights)),
          lambda: int(np.argmax(buffer[:32] @ weights))),
     ]
+    for outliers in ("default", "hostile"):
+        frame = simulate_frame(SimulationConfig(n_correspondences=n, outlier_ratio=0.5, outliers=outliers), rng=3)
+        problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, 0.5)
+        rows = np.flatnonzero(problem.usable_mask)
+        s2 = (np.trace(problem.cov_prev[rows], axis1=1, axis2=2) + np.trace(problem.cov_curr[rows], axis1=1, axis2=2))
+        anchors = np.sort(np.argsort(-frame.scores[rows], kind="stable")[: F.MAX_ANCHORS]).astype(np.int64)
+        inputs = (np.ascontiguousarray(problem.points_prev[rows]), np.ascontiguousarray(problem.points_curr[rows]),
+                s2, anchors, 9.0)
+        checks.append((f"consistency counts ({outliers}, {rows.size} x {anchors.size})",
+                       lambda a=inputs: F._consistent_pairs_exact(*a), lambda a=inputs: F._consistent_pairs(*a)))
+    if args.before:
+        spec = importlib.util.spec_from_file_location("features_before", Path(args.before) / "vo_gym" / "features.py")
+        before_features = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(before_features)
+        frame = simulate_frame(SimulationConfig(n_correspondences=n, outlier_ratio=0.5), rng=4)
+        problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, 0.5)
+        motion = (frame.truth.rotation, frame.truth.translation)
+        inputs = (frame.prev, frame.curr, frame.scores, frame.camera, 0.5, motion)
+        checks.append(("compute_features (a frame, reused problem)",
+                       lambda a=inputs: before_features.compute_features(*a, problem=problem),
+                       lambda a=inputs: F.compute_features(*a, problem=problem)))
     print(f"{'part':<40} {'before us':>10} {'after us':>9} {'after/before':>13}")
     for name, before, after in checks:
         assert np.array_equal(np.asarray(before()), np.asarray(after())), name

@@ -100,9 +100,13 @@ class StereoVOAdaptiveEnv(gym.Env):
 
     ## Info
 
-    Every step: ``frame``, ``frame_hypotheses`` (drawn in this frame so far), ``frame_done``,
-    ``batch_samples`` ``(H, 3)`` and ``batch_inliers`` ``(H, N)`` bool of the hypotheses just
-    verified (what sampling policies such as BANSAC learn from). On a frame's last step also the
+    Every step: ``frame``, ``frame_hypotheses`` (drawn in this frame so far), ``frame_done``, and
+    the hypotheses just verified (what sampling policies such as BANSAC learn from) at a fixed shape,
+    so that Gymnasium's vector envs can stack them: ``batch_count`` (H, 0 on a step that stops),
+    ``batch_samples`` ``(batch_size, 3)`` int64 whose first H rows are the minimal samples (row
+    indices; the rest -1) and ``batch_inliers`` ``(batch_size, max_correspondences)`` bool whose
+    ``[:H, :N]`` block holds their inlier masks (the rest False). Read them as
+    ``info["batch_samples"][:H]`` and ``info["batch_inliers"][:H, :N]``. On a frame's last step also the
     frame metrics (as :class:`vo_gym.StereoVOEnv`), ``pose_error_ratio``, ``fallback``,
     ``outlier_ratio``, ``stopped`` (the agent stopped, not the cap) and ``all_inlier_drawn`` (a
     scored sample was all static inliers: read from the truth, for the stop's miss rate only).
@@ -127,7 +131,9 @@ class StereoVOAdaptiveEnv(gym.Env):
 
     ## Version History
 
-    - v0: initial version.
+    - v0: initial version. ``batch_samples`` / ``batch_inliers`` were ``(H, 3)`` / ``(H, N)`` until
+      they were padded to a fixed shape and ``batch_count`` added (the observations, rewards and the
+      other infos are unchanged).
     """
 
     metadata = {"render_modes": [], "render_fps": 4}
@@ -232,10 +238,8 @@ class StereoVOAdaptiveEnv(gym.Env):
         search = self._search
         drawn, stopping, done = search.step(logits, stop, self.batch_size)
         reward = -self.hypothesis_cost * drawn
-        info: dict[str, Any] = {
-            "frame": int(self._frame.index), "frame_hypotheses": int(search.drawn),
-            "batch_samples": search.sampler.last_samples.copy(), "batch_inliers": search.sampler.last_masks.copy(),
-        }
+        info: dict[str, Any] = {"frame": int(self._frame.index), "frame_hypotheses": int(search.drawn)}
+        info.update(self._batch_info(search.sampler.last_samples, search.sampler.last_masks))
         info["frame_done"] = bool(done)
         truncated = False
         if done:
@@ -285,6 +289,15 @@ class StereoVOAdaptiveEnv(gym.Env):
             return inlier_reward(est.ok, est.n_inliers, frame.n, 0, 0.0, self.failure_reward)
         return msac_reward(est.ok, est.rotation, est.translation, frame.prev, frame.curr, frame.camera,
                            self.estimator_options.reprojection_threshold_sq, 0, 0.0, self.failure_reward)
+
+    def _batch_info(self, samples: np.ndarray, masks: np.ndarray) -> dict[str, Any]:
+        """The step's hypotheses at a fixed shape (see Info): ``batch_count`` real rows, then padding."""
+        count = int(samples.shape[0])
+        batch_samples = np.full((self.batch_size, 3), -1, dtype=np.int64)
+        batch_samples[:count] = samples
+        batch_inliers = np.zeros((self.batch_size, self.max_correspondences), dtype=bool)
+        batch_inliers[:count, : masks.shape[1]] = masks
+        return {"batch_samples": batch_samples, "batch_inliers": batch_inliers, "batch_count": count}
 
     def _validate_action(self, action) -> tuple[np.ndarray, bool]:
         M, n = self.max_correspondences, self._frame.n

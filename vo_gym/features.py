@@ -59,6 +59,7 @@ A learned agent's checkpoint records ``FEATURE_NAMES`` and
 
 from __future__ import annotations
 
+import math
 from typing import Sequence
 
 import numpy as np
@@ -195,10 +196,108 @@ def rigid_consistency_degree(
     return (count / (anchors.size - is_anchor)).astype(np.float32)
 
 
+# The single-precision screen of :func:`_consistent_pairs` (see its doc).
+_SCREEN_ULPS = 64.0  # its error bound on the distance change, in float32 ulps of the largest centred coordinate
+_SCREEN_MARGIN = 1e-5  # its relative margin on the squared gate
+_SCREEN_MAX_COORDINATE = 1e15  # beyond it (or on non-finite points) every pair takes the test itself
+_SCREEN_MIN_GATE = 1e-8  # as when the gate's root is below this times the largest coordinate
+
+
 @njit(cache=True, nogil=True)
 def _consistent_pairs(points_prev, points_curr, s2, anchors, gate_sq):
     """``(N,)`` counts of anchors j that pass the rigid-distance test (:mod:`stereovo.estimation.kernels.rigidity`)
     with ``var = s2_i + s2_j``: ``(|Q_i - Q_j| - |P_i - P_j|)^2 < gate_sq (s2_i + s2_j)``.
+
+    The counts are exactly those of the test itself (:func:`_consistent_pairs_exact`), with most pairs
+    decided by a single-precision screen (eight lanes a vector instead of four, float32 roots). The
+    screen's points are each frame's points less their box centre, rounded to float32; with ``L`` the
+    largest centred coordinate and ``u = 2^-24``, its distance change ``D`` is within ``40 L u`` of the
+    exact one (rounding ``2 L u`` and differencing ``2 L u`` a coordinate, the norm ``3 u`` of at most
+    ``2 sqrt(3) L``, for each distance, then their difference). With ``E = 64 L u`` a pair with
+    ``(|D| + E)^2 < c (1 - 1e-5)`` (``c = gate_sq var``) passes and one with ``(|D| - E)^2 > c (1 +
+    1e-5)`` fails in exact arithmetic, with a relative margin far above the screen's own float32
+    rounding of ``c`` and of the squares (a few ``u``). The test in double precision errs by at most
+    about ``10 2^-53 M`` on the change (``M`` the largest coordinate), inside that margin wherever
+    ``sqrt(c) > 1e-8 M``; the kernel checks that, and finite coordinates below 1e15, once per call and
+    otherwise runs the test on every pair. The pairs the screen leaves undecided (those near the gate)
+    take the test itself. So each count is the test's (``tests/vo_gym/test_features.py`` compares
+    them on frames and on pairs placed at the gate).
+    """
+    n, a = points_prev.shape[0], anchors.shape[0]
+    largest = 0.0
+    finite = True
+    low_p, high_p = np.full(3, np.inf), np.full(3, -np.inf)
+    low_q, high_q = np.full(3, np.inf), np.full(3, -np.inf)
+    for i in range(n):
+        for j in range(3):
+            u, v = points_prev[i, j], points_curr[i, j]
+            finite = finite and abs(u) <= _SCREEN_MAX_COORDINATE and abs(v) <= _SCREEN_MAX_COORDINATE  # NaN fails
+            largest = max(largest, abs(u), abs(v))
+            low_p[j], high_p[j] = min(low_p[j], u), max(high_p[j], u)
+            low_q[j], high_q[j] = min(low_q[j], v), max(high_q[j], v)
+    smallest_s2 = np.inf
+    for i in range(n):
+        smallest_s2 = min(smallest_s2, s2[i])
+    if not (n > 0 and finite and math.sqrt(gate_sq * 2.0 * smallest_s2) > _SCREEN_MIN_GATE * largest):  # NaN s2 too
+        return _consistent_pairs_exact(points_prev, points_curr, s2, anchors, gate_sq)
+    centre_p, centre_q = 0.5 * (low_p + high_p), 0.5 * (low_q + high_q)
+    p32 = np.empty((n, 3), dtype=np.float32)
+    q32 = np.empty((n, 3), dtype=np.float32)
+    spread = 0.0
+    for i in range(n):
+        for j in range(3):
+            p32[i, j] = points_prev[i, j] - centre_p[j]
+            q32[i, j] = points_curr[i, j] - centre_q[j]
+            spread = max(spread, abs(points_prev[i, j] - centre_p[j]), abs(points_curr[i, j] - centre_q[j]))
+    bound = np.float32(_SCREEN_ULPS * spread * 2.0**-24)
+    below, above = np.float32(1.0 - _SCREEN_MARGIN), np.float32(1.0 + _SCREEN_MARGIN)
+    gate32 = np.float32(gate_sq)
+    zero = np.float32(0.0)
+    s32 = s2.astype(np.float32)
+    px, py, pz = p32[anchors, 0].copy(), p32[anchors, 1].copy(), p32[anchors, 2].copy()
+    qx, qy, qz = q32[anchors, 0].copy(), q32[anchors, 1].copy(), q32[anchors, 2].copy()
+    s2_anchor32 = s32[anchors]
+    # the test's own double-precision inputs, gathered alike
+    dpx, dpy, dpz = points_prev[anchors, 0].copy(), points_prev[anchors, 1].copy(), points_prev[anchors, 2].copy()
+    dqx, dqy, dqz = points_curr[anchors, 0].copy(), points_curr[anchors, 1].copy(), points_curr[anchors, 2].copy()
+    s2_anchor = s2[anchors]
+    undecided = np.zeros(a, dtype=np.uint8)
+    counts = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        p0, p1, p2 = p32[i, 0], p32[i, 1], p32[i, 2]
+        q0, q1, q2 = q32[i, 0], q32[i, 1], q32[i, 2]
+        s2i = s32[i]
+        c = 0
+        left = 0
+        for k in range(a):
+            x0, x1, x2 = px[k] - p0, py[k] - p1, pz[k] - p2
+            y0, y1, y2 = qx[k] - q0, qy[k] - q1, qz[k] - q2
+            change = abs(np.sqrt(y0 * y0 + y1 * y1 + y2 * y2) - np.sqrt(x0 * x0 + x1 * x1 + x2 * x2))
+            gate = gate32 * (s2i + s2_anchor32[k])
+            high = change + bound
+            low = max(change - bound, zero)
+            passes = high * high < gate * below
+            fails = low * low > gate * above
+            c += passes
+            flag = not (passes or fails)
+            undecided[k] = flag
+            left += flag
+        if left:
+            d0, d1, d2 = points_prev[i, 0], points_prev[i, 1], points_prev[i, 2]
+            e0, e1, e2 = points_curr[i, 0], points_curr[i, 1], points_curr[i, 2]
+            ds2 = s2[i]
+            for k in range(a):
+                if undecided[k]:
+                    change_sq = distance_change_sq_jit(dpx[k] - d0, dpy[k] - d1, dpz[k] - d2,
+                                                       dqx[k] - e0, dqy[k] - e1, dqz[k] - e2)
+                    c += rigid_distance_consistent_jit(change_sq, ds2 + s2_anchor[k], gate_sq)
+        counts[i] = c
+    return counts
+
+
+@njit(cache=True, nogil=True)
+def _consistent_pairs_exact(points_prev, points_curr, s2, anchors, gate_sq):
+    """:func:`_consistent_pairs` with every pair through the rigid-distance test itself (its reference).
 
     One pass over the N x A pairs; the anchors' coordinates are gathered first so the
     inner loop reads contiguous memory.
@@ -218,6 +317,29 @@ def _consistent_pairs(points_prev, points_curr, s2, anchors, gate_sq):
             c += rigid_distance_consistent_jit(change_sq, s2i + s2_anchor[k], gate_sq)
         counts[i] = c
     return counts
+
+
+@njit(cache=True, nogil=True)
+def _plain_columns(out, scores, by_score, prev, curr, u_scale, v_scale, disparity_scale, cov_prev, cov_curr, spread):
+    """In place, the columns without a transcendental function, in one pass, each value computed as
+    numpy's column-wise formulation computes it (in float64, stored to float32): the score, its rank
+    ``rank / max(n - 1, 1)``, ``u * u_scale - 1``, ``v * v_scale - 1`` and ``(uL - uR) * disparity_scale``
+    at k-1 and k; and ``spread = sqrt(trace(cov_prev) + trace(cov_curr))`` (each trace summed in
+    ``np.trace``'s order)."""
+    n = out.shape[0]
+    denominator = float(max(n - 1, 1))
+    for position in range(n):
+        out[by_score[position], 1] = float(position) / denominator
+    for i in range(n):
+        out[i, 0] = scores[i]
+        out[i, 2] = prev[i, 0] * u_scale - 1.0
+        out[i, 3] = prev[i, 1] * v_scale - 1.0
+        out[i, 4] = (prev[i, 0] - prev[i, 2]) * disparity_scale
+        out[i, 5] = curr[i, 0] * u_scale - 1.0
+        out[i, 6] = curr[i, 1] * v_scale - 1.0
+        out[i, 7] = (curr[i, 0] - curr[i, 2]) * disparity_scale
+        spread[i] = math.sqrt((cov_prev[i, 0, 0] + cov_prev[i, 1, 1] + cov_prev[i, 2, 2])
+                              + (cov_curr[i, 0, 0] + cov_curr[i, 1, 1] + cov_curr[i, 2, 2]))
 
 
 def usable_rows(features: np.ndarray) -> np.ndarray:
@@ -289,16 +411,11 @@ def compute_features(
         cov_prev, cov_curr = problem.cov_prev, problem.cov_curr
         usable = problem.usable
 
-    out[:, 0] = scores
     by_score = np.argsort(-scores, kind="stable")  # best first; also picks the consistency anchors
-    rank = np.empty(n)
-    rank[by_score] = np.arange(n)
-    out[:, 1] = rank / max(n - 1, 1)
     u_scale, v_scale = 2.0 / max(camera.width - 1, 1), 2.0 / max(camera.height - 1, 1)
-    for col, meas in ((2, prev), (5, curr)):
-        out[:, col] = meas[:, 0] * u_scale - 1.0
-        out[:, col + 1] = meas[:, 1] * v_scale - 1.0
-        out[:, col + 2] = camera.disparity(meas) * (_DISPARITY_REF / camera.fx)
+    spread = np.empty(n)  # the root of the summed covariance traces at k-1 and k
+    _plain_columns(out, scores, by_score, prev, curr, u_scale, v_scale, _DISPARITY_REF / camera.fx,
+                   cov_prev, cov_curr, spread)
     with np.errstate(invalid="ignore"):  # NaN on rows without depth, overwritten below
         out[:, 8] = np.log(points_prev[:, 2] / _DEPTH_REF_M)
         out[:, 9] = np.log(points_curr[:, 2] / _DEPTH_REF_M)
@@ -309,11 +426,6 @@ def compute_features(
         with np.errstate(over="ignore", invalid="ignore"):
             out[:, 11] = np.log1p(np.sqrt(sq / 4.0) / noise_sigma)
         out[:, 12] = 1.0
-    # the traces, summed in np.trace's order without its dispatch
-    spread = np.sqrt(
-        (cov_prev[:, 0, 0] + cov_prev[:, 1, 1] + cov_prev[:, 2, 2])
-        + (cov_curr[:, 0, 0] + cov_curr[:, 1, 1] + cov_curr[:, 2, 2])
-    )
     if usable is None:
         out[:, 13] = rigid_consistency_degree(points_prev, points_curr, spread, priority=scores, priority_order=by_score)
     else:

@@ -16,7 +16,8 @@ identical for all (they depend on the seed only):
   ``prosac`` method with its own stop, run on the same frames by :func:`estimate_problem`).
 
 A policy is ``act(obs, step) -> action``, with ``step`` the runner's view of the last env step
-(``frame_hypotheses``, ``batch_samples``, ``batch_inliers``, ``new_frame``).
+(``frame_hypotheses``, ``batch_samples``, ``batch_inliers``, ``new_frame``; the batch's real rows only,
+the env's padding cut off).
 """
 
 from __future__ import annotations
@@ -139,7 +140,7 @@ class BansacPolicy:
             self._sampler = BansacSampler(n, _priors(obs, n, self.logits_fn), threshold=self.threshold,
                                           weights=self.weights)
         elif step["batch_samples"].shape[0]:
-            self._sampler.on_hypotheses(None, None, step["batch_inliers"], None,
+            self._sampler.on_hypotheses(None, None, step["batch_inliers"][:, :n], None,
                                         LoopState(step["frame_hypotheses"], 0.0, samples=step["batch_samples"],
                                                   best_inliers=in_best))
         drawn, n_best = step["frame_hypotheses"], int(np.count_nonzero(in_best))
@@ -207,8 +208,9 @@ def run_policy(env: StereoVOAdaptiveEnv, policy, seed: int) -> list[dict[str, An
     rows = []
     while True:
         obs, _, _, truncated, info = env.step(policy.act(obs, step))
+        count = info["batch_count"]  # the infos are padded to the batch size (StereoVOAdaptiveEnv's Info)
         step = {"frame_hypotheses": 0 if info["frame_done"] else info["frame_hypotheses"],
-                "batch_samples": info["batch_samples"], "batch_inliers": info["batch_inliers"],
+                "batch_samples": info["batch_samples"][:count], "batch_inliers": info["batch_inliers"][:count],
                 "new_frame": info["frame_done"]}
         if info["frame_done"]:
             rows.append({"seed": seed, "frame": info["frame"], "success": bool(info["success"]),

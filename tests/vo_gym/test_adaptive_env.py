@@ -79,10 +79,10 @@ def test_stop_before_any_hypothesis_draws_a_batch_then_stop_and_cap_end_the_fram
     obs, _ = env.reset(seed=1)
     assert obs["globals"][0] == 0 and not obs["features"][:, N_FEATURES:].any()
     _, reward, _, _, info = env.step(act(env, True))
-    assert not info["frame_done"] and info["frame_hypotheses"] == 3 and info["batch_samples"].shape == (3, 3)
+    assert not info["frame_done"] and info["frame_hypotheses"] == 3 and info["batch_count"] == 3
     assert reward == pytest.approx(-0.03)
     obs, reward, _, _, info = env.step(act(env, True))  # the agent stops: no new hypotheses
-    assert info["frame_done"] and info["stopped"] and info["n_hypotheses"] == 3 and info["batch_samples"].shape == (0, 3)
+    assert info["frame_done"] and info["stopped"] and info["n_hypotheses"] == 3 and info["batch_count"] == 0
     metrics = FrameMetrics(**{k: info[k] for k in FrameMetrics.__dataclass_fields__ if k != "time_s"}, time_s=0.0)
     assert reward == pytest.approx(supervised_reward(metrics, 0.5, 0.0, -1.0))
     assert info["frame"] == 1 and env.frame_hypotheses == 0 and obs["globals"][5] == float(not info["fallback"])
@@ -97,8 +97,8 @@ def test_loop_features_follow_the_search():
     env = small(batch_size=4)
     env.reset(seed=2)
     obs, _, _, _, info = env.step(act(env, False))
-    votes = info["batch_inliers"].sum(axis=0)
     n = env.current_frame.n
+    votes = info["batch_inliers"][: info["batch_count"], :n].sum(axis=0)
     np.testing.assert_allclose(obs["features"][:n, N_FEATURES + 1], votes / 4, rtol=1e-6)
     np.testing.assert_allclose(obs["features"][:n, N_FEATURES + 2], np.log1p(votes), rtol=1e-6)
     best = obs["features"][:n, N_FEATURES + 3].astype(bool)
@@ -144,3 +144,42 @@ def test_agent_sampler_keeps_every_scored_mask_in_order_across_its_buffer_growth
     np.testing.assert_array_equal(sampler.scored_masks, np.concatenate(masks))
     w = rng.random(5)
     assert sampler.select(w) == int(np.argmax(np.concatenate(masks) @ w)) and sampler.n_scored() == 77
+
+
+def test_batch_infos_have_a_fixed_shape_padded_after_the_count():
+    env = small(batch_size=3, max_hypotheses=7, max_correspondences=96)
+    env.reset(seed=4)
+    n = env.current_frame.n
+    counts = []
+    for stop in (False, True, False, False, False):  # a batch, a stop, then 3 + 3 + 1 up to the cap
+        before = env.scored_inliers.shape[0]
+        _, _, _, _, info = env.step(act(env, stop))
+        count = info["batch_count"]
+        counts.append(count)
+        assert info["batch_samples"].shape == (3, 3) and info["batch_samples"].dtype == np.int64
+        assert info["batch_inliers"].shape == (3, 96) and info["batch_inliers"].dtype == bool
+        assert (info["batch_samples"][count:] == -1).all() and not info["batch_inliers"][count:].any()
+        assert not info["batch_inliers"][:, n:].any() and (info["batch_samples"][:count] >= 0).all()
+        if count and not info["frame_done"]:  # the rows are the frame's last scored masks
+            np.testing.assert_array_equal(info["batch_inliers"][:count, :n], env.scored_inliers[before:before + count])
+    assert counts == [3, 0, 3, 3, 1]
+
+
+def test_gymnasium_vector_env_steps_the_adaptive_env():
+    from gymnasium.utils.performance import benchmark_vector_step
+
+    envs = gym.make_vec("vo_gym/StereoVOAdaptive-v0", num_envs=2, vectorization_mode="sync",
+                        n_frames=2, n_correspondences=60, batch_size=4, max_hypotheses=8)
+    envs.reset(seed=0)
+    stacked = 0
+    for i in range(12):
+        action = envs.action_space.sample()
+        action[:, -1] = 1.0 if i % 3 == 2 else -1.0
+        _, _, _, _, info = envs.step(action)
+        if "batch_samples" in info:  # absent only from the step that resets both (Gymnasium's next-step autoreset)
+            stacked += 1
+            assert info["batch_samples"].shape == (2, 4, 3) and info["batch_inliers"].shape == (2, 4, 60)
+            assert info["batch_count"].shape == (2,)
+    assert stacked >= 10
+    assert benchmark_vector_step(envs, target_duration=0.05, seed=0) > 0
+    envs.close()

@@ -461,3 +461,46 @@ def test_usable_rows_are_those_under_the_depth_flag():
     features[:, col] = [0.0, FEATURE_BOUND, np.nextafter(np.float32(FEATURE_BOUND), np.float32(0)), -FEATURE_BOUND]
     assert usable_rows(features).tolist() == [True, False, True, True]
     assert usable_rows(features.tolist()).tolist() == [True, False, True, True]
+
+
+def _pair_inputs(points_prev, points_curr, s2, n_anchors=None):
+    n = len(points_prev)
+    anchors = np.arange(n) if n_anchors is None else np.sort(np.random.default_rng(0).permutation(n)[:n_anchors])
+    return (np.ascontiguousarray(points_prev, float), np.ascontiguousarray(points_curr, float),
+            np.ascontiguousarray(s2, float), anchors.astype(np.int64), 9.0)
+
+
+@pytest.mark.parametrize("outliers", ["default", "hostile"])
+def test_screened_consistency_counts_are_the_tests_on_frames(outliers):
+    """The single-precision screen decides only pairs far from the gate: the counts are the test's."""
+    sequence = Sequence(SimulationConfig(n_frames=6, outlier_ratio=0.7, outliers=outliers), seed=11)
+    for frame in sequence:
+        problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, 0.5)
+        rows = np.flatnonzero(problem.usable_mask)
+        s2 = np.trace(problem.cov_prev[rows], axis1=1, axis2=2) + np.trace(problem.cov_curr[rows], axis1=1, axis2=2)
+        args = _pair_inputs(problem.points_prev[rows], problem.points_curr[rows], s2, n_anchors=MAX_ANCHORS)
+        np.testing.assert_array_equal(F._consistent_pairs(*args), F._consistent_pairs_exact(*args))
+
+
+def test_screened_consistency_counts_are_the_tests_at_the_gate():
+    """Pairs placed on the gate (a uniform scaling whose distance change is 3 sigma for typical pairs),
+    coincident points, and the cases that skip the screen (a tiny or NaN spread, NaN or huge points)."""
+    rng = np.random.default_rng(3)
+    P = rng.uniform([-20, -5, 3], [20, 5, 60], (300, 3))
+    P[10] = P[11]  # coincident at both frames
+    scale = 1.0 + 1e-3
+    Q = P * scale
+    d = np.linalg.norm(P[:, None] - P[None], axis=-1)
+    s2 = np.full(300, (1e-3 * np.median(d) / 3.0) ** 2 / 2.0) * rng.uniform(0.5, 1.5, 300)
+    cases = [(P, Q, s2), (P + 1e6, Q + 1e6, s2), (P, Q, np.where(np.arange(300) == 7, 1e-40, s2)),
+             (P, np.where(np.arange(300)[:, None] == 5, np.nan, Q), s2), (P, Q, np.where(np.arange(300) == 3, np.nan, s2)),
+             (P * 1e16, Q * 1e16, s2)]
+    for points_prev, points_curr, spreads in cases:
+        args = _pair_inputs(points_prev, points_curr, spreads)
+        exact = F._consistent_pairs_exact(*args)
+        assert 0 < exact.sum() < 300 * 300 or not np.isfinite(spreads).all() or np.isnan(points_curr).any()
+        np.testing.assert_array_equal(F._consistent_pairs(*args), exact)
+    # for these many pairs lie within 1 % of the gate, and the screen still gives the test's counts
+    change = np.abs(np.linalg.norm(Q[:, None] - Q[None], axis=-1) - d)
+    ratio = change**2 / (9.0 * (s2[:, None] + s2[None]))
+    assert np.count_nonzero(np.abs(ratio - 1) < 0.01) > 500
