@@ -75,6 +75,7 @@ def curve_runners(confidence: float, superansac: bool = True) -> dict[str, peers
     """Every estimator of the figure at one ``confidence``, missing peers left out."""
     runners: dict[str, peers.Runner | None] = {
         "ours": peers.ours("probabilistic", "uniform", confidence=confidence),
+        "ours + SPRT": peers.ours("probabilistic+sprt", "uniform", confidence=confidence),
         "ours, PROSAC by score": peers.ours("probabilistic", "prosac", confidence=confidence),
         "ours, guided by score": peers.ours("probabilistic", "guided", confidence=confidence),
         "OpenCV": peers.opencv(confidence=confidence),
