@@ -129,100 +129,36 @@ def _walk_block(buf, perm, start, stop, s0, s1, s2, threshold_sq, log_lambda, n_
     return log_lambda, n_checked, n_consistent, True
 
 
-@jit
-def sprt_verify(R, t, X, mc, cam, threshold_sq, samples, perm, log_consistent, log_inconsistent, log_A):
-    """Wald's SPRT on each of ``H`` hypotheses, points in the order ``perm (N,)``, own sample skipped.
+@inline_jit
+def _record(h, alive, n_checked, n_consistent, buf, perm, accepted, checked, consistent, out):
+    """Hypothesis ``h``'s verdict and counts; an accepted one's residuals ``buf`` (in checking order)
+    scattered back to the points' own order in ``out[h]``."""
+    accepted[h] = alive
+    checked[h] = n_checked
+    consistent[h] = n_consistent
+    if alive:
+        row = out[h]
+        for j in range(perm.shape[0]):
+            row[perm[j]] = buf[j]
 
-    The log likelihood ratio ``log lambda`` (bad model over good model) starts at 0 and moves by
-    ``log_consistent = log(delta / epsilon) < 0`` for a point inside the gate and by
-    ``log_inconsistent = log((1 - delta) / (1 - epsilon)) > 0`` for one outside; the hypothesis is
-    rejected as soon as ``log lambda > log_A``. Working with logarithms, no product can overflow.
 
-    Each hypothesis computes its residuals in blocks (a loop the compiler vectorises, as in full
-    scoring) and then walks the block's decisions. No hypothesis can be rejected before
-    ``floor(log_A / log_inconsistent) + 1`` checks, so the first block is that long (at least 8);
-    later blocks start at 8 and double up to 128. A hypothesis rejected at its j-th point thus costs
-    j residuals plus at most a block's overshoot, and an accepted one runs at nearly full-scoring
-    speed. The points are copied into contiguous arrays in checking order as far as some hypothesis
-    reaches (a batch that rejects everything early copies a prefix, not all N).
-
-    Returns:
-        ``(accepted (H,) bool, checked (H,) int64, consistent (H,) int64, residual_sq (H, N))``:
-        the points checked up to and including the one that crossed (own sample points are not
-        counted), the consistent ones among them, and for an accepted hypothesis its squared
-        residual on every point (rows of rejected hypotheses are left unset).
-    """
+@inline_jit
+def _sprt(mahalanobis, R, t, X, Y, mc, cam, sigma_sq, cap, threshold_sq, samples, perm, log_consistent,
+          log_inconsistent, log_A):
+    """The SPRT walk of :func:`sprt_verify` (``mahalanobis`` False: ``X`` and the pixels ``mc``) and of
+    :func:`sprt_verify_mahalanobis` (True: ``X`` and ``Y``, ``sigma_sq``, ``cap``); inlined into each,
+    where ``mahalanobis`` is a constant, so each compiles to its own residual's loop."""
     H, N = R.shape[0], X.shape[0]
     fx, fy, cx, cy, b = cam[0], cam[1], cam[2], cam[3], cam[4]
-    X0, X1, X2 = np.empty(N), np.empty(N), np.empty(N)
-    M0, M1, M2, M3 = np.empty(N), np.empty(N), np.empty(N), np.empty(N)
-    copied = 0
-    first = _first_block(N, log_inconsistent, log_A)
-    accepted = np.zeros(H, dtype=np.bool_)
-    checked = np.zeros(H, dtype=np.int64)
-    consistent = np.zeros(H, dtype=np.int64)
-    out = np.empty((H, N))
-    buf = np.empty(N)
-    for h in range(H):
-        r00, r01, r02 = R[h, 0, 0], R[h, 0, 1], R[h, 0, 2]
-        r10, r11, r12 = R[h, 1, 0], R[h, 1, 1], R[h, 1, 2]
-        r20, r21, r22 = R[h, 2, 0], R[h, 2, 1], R[h, 2, 2]
-        t0, t1, t2 = t[h, 0], t[h, 1], t[h, 2]
-        s0, s1, s2 = samples[h, 0], samples[h, 1], samples[h, 2]
-        log_lambda = 0.0
-        n_checked = 0
-        n_consistent = 0
-        alive = True
-        start = 0
-        block = first
-        while start < N and alive:
-            stop = min(start + block, N)
-            while copied < stop:
-                n = perm[copied]
-                X0[copied], X1[copied], X2[copied] = X[n, 0], X[n, 1], X[n, 2]
-                M0[copied], M1[copied], M2[copied], M3[copied] = mc[n, 0], mc[n, 1], mc[n, 2], mc[n, 3]
-                copied += 1
-            for j in range(start, stop):
-                buf[j] = point_reprojection_sq(
-                    r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2,
-                    X0[j], X1[j], X2[j], M0[j], M1[j], M2[j], M3[j], fx, fy, cx, cy, b,
-                )
-            log_lambda, n_checked, n_consistent, alive = _walk_block(
-                buf, perm, start, stop, s0, s1, s2, threshold_sq, log_lambda, n_checked, n_consistent,
-                log_consistent, log_inconsistent, log_A,
-            )
-            block = 8 if start == 0 else min(2 * block, 128)
-            start = stop
-        accepted[h] = alive
-        checked[h] = n_checked
-        consistent[h] = n_consistent
-        if alive:
-            row = out[h]
-            for j in range(N):
-                row[perm[j]] = buf[j]
-    return accepted, checked, consistent, out
-
-
-@jit
-def sprt_verify_mahalanobis(R, t, X, Y, cam, sigma_sq, cap, threshold_sq, samples, perm, log_consistent,
-                            log_inconsistent, log_A):
-    """:func:`sprt_verify` with the 3-D Mahalanobis residual of :func:`~stereovo.estimation.kernels.mahalanobis.mahalanobis_sq`.
-
-    ``X``, ``Y``: ``(N, 3)`` the points triangulated at k-1 and k; ``cam`` the camera's parameters
-    (``(fx, fy, cx, cy, baseline, v measurements per match)``); ``sigma_sq`` the pixel noise variance;
-    ``cap`` as in ``mahalanobis_sq`` (the gate, when the quality saturates there: a residual at or
-    above it may come back as any value >= cap). The walk, the blocks and the returns are those of
-    :func:`sprt_verify`; an accepted hypothesis' residuals equal ``mahalanobis_sq``'s bit for bit
-    (the same point function).
-    """
-    H, N = R.shape[0], X.shape[0]
-    inv_fx, inv_fy, inv_fb = 1.0 / cam[0], 1.0 / cam[1], 1.0 / (cam[0] * cam[4])
-    v_variance = 1.0 / cam[5]
+    inv_fx, inv_fy, inv_fb = 1.0 / fx, 1.0 / fy, 1.0 / (fx * b)
+    v_variance = 1.0 / cam[5] if mahalanobis else 1.0
     c_lateral = 2.0 * inv_fx * inv_fx + v_variance * inv_fy * inv_fy
     c_depth = 3.0 * inv_fb * inv_fb
+    # the points in checking order, as far as some hypothesis reaches: X, then the pixels at k
+    # (reprojection) or Y with |X|, |Y| and 1 / y_z (Mahalanobis)
     X0, X1, X2 = np.empty(N), np.empty(N), np.empty(N)
-    Y0, Y1, Y2 = np.empty(N), np.empty(N), np.empty(N)
-    inv_depth, norm_x, norm_y = np.empty(N), np.empty(N), np.empty(N)
+    M0, M1, M2, M3 = np.empty(N), np.empty(N), np.empty(N), np.empty(N)
+    norm_x, norm_y = np.empty(N), np.empty(N)
     copied = 0
     first = _first_block(N, log_inconsistent, log_A)
     accepted = np.zeros(H, dtype=np.bool_)
@@ -248,31 +184,77 @@ def sprt_verify_mahalanobis(R, t, X, Y, cam, sigma_sq, cap, threshold_sq, sample
             while copied < stop:
                 n = perm[copied]
                 X0[copied], X1[copied], X2[copied] = X[n, 0], X[n, 1], X[n, 2]
-                Y0[copied], Y1[copied], Y2[copied] = Y[n, 0], Y[n, 1], Y[n, 2]
-                inv_depth[copied] = 1.0 / Y[n, 2]
-                norm_x[copied] = np.sqrt(X[n, 0] ** 2 + X[n, 1] ** 2 + X[n, 2] ** 2)
-                norm_y[copied] = np.sqrt(Y[n, 0] ** 2 + Y[n, 1] ** 2 + Y[n, 2] ** 2)
+                if mahalanobis:
+                    M0[copied], M1[copied], M2[copied] = Y[n, 0], Y[n, 1], Y[n, 2]
+                    M3[copied] = 1.0 / Y[n, 2]
+                    norm_x[copied] = np.sqrt(X[n, 0] ** 2 + X[n, 1] ** 2 + X[n, 2] ** 2)
+                    norm_y[copied] = np.sqrt(Y[n, 0] ** 2 + Y[n, 1] ** 2 + Y[n, 2] ** 2)
+                else:
+                    M0[copied], M1[copied], M2[copied], M3[copied] = mc[n, 0], mc[n, 1], mc[n, 2], mc[n, 3]
                 copied += 1
             for j in range(start, stop):
-                buf[j] = point_mahalanobis_sq(
-                    r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t,
-                    X0[j], X1[j], X2[j], Y0[j], Y1[j], Y2[j], inv_depth[j], norm_x[j], norm_y[j],
-                    inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, cap,
-                )
+                if mahalanobis:
+                    buf[j] = point_mahalanobis_sq(
+                        r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t,
+                        X0[j], X1[j], X2[j], M0[j], M1[j], M2[j], M3[j], norm_x[j], norm_y[j],
+                        inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, cap,
+                    )
+                else:
+                    buf[j] = point_reprojection_sq(
+                        r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2,
+                        X0[j], X1[j], X2[j], M0[j], M1[j], M2[j], M3[j], fx, fy, cx, cy, b,
+                    )
             log_lambda, n_checked, n_consistent, alive = _walk_block(
                 buf, perm, start, stop, s0, s1, s2, threshold_sq, log_lambda, n_checked, n_consistent,
                 log_consistent, log_inconsistent, log_A,
             )
             block = 8 if start == 0 else min(2 * block, 128)
             start = stop
-        accepted[h] = alive
-        checked[h] = n_checked
-        consistent[h] = n_consistent
-        if alive:
-            row = out[h]
-            for j in range(N):
-                row[perm[j]] = buf[j]
+        _record(h, alive, n_checked, n_consistent, buf, perm, accepted, checked, consistent, out)
     return accepted, checked, consistent, out
+
+
+@jit
+def sprt_verify(R, t, X, mc, cam, threshold_sq, samples, perm, log_consistent, log_inconsistent, log_A):
+    """Wald's SPRT on each of ``H`` hypotheses, points in the order ``perm (N,)``, own sample skipped.
+
+    The log likelihood ratio ``log lambda`` (bad model over good model) starts at 0 and moves by
+    ``log_consistent = log(delta / epsilon) < 0`` for a point inside the gate and by
+    ``log_inconsistent = log((1 - delta) / (1 - epsilon)) > 0`` for one outside; the hypothesis is
+    rejected as soon as ``log lambda > log_A``. Working with logarithms, no product can overflow.
+
+    Each hypothesis computes its residuals in blocks (a loop the compiler vectorises, as in full
+    scoring) and then walks the block's decisions. No hypothesis can be rejected before
+    ``floor(log_A / log_inconsistent) + 1`` checks, so the first block is that long (at least 8);
+    later blocks start at 8 and double up to 128. A hypothesis rejected at its j-th point thus costs
+    j residuals plus at most a block's overshoot, and an accepted one runs at nearly full-scoring
+    speed. The points are copied into contiguous arrays in checking order as far as some hypothesis
+    reaches (a batch that rejects everything early copies a prefix, not all N).
+
+    Returns:
+        ``(accepted (H,) bool, checked (H,) int64, consistent (H,) int64, residual_sq (H, N))``:
+        the points checked up to and including the one that crossed (own sample points are not
+        counted), the consistent ones among them, and for an accepted hypothesis its squared
+        residual on every point (rows of rejected hypotheses are left unset).
+    """
+    return _sprt(False, R, t, X, X, mc, cam, 1.0, 0.0, threshold_sq, samples, perm, log_consistent,
+                 log_inconsistent, log_A)
+
+
+@jit
+def sprt_verify_mahalanobis(R, t, X, Y, cam, sigma_sq, cap, threshold_sq, samples, perm, log_consistent,
+                            log_inconsistent, log_A):
+    """:func:`sprt_verify` with the 3-D Mahalanobis residual of :func:`~stereovo.estimation.kernels.mahalanobis.mahalanobis_sq`.
+
+    ``X``, ``Y``: ``(N, 3)`` the points triangulated at k-1 and k; ``cam`` the camera's parameters
+    (``(fx, fy, cx, cy, baseline, v measurements per match)``); ``sigma_sq`` the pixel noise variance;
+    ``cap`` as in ``mahalanobis_sq`` (the gate, when the quality saturates there: a residual at or
+    above it may come back as any value >= cap). The walk, the blocks and the returns are those of
+    :func:`sprt_verify`; an accepted hypothesis' residuals equal ``mahalanobis_sq``'s bit for bit
+    (the same point function).
+    """
+    return _sprt(True, R, t, X, Y, Y, cam, sigma_sq, cap, threshold_sq, samples, perm, log_consistent,
+                 log_inconsistent, log_A)
 
 
 @jit
