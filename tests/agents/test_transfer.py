@@ -111,3 +111,24 @@ def test_the_rendered_domain_gives_front_end_frames_at_the_cells_contamination()
             assert np.array_equal(frame.curr, frame_again.curr) and np.array_equal(frame.scores, frame_again.scores)
     # two sequences are two drives, not one drive twice
     assert not np.array_equal(first[0][0].prev[:5], first[1][0].prev[:5])
+
+
+def test_a_one_domain_rerun_merges_into_a_published_matrix(cell, tmp_path):
+    # how one domain is re-measured and published: run it alone (--domains hostile), then
+    # --merge PUBLISHED.csv RERUN.csv [--publish]; the rerun's rows replace that domain's rows in
+    # place, every other domain's rows are kept as they were, in the registry's order
+    default = [{**r, "domain": "default"} for r in cell]
+    published = write_csv(cell + default, tmp_path / "published.csv")  # written out of order on purpose
+    rerun = [{**r, "successes": 10 - r["successes"], "success": 1 - r["success"],
+              "ci_low": 1 - r["ci_high"], "ci_high": 1 - r["ci_low"]} for r in cell]  # Wilson intervals mirror
+    rerun_csv = write_csv(rerun, tmp_path / "rerun" / "transfer.csv")
+    merged = transfer.merge([read_results(published), read_results(rerun_csv)])
+    assert [r["domain"] for r in merged] == ["default"] * len(cell) + ["hostile"] * len(cell)
+    assert [(r["sampler"], r["point"]) for r in merged[len(cell):]] == [(r["sampler"], r["point"]) for r in cell]
+    assert merged[:len(cell)] == read_results(published)[len(cell):]  # the kept rows, unchanged
+    assert [r["successes"] for r in merged[len(cell):]] == [10 - r["successes"] for r in cell]
+    assert transfer.main(["--merge", str(published), str(rerun_csv), "--out", str(tmp_path / "out")]) == 0
+    assert read_results(tmp_path / "out" / "transfer.csv") == merged
+    # the kept rows' text is what was published (the CSV round trip changes no digit)
+    kept = (tmp_path / "out" / "transfer.csv").read_text().splitlines()[1:len(cell) + 1]
+    assert kept == published.read_text().splitlines()[len(cell) + 1:]
