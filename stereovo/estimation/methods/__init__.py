@@ -14,7 +14,7 @@
 Importing this package registers them, in the order above (the order of
 :func:`~stereovo.estimation.registry.available_methods` and of the baseline report), and then
 the ``+`` variants of :mod:`stereovo.estimation.recipes`, whose bases must be registered first, and
-``probabilistic+sprt`` (:func:`~stereovo.estimation.methods.sprt.register_probabilistic_sprt`).
+``probabilistic+sprt`` (:data:`~stereovo.estimation.methods.sprt.PROBABILISTIC_SPRT`).
 """
 
 # isort: off  (one import a line, in the registration order above: the reports' row order)
@@ -30,6 +30,7 @@ from stereovo.estimation.methods import bansac  # noqa: F401
 from stereovo.estimation.methods import ars  # noqa: F401
 # isort: on
 from stereovo.estimation.recipes import register_enhanced_variants
+from stereovo.estimation.registry import register_method
 
 register_enhanced_variants()
-sprt.register_probabilistic_sprt()
+register_method(**sprt.PROBABILISTIC_SPRT)(sprt.build_probabilistic_sprt)

@@ -18,7 +18,7 @@ Marginally each hypothesis sees a uniformly random order, which is all the
 test's error bounds use; a hypothesis' own three sample points are skipped.
 
 This module also declares the ``sprt_*`` options (shared with ``usac``) and registers ``waldsac``;
-:func:`register_probabilistic_sprt` registers ``probabilistic+sprt`` (the project's recipe with this
+:data:`PROBABILISTIC_SPRT` declares ``probabilistic+sprt`` (the project's recipe with this
 verification and stop, an enhancement) among the ``+`` variants.
 """
 
@@ -490,16 +490,15 @@ def build_probabilistic_sprt(problem, options, priors, order, extra):
     return with_sprt(build_probabilistic(problem, options, priors, order, extra), problem, options, extra)
 
 
-def register_probabilistic_sprt() -> str:
-    """Register ``probabilistic+sprt`` (after the papers' methods, with the ``+`` variants: the
-    methods package calls this last). Returns its name."""
-    register_method(
-        "probabilistic+sprt",
-        "probabilistic with the SPRT's early rejection (adaptive epsilon/delta, each hypothesis checked "
-        "point by point under the 3-D Mahalanobis gate until rejected) and the SPRT-aware stop; "
-        "the project's recipe otherwise",
-        "Brink et al.; Matas & Chum 2005; Chum & Matas 2008",
-        extra_options=SPRT_OPTIONS,
-        defaults=PROBABILISTIC_RECIPE,
-    )(build_probabilistic_sprt)
-    return "probabilistic+sprt"
+PROBABILISTIC_SPRT = {
+    "name": "probabilistic+sprt",
+    "description": "probabilistic with the SPRT's early rejection (adaptive epsilon/delta, each hypothesis checked "
+                   "point by point under the 3-D Mahalanobis gate until rejected) and the SPRT-aware stop; "
+                   "the project's recipe otherwise",
+    "reference": "Brink et al.; Matas & Chum 2005; Chum & Matas 2008",
+    "extra_options": SPRT_OPTIONS,
+    "defaults": PROBABILISTIC_RECIPE,
+}
+"""``probabilistic+sprt``'s registration (:func:`~stereovo.estimation.registry.register_method`'s
+arguments, with :func:`build_probabilistic_sprt`): the methods package registers it last, among the
+``+`` variants, whose rows follow the papers' in the reports."""

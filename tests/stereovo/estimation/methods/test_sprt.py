@@ -555,3 +555,62 @@ def test_probabilistic_sprt_options_reach_its_verifier():
     assert est.ok and est.counters["sprt_designs"] >= 1
     with pytest.raises(ValueError, match="sprt_delta0"):
         estimate_motion(frame.prev, frame.curr, frame.camera, method="probabilistic+sprt", rng=0, sprt_delta0=1.5)
+
+
+def test_probabilistic_sprt_composes_its_sampler_verifier_and_stop():
+    # The recipe's parts: the caller's priors or order reach the sampler, the SPRT verifier listens for
+    # new bests, the SPRT stop reads the sampler's all-inlier chance (prior-aware), and a budget keeps
+    # the fixed budget.
+    from stereovo.estimation import method_spec
+    from stereovo.estimation.problem import StereoProblem
+    from stereovo.estimation.registry import split_options
+    from stereovo.estimation.roles.samplers import ProsacSampler, UniformSampler, WeightedSampler
+    from stereovo.estimation.roles.termination import FixedBudget
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=120, outlier_ratio=0.5), 3)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    spec = method_spec("probabilistic+sprt")
+    shared, extra = split_options(spec, {})
+    priors, order = np.where(frame.truth.inlier, 0.8, 0.2), np.argsort(-frame.scores)
+    for given, kind in (((None, None), UniformSampler), ((priors, None), WeightedSampler), ((None, order), ProsacSampler)):
+        c = spec.build(problem, shared, *given, extra)
+        assert isinstance(c.sampler, kind)
+        assert isinstance(c.verifier, SprtVerification) and c.verifier in c.listeners
+        assert isinstance(c.termination, SprtTermination) and c.termination.probability.sampler is c.sampler
+    budgeted, _ = split_options(spec, {"budget": 40})
+    assert isinstance(spec.build(problem, budgeted, None, None, extra).termination, FixedBudget)
+    est = estimate_motion(frame.prev, frame.curr, frame.camera, method="probabilistic+sprt", rng=0, budget=40)
+    assert est.n_hypotheses == 40
+    # the verifier heard the new bests: its last test is designed for a best model's inlier ratio
+    est = estimate_motion(frame.prev, frame.curr, frame.camera, method="probabilistic+sprt", rng=0)
+    assert est.counters["sprt_designs"] >= 2 and est.counters["sprt_epsilon"] != SprtVerification.epsilon0
+    assert round(est.counters["sprt_epsilon"] * problem.n) == pytest.approx(est.counters["sprt_epsilon"] * problem.n)
+
+
+class _LogLoss:
+    """A quality that reads every residual exactly (no saturation at the gate)."""
+
+    saturates = False
+
+    def score(self, residual_sq, threshold_sq):
+        return -np.sum(np.log1p(np.minimum(residual_sq, 1e12)), axis=1)
+
+
+def test_compiled_mahalanobis_sprt_gives_exact_residuals_to_a_quality_that_does_not_saturate():
+    # Capped at the gate only where the quality saturates there: a quality that reads every residual
+    # gets the accepted hypotheses' scores of full scoring, bit for bit.
+    from stereovo.estimation.problem import StereoProblem
+    from stereovo.estimation.roles.scoring import CHI2_3_95, MahalanobisResidual
+    from stereovo.estimation.roles.verification import ScoringContext
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.4), 6)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    ctx = ScoringContext(problem, MahalanobisResidual(CHI2_3_95), _LogLoss(), CHI2_3_95)
+    rng = np.random.default_rng(4)
+    R, t = good_and_bad(frame, 6, 60, rng)
+    samples = np.stack([rng.choice(problem.n, 3, replace=False) for _ in range(R.shape[0])])
+    verifier = SprtVerification(problem.n, t_m=200.0, epsilon0=0.4, delta0=0.05)
+    scores, _ = verifier.verify(ctx, R, t, np.random.default_rng(1), samples=samples)
+    kept = np.isfinite(scores)
+    assert 0 < np.count_nonzero(kept) < R.shape[0]
+    np.testing.assert_array_equal(scores[kept], ctx.score(R[kept], t[kept]))
