@@ -433,6 +433,34 @@ def test_two_and_one_matches_and_the_input_checks():
     with pytest.raises(ValueError, match=r"^problem must be built from the same prev, curr, camera and noise_sigma$"):
         compute_features(problem.prev, other_curr, frame.scores, cam, sigma, problem=problem)
     assert compute_features(frame.prev[:0], frame.curr[:0], np.zeros(0), cam, sigma).shape == (0, 14)
+    # Raw arrays are validated by name, curr as prev: lists are read, a bad shape or type names its argument.
+    np.testing.assert_array_equal(compute_features(frame.prev.tolist(), frame.curr.tolist(), frame.scores, cam, sigma),
+                                  compute_features(frame.prev, frame.curr, frame.scores, cam, sigma))
+    for name, (prev, curr) in (("prev", (frame.prev[:, :3], frame.curr)), ("curr", (frame.prev, frame.curr[:, :3])),
+                               ("curr", (frame.prev, "abc"))):
+        with pytest.raises(ValueError, match=rf"^{name} must "):
+            compute_features(prev, curr, frame.scores, cam, sigma)
+
+
+def test_features_use_the_given_noise_sigma_and_zero_the_pixels_of_a_nan_row():
+    # Built here or handed in, the problem has the caller's noise_sigma (the uncertainty column reads it);
+    # a row with a NaN pixel gets zeros, not NaN or another fill, in its pixel columns.
+    frame = simulate_frame(SimulationConfig(n_correspondences=40, outlier_ratio=0.3), 8)
+    cam = frame.camera
+    for sigma in (0.5, 1.5):
+        problem = StereoProblem.build(frame.prev, frame.curr, cam, sigma)
+        np.testing.assert_array_equal(compute_features(frame.prev, frame.curr, frame.scores, cam, sigma),
+                                      compute_features(problem.prev, problem.curr, frame.scores, cam, sigma,
+                                                       problem=problem))
+    loud = compute_features(frame.prev, frame.curr, frame.scores, cam, 1.5)
+    quiet = compute_features(frame.prev, frame.curr, frame.scores, cam, 0.5)
+    assert np.all(loud[:, 10] > quiet[:, 10])  # log of the depth's standard deviation grows with the noise
+    bad = frame.prev.copy()
+    bad[3, 1] = np.nan
+    out = compute_features(bad, frame.curr, frame.scores, cam, 0.5)
+    clean = compute_features(frame.prev, frame.curr, frame.scores, cam, 0.5)
+    assert np.all(np.isfinite(out[3])) and out[3, 3] == 0.0 != clean[3, 3]  # v_prev of the NaN pixel: zero
+    np.testing.assert_array_equal(np.delete(out[3, 2:8], 1), np.delete(clean[3, 2:8], 1))  # the others as given
 
 
 def test_degree_compares_float32_points_in_double_precision():
