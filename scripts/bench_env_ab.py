@@ -2,7 +2,8 @@
 """Two checkouts of the code under Gymnasium's benchmarks, alternating in one run: the ratios after/before.
 
 Each round starts one child process per checkout (their order alternating between rounds), with
-``PYTHONPATH`` set to the checkout; a child warms up (numba's cache, the first frames), then measures
+``PYTHONPATH`` set to the checkout; a child (the checkout's own ``scripts/bench_env_gym.cpu_rate``,
+present since 241cfdd) warms up (numba's cache, the first frames), then measures
 for each environment Gymnasium's ``benchmark_step`` (wall clock, random actions from the action space,
 resets included) and the process CPU rate of the same loop (steps and frames per CPU-second). The
 table gives the medians over rounds and the median of the per-round ratios (after / before), with the
@@ -28,11 +29,12 @@ from pathlib import Path
 IDS = ("vo_gym/StereoVO-v0", "vo_gym/StereoVOProsac-v0", "vo_gym/StereoVOAdaptive-v0")
 
 CHILD = r"""
-import json, sys, time
+import json, sys
 import gymnasium as gym
-import numpy as np
 from gymnasium.utils.performance import benchmark_step
 import vo_gym  # noqa: F401
+sys.path.insert(0, "scripts")  # the checkout's own bench_env_gym (cwd is the checkout)
+from bench_env_gym import cpu_rate
 
 seconds, ids = float(sys.argv[1]), sys.argv[2:]
 out = {}
@@ -41,21 +43,11 @@ for env_id in ids:
     env.action_space.seed(0)
     benchmark_step(env, target_duration=0.5, seed=0)  # warm-up
     wall = benchmark_step(env, target_duration=seconds, seed=0)
-    env.reset(seed=1)
-    steps = frames = 0
-    start = time.process_time()
-    while time.process_time() - start < seconds:
-        _, _, term, trunc, info = env.step(env.action_space.sample())
-        steps += 1
-        frames += int(info.get("frame_done", True))
-        if term or trunc:
-            env.reset()
-    elapsed = time.process_time() - start
-    out[env_id] = {"steps_per_s": wall, "steps_per_cpu_s": steps / elapsed, "frames_per_cpu_minute": 60 * frames / elapsed}
+    steps, frames = cpu_rate(env, seconds)
+    out[env_id] = {"steps_per_s": wall, "steps_per_cpu_s": steps, "frames_per_cpu_minute": 60 * frames}
     env.close()
 print(json.dumps(out))
 """
-
 
 def run_child(root: Path, seconds: float) -> dict:
     env = {**os.environ, "PYTHONPATH": str(root), "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",

@@ -38,23 +38,16 @@ def _min_ms(samples: list[float]) -> float:
     return 1e3 * float(np.min(samples))
 
 
-def _value(text: str):
-    for kind in (int, float):
-        try:
-            return kind(text)
-        except ValueError:
-            pass
-    return None if text == "None" else text
-
-
 def _variant(text: str) -> tuple[str, dict]:
+    from stereovo.frontend.options import option_value
+
     name, _, rest = text.partition("=")
     options = {}
     for item in filter(None, rest.split(",")):
         key, sep, value = item.partition("=")
         if not sep:
             raise argparse.ArgumentTypeError(f"--variant takes NAME=key=value,key=value, got {text!r}")
-        options[key] = _value(value)
+        options[key] = option_value(value)
     return name, options
 
 

@@ -17,17 +17,8 @@ import time
 import numpy as np
 
 from stereovo.frontend import roc_auc
+from stereovo.frontend.options import option_value
 from stereovo.sequences import open_source, run_image_odometry
-
-
-def _value(text: str):
-    """A command-line value as int, float, None or the text itself."""
-    for kind in (int, float):
-        try:
-            return kind(text)
-        except ValueError:
-            pass
-    return None if text == "None" else text
 
 
 def main() -> None:
@@ -46,7 +37,7 @@ def main() -> None:
         name, sep, value = item.partition("=")
         if not sep:
             parser.error(f"--frontend takes NAME=VALUE items, got {item!r}")
-        frontend[name] = _value(value)
+        frontend[name] = option_value(value)
 
     sequence = open_source(f"rendered:{args.preset}", n_frames=args.frames, seed=args.seed,
                            resolution=args.resolution, moving_objects=args.moving_objects, **frontend)

@@ -47,6 +47,17 @@ _RULES: dict[str, Option] = {
 }
 
 
+def option_value(text: str) -> Any:
+    """A front-end option's value written as text (a command line's ``NAME=VALUE``): an int, a float,
+    ``None`` or the text itself; :class:`FrontendOptions` then checks it against the option's rule."""
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return None if text == "None" else text
+
+
 @dataclass(frozen=True)
 class FrontendOptions:
     """Settings of the image front end (:mod:`stereovo.frontend`).

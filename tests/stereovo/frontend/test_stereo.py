@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from stereovo.camera import StereoCamera
-from stereovo.frontend import stereo_matches
+from stereovo.frontend import FrontendOptions, stereo_matches
 from tests.support.frontend import CAM, texture_image
 
 
@@ -99,3 +99,14 @@ def test_bad_options_are_named(options, message):
     with pytest.raises(ValueError) as err:
         stereo_matches(texture_image(), texture_image(), CAM, **options)
     assert message in str(err.value)
+
+
+def test_option_values_written_as_text_are_read_by_type_and_checked_by_the_options():
+    from stereovo.frontend.options import option_value
+
+    assert [option_value(t) for t in ("4", "0.5", "None", "harris", "1e3")] == [4, 0.5, None, "harris", 1000.0]
+    assert isinstance(option_value("4"), int) and isinstance(option_value("4.0"), float)
+    options = FrontendOptions(**{k: option_value(v) for k, v in (("pyramid_levels", "4"), ("orb_score", "harris"))})
+    assert (options.pyramid_levels, options.orb_score) == (4, "harris")
+    with pytest.raises(ValueError, match="FrontendOptions.subpixel"):
+        FrontendOptions(subpixel=option_value("yes"))
