@@ -71,14 +71,6 @@ def _is_seed(value: Any) -> bool:
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0
 
 
-def _generator(label: str, value: Any) -> np.random.Generator:
-    """``value`` (a Generator, a seed >= 0 or a SeedSequence) as a Generator; anything else is a
-    ValueError naming ``label`` and the value (numpy's own TypeError names neither)."""
-    if not (isinstance(value, (np.random.Generator, np.random.SeedSequence)) or _is_seed(value)):
-        raise ValueError(f"{label} must be a numpy.random.Generator or an integer seed >= 0, got {value!r}")
-    return as_generator(value)
-
-
 def _bad_sampler(sampler: Any, err: Exception) -> ValueError:
     text = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
     return ValueError(f"sampler {os.fspath(sampler)!r}: {text}" if str(os.fspath(sampler)) not in text else text)
@@ -233,7 +225,7 @@ class LearnedEstimator:
         """
         start = time.perf_counter()
         problem = StereoProblem.build(prev, curr, camera, self.noise_sigma, self._shared.min_disparity_sigmas)
-        generator = self._rng if rng is None else _generator("rng", rng)
+        generator = self._rng if rng is None else as_generator(rng)
         features = match_features(problem.prev, problem.curr, camera, scores, self.noise_sigma,
                                   self.previous_motion, problem=problem)
         if self.kind == ONE_SHOT:
@@ -280,6 +272,6 @@ class LearnedEstimator:
         """Estimates for consecutive frame pairs ``[(prev, curr, camera, scores), ...]`` of one
         sequence, after a :meth:`reset`; one generator for all of them."""
         self.reset()
-        generator = self._rng if rng is None else _generator("rng", rng)
+        generator = self._rng if rng is None else as_generator(rng)
         return [self.estimate(prev, curr, camera, scores, rng=generator) for prev, curr, camera, scores in frames]
 

@@ -147,10 +147,16 @@ MotionEstimate.covariance = property(_read_covariance, _write_covariance, doc="S
 MotionEstimate.__getstate__ = _estimate_state
 
 
-def as_generator(rng: np.random.Generator | int | np.random.SeedSequence | None) -> np.random.Generator:
-    """The one way seeds become generators: an existing Generator is used as is."""
+def as_generator(rng: np.random.Generator | int | np.random.SeedSequence | None, name: str = "rng") -> np.random.Generator:
+    """The one way seeds become generators: an existing Generator is used as is; a seed (an integer
+    >= 0, not a bool), a ``SeedSequence`` or None (fresh entropy) makes a new one. Anything else is a
+    ValueError naming ``name`` and the value (numpy's own TypeError names neither)."""
     if isinstance(rng, np.random.Generator):
         return rng
+    seed = isinstance(rng, (int, np.integer)) and not isinstance(rng, (bool, np.bool_)) and rng >= 0
+    if not (rng is None or seed or isinstance(rng, np.random.SeedSequence)):
+        raise ValueError(f"{name} must be a numpy.random.Generator, a SeedSequence or an integer seed >= 0, "
+                         f"got {rng!r}")
     return np.random.default_rng(rng)
 
 

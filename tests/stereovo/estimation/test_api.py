@@ -3,6 +3,7 @@ determinism, budgets, counters), every registered method on simulated frames, an
 
 from __future__ import annotations
 
+import re
 import warnings
 from functools import lru_cache
 
@@ -249,6 +250,12 @@ def test_same_seed_same_result_different_seed_differs():
     np.testing.assert_array_equal(a.inliers, b.inliers)
     assert a.n_hypotheses == b.n_hypotheses
     assert not np.array_equal(a.translation, c.translation)
+    d = estimate_motion(prev, curr, CAMERA, rng=np.random.SeedSequence(7))
+    np.testing.assert_array_equal(a.rotation, d.rotation)  # a SeedSequence is the seed's own
+    for bad in ("abc", -1, 1.5, True, [7]):
+        with pytest.raises(ValueError, match=rf"^rng must be a numpy.random.Generator, a SeedSequence or an "
+                                             rf"integer seed >= 0, got {re.escape(repr(bad))}$"):
+            estimate_motion(prev, curr, CAMERA, rng=bad)
 
 
 def test_fixed_budget_draws_exactly_budget():

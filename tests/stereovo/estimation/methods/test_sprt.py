@@ -479,41 +479,52 @@ def test_sprt_verifier_hands_the_kernel_float64_motions_and_int64_samples():
     assert run(R.astype(float), t.astype(float), samples.astype(np.int32)) == expected
 
 
-def test_waldsac_method_options_reach_its_verifier():
-    from stereovo.estimation.estimator_options import EstimatorOptions
+@pytest.mark.parametrize("method", ["waldsac", "probabilistic+sprt"])
+def test_waldsac_method_options_reach_its_verifier(method):
     from stereovo.estimation.problem import StereoProblem
     from stereovo.estimation.registry import method_spec, validate_options
 
     frame = simulate_frame(SimulationConfig(n_correspondences=80, outlier_ratio=0.3), rng=2)
     problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
     given = {"sprt_t_m": 123.0, "sprt_epsilon0": 0.2, "sprt_delta0": 0.03, "sprt_chunk": 7}
-    options, extra = validate_options("waldsac", given)
-    verifier = method_spec("waldsac").build(problem, options, None, None, extra).verifier
+    options, extra = validate_options(method, given)
+    verifier = method_spec(method).build(problem, options, None, None, extra).verifier
     assert isinstance(verifier, SprtVerification) and verifier.n == problem.n
     assert (verifier.t_m, verifier.epsilon0, verifier.delta0, verifier.chunk) == (123.0, 0.2, 0.03, 7)
-    defaults = method_spec("waldsac").build(problem, EstimatorOptions(), None, None, validate_options("waldsac", {})[1])
-    assert (defaults.verifier.t_m, defaults.verifier.epsilon0, defaults.verifier.delta0, defaults.verifier.chunk) == (
-        500.0, 0.1, 0.01, 16)
+    default_options, default_extra = validate_options(method, {})
+    defaults = method_spec(method).build(problem, default_options, None, None, default_extra).verifier
+    assert (defaults.t_m, defaults.epsilon0, defaults.delta0, defaults.chunk) == (500.0, 0.1, 0.01, 16)
+    with pytest.raises(ValueError, match="sprt_delta0"):
+        estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=0, sprt_delta0=1.5)
 
 
 class _OtherMahalanobis:
     """Stands in for MahalanobisResidual in the sprt module's type test: the numpy route is taken."""
 
 
+def _mahalanobis_batch(quality, n, epsilon, seed, n_good, n_bad, rng_seed):
+    """probabilistic's 3-D Mahalanobis gate with ``quality`` on a simulated frame, and a batch of
+    ``n_good`` true and ``n_bad`` wrong motions with a minimal sample each: ``(problem, ctx, R, t, samples)``."""
+    from stereovo.estimation.problem import StereoProblem
+    from stereovo.estimation.roles.scoring import CHI2_3_95, MahalanobisResidual
+    from stereovo.estimation.roles.verification import ScoringContext
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=n, outlier_ratio=epsilon), seed)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    ctx = ScoringContext(problem, MahalanobisResidual(CHI2_3_95), quality, CHI2_3_95)
+    rng = np.random.default_rng(rng_seed)
+    R, t = good_and_bad(frame, n_good, n_bad, rng)
+    samples = np.stack([rng.choice(problem.n, 3, replace=False) for _ in range(R.shape[0])])
+    return problem, ctx, R, t, samples
+
+
 def test_compiled_mahalanobis_sprt_decides_like_the_numpy_route(monkeypatch):
     # probabilistic's judge (the 3-D Mahalanobis gate, inlier count): the compiled pass and the chunked
     # numpy route reject the same hypotheses, pay the same checks and give the accepted ones the same scores.
     import stereovo.estimation.methods.sprt as sprt_module
-    from stereovo.estimation.problem import StereoProblem
-    from stereovo.estimation.roles.scoring import CHI2_3_95, InlierCount, MahalanobisResidual
-    from stereovo.estimation.roles.verification import ScoringContext
+    from stereovo.estimation.roles.scoring import CHI2_3_95, InlierCount
 
-    frame = simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.6), 4)
-    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
-    ctx = ScoringContext(problem, MahalanobisResidual(CHI2_3_95), InlierCount(), CHI2_3_95)
-    rng = np.random.default_rng(3)
-    R, t = good_and_bad(frame, 5, 120, rng)
-    samples = np.stack([rng.choice(problem.n, 3, replace=False) for _ in range(R.shape[0])])
+    problem, ctx, R, t, samples = _mahalanobis_batch(InlierCount(), 300, 0.6, 4, 5, 120, 3)
     results = []
     for route in ("compiled", "numpy"):
         if route == "numpy":
@@ -546,15 +557,6 @@ def test_probabilistic_sprt_succeeds_on_hostile_frames_with_a_fraction_of_the_ch
         np.testing.assert_array_equal(again.rotation, est.rotation)
         np.testing.assert_array_equal(again.inliers, est.inliers)
     assert checks["probabilistic+sprt"] < 0.3 * checks["probabilistic"], checks
-
-
-def test_probabilistic_sprt_options_reach_its_verifier():
-    frame = simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.5), 2)
-    est = estimate_motion(frame.prev, frame.curr, frame.camera, method="probabilistic+sprt", rng=0,
-                          sprt_epsilon0=0.3, sprt_delta0=0.02)
-    assert est.ok and est.counters["sprt_designs"] >= 1
-    with pytest.raises(ValueError, match="sprt_delta0"):
-        estimate_motion(frame.prev, frame.curr, frame.camera, method="probabilistic+sprt", rng=0, sprt_delta0=1.5)
 
 
 def test_probabilistic_sprt_composes_its_sampler_verifier_and_stop():
@@ -599,16 +601,7 @@ class _LogLoss:
 def test_compiled_mahalanobis_sprt_gives_exact_residuals_to_a_quality_that_does_not_saturate():
     # Capped at the gate only where the quality saturates there: a quality that reads every residual
     # gets the accepted hypotheses' scores of full scoring, bit for bit.
-    from stereovo.estimation.problem import StereoProblem
-    from stereovo.estimation.roles.scoring import CHI2_3_95, MahalanobisResidual
-    from stereovo.estimation.roles.verification import ScoringContext
-
-    frame = simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.4), 6)
-    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
-    ctx = ScoringContext(problem, MahalanobisResidual(CHI2_3_95), _LogLoss(), CHI2_3_95)
-    rng = np.random.default_rng(4)
-    R, t = good_and_bad(frame, 6, 60, rng)
-    samples = np.stack([rng.choice(problem.n, 3, replace=False) for _ in range(R.shape[0])])
+    problem, ctx, R, t, samples = _mahalanobis_batch(_LogLoss(), 200, 0.4, 6, 6, 60, 4)
     verifier = SprtVerification(problem.n, t_m=200.0, epsilon0=0.4, delta0=0.05)
     scores, _ = verifier.verify(ctx, R, t, np.random.default_rng(1), samples=samples)
     kept = np.isfinite(scores)
