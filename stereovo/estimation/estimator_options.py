@@ -15,7 +15,7 @@ from typing import Any, Mapping
 from scipy.stats import chi2
 
 from stereovo.estimation.roles.solvers import SAMPLE_SIZE
-from stereovo.options import Boolean, Integer, Number, Option
+from stereovo.options import Boolean, Integer, Number, Option, OptionError
 
 MAX_COUNT = 10**9
 """Upper bound of every hypothesis or iteration count option (a cap that keeps counts in int64 arithmetic)."""
@@ -41,6 +41,7 @@ ESTIMATOR_OPTION_RULES: dict[str, Option] = {
     "refine_iterations": Integer(low=0, high=1000),
     "refine_rounds": Integer(low=1, high=1000),
     "local_refit": Boolean(),
+    "runner_up_refit": Number(low=0.0, high=1.0, low_open=True, allow_none=True),
     "least_squares_refit": Boolean(),
     "min_inliers": Integer(low=SAMPLE_SIZE, high=MAX_COUNT),
     "min_disparity_sigmas": Number(low=0.0, high=1e3),
@@ -85,6 +86,12 @@ class EstimatorOptions:
         refine_rounds: at most this many refine / re-select-inliers rounds.
         local_refit: refit each new best on its consensus (a light local optimisation; an
             enhancement, off by default).
+        runner_up_refit: None (the default), or a fraction in (0, 1]: from a search's
+            second batch on, the local refit also runs on each batch's best hypothesis that is not
+            a new best, when its consensus holds at least this fraction of the best model's
+            inliers, and that refit becomes the best if it then scores higher (an enhancement,
+            ``probabilistic``'s with 0.5; needs ``local_refit``; docs/algorithms.md, "The runner-up
+            refit").
         least_squares_refit: without ``refine``, end as Fischler & Bolles do: refit the best model
             by least squares on its inliers (``refine_iterations`` LM steps on their stereo
             reprojection error, one round) and re-select the inliers once under the method's gate;
@@ -117,6 +124,7 @@ class EstimatorOptions:
     refine_iterations: int = 6
     refine_rounds: int = 3
     local_refit: bool = False
+    runner_up_refit: float | None = None
     least_squares_refit: bool = True
     min_inliers: int = 6
     min_disparity_sigmas: float = 2.0
@@ -126,6 +134,9 @@ class EstimatorOptions:
         # values are normalised to plain Python types, never changed numerically.
         for name, rule in ESTIMATOR_OPTION_RULES.items():
             object.__setattr__(self, name, rule.check(name, getattr(self, name)))
+        if self.runner_up_refit is not None and not self.local_refit:
+            raise OptionError(f"runner_up_refit={self.runner_up_refit!r} needs local_refit=True (it runs the local "
+                              f"refit on more hypotheses), got local_refit={self.local_refit!r}")
 
     @property
     def reprojection_threshold_sq(self) -> float:
@@ -154,6 +165,8 @@ ENHANCEMENTS: dict[str, tuple[str, dict[str, Any]]] = {
     "polish": ("sample polish (2 Gauss-Newton steps of each minimal fit on its points' reprojection error)",
                {"polish_iterations": 2}),
     "refit": ("local refit (each new best refitted on its consensus)", {"local_refit": True}),
+    "runner-up": ("runner-up refit (each batch's best hypothesis short of a new best refitted too when its "
+                  "consensus holds half the best's)", {"local_refit": True, "runner_up_refit": 0.5}),
     "rigidity": ("rigidity check (samples whose pairwise distances change beyond their noise are dropped unfitted)",
                  {"rigidity_gate_probability": 0.999}),
     "lm": ("iterated two-image LM refinement (refine, re-select the inliers, until they settle)", {"refine": True}),
@@ -169,6 +182,8 @@ def enhancements_used(values: Mapping[str, Any]) -> list[str]:
         used.append("polish")
     if values.get("local_refit", False):
         used.append("refit")
+    if values.get("runner_up_refit") is not None:
+        used.append("runner-up")
     if values.get("rigidity_gate_probability") is not None:
         used.append("rigidity")
     if values.get("refine", False):

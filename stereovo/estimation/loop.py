@@ -20,7 +20,7 @@ from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.roles.refinement import ReprojectionRefiner
 from stereovo.estimation.roles.samplers import Sampler
 from stereovo.estimation.roles.scoring import Quality, ResidualModel
-from stereovo.estimation.roles.solvers import minimal_hypotheses
+from stereovo.estimation.roles.solvers import SAMPLE_SIZE, minimal_hypotheses
 from stereovo.estimation.roles.verification import FullVerification, ScoringContext, Verifier
 
 
@@ -71,6 +71,10 @@ class RansacComponents:
         first_batch_size: the first batch's size if smaller than ``batch_size``, after which each
             batch doubles up to ``batch_size``; None for batches of ``batch_size`` throughout.
         polish_iterations: Gauss-Newton steps on each minimal sample's reprojection error.
+        runner_up_fraction: None, or from the second batch on, also give the local optimiser the
+            batch's best-scoring hypothesis that is not a new best (the runner-up) when its consensus
+            holds at least this fraction of the best model's inliers; it replaces the best only if it
+            then scores higher (docs/algorithms.md, "The runner-up refit").
         min_inliers: fewer inliers in the best model means "no consensus".
         listeners: objects whose ``on_new_best(inliers, loop_state)`` is called on each new best
             (PROSAC's sampler, SPRT's verifier adapt there); a listener may also define
@@ -98,6 +102,7 @@ class RansacComponents:
     batch_size: int = 32
     first_batch_size: int | None = None
     polish_iterations: int = 2
+    runner_up_fraction: float | None = None
     min_inliers: int = 6
     listeners: list[Any] = field(default_factory=list)
     sample_check: SampleCheck | None = None
@@ -185,6 +190,7 @@ class RansacSearch:
         self.best_score = -np.inf
         self.drawn = self.scored = self.checks = self.degenerate = self.rejected = 0
         self.local_runs = self.found_at = 0
+        self.runner_up_runs = self.runner_up_wins = 0
         self.required = c.termination.max_iterations
         self._uses_samples = bool(getattr(c.verifier, "uses_samples", False))
         listening = [*c.listeners, *([] if any(x is c.termination for x in c.listeners) else [c.termination])]
@@ -230,8 +236,12 @@ class RansacSearch:
             self.scored += R.shape[0]
             self.checks += spent
             i = int(np.argmax(scores))
-            if scores[i] > self.best_score:
+            earlier_best = self.best_score > -np.inf
+            new_best = bool(scores[i] > self.best_score)
+            if new_best:
                 self._new_best(R, t, i, float(scores[i]))
+            if c.runner_up_fraction is not None and c.local_optimizer is not None and earlier_best:
+                self._refit_runner_up(R, t, scores, i if new_best else -1)
             if self._feedback is not None:
                 residual_sq = ctx.residuals(R, t)
                 self.checks += R.shape[0] * n
@@ -261,6 +271,37 @@ class RansacSearch:
         for listener in self._best_listeners:
             listener.on_new_best(self.best_inliers, state)
 
+    def _refit_runner_up(self, R: np.ndarray, t: np.ndarray, scores: np.ndarray, new_best: int) -> None:
+        """Refit the batch's best hypothesis other than ``new_best`` (-1: none of the batch) if its
+        consensus is near the best's (and at least a minimal sample), and make it the best if the
+        refit then scores higher."""
+        c = self.components
+        if new_best >= 0:
+            if scores.shape[0] < 2:
+                return
+            scores = scores.copy()
+            scores[new_best] = -np.inf
+        j = int(np.argmax(scores))
+        if scores[j] == -np.inf:
+            return
+        inliers, computed = self.ctx.inliers_of(R, t, j)
+        self.checks += self.n if computed else 0
+        count = np.count_nonzero(inliers)
+        if count < SAMPLE_SIZE or count < c.runner_up_fraction * np.count_nonzero(self.best_inliers):
+            return
+        R_j, t_j, inliers_j, score_j, spent = c.local_optimizer.improve(
+            self.ctx, R[j], t[j], inliers, float(scores[j]), self.rng
+        )
+        self.runner_up_runs += 1
+        self.checks += spent
+        if score_j > self.best_score:
+            self.runner_up_wins += 1
+            self.best_R, self.best_t, self.best_inliers, self.best_score = R_j, t_j, inliers_j, score_j
+            self.found_at = self.drawn
+            state = self.state
+            for listener in self._best_listeners:
+                listener.on_new_best(self.best_inliers, state)
+
     def choose(self, R: np.ndarray, t: np.ndarray, inliers: np.ndarray, score: float) -> None:
         """Make ``(R (3, 3), t (3,), inliers (N,) bool, score)`` the model that ``finish`` refines: a
         caller whose selection differs from the quality's maximum (the adaptive environment's agent
@@ -272,17 +313,20 @@ class RansacSearch:
         c, n = self.components, self.n
         counts = dict(n_hypotheses=self.drawn, n_scored=self.scored, n_point_checks=self.checks,
                       n_degenerate=self.degenerate, n_rejected_samples=self.rejected,
-                      n_local_optimizations=self.local_runs, best_found_at=self.found_at)
+                      n_local_optimizations=self.local_runs + self.runner_up_runs, best_found_at=self.found_at)
+        counters = component_counters(c)
+        if c.runner_up_fraction is not None:
+            counters.update(runner_up_refits=self.runner_up_runs, runner_up_wins=self.runner_up_wins)
         if self.scored == 0:
             reason = "all samples degenerate" if self.rejected == 0 else (
                 f"no sample passed the sample check ({self.rejected} of {self.drawn} rejected, "
                 f"{self.degenerate} degenerate)"
             )
             return RansacReport(np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), -np.inf, f"failed: {reason}",
-                                counters=component_counters(c), **counts)
+                                counters=counters, **counts)
         return final_report(
             self.problem, self.best_R, self.best_t, self.best_inliers, self.best_score, c.refiner,
-            c.residual_model, c.quality, c.threshold_sq, c.min_inliers, component_counters(c), **counts,
+            c.residual_model, c.quality, c.threshold_sq, c.min_inliers, counters, **counts,
         )
 
 

@@ -98,6 +98,7 @@ def base_components(
         # An adaptive search may be over after a few hypotheses; a budget draws them all anyway.
         first_batch_size=int(options.first_batch_size) if options.budget is None else None,
         polish_iterations=int(options.polish_iterations),
+        runner_up_fraction=options.runner_up_refit,
         min_inliers=int(options.min_inliers),
         sample_check=sample_check(options),
     )
@@ -148,7 +149,8 @@ def _pixel_gated_refiner(options: EstimatorOptions, dof: int = 4) -> Reprojectio
 
 
 PROBABILISTIC_RECIPE: dict[str, Any] = {
-    "polish_iterations": 2, "local_refit": True, "rigidity_gate_probability": 0.999, "refine": True,
+    "polish_iterations": 2, "local_refit": True, "runner_up_refit": 0.5, "rigidity_gate_probability": 0.999,
+    "refine": True,
 }
 """``probabilistic``'s defaults: the project's tuned recipe, every enhancement on (each still an option)."""
 

@@ -211,8 +211,12 @@ def split_options(spec: MethodSpec, options: Mapping[str, Any]) -> tuple[Estimat
     """``options`` of a call to method ``spec`` as its :class:`EstimatorOptions` (the method's
     :attr:`~MethodSpec.defaults` under the given shared options) and its own options, validated."""
     extra = spec.check_options({k: v for k, v in options.items() if k not in SHARED_OPTIONS})
-    shared = EstimatorOptions(**{**spec.defaults, **{k: v for k, v in options.items() if k in SHARED_OPTIONS}})
-    return shared, extra
+    given = {k: v for k, v in options.items() if k in SHARED_OPTIONS}
+    merged = {**spec.defaults, **given}
+    if "runner_up_refit" not in given and not merged.get("local_refit", False):
+        # the runner-up refit is part of the local refit: a caller who switches that off drops both
+        merged.pop("runner_up_refit", None)
+    return EstimatorOptions(**merged), extra
 
 
 def validate_options(

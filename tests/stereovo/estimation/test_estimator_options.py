@@ -28,7 +28,8 @@ BAD_SHARED = [
     ("refine", "no"), ("local_refit", "no"), ("max_iterations", math.inf), ("budget", math.nan),
     ("confidence", "0.9"), ("noise_sigma", 1e300), ("noise_sigma", 1e-300), ("noise_sigma", -1.0),
     ("max_iterations", True), ("threshold_px", math.inf), ("gate_probability", 1.0), ("first_batch_size", 0),
-    ("refine_rounds", 2.0), ("budget", 0),
+    ("refine_rounds", 2.0), ("budget", 0), ("runner_up_refit", 0.0), ("runner_up_refit", 1.5),
+    ("runner_up_refit", "half"),
 ]
 
 
@@ -50,6 +51,21 @@ def test_shared_options_are_refused_naming_option_and_value(name, value):
             estimate_motion(FRAME.prev, FRAME.curr, FRAME.camera, method=method, **{name: value})
     with pytest.raises(ValueError, match=name):
         validate_options("msac", {name: value})
+
+
+def test_runner_up_refit_needs_the_local_refit_and_yields_with_it():
+    with pytest.raises(ValueError) as err:
+        EstimatorOptions(runner_up_refit=0.5)
+    assert "runner_up_refit=0.5" in str(err.value) and "local_refit=False" in str(err.value)
+    with pytest.raises(ValueError, match="runner_up_refit=0.5 needs local_refit=True"):
+        estimate_motion(FRAME.prev, FRAME.curr, FRAME.camera, method="probabilistic", local_refit=False,
+                        runner_up_refit=0.5)
+    # probabilistic's default runner-up refit goes with its local refit when a caller switches that off
+    options, _ = validate_options("probabilistic", {"local_refit": False})
+    assert options.runner_up_refit is None and not options.local_refit
+    assert validate_options("probabilistic", {})[0].runner_up_refit == 0.5
+    est = estimate_motion(FRAME.prev, FRAME.curr, FRAME.camera, method="probabilistic", local_refit=False, rng=1)
+    assert est.ok and est.report.n_local_optimizations == 0
 
 
 def test_every_declared_rule_accepts_the_default():

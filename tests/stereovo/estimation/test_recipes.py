@@ -63,7 +63,7 @@ def test_probabilistic_keeps_its_tuned_recipe_and_says_so(frame):
     assert c.polish_iterations == 2 and c.local_optimizer is not None and isinstance(c.sample_check, RigidityCheck)
     description = available_methods()["probabilistic"]
     assert "tuned recipe" in description
-    for name in ("polish", "refit", "rigidity", "lm"):
+    for name in ("polish", "refit", "runner-up", "rigidity", "lm"):
         assert ENHANCEMENTS[name][0] in description
     # a caller's option still wins over the method's default
     assert components("probabilistic", frame, polish_iterations=0).polish_iterations == 0
