@@ -44,6 +44,7 @@ ESTIMATOR_OPTION_RULES: dict[str, Option] = {
     "runner_up_refit": Number(low=0.0, high=1.0, low_open=True, allow_none=True),
     "least_squares_refit": Boolean(),
     "min_inliers": Integer(low=SAMPLE_SIZE, high=MAX_COUNT),
+    "fail_at_cap": Boolean(),
     "min_disparity_sigmas": Number(low=0.0, high=1e3),
 }
 """The declaration of every :class:`EstimatorOptions` field (:mod:`stereovo.options`), by name."""
@@ -97,6 +98,10 @@ class EstimatorOptions:
             reprojection error, one round) and re-select the inliers once under the method's gate;
             False keeps the best hypothesis as it is.
         min_inliers: fewer inliers in the final model is reported as "no consensus".
+        fail_at_cap: an adaptive search that reaches ``max_iterations`` before its stop is met,
+            for the returned model's inliers too, fails ("no confident consensus"), as Fischler &
+            Bolles allow; False returns its largest consensus, their other choice (on hostile
+            frames most such estimates are wrong: docs/algorithms.md, "What "ok" means").
         min_disparity_sigmas: a row whose disparity at k-1 or k is at or below this many standard
             deviations of the disparity noise (``sqrt(2) noise_sigma``) has no resolvable depth and
             is unusable (:mod:`stereovo.estimation.problem`); 0 keeps every row with a disparity
@@ -127,6 +132,7 @@ class EstimatorOptions:
     runner_up_refit: float | None = None
     least_squares_refit: bool = True
     min_inliers: int = 6
+    fail_at_cap: bool = True
     min_disparity_sigmas: float = 2.0
 
     def __post_init__(self) -> None:

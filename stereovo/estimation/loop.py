@@ -11,6 +11,7 @@ search.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -76,6 +77,11 @@ class RansacComponents:
             holds at least this fraction of the best model's inliers; it replaces the best only if it
             then scores higher (docs/algorithms.md, "The runner-up refit").
         min_inliers: fewer inliers in the best model means "no consensus".
+        fail_at_cap: a search that drew ``termination.max_iterations`` hypotheses without its stop
+            being met for the returned model's inliers ends in failure ("no confident consensus"),
+            one of the two ends Fischler & Bolles give a search whose cap comes first; False returns
+            the largest consensus found, the other (docs/algorithms.md, "What "ok" means"). A
+            termination with ``is_budget = True`` (a fixed budget) has no stop to meet.
         listeners: objects whose ``on_new_best(inliers, loop_state)`` is called on each new best
             (PROSAC's sampler, SPRT's verifier adapt there); a listener may also define
             ``on_batch(loop_state)``, called after every batch. The termination listens itself,
@@ -104,6 +110,7 @@ class RansacComponents:
     polish_iterations: int = 2
     runner_up_fraction: float | None = None
     min_inliers: int = 6
+    fail_at_cap: bool = True
     listeners: list[Any] = field(default_factory=list)
     sample_check: SampleCheck | None = None
 
@@ -324,10 +331,27 @@ class RansacSearch:
             )
             return RansacReport(np.eye(3), np.zeros(3), np.zeros(n, dtype=bool), -np.inf, f"failed: {reason}",
                                 counters=counters, **counts)
-        return final_report(
+        report = final_report(
             self.problem, self.best_R, self.best_t, self.best_inliers, self.best_score, c.refiner,
             c.residual_model, c.quality, c.threshold_sq, c.min_inliers, counters, **counts,
         )
+        return self._unconfirmed(report) if c.fail_at_cap else report
+
+    def _unconfirmed(self, report: RansacReport) -> RansacReport:
+        """``report``, or a failure if the search reached its cap before its stop and the returned
+        model's inliers do not meet the stop either (its confidence was never reached)."""
+        term, n = self.components.termination, self.n
+        cap = int(term.max_iterations)
+        if report.status != "ok" or getattr(term, "is_budget", False) or self.drawn < cap:
+            return report
+        count = int(np.count_nonzero(report.inliers))
+        # bounds are clipped to the cap: reaching it means the stop asks for at least the cap
+        if term.required(count, n) < cap:
+            return report
+        status = (f"failed: no confident consensus (the cap of {cap} hypotheses came before the stop, "
+                  f"which the returned model's {count} inliers of {n} rows do not meet)")
+        return dataclasses.replace(report, rotation=np.eye(3), translation=np.zeros(3),
+                                   inliers=np.zeros(n, dtype=bool), status=status)
 
 
 def final_report(

@@ -100,6 +100,7 @@ def base_components(
         polish_iterations=int(options.polish_iterations),
         runner_up_fraction=options.runner_up_refit,
         min_inliers=int(options.min_inliers),
+        fail_at_cap=bool(options.fail_at_cap),
         sample_check=sample_check(options),
     )
 

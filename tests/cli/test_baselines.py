@@ -288,10 +288,10 @@ def _no_ray_left(ray_tmp: str) -> list[str]:
     return left
 
 
-@pytest.mark.skipif(not Path("/proc/self/environ").is_file(), reason="finds Ray's processes through /proc")
 RAY_CORE_LOG = re.compile(r"^\[\d{4}-\d\d-\d\d [\d:,]+ [DIWEF] \d+ \d+\] \w+\.cc:\d+: ")
 
 
+@pytest.mark.skipif(not Path("/proc/self/environ").is_file(), reason="finds Ray's processes through /proc")
 def test_ray_backend_stops_on_sigterm_or_ctrl_c_in_one_line_and_resumes(tmp_path, capsys):
     """ray.init installs its own SIGTERM handlers (an exit, then a C++ dump and abort): ours must win.
 

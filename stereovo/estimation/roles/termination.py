@@ -177,6 +177,7 @@ class FixedBudget:
     """Draw exactly ``budget`` hypotheses, whatever the support: the environment's default."""
 
     budget: int = 32
+    is_budget: bool = True  # the loop's cap is the stop itself: reaching it confirms nothing and fails nothing
 
     def __post_init__(self) -> None:
         if self.budget < 1:

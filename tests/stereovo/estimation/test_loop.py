@@ -270,3 +270,36 @@ def test_runner_up_refit_recovers_the_consensus_a_mixed_best_locked_out():
     frame = frames[18]
     assert not success(frame, runner_up_refit=None)
     assert success(frame)
+
+
+def test_a_search_capped_before_its_stop_fails_unless_the_returned_model_meets_it():
+    """Fischler & Bolles end a search whose cap comes first either in failure or with its largest
+    consensus; ``fail_at_cap`` (the default) fails it unless the returned model's inliers meet the
+    stop (the refit consensus can be far larger than the hypothesis' own)."""
+    from stereovo.metrics import frame_metrics
+
+    def run(frame, seed, **options):
+        est = estimate_motion(frame.prev, frame.curr, frame.camera, method="ransac", rng=seed, **options)
+        return est, frame_metrics(est, frame.truth)
+
+    # the confident error of plain ransac on the hostile stream (frame 927 of
+    # scripts/bench_confident_errors.py): 10 "inliers", 1.2 m off, after 10 000 hypotheses
+    hostile = simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.9, outliers="hostile"), 927)
+    old, errors = run(hostile, 927, fail_at_cap=False)
+    assert old.ok and old.n_hypotheses == 10_000 and errors.trans_err_m > 1.0
+    est, _ = run(hostile, 927)
+    assert est.status.startswith("failed: no confident consensus (the cap of 10000 hypotheses came before the stop")
+    assert not est.ok and not est.inliers.any() and est.n_hypotheses == 10_000
+    np.testing.assert_array_equal(est.rotation, np.eye(3))
+    np.testing.assert_array_equal(est.translation, np.zeros(3))
+
+    easy = simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.3), 0)
+    capped, _ = run(easy, 0, max_iterations=32)
+    assert "no confident consensus" in capped.status and capped.n_hypotheses == 32
+    assert run(easy, 0, max_iterations=32, fail_at_cap=False)[0].ok
+    budget, _ = run(easy, 0, budget=32)  # a fixed budget is the stop itself
+    assert budget.ok and budget.n_hypotheses == 32
+    # the cap came first, but the returned model's 119 inliers of 200 need fewer than 24 draws
+    met, errors = run(simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.3), 3), 3,
+                      max_iterations=24)
+    assert met.ok and met.n_hypotheses == 24 and errors.success
