@@ -189,7 +189,8 @@ def estimate_motion(
         below ``camera.min_disparity``, or at or below ``min_disparity_sigmas`` standard deviations
         of its noise, at k-1 or k) are outliers: the method runs on the other rows and the
         estimate names them (``unusable``, ``n_unusable``). A hopeless frame (fewer than 3 or
-        ``min_inliers`` usable rows, every sample degenerate, no consensus) gives
+        ``min_inliers`` usable rows, every sample degenerate, no consensus, or an adaptive search
+        that reached ``max_iterations`` before its stop with ``fail_at_cap``) gives
         ``status="failed: ..."`` with identity motion; it never raises. ``"ok"`` means the
         returned pose is finite and the returned inliers are exactly the rows that pass the
         method's own final gate under it, at least ``min_inliers`` of them

@@ -26,7 +26,7 @@ from stereovo.estimation.recipes import base_components, reprojection_judge
 from stereovo.estimation.registry import register_method
 from stereovo.estimation.roles.partial import residuals_on
 from stereovo.estimation.roles.scoring import TruncatedQuadratic
-from stereovo.estimation.roles.termination import FixedBudget
+from stereovo.estimation.roles.termination import AdaptiveTermination, FixedBudget
 from stereovo.estimation.roles.verification import ScoringContext
 from stereovo.options import Integer
 
@@ -148,7 +148,14 @@ def _build_preemptive(problem, options, priors, order, extra):
         raise ValueError(f"preemptive: budget={options.budget} and preemptive_hypotheses={m} disagree; give one")
     components = base_components(problem, options, priors, order, *reprojection_judge(options, TruncatedQuadratic()))
     components.verifier = PreemptiveVerification(m, extra["preemptive_block"])
-    components.termination = FixedBudget(m)
+    # Nister's M is a fixed hypothesis count. Given as a budget it is the stop itself; as the
+    # method's own M it is the search's cap: the adaptive bound, clipped to M, never ends the one
+    # batch of M early, and lets the loop fail a returned model whose inliers would need more than
+    # M draws for the confidence (fail_at_cap, docs/algorithms.md "What "ok" means").
+    if options.budget is not None:
+        components.termination = FixedBudget(m)
+    else:
+        components.termination = AdaptiveTermination(options.confidence, m, sampler=components.sampler)
     components.batch_size = m  # the whole hypothesis set reaches the verifier at once
     components.first_batch_size = None
     return components

@@ -62,3 +62,22 @@ def test_preemptive_fails_more_often_than_adaptive_ransac_at_high_contamination(
             est = estimate(frame, method, i)
             ok[method] += succeeded(est, frame)
     assert ok["ransac"] >= 4 and ok["preemptive"] <= ok["ransac"] - 2, ok
+
+
+def test_preemptive_fails_a_model_its_m_hypotheses_cannot_confirm():
+    """Nister's M is the search's cap: a returned model whose inliers would need more than M draws
+    for the confidence fails (fail_at_cap), where the paper's end returns it; as a budget it is the
+    stop itself and returns the best as the paper does."""
+    from stereovo import estimate_motion
+    from stereovo.metrics import frame_metrics
+
+    # hostile stream frame 23 (N 1000, eps 0.9): 16 "inliers" of 845 rows, 1.7 m off
+    frame = simulate_frame(SimulationConfig(n_correspondences=1000, outlier_ratio=0.9, outliers="hostile"), 23)
+    paper = estimate_motion(frame.prev, frame.curr, frame.camera, method="preemptive", rng=23, fail_at_cap=False)
+    assert paper.ok and paper.n_hypotheses == 500 and frame_metrics(paper, frame.truth).trans_err_m > 1.0
+    est = estimate_motion(frame.prev, frame.curr, frame.camera, method="preemptive", rng=23)
+    assert est.status.startswith("failed: no confident consensus (the cap of 500 hypotheses")
+    assert est.n_hypotheses == 500
+    budget = estimate_motion(frame.prev, frame.curr, frame.camera, method="preemptive", rng=23, budget=500)
+    assert budget.ok
+    np.testing.assert_array_equal(budget.rotation, paper.rotation)
