@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 from numpy.random.bit_generator import ISeedSequence
 
-__all__ = ["seeded_generators"]
+__all__ = ["seeded_generators", "spawned_generators"]
 
 _MASK32 = np.uint64(0xFFFFFFFF)
 _INIT_A = np.uint64(0x43B0D7E5)
@@ -152,3 +152,45 @@ def seeded_generators(
         pool_size,
     )
     return [np.random.Generator(np.random.PCG64(_SeedWords(words))) for words in seeds]
+
+
+@njit(cache=True, nogil=True)
+def _spawned_seed_words(entropy, n_children, pool_size):
+    """``(n_children, 4)`` uint64 seed words of ``SeedSequence(list(entropy)).spawn(n_children)``,
+    ``entropy`` ``(E,)`` int64; ``(0, 4)`` when an entry is negative (numpy's error is the caller's).
+
+    The entries' 32-bit words as :func:`_as_words` splits them (the low word, then the high one
+    when it is not zero), and the children's spawn keys ``(0,)``, ``(1,)``, ...
+    """
+    words = np.empty(2 * entropy.shape[0], dtype=np.uint64)
+    n_words = 0
+    for value in entropy:
+        if value < 0:
+            return np.empty((0, 4), dtype=np.uint64)
+        word = np.uint64(value)
+        words[n_words] = word & _MASK32
+        n_words += 1
+        high = word >> np.uint64(32)
+        if high != 0:
+            words[n_words] = high
+            n_words += 1
+    spawn = np.empty((n_children, 1), dtype=np.uint64)
+    for child in range(n_children):
+        spawn[child, 0] = child
+    return _pcg64_seed_words(words[:n_words], spawn, np.ones(n_children, dtype=np.int64), pool_size)
+
+
+def spawned_generators(entropy: np.ndarray, n_children: int) -> list[np.random.Generator]:
+    """``[np.random.default_rng(s) for s in np.random.SeedSequence(entropy.tolist()).spawn(n_children)]``
+    for an int64 array ``entropy`` ``(E,)`` (a frame's ``rng.integers(0, 2**63, size=4)``), bit for bit.
+
+    :func:`seeded_generators` with the spawn keys ``(0,)`` to ``(n_children - 1,)``, the words
+    computed in the compiled pass: about half its cost, for the simulator's five streams a frame.
+    """
+    if n_children <= 0:
+        return []
+    if entropy.dtype == np.int64 and entropy.ndim == 1 and entropy.size:
+        seeds = _spawned_seed_words(entropy, n_children, 4)
+        if seeds.shape[0]:
+            return [np.random.Generator(np.random.PCG64(_SeedWords(words))) for words in seeds]
+    return seeded_generators(entropy.tolist(), [(i,) for i in range(n_children)])

@@ -16,7 +16,7 @@ from numba import njit
 
 from stereovo.camera import StereoCamera
 from stereovo.geometry import invert_transform
-from stereovo.seeding import seeded_generators
+from stereovo.seeding import spawned_generators
 from stereovo.simulation.config import SimulationConfig
 from stereovo.simulation.frame import Frame, FrameTruth, OutlierKind
 from stereovo.simulation.hostile import (
@@ -58,7 +58,7 @@ def _apportion(total: int, weights: tuple[float, ...]) -> tuple[int, ...]:
 def _stream_generators(entropy: np.ndarray, n_streams: int) -> list[np.random.Generator]:
     """Generators of ``np.random.SeedSequence(entropy.tolist()).spawn(n_streams)``, ``entropy``
     four non-negative int64 draws (numpy's seeding, computed by :mod:`stereovo.seeding`)."""
-    return seeded_generators(entropy.tolist(), [(i,) for i in range(n_streams)])
+    return spawned_generators(entropy, n_streams)
 
 
 def _valid(meas: np.ndarray, cam: StereoCamera) -> np.ndarray:
@@ -91,6 +91,21 @@ def _noisy_rows(meas, z, sigma, out):
         out[i, 3] = meas[i, 3] + sigma * z[i, 1]
 
 
+@njit(cache=True, nogil=True)
+def _noisy_invalid_rows(meas, z, sigma, out, u_max, v_max, min_disparity):
+    """:func:`_noisy_rows` into ``out``, then the rows of ``out`` that :func:`_valid_rows` refuses
+    (int64, ascending: ``np.flatnonzero(~_valid_rows(out, ...))``), in one call."""
+    _noisy_rows(meas, z, sigma, out)
+    ok = _valid_rows(out, u_max, v_max, min_disparity)
+    bad = np.empty(out.shape[0], dtype=np.int64)
+    n_bad = 0
+    for i in range(out.shape[0]):
+        if not ok[i]:
+            bad[n_bad] = i
+            n_bad += 1
+    return bad[:n_bad]
+
+
 def _add_noise(
     meas: np.ndarray, normal: np.ndarray, config: SimulationConfig, rng: np.random.Generator, free: int = 0
 ) -> np.ndarray:
@@ -102,11 +117,12 @@ def _add_noise(
     measurement stays usable, except the last ``free`` rows (the hostile kinds), which keep
     their first draw: losing the depth is what they are for.
     """
-    sigma, cam = config.noise_sigma, config.camera
+    sigma, cam = float(config.noise_sigma), config.camera
+    limits = (float(cam.width - 1), float(cam.height - 1), float(cam.min_disparity))
 
     def noisy(rows: np.ndarray, z: np.ndarray) -> np.ndarray:
         out = np.empty((rows.shape[0], 4))
-        _noisy_rows(np.ascontiguousarray(rows, dtype=float), np.ascontiguousarray(z, dtype=float), float(sigma), out)
+        _noisy_rows(np.ascontiguousarray(rows, dtype=float), np.ascontiguousarray(z, dtype=float), sigma, out)
         return out
 
     if free:
@@ -114,12 +130,17 @@ def _add_noise(
         if free < len(meas):
             out[:-free] = _add_noise(meas[:-free], normal[:-free], config, rng)
         return out
-    out = noisy(meas, normal)
+    meas = np.ascontiguousarray(meas, dtype=float)
+    out = np.empty((meas.shape[0], 4))
+    # the first draw and its check in one compiled call (the common case: no row to redraw)
+    bad = _noisy_invalid_rows(meas, np.ascontiguousarray(normal, dtype=float), sigma, out, *limits)
     for _ in range(MAX_REDRAWS):
-        bad = np.flatnonzero(~_valid(out, cam))
         if bad.size == 0:
             return out
         out[bad] = noisy(meas[bad], rng.standard_normal((bad.size, 3)))
+        bad = np.flatnonzero(~_valid(out, cam))
+    if bad.size == 0:
+        return out
     bad = ~_valid(out, cam)
     if not _valid(meas[bad], cam).all():
         raise RuntimeError("simulator bug: a noise-free measurement left the image or lost its disparity")
