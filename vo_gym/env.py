@@ -19,7 +19,7 @@ from gymnasium import spaces
 
 from stereovo.camera import StereoCamera
 from stereovo.compilation import announce_compiling
-from stereovo.estimation import EstimatorOptions, StereoProblem, estimate_problem
+from stereovo.estimation import EstimatorOptions, PreparedEstimator, StereoProblem
 from stereovo.geometry import PoseChain
 from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, frame_metrics, trajectory_metrics
 from stereovo.options import real_array
@@ -263,6 +263,8 @@ class StereoVOEnv(gym.Env):
             **{f.name: getattr(self.estimator_options, f.name) for f in dataclasses.fields(EstimatorOptions)},
             **extra,
         }
+        # the method and these options, derived and checked once instead of on every step
+        self._estimator = PreparedEstimator(method, **self._estimator_kwargs)
 
         M = self.max_correspondences
         self.observation_space = spaces.Dict(
@@ -370,10 +372,7 @@ class StereoVOEnv(gym.Env):
             weights = np.empty(frame.n)
             weights[order] = 1.0 - np.arange(frame.n) / max(frame.n - 1, 1)
 
-        est = estimate_problem(
-            self._problem, method=self.method, priors=priors, order=order,
-            rng=self._ransac_rng, **self._estimator_kwargs,
-        )
+        est = self._estimator.estimate(self._problem, priors=priors, order=order, rng=self._ransac_rng)
         metrics = frame_metrics(est, frame.truth)
         self._chain.append(est.ok, est.rotation, est.translation)
         self._successes.append(metrics.success)
