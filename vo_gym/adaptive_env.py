@@ -34,6 +34,7 @@ from stereovo.geometry import PoseChain
 from stereovo.metrics import frame_metrics
 from stereovo.options import real_array
 from stereovo.simulation import Frame, Sequence
+from vo_gym.action_box import ActionBox
 from vo_gym.features import FEATURE_BOUND, N_FEATURES, compute_features
 from vo_gym.in_frame import (
     ADAPTIVE_FEATURE_NAMES,
@@ -180,7 +181,7 @@ class StereoVOAdaptiveEnv(gym.Env):
             "mask": spaces.MultiBinary(M),
             "globals": spaces.Box(-FEATURE_BOUND, FEATURE_BOUND, shape=(len(GLOBAL_FEATURE_NAMES),), dtype=np.float32),
         })
-        self.action_space = spaces.Box(-self.action_bound, self.action_bound, shape=(M + 1,), dtype=np.float32)
+        self.action_space = ActionBox(-self.action_bound, self.action_bound, shape=(M + 1,), dtype=np.float32)
         self.feature_names = ADAPTIVE_FEATURE_NAMES
         self._sequence: Sequence | None = None
         self._frame: Frame | None = None

@@ -24,6 +24,7 @@ from stereovo.geometry import PoseChain
 from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, frame_metrics, trajectory_metrics
 from stereovo.options import real_array
 from stereovo.simulation import Frame, Sequence
+from vo_gym.action_box import ActionBox
 from vo_gym.features import FEATURE_BOUND, FEATURE_LAYOUT_VERSION, FEATURE_NAMES, N_FEATURES, compute_features
 from vo_gym.rewards import inlier_reward, msac_reward, pose_error_ratio, supervised_reward
 from vo_gym.settings import (
@@ -273,7 +274,7 @@ class StereoVOEnv(gym.Env):
                 "mask": spaces.MultiBinary(M),
             }
         )
-        self.action_space = spaces.Box(-self.action_bound, self.action_bound, shape=(M,), dtype=np.float32)
+        self.action_space = ActionBox(-self.action_bound, self.action_bound, shape=(M,), dtype=np.float32)
         self.feature_names = FEATURE_NAMES
         self.feature_layout_version = FEATURE_LAYOUT_VERSION
 
