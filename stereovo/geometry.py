@@ -12,7 +12,10 @@ ordered ``(rho, omega)`` (translation part first), angles in radians.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 _SMALL_ANGLE = 1e-8
 
@@ -120,9 +123,35 @@ def make_transform(R: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def invert_transform(T: np.ndarray) -> np.ndarray:
     """Inverse of rigid 4x4 transforms, using ``R^T`` instead of a general inverse."""
+    if type(T) is np.ndarray and T.shape == (4, 4) and T.dtype == np.float64:
+        # one finite transform (the simulator's and the pose chain's case, a few a step): compiled
+        out = np.empty((4, 4))  # numpy's own array (see stereovo.camera._project_rows)
+        if _invert_one(T, out):
+            return out
     T = np.asarray(T, dtype=float)
     Rt = np.swapaxes(T[..., :3, :3], -1, -2)
     return make_transform(Rt, -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3]))
+
+
+@njit(cache=True, nogil=True)
+def _invert_one(T, out):
+    """:func:`invert_transform` of one ``(4, 4)`` float64 ``T`` into ``out``, bit for bit: einsum
+    sums the three products of ``R^T t`` in order onto 0.0 (no fused multiply-add; ``+0.0`` first, so
+    an all-zero sum is ``+0.0`` and its negation ``-0.0``), and ``make_transform`` writes zeros and a
+    one in the last row (``tests/stereovo/test_geometry.py`` compares the two on random and signed-zero
+    input). Returns False, leaving ``out`` unfinished, when ``T`` holds NaN or inf: numpy's NaN
+    signs are its own business, so such input takes the numpy formulation."""
+    for i in range(4):
+        for j in range(4):
+            if not math.isfinite(T[i, j]):
+                return False
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = T[j, i]
+        out[i, 3] = -(((0.0 + T[0, i] * T[0, 3]) + T[1, i] * T[1, 3]) + T[2, i] * T[2, 3])
+        out[3, i] = 0.0
+    out[3, 3] = 1.0
+    return True
 
 
 def compose(R1: np.ndarray, t1: np.ndarray, R2: np.ndarray, t2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -51,6 +51,16 @@ def _nan_to_none(value: Any) -> Any:
     return value
 
 
+def _display_weights(n: int, priors: np.ndarray | None, order: np.ndarray | None) -> np.ndarray:
+    """``(n,)`` the weights a rendering colours the matches by: the guided priors scaled to mean 1,
+    or the PROSAC order's ranks mapped to 1 (best) .. 0 (worst)."""
+    if priors is not None:
+        return priors * (n / priors.sum())
+    weights = np.empty(n)
+    weights[order] = 1.0 - np.arange(n) / max(n - 1, 1)
+    return weights
+
+
 class StereoVOEnv(gym.Env):
     """Stereo visual odometry on a simulated trajectory; the agent proposes RANSAC sampling priors.
 
@@ -367,11 +377,8 @@ class StereoVOEnv(gym.Env):
         if self.sampling == "guided":
             logits = values * self.logit_scale
             priors = np.exp(logits - logits.max())
-            weights = priors * (frame.n / priors.sum())
         else:
             order = np.argsort(-values, kind="stable")
-            weights = np.empty(frame.n)
-            weights[order] = 1.0 - np.arange(frame.n) / max(frame.n - 1, 1)
 
         est = self._estimator.estimate(self._problem, priors=priors, order=order, rng=self._ransac_rng)
         metrics = frame_metrics(est, frame.truth)
@@ -384,7 +391,8 @@ class StereoVOEnv(gym.Env):
         info["pose_error_ratio"] = pose_error_ratio(metrics)
         info["fallback"] = not est.ok
         info["outlier_ratio"] = float(frame.truth.outlier_ratio)
-        self._last_step = {"frame": frame, "weights": weights, "inliers": est.inliers}
+        # what render() draws; the weights are worked out there (only a rendering reads them)
+        self._last_step = {"frame": frame, "priors": priors, "order": order, "inliers": est.inliers}
 
         self._k += 1
         truncated = self._k > self.sim_config.n_frames
@@ -406,7 +414,8 @@ class StereoVOEnv(gym.Env):
         if self._last_step is None:
             frame, weights, inliers = self._frame, None, None
         else:
-            frame, weights, inliers = (self._last_step[key] for key in ("frame", "weights", "inliers"))
+            frame, inliers = self._last_step["frame"], self._last_step["inliers"]
+            weights = _display_weights(frame.n, self._last_step["priors"], self._last_step["order"])
         return render_rgb(
             self.estimated_poses, self.true_poses, frame, weights, inliers,
             title=f"frame {frame.index}/{self.sim_config.n_frames} ({self.sampling})",

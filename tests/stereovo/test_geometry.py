@@ -394,3 +394,39 @@ def test_pose_chain_keeps_a_float_copy_of_an_integer_first_pose():
     assert chain.poses[0].dtype == np.float64
     first[0, 3] = 5
     np.testing.assert_array_equal(chain.poses[0], np.eye(4))
+
+
+def _numpy_inverse(T):
+    """invert_transform's numpy formulation (the compiled single-transform path's reference)."""
+    from stereovo.geometry import make_transform
+
+    T = np.asarray(T, dtype=float)
+    Rt = np.swapaxes(T[..., :3, :3], -1, -2)
+    return make_transform(Rt, -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3]))
+
+
+def test_one_transform_is_inverted_bit_for_bit_as_by_numpy():
+    import itertools
+
+    from stereovo.geometry import invert_transform, make_transform, random_rotation
+
+    rng = np.random.default_rng(0)
+    cases = []
+    for k in range(20000):
+        R = random_rotation(rng) * (1.0 if k % 3 else rng.uniform(0.1, 10.0))
+        t = rng.standard_normal(3) * 10 ** rng.uniform(-5, 5)
+        t[rng.integers(0, 3)] = (0.0, -0.0, t[0])[k % 3]
+        T = make_transform(R, t)
+        if k % 5 == 0:
+            T[3] = rng.standard_normal(4)  # not a rigid last row: still the formulation's result
+        cases.append(T)
+    zeros = [0.0, -0.0, 1.0, -1.0, np.inf, np.nan, 1e308, -1e-310]
+    for values in itertools.product(zeros, repeat=3):
+        for R in (np.eye(3), -np.eye(3), np.array([[-0.0, 1.0, 0.0], [1.0, -0.0, 0.0], [0.0, 0.0, -1.0]])):
+            cases.append(make_transform(R, np.array(values)))
+    for T in cases:
+        ours = invert_transform(T)
+        assert type(ours) is np.ndarray and ours.dtype == np.float64 and ours.flags.c_contiguous
+        assert ours.tobytes() == _numpy_inverse(T).tobytes()
+    stacked = np.stack(cases[:50])  # batches stay numpy's
+    assert invert_transform(stacked).tobytes() == _numpy_inverse(stacked).tobytes()
