@@ -190,10 +190,22 @@ def rigid_consistency_degree(
         np.ascontiguousarray(points_prev, dtype=float), np.ascontiguousarray(points_curr, dtype=float),
         s2, np.ascontiguousarray(anchors, dtype=np.int64), float(gate * gate),
     )
-    is_anchor = np.zeros(n, dtype=bool)
-    is_anchor[anchors] = True
-    count = count - is_anchor  # a match is trivially consistent with itself
-    return (count / (anchors.size - is_anchor)).astype(np.float32)
+    return _anchor_fractions(count, np.ascontiguousarray(anchors, dtype=np.int64), np.empty(n, dtype=np.float32))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _anchor_fractions(count, anchors, out):
+    """``out (N,) float32 = (count - is_anchor) / (A - is_anchor)`` (a match is trivially consistent
+    with itself, and is no other anchor of its own), for the counts ``(N,)`` of the A ``anchors``: the
+    int64 differences, their float64 quotient and its float32 rounding, as numpy computes them."""
+    a = anchors.shape[0]
+    is_anchor = np.zeros(count.shape[0], dtype=np.bool_)
+    for k in range(a):
+        is_anchor[anchors[k]] = True
+    for i in range(count.shape[0]):
+        own = 1 if is_anchor[i] else 0
+        out[i] = np.float32((count[i] - own) / (a - own))
+    return out
 
 
 # The single-precision screen of :func:`_consistent_pairs` (see its doc).

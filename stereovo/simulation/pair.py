@@ -55,6 +55,20 @@ def _apportion(total: int, weights: tuple[float, ...]) -> tuple[int, ...]:
     return tuple(int(c) for c in counts)
 
 
+_KIND_ORDER = np.array([OutlierKind.INLIER, OutlierKind.RANDOM_MISMATCH, OutlierKind.STEREO_MISMATCH,
+                        OutlierKind.MOVING_OBJECT, OutlierKind.INDEPENDENT_MISMATCH, OutlierKind.DUPLICATE_MATCH,
+                        OutlierKind.FAR_CLUTTER, OutlierKind.REPETITIVE_TEXTURE], dtype=np.int8)
+
+
+@functools.lru_cache(maxsize=256)
+def _row_kinds(counts: tuple[int, ...]) -> np.ndarray:
+    """``(N,)`` int8 read-only: each :class:`OutlierKind`, in the order of ``_KIND_ORDER``, repeated
+    its count. Cached as :func:`_apportion` is (a sequence asks for the same rows every frame)."""
+    kinds = np.repeat(_KIND_ORDER, counts)
+    kinds.flags.writeable = False
+    return kinds
+
+
 def _stream_generators(entropy: np.ndarray, n_streams: int) -> list[np.random.Generator]:
     """Generators of ``np.random.SeedSequence(entropy.tolist()).spawn(n_streams)``, ``entropy``
     four non-negative int64 draws (numpy's seeding, computed by :mod:`stereovo.seeding`)."""
@@ -209,12 +223,7 @@ def simulate_pair(
             independent_mismatches(meas_curr[indep], cam, tau, outlier_rng), np.zeros((n_dup, 4)), far_curr, rep_curr,
         ]
     clean_prev, clean_curr = np.concatenate(parts_prev), np.concatenate(parts_curr)
-    kind = np.repeat(
-        np.array([OutlierKind.INLIER, OutlierKind.RANDOM_MISMATCH, OutlierKind.STEREO_MISMATCH,
-                  OutlierKind.MOVING_OBJECT, OutlierKind.INDEPENDENT_MISMATCH, OutlierKind.DUPLICATE_MATCH,
-                  OutlierKind.FAR_CLUTTER, OutlierKind.REPETITIVE_TEXTURE], dtype=np.int8),
-        [n_in, n_random, n_stereo, n_moving, n_indep, n_dup, n_far, n_rep],
-    )
+    kind = _row_kinds((n_in, n_random, n_stereo, n_moving, n_indep, n_dup, n_far, n_rep))
     assert clean_prev.shape == clean_curr.shape == (N, 4)
 
     # One (2, N, 3) draw in row order, so the same seed gives the same standard-normal noise at any sigma.
@@ -229,7 +238,7 @@ def simulate_pair(
             prev[:n_in], curr[:n_in], clean_curr[:n_in], n_dup, outlier_threshold(config.noise_sigma), outlier_rng
         )
 
-    inlier = kind == OutlierKind.INLIER
+    inlier = kind == OutlierKind.INLIER  # a new array (the cached kinds are read-only)
     scores = draw_scores(inlier, config.score_auc, score_rng)
 
     order = order_rng.permutation(N)
