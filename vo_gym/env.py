@@ -444,7 +444,8 @@ class StereoVOEnv(gym.Env):
                 )
             # only rows without depth (never sampled): any value will do, the lowest keeps the weights finite
             a = np.where(finite, a, -self.action_bound)
-        return np.clip(a, -self.action_bound, self.action_bound)
+        # np.clip's values without its Python wrapper (the bounds are ordered, the values finite)
+        return np.minimum(np.maximum(a, -self.action_bound), self.action_bound)
 
     def _observation(self) -> dict[str, np.ndarray]:
         frame = self._frame

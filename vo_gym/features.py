@@ -448,5 +448,6 @@ def compute_features(
         out[~usable, 11] = 0.0
         out[~usable, 13] = 0.0
         out[~usable, 2:8] = np.nan_to_num(out[~usable, 2:8], nan=0.0)  # a NaN row's pixels say nothing
-    np.clip(out, -FEATURE_BOUND, FEATURE_BOUND, out=out)
+    # np.clip(out, -FEATURE_BOUND, FEATURE_BOUND, out=out) without its Python wrapper: the same values
+    np.minimum(np.maximum(out, -FEATURE_BOUND, out=out), FEATURE_BOUND, out=out)
     return out

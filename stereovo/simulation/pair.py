@@ -61,12 +61,14 @@ _KIND_ORDER = np.array([OutlierKind.INLIER, OutlierKind.RANDOM_MISMATCH, Outlier
 
 
 @functools.lru_cache(maxsize=256)
-def _row_kinds(counts: tuple[int, ...]) -> np.ndarray:
-    """``(N,)`` int8 read-only: each :class:`OutlierKind`, in the order of ``_KIND_ORDER``, repeated
-    its count. Cached as :func:`_apportion` is (a sequence asks for the same rows every frame)."""
+def _row_kinds(counts: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """``(N,)`` int8 and ``(N,)`` bool, read-only: each :class:`OutlierKind`, in the order of
+    ``_KIND_ORDER``, repeated its count, and which rows are inliers. Cached as :func:`_apportion` is
+    (a sequence asks for the same rows every frame)."""
     kinds = np.repeat(_KIND_ORDER, counts)
-    kinds.flags.writeable = False
-    return kinds
+    inlier = kinds == OutlierKind.INLIER
+    kinds.flags.writeable = inlier.flags.writeable = False
+    return kinds, inlier
 
 
 def _stream_generators(entropy: np.ndarray, n_streams: int) -> list[np.random.Generator]:
@@ -223,7 +225,7 @@ def simulate_pair(
             independent_mismatches(meas_curr[indep], cam, tau, outlier_rng), np.zeros((n_dup, 4)), far_curr, rep_curr,
         ]
     clean_prev, clean_curr = np.concatenate(parts_prev), np.concatenate(parts_curr)
-    kind = _row_kinds((n_in, n_random, n_stereo, n_moving, n_indep, n_dup, n_far, n_rep))
+    kind, inlier = _row_kinds((n_in, n_random, n_stereo, n_moving, n_indep, n_dup, n_far, n_rep))
     assert clean_prev.shape == clean_curr.shape == (N, 4)
 
     # One (2, N, 3) draw in row order, so the same seed gives the same standard-normal noise at any sigma.
@@ -238,7 +240,6 @@ def simulate_pair(
             prev[:n_in], curr[:n_in], clean_curr[:n_in], n_dup, outlier_threshold(config.noise_sigma), outlier_rng
         )
 
-    inlier = kind == OutlierKind.INLIER  # a new array (the cached kinds are read-only)
     scores = draw_scores(inlier, config.score_auc, score_rng)
 
     order = order_rng.permutation(N)
