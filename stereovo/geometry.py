@@ -211,6 +211,10 @@ def relative_motion(pose_prev: np.ndarray, pose_curr: np.ndarray) -> tuple[np.nd
 
 def rotation_angle(R: np.ndarray) -> np.ndarray:
     """Rotation angle in radians, in [0, pi], of rotation matrices ``(..., 3, 3)``."""
+    if type(R) is np.ndarray and R.shape == (3, 3) and R.dtype == np.float64:
+        angle = _rotation_angle_one(R)
+        if angle is not None:
+            return angle
     R = np.asarray(R, dtype=float)
     # atan2 of sin and cos keeps full precision near 0, where arccos(1 - e) loses half the digits.
     cos = (np.trace(R, axis1=-2, axis2=-1) - 1) / 2
@@ -221,6 +225,21 @@ def rotation_angle(R: np.ndarray) -> np.ndarray:
     return np.arctan2(sin, cos)
 
 
+def _rotation_angle_one(R: np.ndarray) -> np.float64 | None:
+    """:func:`rotation_angle` of one finite ``(3, 3)`` float64 matrix on Python floats, bit for bit:
+    numpy's trace and the norm's ``add.reduce`` over three values sum them in order
+    (``tests/stereovo/test_geometry.py`` holds numpy to that), sqrt is correctly rounded in both, and
+    ``arctan2`` stays numpy's. None for a matrix with NaN or inf (numpy's path, and its warnings). A
+    frame's metrics ask for one angle; numpy's calls on 3-vectors cost ten times the sums."""
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rows = R.tolist()
+    if not all(math.isfinite(x) for row in rows for x in row):
+        return None
+    cos = (((r00 + r11) + r22) - 1) / 2
+    v0, v1, v2 = r21 - r12, r02 - r20, r10 - r01
+    sin = math.sqrt((v0 * v0 + v1 * v1) + v2 * v2) / 2
+    return np.arctan2(sin, cos)
+
+
 def rotation_error(R_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:
     """Angle in radians of ``R_est^T R_true`` (the geodesic distance on SO(3))."""
     return rotation_angle(np.swapaxes(np.asarray(R_est, dtype=float), -1, -2) @ R_true)
@@ -228,7 +247,12 @@ def rotation_error(R_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:
 
 def translation_error(t_est: np.ndarray, t_true: np.ndarray) -> np.ndarray:
     """Euclidean distance in metres between translation vectors ``(..., 3)``."""
-    return np.linalg.norm(np.asarray(t_est, dtype=float) - t_true, axis=-1)
+    d = np.asarray(t_est, dtype=float) - t_true
+    if d.shape == (3,) and d.dtype == np.float64:
+        # one pair (a frame's metrics): the norm's in-order sum of squares on floats (see _rotation_angle_one)
+        d0, d1, d2 = d.tolist()
+        return np.float64(math.sqrt((d0 * d0 + d1 * d1) + d2 * d2))
+    return np.linalg.norm(d, axis=-1)
 
 
 def random_rotation(rng: np.random.Generator, max_angle: float = np.pi) -> np.ndarray:

@@ -430,3 +430,34 @@ def test_one_transform_is_inverted_bit_for_bit_as_by_numpy():
         assert ours.tobytes() == _numpy_inverse(T).tobytes()
     stacked = np.stack(cases[:50])  # batches stay numpy's
     assert invert_transform(stacked).tobytes() == _numpy_inverse(stacked).tobytes()
+
+
+def test_one_rotation_angle_and_translation_error_are_numpys_bit_for_bit():
+    """The float paths for one matrix / one vector pair equal numpy's formulation (trace, add.reduce of
+    the squares, arctan2), which sums three values in order: this test holds numpy to that too."""
+    from stereovo.geometry import random_rotation, rotation_angle, translation_error
+
+    def numpy_angle(R):
+        cos = (np.trace(R, axis1=-2, axis2=-1) - 1) / 2
+        with np.errstate(invalid="ignore"):
+            vee = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]],
+                           axis=-1)
+        return np.arctan2(np.linalg.norm(vee, axis=-1) / 2, cos)
+
+    rng = np.random.default_rng(1)
+    cases = [random_rotation(rng, 10 ** rng.uniform(-9, 0.5)) for _ in range(20000)]
+    cases += [rng.standard_normal((3, 3)) * 10 ** rng.uniform(-3, 3) for _ in range(20000)]
+    cases += [np.diag([-0.0, -0.0, -0.0]), -np.eye(3), np.eye(3), np.full((3, 3), 1e300)]
+    for R in cases:
+        ours, theirs = rotation_angle(R), numpy_angle(R)
+        assert type(ours) is type(theirs) and np.array_equal(ours, theirs, equal_nan=True)
+        assert np.signbit(ours) == np.signbit(theirs)
+    for _ in range(20000):
+        a, b = rng.standard_normal(3) * 10 ** rng.uniform(-5, 5), rng.standard_normal(3)
+        ours, theirs = translation_error(a, b), np.linalg.norm(a - b, axis=-1)
+        assert type(ours) is type(theirs) and ours == theirs
+    stacked = np.stack(cases[:100])
+    assert rotation_angle(stacked).tobytes() == numpy_angle(stacked).tobytes()
+    with pytest.warns(RuntimeWarning):  # NaN and inf take numpy's path, warnings and all
+        assert np.isnan(rotation_angle(np.full((3, 3), np.inf)))
+    assert np.isnan(rotation_angle(np.full((3, 3), np.nan)))
