@@ -435,7 +435,7 @@ class StereoVOEnv(gym.Env):
                        what=f"a numeric array of shape ({M},)", prefix=f"{_OWNER}: ")
         a = a[:n]
         finite = np.isfinite(a)
-        if not np.all(finite):
+        if not finite.all():
             usable = self._problem.usable if self._problem is not None else None
             bad = np.flatnonzero(~finite if usable is None else ~finite & usable)
             if bad.size:

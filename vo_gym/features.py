@@ -150,7 +150,7 @@ def _validate_motion(previous_motion) -> tuple[np.ndarray, np.ndarray] | None:
     except (TypeError, ValueError):
         raise ValueError("previous_motion must be None or a pair (R (3, 3), t (3,))") from None
     R, t = np.asarray(R, dtype=float), np.asarray(t, dtype=float)
-    if R.shape != (3, 3) or t.shape != (3,) or not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
+    if R.shape != (3, 3) or t.shape != (3,) or not (np.isfinite(R).all() and np.isfinite(t).all()):
         raise ValueError(f"previous_motion must be finite (R (3, 3), t (3,)), got shapes {R.shape} and {t.shape}")
     return R, t
 
@@ -399,7 +399,7 @@ def compute_features(
     if curr.shape[0] != n:
         raise ValueError(f"prev and curr must have the same number of rows, got {n} and {curr.shape[0]}")
     scores = real_array("scores", scores, (n,), what=f"a finite ({n},) array of numbers")
-    if not np.all(np.isfinite(scores)):
+    if not np.isfinite(scores).all():
         raise ValueError(f"scores must be finite, got NaN or inf in {np.count_nonzero(~np.isfinite(scores))} row(s)")
     # The estimator's own rule for noise_sigma (the one options contract), so both accept the same values.
     noise_sigma = ESTIMATOR_OPTION_RULES["noise_sigma"].check("noise_sigma", noise_sigma, prefix="")
