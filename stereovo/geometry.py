@@ -154,6 +154,26 @@ def _invert_one(T, out):
     return True
 
 
+@njit(cache=True, nogil=True)
+def _invert_motion(R, t, out):
+    """``out = invert_transform(make_transform(R, t))`` for one finite motion (``_invert_one`` of the
+    4x4 that make_transform writes: its rows are R | t over 0 0 0 1); False, ``out`` unfinished, when
+    R or t holds NaN or inf."""
+    for i in range(3):
+        if not math.isfinite(t[i]):
+            return False
+        for j in range(3):
+            if not math.isfinite(R[i, j]):
+                return False
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = R[j, i]
+        out[i, 3] = -(((0.0 + R[0, i] * t[0]) + R[1, i] * t[1]) + R[2, i] * t[2])
+        out[3, i] = 0.0
+    out[3, 3] = 1.0
+    return True
+
+
 def compose(R1: np.ndarray, t1: np.ndarray, R2: np.ndarray, t2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(R, t)`` of applying ``(R2, t2)`` first, then ``(R1, t1)``: ``x -> R1 (R2 x + t2) + t1``."""
     return R1 @ R2, np.einsum("...ij,...j->...i", R1, t2) + t1
@@ -169,6 +189,13 @@ def pose_update(pose_prev: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarr
 
     ``P_k = P_{k-1} @ inv(T)``, the single place where the convention is applied.
     """
+    if (type(R) is np.ndarray and type(t) is np.ndarray and R.shape == (3, 3) and t.shape == (3,)
+            and R.dtype == np.float64 and t.dtype == np.float64 and R.flags.c_contiguous and t.flags.c_contiguous):
+        # one motion (a step's estimate, a sequence's frames): inv(T) straight from (R, t), compiled,
+        # the values invert_transform(make_transform(R, t)) gives
+        inverse = np.empty((4, 4))
+        if _invert_motion(R, t, inverse):
+            return np.asarray(pose_prev, dtype=float) @ inverse
     return np.asarray(pose_prev, dtype=float) @ invert_transform(make_transform(R, t))
 
 

@@ -119,8 +119,13 @@ class FrameMetrics:
     status: str
 
     def as_dict(self) -> dict[str, Any]:
-        # Every field is a scalar: a shallow dict equals asdict() without its recursive copying.
-        return {f.name: getattr(self, f.name) for f in fields(self)}
+        # Every field is a scalar: a shallow dict equals asdict() without its recursive copying; the
+        # names are the class's fields, read once (dataclasses.fields() costs as much as the dict).
+        names = type(self).__dict__.get("_field_names")
+        if names is None:
+            names = tuple(f.name for f in fields(self))
+            setattr(type(self), "_field_names", names)
+        return {name: getattr(self, name) for name in names}
 
 
 def frame_metrics(estimate: Any, truth: Any) -> FrameMetrics:

@@ -410,7 +410,7 @@ def compute_features(
         return out
     if problem is not None:
         if not (
-            problem.camera == camera and problem.noise_sigma == noise_sigma
+            (problem.camera is camera or problem.camera == camera) and problem.noise_sigma == noise_sigma
             and (own_arrays or (np.array_equal(problem.prev, prev) and np.array_equal(problem.curr, curr)))
         ):
             raise ValueError("problem must be built from the same prev, curr, camera and noise_sigma")

@@ -461,3 +461,19 @@ def test_one_rotation_angle_and_translation_error_are_numpys_bit_for_bit():
     with pytest.warns(RuntimeWarning):  # NaN and inf take numpy's path, warnings and all
         assert np.isnan(rotation_angle(np.full((3, 3), np.inf)))
     assert np.isnan(rotation_angle(np.full((3, 3), np.nan)))
+
+
+def test_pose_update_of_one_motion_is_the_numpy_formulation():
+    from stereovo.geometry import invert_transform, make_transform, pose_update, random_rotation
+
+    rng = np.random.default_rng(2)
+    for k in range(5000):
+        pose = make_transform(random_rotation(rng), rng.standard_normal(3) * 50)
+        R = random_rotation(rng, 0.1) * (1.0 if k % 2 else rng.uniform(0.5, 2.0))
+        t = rng.standard_normal(3) * 10 ** rng.uniform(-4, 2)
+        t[k % 3] = (0.0, -0.0, t[k % 3])[k % 3]
+        expected = np.asarray(pose, dtype=float) @ _numpy_inverse(make_transform(R, t))
+        assert pose_update(pose, R, t).tobytes() == expected.tobytes()
+    R[0, 0] = np.nan  # non-finite motions take the numpy formulation
+    np.testing.assert_array_equal(pose_update(pose, R, t), pose @ invert_transform(make_transform(R, t)))
+    np.testing.assert_array_equal(pose_update(pose, R.T[:, :], t), pose @ _numpy_inverse(make_transform(R.T, t)))
