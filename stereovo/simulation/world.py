@@ -204,4 +204,6 @@ def visible_landmarks(
             f"found only {count} of {n} landmarks visible in both frames; the camera and depth range "
             f"[{config.z_min}, {config.z_max}] m see too little of the {world!r} world"
         )
+    if len(kept_prev) == 1:  # the common case: the first batch held them all
+        return kept_prev[0][:n], kept_curr[0][:n]
     return np.concatenate(kept_prev)[:n], np.concatenate(kept_curr)[:n]
