@@ -17,7 +17,7 @@ BOXES = [
     dict(low=-1.0, high=1.0, shape=(7, 3), dtype=np.float32),
     dict(low=np.array([-1.0, 0.0, 2.5]), high=np.array([1.0, 1e-3, 3.0]), dtype=np.float64),
     dict(low=-np.inf, high=1.0, shape=(5,), dtype=np.float32),  # not bounded: Box.sample itself
-    dict(low=np.array([-np.inf, 0.0]), high=np.array([np.inf, 1.0]), dtype=np.float32),
+    dict(low=np.array([-np.inf, 0.0], np.float32), high=np.array([np.inf, 1.0], np.float32), dtype=np.float32),
     dict(low=0, high=5, shape=(4,), dtype=np.int64),  # not float: Box.sample itself
 ]
 
