@@ -12,7 +12,10 @@ ordered ``(rho, omega)`` (translation part first), angles in radians.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 _SMALL_ANGLE = 1e-8
 
@@ -120,9 +123,55 @@ def make_transform(R: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def invert_transform(T: np.ndarray) -> np.ndarray:
     """Inverse of rigid 4x4 transforms, using ``R^T`` instead of a general inverse."""
+    if type(T) is np.ndarray and T.shape == (4, 4) and T.dtype == np.float64:
+        # one finite transform (the simulator's and the pose chain's case, a few a step): compiled
+        out = np.empty((4, 4))  # numpy's own array (see stereovo.camera._project_rows)
+        if _invert_one(T, out):
+            return out
     T = np.asarray(T, dtype=float)
     Rt = np.swapaxes(T[..., :3, :3], -1, -2)
     return make_transform(Rt, -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3]))
+
+
+@njit(cache=True, nogil=True)
+def _invert_one(T, out):
+    """:func:`invert_transform` of one ``(4, 4)`` float64 ``T`` into ``out``, bit for bit: einsum
+    sums the three products of ``R^T t`` in order onto 0.0 (no fused multiply-add; ``+0.0`` first, so
+    an all-zero sum is ``+0.0`` and its negation ``-0.0``), and ``make_transform`` writes zeros and a
+    one in the last row (``tests/stereovo/test_geometry.py`` compares the two on random and signed-zero
+    input). Returns False, leaving ``out`` unfinished, when ``T`` holds NaN or inf: numpy's NaN
+    signs are its own business, so such input takes the numpy formulation."""
+    for i in range(4):
+        for j in range(4):
+            if not math.isfinite(T[i, j]):
+                return False
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = T[j, i]
+        out[i, 3] = -(((0.0 + T[0, i] * T[0, 3]) + T[1, i] * T[1, 3]) + T[2, i] * T[2, 3])
+        out[3, i] = 0.0
+    out[3, 3] = 1.0
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _invert_motion(R, t, out):
+    """``out = invert_transform(make_transform(R, t))`` for one finite motion (``_invert_one`` of the
+    4x4 that make_transform writes: its rows are R | t over 0 0 0 1); False, ``out`` unfinished, when
+    R or t holds NaN or inf."""
+    for i in range(3):
+        if not math.isfinite(t[i]):
+            return False
+        for j in range(3):
+            if not math.isfinite(R[i, j]):
+                return False
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = R[j, i]
+        out[i, 3] = -(((0.0 + R[0, i] * t[0]) + R[1, i] * t[1]) + R[2, i] * t[2])
+        out[3, i] = 0.0
+    out[3, 3] = 1.0
+    return True
 
 
 def compose(R1: np.ndarray, t1: np.ndarray, R2: np.ndarray, t2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -140,6 +189,13 @@ def pose_update(pose_prev: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarr
 
     ``P_k = P_{k-1} @ inv(T)``, the single place where the convention is applied.
     """
+    if (type(R) is np.ndarray and type(t) is np.ndarray and R.shape == (3, 3) and t.shape == (3,)
+            and R.dtype == np.float64 and t.dtype == np.float64 and R.flags.c_contiguous and t.flags.c_contiguous):
+        # one motion (a step's estimate, a sequence's frames): inv(T) straight from (R, t), compiled,
+        # the values invert_transform(make_transform(R, t)) gives
+        inverse = np.empty((4, 4))
+        if _invert_motion(R, t, inverse):
+            return np.asarray(pose_prev, dtype=float) @ inverse
     return np.asarray(pose_prev, dtype=float) @ invert_transform(make_transform(R, t))
 
 
@@ -182,6 +238,10 @@ def relative_motion(pose_prev: np.ndarray, pose_curr: np.ndarray) -> tuple[np.nd
 
 def rotation_angle(R: np.ndarray) -> np.ndarray:
     """Rotation angle in radians, in [0, pi], of rotation matrices ``(..., 3, 3)``."""
+    if type(R) is np.ndarray and R.shape == (3, 3) and R.dtype == np.float64:
+        angle = _rotation_angle_one(R)
+        if angle is not None:
+            return angle
     R = np.asarray(R, dtype=float)
     # atan2 of sin and cos keeps full precision near 0, where arccos(1 - e) loses half the digits.
     cos = (np.trace(R, axis1=-2, axis2=-1) - 1) / 2
@@ -192,6 +252,21 @@ def rotation_angle(R: np.ndarray) -> np.ndarray:
     return np.arctan2(sin, cos)
 
 
+def _rotation_angle_one(R: np.ndarray) -> np.float64 | None:
+    """:func:`rotation_angle` of one finite ``(3, 3)`` float64 matrix on Python floats, bit for bit:
+    numpy's trace and the norm's ``add.reduce`` over three values sum them in order
+    (``tests/stereovo/test_geometry.py`` holds numpy to that), sqrt is correctly rounded in both, and
+    ``arctan2`` stays numpy's. None for a matrix with NaN or inf (numpy's path, and its warnings). A
+    frame's metrics ask for one angle; numpy's calls on 3-vectors cost ten times the sums."""
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rows = R.tolist()
+    if not all(math.isfinite(x) for row in rows for x in row):
+        return None
+    cos = (((r00 + r11) + r22) - 1) / 2
+    v0, v1, v2 = r21 - r12, r02 - r20, r10 - r01
+    sin = math.sqrt((v0 * v0 + v1 * v1) + v2 * v2) / 2
+    return np.arctan2(sin, cos)
+
+
 def rotation_error(R_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:
     """Angle in radians of ``R_est^T R_true`` (the geodesic distance on SO(3))."""
     return rotation_angle(np.swapaxes(np.asarray(R_est, dtype=float), -1, -2) @ R_true)
@@ -199,7 +274,12 @@ def rotation_error(R_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:
 
 def translation_error(t_est: np.ndarray, t_true: np.ndarray) -> np.ndarray:
     """Euclidean distance in metres between translation vectors ``(..., 3)``."""
-    return np.linalg.norm(np.asarray(t_est, dtype=float) - t_true, axis=-1)
+    d = np.asarray(t_est, dtype=float) - t_true
+    if d.shape == (3,) and d.dtype == np.float64:
+        # one pair (a frame's metrics): the norm's in-order sum of squares on floats (see _rotation_angle_one)
+        d0, d1, d2 = d.tolist()
+        return np.float64(math.sqrt((d0 * d0 + d1 * d1) + d2 * d2))
+    return np.linalg.norm(d, axis=-1)
 
 
 def random_rotation(rng: np.random.Generator, max_angle: float = np.pi) -> np.ndarray:

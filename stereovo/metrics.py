@@ -11,6 +11,7 @@ Units: errors are computed in metres and radians; fields whose name ends in
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, fields
 from typing import Any, Sequence
 
@@ -47,6 +48,17 @@ def is_success(rot_err_rad: Any, trans_err: Any, t_true_norm: Any) -> np.ndarray
     trans = np.asarray(trans_err, dtype=float)
     bound = np.maximum(SUCCESS_TRANS_M, SUCCESS_TRANS_REL * np.asarray(t_true_norm, dtype=float))
     return (rot < np.deg2rad(SUCCESS_ROT_DEG)) & (trans < bound)
+
+
+_SUCCESS_ROT_RAD = float(np.deg2rad(SUCCESS_ROT_DEG))
+
+
+def _is_success_scalar(rot_err_rad: float, trans_err: float, t_true_norm: float) -> bool:
+    """:func:`is_success` of three Python floats, without numpy's per-call cost: the same bound
+    (``np.maximum`` passes a NaN on, and a NaN bound fails) and the same comparisons."""
+    relative = SUCCESS_TRANS_REL * t_true_norm
+    bound = relative if (relative > SUCCESS_TRANS_M or relative != relative) else SUCCESS_TRANS_M
+    return rot_err_rad < _SUCCESS_ROT_RAD and trans_err < bound
 
 
 def pose_error_ratio(rot_err_deg: float, trans_err_m: float, t_true_norm_m: float) -> float:
@@ -107,8 +119,13 @@ class FrameMetrics:
     status: str
 
     def as_dict(self) -> dict[str, Any]:
-        # Every field is a scalar: a shallow dict equals asdict() without its recursive copying.
-        return {f.name: getattr(self, f.name) for f in fields(self)}
+        # Every field is a scalar: a shallow dict equals asdict() without its recursive copying; the
+        # names are the class's fields, read once (dataclasses.fields() costs as much as the dict).
+        names = type(self).__dict__.get("_field_names")
+        if names is None:
+            names = tuple(f.name for f in fields(self))
+            setattr(type(self), "_field_names", names)
+        return {name: getattr(self, name) for name in names}
 
 
 def frame_metrics(estimate: Any, truth: Any) -> FrameMetrics:
@@ -124,10 +141,10 @@ def frame_metrics(estimate: Any, truth: Any) -> FrameMetrics:
     status = str(estimate.status)
     precision, recall = inlier_precision_recall(estimate.inliers, truth.inlier)
     return FrameMetrics(
-        rot_err_deg=float(np.rad2deg(rot_err)),
+        rot_err_deg=math.degrees(rot_err),  # np.rad2deg's product by 180 / pi, on a float
         trans_err_m=trans_err,
         t_true_norm_m=t_norm,
-        success=bool(status == "ok" and is_success(rot_err, trans_err, t_norm)),
+        success=bool(status == "ok" and _is_success_scalar(rot_err, trans_err, t_norm)),
         precision=precision,
         recall=recall,
         n_inliers=int(np.count_nonzero(estimate.inliers)),

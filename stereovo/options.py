@@ -211,14 +211,24 @@ def real_array(name: str, value: Any, shape: tuple[int | str, ...], entries: str
         ValueError: ``{name} must be real {entries}, got complex dtype ...``, ``{name} must be
             {what}, got TYPE`` or ``{name} must have shape (...), {per}, got (...)``.
     """
-    wanted = "(" + ", ".join(map(str, shape)) + ("," if len(shape) == 1 else "") + ")"
-    if np.iscomplexobj(value):
-        raise ValueError(f"{prefix}{name} must be real {entries}, got complex dtype {np.asarray(value).dtype}")
-    try:
-        array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        what = what or f"a numeric array of shape {wanted} of {entries}"
-        raise ValueError(f"{prefix}{name} must be {what}, got {type(value).__name__}") from None
+    if type(value) is np.ndarray and value.dtype.kind in "biuf":
+        # the common case, a real array: no complex check, no conversion for float64 (np.asarray's result)
+        array = value if value.dtype == np.float64 else value.astype(np.float64)
+    else:
+        if np.iscomplexobj(value):
+            raise ValueError(f"{prefix}{name} must be real {entries}, got complex dtype {np.asarray(value).dtype}")
+        try:
+            array = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError):
+            what = what or f"a numeric array of shape {_shape_text(shape)} of {entries}"
+            raise ValueError(f"{prefix}{name} must be {what}, got {type(value).__name__}") from None
     if array.ndim != len(shape) or any(isinstance(k, int) and k != m for k, m in zip(shape, array.shape)):
-        raise ValueError(f"{prefix}{name} must have shape {wanted}{', ' + per if per else ''}, got {array.shape}")
+        raise ValueError(
+            f"{prefix}{name} must have shape {_shape_text(shape)}{', ' + per if per else ''}, got {array.shape}"
+        )
     return array
+
+
+def _shape_text(shape: tuple[int | str, ...]) -> str:
+    """``shape`` as the messages write it: ``(N, 4)``, ``(500,)``."""
+    return "(" + ", ".join(map(str, shape)) + ("," if len(shape) == 1 else "") + ")"

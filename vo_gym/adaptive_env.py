@@ -22,6 +22,7 @@ globally, how far the best model's motion lies from that prediction.
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 import gymnasium as gym
@@ -34,6 +35,7 @@ from stereovo.geometry import PoseChain
 from stereovo.metrics import frame_metrics
 from stereovo.options import real_array
 from stereovo.simulation import Frame, Sequence
+from vo_gym.action_box import ActionBox
 from vo_gym.features import FEATURE_BOUND, N_FEATURES, compute_features
 from vo_gym.in_frame import (
     ADAPTIVE_FEATURE_NAMES,
@@ -180,7 +182,7 @@ class StereoVOAdaptiveEnv(gym.Env):
             "mask": spaces.MultiBinary(M),
             "globals": spaces.Box(-FEATURE_BOUND, FEATURE_BOUND, shape=(len(GLOBAL_FEATURE_NAMES),), dtype=np.float32),
         })
-        self.action_space = spaces.Box(-self.action_bound, self.action_bound, shape=(M + 1,), dtype=np.float32)
+        self.action_space = ActionBox(-self.action_bound, self.action_bound, shape=(M + 1,), dtype=np.float32)
         self.feature_names = ADAPTIVE_FEATURE_NAMES
         self._sequence: Sequence | None = None
         self._frame: Frame | None = None
@@ -303,11 +305,11 @@ class StereoVOAdaptiveEnv(gym.Env):
         M, n = self.max_correspondences, self._frame.n
         a = real_array("the action", action, (M + 1,), entries="values", per="a logit per slot and the stop slot",
                        what=f"a numeric array of shape ({M + 1},)", prefix="StereoVOAdaptiveEnv: ")
-        valid = np.concatenate([a[:n], a[M:]])
-        if not np.all(np.isfinite(valid)):
+        if not (np.isfinite(a[:n]).all() and math.isfinite(a[M])):
             raise ValueError("StereoVOAdaptiveEnv: the action has NaN or inf in a valid slot or the stop slot")
-        a = np.clip(a, -self.action_bound, self.action_bound)
-        return a[:n] * self.logit_scale, bool(a[M] > 0)
+        # np.clip's values on the slots read (the others are ignored); clipping keeps the stop's sign
+        bound = self.action_bound
+        return np.minimum(np.maximum(a[:n], -bound), bound) * self.logit_scale, bool(a[M] > 0)
 
     def _observation(self) -> dict[str, np.ndarray]:
         return self._search.observation(self.max_correspondences)

@@ -19,11 +19,12 @@ from gymnasium import spaces
 
 from stereovo.camera import StereoCamera
 from stereovo.compilation import announce_compiling
-from stereovo.estimation import EstimatorOptions, StereoProblem, estimate_problem
+from stereovo.estimation import EstimatorOptions, PreparedEstimator, StereoProblem
 from stereovo.geometry import PoseChain
 from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, frame_metrics, trajectory_metrics
 from stereovo.options import real_array
 from stereovo.simulation import Frame, Sequence
+from vo_gym.action_box import ActionBox
 from vo_gym.features import FEATURE_BOUND, FEATURE_LAYOUT_VERSION, FEATURE_NAMES, N_FEATURES, compute_features
 from vo_gym.rewards import inlier_reward, msac_reward, pose_error_ratio, supervised_reward
 from vo_gym.settings import (
@@ -48,6 +49,16 @@ def _nan_to_none(value: Any) -> Any:
     if isinstance(value, float) and math.isnan(value):
         return None
     return value
+
+
+def _display_weights(n: int, priors: np.ndarray | None, order: np.ndarray | None) -> np.ndarray:
+    """``(n,)`` the weights a rendering colours the matches by: the guided priors scaled to mean 1,
+    or the PROSAC order's ranks mapped to 1 (best) .. 0 (worst)."""
+    if priors is not None:
+        return priors * (n / priors.sum())
+    weights = np.empty(n)
+    weights[order] = 1.0 - np.arange(n) / max(n - 1, 1)
+    return weights
 
 
 class StereoVOEnv(gym.Env):
@@ -263,6 +274,8 @@ class StereoVOEnv(gym.Env):
             **{f.name: getattr(self.estimator_options, f.name) for f in dataclasses.fields(EstimatorOptions)},
             **extra,
         }
+        # the method and these options, derived and checked once instead of on every step
+        self._estimator = PreparedEstimator(method, **self._estimator_kwargs)
 
         M = self.max_correspondences
         self.observation_space = spaces.Dict(
@@ -271,7 +284,7 @@ class StereoVOEnv(gym.Env):
                 "mask": spaces.MultiBinary(M),
             }
         )
-        self.action_space = spaces.Box(-self.action_bound, self.action_bound, shape=(M,), dtype=np.float32)
+        self.action_space = ActionBox(-self.action_bound, self.action_bound, shape=(M,), dtype=np.float32)
         self.feature_names = FEATURE_NAMES
         self.feature_layout_version = FEATURE_LAYOUT_VERSION
 
@@ -364,16 +377,10 @@ class StereoVOEnv(gym.Env):
         if self.sampling == "guided":
             logits = values * self.logit_scale
             priors = np.exp(logits - logits.max())
-            weights = priors * (frame.n / priors.sum())
         else:
             order = np.argsort(-values, kind="stable")
-            weights = np.empty(frame.n)
-            weights[order] = 1.0 - np.arange(frame.n) / max(frame.n - 1, 1)
 
-        est = estimate_problem(
-            self._problem, method=self.method, priors=priors, order=order,
-            rng=self._ransac_rng, **self._estimator_kwargs,
-        )
+        est = self._estimator.estimate(self._problem, priors=priors, order=order, rng=self._ransac_rng)
         metrics = frame_metrics(est, frame.truth)
         self._chain.append(est.ok, est.rotation, est.translation)
         self._successes.append(metrics.success)
@@ -384,7 +391,8 @@ class StereoVOEnv(gym.Env):
         info["pose_error_ratio"] = pose_error_ratio(metrics)
         info["fallback"] = not est.ok
         info["outlier_ratio"] = float(frame.truth.outlier_ratio)
-        self._last_step = {"frame": frame, "weights": weights, "inliers": est.inliers}
+        # what render() draws; the weights are worked out there (only a rendering reads them)
+        self._last_step = {"frame": frame, "priors": priors, "order": order, "inliers": est.inliers}
 
         self._k += 1
         truncated = self._k > self.sim_config.n_frames
@@ -406,7 +414,8 @@ class StereoVOEnv(gym.Env):
         if self._last_step is None:
             frame, weights, inliers = self._frame, None, None
         else:
-            frame, weights, inliers = (self._last_step[key] for key in ("frame", "weights", "inliers"))
+            frame, inliers = self._last_step["frame"], self._last_step["inliers"]
+            weights = _display_weights(frame.n, self._last_step["priors"], self._last_step["order"])
         return render_rgb(
             self.estimated_poses, self.true_poses, frame, weights, inliers,
             title=f"frame {frame.index}/{self.sim_config.n_frames} ({self.sampling})",
@@ -426,7 +435,7 @@ class StereoVOEnv(gym.Env):
                        what=f"a numeric array of shape ({M},)", prefix=f"{_OWNER}: ")
         a = a[:n]
         finite = np.isfinite(a)
-        if not np.all(finite):
+        if not finite.all():
             usable = self._problem.usable if self._problem is not None else None
             bad = np.flatnonzero(~finite if usable is None else ~finite & usable)
             if bad.size:
@@ -435,7 +444,8 @@ class StereoVOEnv(gym.Env):
                 )
             # only rows without depth (never sampled): any value will do, the lowest keeps the weights finite
             a = np.where(finite, a, -self.action_bound)
-        return np.clip(a, -self.action_bound, self.action_bound)
+        # np.clip's values without its Python wrapper (the bounds are ordered, the values finite)
+        return np.minimum(np.maximum(a, -self.action_bound), self.action_bound)
 
     def _observation(self) -> dict[str, np.ndarray]:
         frame = self._frame

@@ -150,7 +150,7 @@ def _validate_motion(previous_motion) -> tuple[np.ndarray, np.ndarray] | None:
     except (TypeError, ValueError):
         raise ValueError("previous_motion must be None or a pair (R (3, 3), t (3,))") from None
     R, t = np.asarray(R, dtype=float), np.asarray(t, dtype=float)
-    if R.shape != (3, 3) or t.shape != (3,) or not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
+    if R.shape != (3, 3) or t.shape != (3,) or not (np.isfinite(R).all() and np.isfinite(t).all()):
         raise ValueError(f"previous_motion must be finite (R (3, 3), t (3,)), got shapes {R.shape} and {t.shape}")
     return R, t
 
@@ -190,10 +190,22 @@ def rigid_consistency_degree(
         np.ascontiguousarray(points_prev, dtype=float), np.ascontiguousarray(points_curr, dtype=float),
         s2, np.ascontiguousarray(anchors, dtype=np.int64), float(gate * gate),
     )
-    is_anchor = np.zeros(n, dtype=bool)
-    is_anchor[anchors] = True
-    count = count - is_anchor  # a match is trivially consistent with itself
-    return (count / (anchors.size - is_anchor)).astype(np.float32)
+    return _anchor_fractions(count, np.ascontiguousarray(anchors, dtype=np.int64), np.empty(n, dtype=np.float32))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _anchor_fractions(count, anchors, out):
+    """``out (N,) float32 = (count - is_anchor) / (A - is_anchor)`` (a match is trivially consistent
+    with itself, and is no other anchor of its own), for the counts ``(N,)`` of the A ``anchors``: the
+    int64 differences, their float64 quotient and its float32 rounding, as numpy computes them."""
+    a = anchors.shape[0]
+    is_anchor = np.zeros(count.shape[0], dtype=np.bool_)
+    for k in range(a):
+        is_anchor[anchors[k]] = True
+    for i in range(count.shape[0]):
+        own = 1 if is_anchor[i] else 0
+        out[i] = np.float32((count[i] - own) / (a - own))
+    return out
 
 
 # The single-precision screen of :func:`_consistent_pairs` (see its doc).
@@ -387,7 +399,7 @@ def compute_features(
     if curr.shape[0] != n:
         raise ValueError(f"prev and curr must have the same number of rows, got {n} and {curr.shape[0]}")
     scores = real_array("scores", scores, (n,), what=f"a finite ({n},) array of numbers")
-    if not np.all(np.isfinite(scores)):
+    if not np.isfinite(scores).all():
         raise ValueError(f"scores must be finite, got NaN or inf in {np.count_nonzero(~np.isfinite(scores))} row(s)")
     # The estimator's own rule for noise_sigma (the one options contract), so both accept the same values.
     noise_sigma = ESTIMATOR_OPTION_RULES["noise_sigma"].check("noise_sigma", noise_sigma, prefix="")
@@ -398,7 +410,7 @@ def compute_features(
         return out
     if problem is not None:
         if not (
-            problem.camera == camera and problem.noise_sigma == noise_sigma
+            (problem.camera is camera or problem.camera == camera) and problem.noise_sigma == noise_sigma
             and (own_arrays or (np.array_equal(problem.prev, prev) and np.array_equal(problem.curr, curr)))
         ):
             raise ValueError("problem must be built from the same prev, curr, camera and noise_sigma")
@@ -436,5 +448,6 @@ def compute_features(
         out[~usable, 11] = 0.0
         out[~usable, 13] = 0.0
         out[~usable, 2:8] = np.nan_to_num(out[~usable, 2:8], nan=0.0)  # a NaN row's pixels say nothing
-    np.clip(out, -FEATURE_BOUND, FEATURE_BOUND, out=out)
+    # np.clip(out, -FEATURE_BOUND, FEATURE_BOUND, out=out) without its Python wrapper: the same values
+    np.minimum(np.maximum(out, -FEATURE_BOUND, out=out), FEATURE_BOUND, out=out)
     return out

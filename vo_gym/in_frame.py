@@ -143,6 +143,7 @@ class InFrameSearch:
         components.listeners = [x for x in components.listeners if not hasattr(x, "required")]
         self.search = RansacSearch(problem, components, rng)
         self.best_residual: np.ndarray | None = None
+        self._best_column: tuple[np.ndarray | None, np.ndarray | None] = (None, None)  # (residual, its column)
         self.weights = np.full(problem.n, 1.0 / problem.n)
 
     @property
@@ -206,13 +207,17 @@ class InFrameSearch:
         scored = sampler.n_scored()
         loop = np.zeros((n, len(LOOP_FEATURE_NAMES)), dtype=np.float64)
         if self.best_residual is not None:
-            loop[:, 0] = np.log1p(self.best_residual / search.components.threshold_sq)
+            # the best model's column changes only with the best model: kept for the steps between
+            if self._best_column[0] is not self.best_residual:
+                self._best_column = (self.best_residual, np.log1p(self.best_residual / search.components.threshold_sq))
+            loop[:, 0] = self._best_column[1]
             loop[:, 3] = search.best_inliers
         loop[:, 1] = sampler.votes / max(scored, 1)
         loop[:, 2] = np.log1p(sampler.votes)
         features = np.zeros((M, N_FEATURES + len(LOOP_FEATURE_NAMES)), dtype=np.float32)
         features[:n, :N_FEATURES] = self.features
-        features[:n, N_FEATURES:] = np.clip(loop, -FEATURE_BOUND, FEATURE_BOUND)
+        # np.clip's values without its Python wrapper (twice a step)
+        features[:n, N_FEATURES:] = np.minimum(np.maximum(loop, -FEATURE_BOUND, out=loop), FEATURE_BOUND, out=loop)
         mask = np.zeros(M, dtype=np.int8)
         mask[:n] = 1
         g = np.zeros(len(GLOBAL_FEATURE_NAMES))
@@ -229,5 +234,5 @@ class InFrameSearch:
         chosen = sampler.select(self.weights)
         if chosen is not None:
             g[6] = float(sampler.scored_masks[chosen] @ self.weights)
-        g = np.clip(g, -FEATURE_BOUND, FEATURE_BOUND).astype(np.float32)
+        g = np.minimum(np.maximum(g, -FEATURE_BOUND, out=g), FEATURE_BOUND, out=g).astype(np.float32)
         return {"features": features, "mask": mask, "globals": g}

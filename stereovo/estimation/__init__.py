@@ -1,7 +1,7 @@
 """The shared estimator core: one RANSAC loop, roles as components, named methods.
 
 Public entry point: :func:`estimate_motion` (:func:`estimate_problem` for a prebuilt
-:class:`StereoProblem`); the registry: :func:`available_methods`. For code that drives the
+:class:`StereoProblem`, :class:`PreparedEstimator` for one method's options over many frames); the registry: :func:`available_methods`. For code that drives the
 loop itself (the NG-RANSAC trainer replays its own minimal samples): :func:`run_ransac` on a
 method's :class:`RansacComponents`, and the samplers.
 
@@ -26,12 +26,12 @@ The floors, bottom to top (each imports only those below it):
   ``probabilistic``), the recipe parts every method shares and the ``+`` variants;
 - :mod:`~stereovo.estimation.methods`: one module per paper (its roles, its option
   declarations, its registration); importing this package imports it, which registers them;
-- :mod:`~stereovo.estimation.api`: :func:`estimate_motion`, :func:`estimate_problem` and
-  :class:`MotionEstimate`.
+- :mod:`~stereovo.estimation.api`: :func:`estimate_motion`, :func:`estimate_problem`,
+  :class:`PreparedEstimator` and :class:`MotionEstimate`.
 """
 
 from stereovo.estimation import methods  # noqa: F401  (registers the named methods)
-from stereovo.estimation.api import MotionEstimate, estimate_motion, estimate_problem
+from stereovo.estimation.api import MotionEstimate, PreparedEstimator, estimate_motion, estimate_problem
 from stereovo.estimation.estimator_options import EstimatorOptions
 from stereovo.estimation.loop import RansacComponents, RansacReport, run_ransac
 from stereovo.estimation.problem import StereoProblem
@@ -49,6 +49,7 @@ __all__ = [
     "run_ransac",
     "EstimatorOptions",
     "MotionEstimate",
+    "PreparedEstimator",
     "StereoProblem",
     "available_methods",
     "estimate_motion",

@@ -31,11 +31,13 @@ carries no depth evidence, so it is not a measurement of the motion in 3-D.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from stereovo.camera import StereoCamera
+from stereovo.estimation.kernels.depth import resolvable_rows
 from stereovo.options import real_array
 
 
@@ -121,11 +123,11 @@ class StereoProblem:
             raise ValueError(f"min_disparity_sigmas must be a finite number >= 0, got {min_disparity_sigmas!r}")
         points_prev, cov_prev, usable_prev = camera.triangulate_usable(prev, noise_sigma)
         points_curr, cov_curr, usable_curr = camera.triangulate_usable(curr, noise_sigma)
-        if min_disparity_sigmas > 0:
-            usable_prev &= resolvable_depth(prev, noise_sigma, min_disparity_sigmas)
-            usable_curr &= resolvable_depth(curr, noise_sigma, min_disparity_sigmas)
+        # resolvable_depth's rule on both frames (its threshold, computed alike: sqrt(2) is np.sqrt's
+        # correctly rounded value) and the test that every row passes, in one compiled pass
+        threshold = float(min_disparity_sigmas) * math.sqrt(2.0) * float(noise_sigma)
         usable = None
-        if not (usable_prev.all() and usable_curr.all()):
+        if not resolvable_rows(prev, curr, threshold, bool(min_disparity_sigmas > 0), usable_prev, usable_curr):
             usable = usable_prev & usable_curr
             # a row usable in one frame only is unusable: give it NaN in both, so nothing reads half of it
             for points, cov in ((points_prev, cov_prev), (points_curr, cov_curr)):

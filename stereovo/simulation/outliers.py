@@ -20,7 +20,8 @@ from stereovo.simulation.world import CAMERA_HEIGHT, camera_vector, loguniform, 
 MAX_REDRAWS = 30  # redraws of a row that misses its condition (an outlier too near, a noisy row off the image)
 _MAX_OBJECT_ATTEMPTS = 30
 _MIN_OUTLIER_PX = 4.0
-_STEREO_FACTOR = (1.25, 2.5)  # range of the disparity ratio of a stereo mismatch (>= 20 % depth error)
+_STEREO_FACTOR = (1.25, 2.5)
+_MAX_SPIN = float(np.radians(3.0))  # rad/frame, the object's largest turn  # range of the disparity ratio of a stereo mismatch (>= 20 % depth error)
 
 
 def outlier_threshold(sigma: float) -> float:
@@ -35,11 +36,13 @@ def _rotation_about_y(angle: float) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _object_candidates(u, half, face_cdf, orientation, centre, to_prev, to_curr_moved, to_curr_static, cam, z_min, z_max, tau):
+def _object_candidates(u, half, face_cdf, orientation, centre, to_prev, to_curr_moved, to_curr_static, cam, z_min, z_max,
+                       tau, limit):
     """Points on the faces of a box, from uniforms ``u (n, 5)``, that both cameras see on a face
     turned towards camera k-1 and whose frame-k image lies at least ``tau`` px (over uL, v, uR)
     from where a static point would be (or that would be behind camera k if static): their
-    ``X_prev, X_curr (m, 3)`` in the cameras, in their order.
+    ``X_prev, X_curr (m, 3)`` in the cameras, in their order, at most the first ``limit`` (the
+    caller keeps no more; the candidates after them are not looked at).
 
     Columns of ``u``: the position along the three box axes, the face (area-weighted through
     ``face_cdf``), its side. ``half (3,)`` are the box's half sizes, ``orientation (3, 3)`` and
@@ -53,6 +56,8 @@ def _object_candidates(u, half, face_cdf, orientation, centre, to_prev, to_curr_
     local = np.empty(3)
     p = np.empty(3)
     for i in range(n):
+        if kept >= limit:
+            break
         for k in range(3):
             local[k] = half[k] * (2.0 * u[i, k] - 1.0)
         axis = 0
@@ -206,54 +211,66 @@ def moving_object(
     z_lo, z_hi = max(5.0, config.z_min + 2.0), min(25.0, config.z_max - 2.0)
     if z_lo > z_hi:
         z_lo = z_hi = 0.5 * (config.z_min + config.z_max)
+    # The arithmetic below is the numpy formulation's, element by element in the same order, on
+    # Python floats where that saves numpy's per-call cost on 3-vectors (frames bit for bit); the
+    # products of matrices stay numpy's.
     for _ in range(_MAX_OBJECT_ATTEMPTS):
         depth = rng.uniform(z_lo, z_hi)
-        centre = np.array([
-            (rng.uniform(0.25, 0.75) * (cam.width - 1) - cam.cx) / cam.fx * depth,
-            (rng.uniform(0.25, 0.75) * (cam.height - 1) - cam.cy) / cam.fy * depth,
-            depth,
-        ])
+        centre_x = (rng.uniform(0.25, 0.75) * (cam.width - 1) - cam.cx) / cam.fx * depth
+        centre_y = (rng.uniform(0.25, 0.75) * (cam.height - 1) - cam.cy) / cam.fy * depth  # drawn in both worlds
         if street:
-            half = 0.5 * np.array([rng.uniform(1.6, 2.0), rng.uniform(1.4, 1.8), rng.uniform(3.5, 5.0)])
-            centre[1] = CAMERA_HEIGHT - half[1]
+            half = (0.5 * rng.uniform(1.6, 2.0), 0.5 * rng.uniform(1.4, 1.8), 0.5 * rng.uniform(3.5, 5.0))
+            centre = np.array([centre_x, CAMERA_HEIGHT - half[1], depth])
             heading = rng.uniform(-np.pi, np.pi)
             orientation = _rotation_about_y(heading)
             # a random sign, drawn as Generator.choice([-1.0, 1.0]) draws it, without its overhead
-            velocity = orientation[:, 2] * rng.uniform(0.5, 2.0) * (-1.0, 1.0)[int(rng.integers(0, 2))]
-            spin = _rotation_about_y(rng.uniform(-1, 1) * np.radians(3.0))
+            speed = rng.uniform(0.5, 2.0)
+            sign = (-1.0, 1.0)[int(rng.integers(0, 2))]
+            # orientation[:, 2] * speed * sign, element by element (the middle one is 0.0 or -0.0)
+            velocity = np.array([orientation[0, 2] * speed * sign, orientation[1, 2] * speed * sign,
+                                 orientation[2, 2] * speed * sign])
+            spin = _rotation_about_y(rng.uniform(-1, 1) * _MAX_SPIN)
         else:
-            half = 0.5 * rng.uniform(0.8, 3.0, 3)
+            centre = np.array([centre_x, centre_y, depth])
+            half = tuple(0.5 * rng.uniform(0.8, 3.0, 3))
             orientation = random_rotation(rng)
             direction = rng.standard_normal(3)
             velocity = direction / np.linalg.norm(direction) * rng.uniform(0.5, 2.0)
-            spin = random_rotation(rng, np.radians(3.0))
+            spin = random_rotation(rng, _MAX_SPIN)
         # Object motion in camera k-1 coordinates: rotate about its centre, then translate.
-        obj_R, obj_t = spin, centre - spin @ centre + velocity
-        areas = np.array([half[1] * half[2], half[0] * half[2], half[0] * half[1]])
-        face_cdf = np.cumsum(areas)
-        face_cdf /= face_cdf[-1]
+        obj_t = centre - spin @ centre + velocity
+        # np.cumsum of the face areas, normalised by its last entry
+        areas = (half[1] * half[2], half[0] * half[2], half[0] * half[1])
+        total = areas[0] + areas[1] + areas[2]
+        face_cdf = np.array([areas[0] / total, (areas[0] + areas[1]) / total, total / total])
         # Object points live in camera k-1 coordinates; at k the object has moved by obj first.
-        obj = np.eye(4)
-        obj[:3, :3], obj[:3, 3] = obj_R, obj_t
+        obj = np.zeros((4, 4))
+        obj[:3, :3], obj[:3, 3], obj[3, 3] = spin, obj_t, 1.0
         to_curr_moved = to_curr_static @ obj
+        half = np.array(half)
 
-        def draw(size: int) -> tuple[np.ndarray, np.ndarray]:
+        def draw(size: int, limit: int) -> tuple[np.ndarray, np.ndarray]:
             return _object_candidates(
                 rng.random((size, 5)), half, face_cdf, orientation, centre, to_prev, to_curr_moved,
-                to_curr_static, cam_vector, config.z_min, config.z_max, tau,
+                to_curr_static, cam_vector, config.z_min, config.z_max, tau, limit,
             )
 
         probe = max(64, 2 * n)
-        X_prev, X_curr = draw(probe)
+        # The probe stops at max(n, 2) kept points: enough (a second draw follows only when fewer),
+        # and at least 2 of the probe's >= 64 points pass the acceptance check below as the full
+        # count would (every probe is drawn whole either way).
+        X_prev, X_curr = draw(probe, max(n, 2))
         acceptance = len(X_prev) / probe
         if acceptance < 0.02:
             continue  # mostly hidden or barely moving: try another object
         kept_prev, kept_curr, count = [X_prev], [X_curr], len(X_prev)
         while count < n:
-            X_prev, X_curr = draw(int(1.3 * (n - count) / acceptance) + 32)
+            X_prev, X_curr = draw(int(1.3 * (n - count) / acceptance) + 32, n - count)
             kept_prev.append(X_prev)
             kept_curr.append(X_curr)
             count += len(X_prev)
+        if len(kept_prev) == 1:
+            return X_prev[:n], X_curr[:n]
         return np.concatenate(kept_prev)[:n], np.concatenate(kept_curr)[:n]
     raise RuntimeError(
         f"could not place a visibly moving object with {n} points in {_MAX_OBJECT_ATTEMPTS} attempts; "

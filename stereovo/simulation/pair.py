@@ -16,7 +16,7 @@ from numba import njit
 
 from stereovo.camera import StereoCamera
 from stereovo.geometry import invert_transform
-from stereovo.seeding import seeded_generators
+from stereovo.seeding import spawned_generators
 from stereovo.simulation.config import SimulationConfig
 from stereovo.simulation.frame import Frame, FrameTruth, OutlierKind
 from stereovo.simulation.hostile import (
@@ -55,10 +55,26 @@ def _apportion(total: int, weights: tuple[float, ...]) -> tuple[int, ...]:
     return tuple(int(c) for c in counts)
 
 
+_KIND_ORDER = np.array([OutlierKind.INLIER, OutlierKind.RANDOM_MISMATCH, OutlierKind.STEREO_MISMATCH,
+                        OutlierKind.MOVING_OBJECT, OutlierKind.INDEPENDENT_MISMATCH, OutlierKind.DUPLICATE_MATCH,
+                        OutlierKind.FAR_CLUTTER, OutlierKind.REPETITIVE_TEXTURE], dtype=np.int8)
+
+
+@functools.lru_cache(maxsize=256)
+def _row_kinds(counts: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """``(N,)`` int8 and ``(N,)`` bool, read-only: each :class:`OutlierKind`, in the order of
+    ``_KIND_ORDER``, repeated its count, and which rows are inliers. Cached as :func:`_apportion` is
+    (a sequence asks for the same rows every frame)."""
+    kinds = np.repeat(_KIND_ORDER, counts)
+    inlier = kinds == OutlierKind.INLIER
+    kinds.flags.writeable = inlier.flags.writeable = False
+    return kinds, inlier
+
+
 def _stream_generators(entropy: np.ndarray, n_streams: int) -> list[np.random.Generator]:
     """Generators of ``np.random.SeedSequence(entropy.tolist()).spawn(n_streams)``, ``entropy``
     four non-negative int64 draws (numpy's seeding, computed by :mod:`stereovo.seeding`)."""
-    return seeded_generators(entropy.tolist(), [(i,) for i in range(n_streams)])
+    return spawned_generators(entropy, n_streams)
 
 
 def _valid(meas: np.ndarray, cam: StereoCamera) -> np.ndarray:
@@ -91,6 +107,21 @@ def _noisy_rows(meas, z, sigma, out):
         out[i, 3] = meas[i, 3] + sigma * z[i, 1]
 
 
+@njit(cache=True, nogil=True)
+def _noisy_invalid_rows(meas, z, sigma, out, u_max, v_max, min_disparity):
+    """:func:`_noisy_rows` into ``out``, then the rows of ``out`` that :func:`_valid_rows` refuses
+    (int64, ascending: ``np.flatnonzero(~_valid_rows(out, ...))``), in one call."""
+    _noisy_rows(meas, z, sigma, out)
+    ok = _valid_rows(out, u_max, v_max, min_disparity)
+    bad = np.empty(out.shape[0], dtype=np.int64)
+    n_bad = 0
+    for i in range(out.shape[0]):
+        if not ok[i]:
+            bad[n_bad] = i
+            n_bad += 1
+    return bad[:n_bad]
+
+
 def _add_noise(
     meas: np.ndarray, normal: np.ndarray, config: SimulationConfig, rng: np.random.Generator, free: int = 0
 ) -> np.ndarray:
@@ -102,11 +133,12 @@ def _add_noise(
     measurement stays usable, except the last ``free`` rows (the hostile kinds), which keep
     their first draw: losing the depth is what they are for.
     """
-    sigma, cam = config.noise_sigma, config.camera
+    sigma, cam = float(config.noise_sigma), config.camera
+    limits = (float(cam.width - 1), float(cam.height - 1), float(cam.min_disparity))
 
     def noisy(rows: np.ndarray, z: np.ndarray) -> np.ndarray:
         out = np.empty((rows.shape[0], 4))
-        _noisy_rows(np.ascontiguousarray(rows, dtype=float), np.ascontiguousarray(z, dtype=float), float(sigma), out)
+        _noisy_rows(np.ascontiguousarray(rows, dtype=float), np.ascontiguousarray(z, dtype=float), sigma, out)
         return out
 
     if free:
@@ -114,12 +146,17 @@ def _add_noise(
         if free < len(meas):
             out[:-free] = _add_noise(meas[:-free], normal[:-free], config, rng)
         return out
-    out = noisy(meas, normal)
+    meas = np.ascontiguousarray(meas, dtype=float)
+    out = np.empty((meas.shape[0], 4))
+    # the first draw and its check in one compiled call (the common case: no row to redraw)
+    bad = _noisy_invalid_rows(meas, np.ascontiguousarray(normal, dtype=float), sigma, out, *limits)
     for _ in range(MAX_REDRAWS):
-        bad = np.flatnonzero(~_valid(out, cam))
         if bad.size == 0:
             return out
         out[bad] = noisy(meas[bad], rng.standard_normal((bad.size, 3)))
+        bad = np.flatnonzero(~_valid(out, cam))
+    if bad.size == 0:
+        return out
     bad = ~_valid(out, cam)
     if not _valid(meas[bad], cam).all():
         raise RuntimeError("simulator bug: a noise-free measurement left the image or lost its disparity")
@@ -188,12 +225,7 @@ def simulate_pair(
             independent_mismatches(meas_curr[indep], cam, tau, outlier_rng), np.zeros((n_dup, 4)), far_curr, rep_curr,
         ]
     clean_prev, clean_curr = np.concatenate(parts_prev), np.concatenate(parts_curr)
-    kind = np.repeat(
-        np.array([OutlierKind.INLIER, OutlierKind.RANDOM_MISMATCH, OutlierKind.STEREO_MISMATCH,
-                  OutlierKind.MOVING_OBJECT, OutlierKind.INDEPENDENT_MISMATCH, OutlierKind.DUPLICATE_MATCH,
-                  OutlierKind.FAR_CLUTTER, OutlierKind.REPETITIVE_TEXTURE], dtype=np.int8),
-        [n_in, n_random, n_stereo, n_moving, n_indep, n_dup, n_far, n_rep],
-    )
+    kind, inlier = _row_kinds((n_in, n_random, n_stereo, n_moving, n_indep, n_dup, n_far, n_rep))
     assert clean_prev.shape == clean_curr.shape == (N, 4)
 
     # One (2, N, 3) draw in row order, so the same seed gives the same standard-normal noise at any sigma.
@@ -208,7 +240,6 @@ def simulate_pair(
             prev[:n_in], curr[:n_in], clean_curr[:n_in], n_dup, outlier_threshold(config.noise_sigma), outlier_rng
         )
 
-    inlier = kind == OutlierKind.INLIER
     scores = draw_scores(inlier, config.score_auc, score_rng)
 
     order = order_rng.permutation(N)

@@ -36,8 +36,18 @@ def latent_shift(auc: float) -> float:
 
 def draw_scores(inlier: np.ndarray, auc: float, rng: np.random.Generator) -> np.ndarray:
     """``(N,)`` scores in ``(0, 1)`` for the rows' labels ``inlier (N,)`` bool, one standard normal each."""
-    latent = rng.standard_normal(inlier.shape[0]) + latent_shift(auc) * inlier
-    return np.clip(ndtr(latent), _LOWEST, _HIGHEST)
+    shift = _SHIFTS.get(auc) if type(auc) is float else None
+    if shift is None:
+        shift = latent_shift(auc)
+        if type(auc) is float and len(_SHIFTS) < 64:
+            _SHIFTS[auc] = shift  # a simulator asks for its one AUC every frame
+    latent = rng.standard_normal(inlier.shape[0]) + shift * inlier
+    scores = ndtr(latent)
+    # np.clip's values (a NaN stays NaN) without its Python wrapper: the bounds are ordered
+    return np.minimum(np.maximum(scores, _LOWEST, out=scores), _HIGHEST, out=scores)
+
+
+_SHIFTS: dict[float, float] = {}  # latent_shift of the AUCs drawn with so far (checked ones only)
 
 
 def score_inlier_probability(scores: np.ndarray, auc: float, inlier_share: float = 0.5) -> np.ndarray:

@@ -13,7 +13,7 @@ import numpy as np
 
 from stereovo.geometry import make_transform, pose_update, random_rotation, se3_exp, so3_exp
 from stereovo.options import is_integer
-from stereovo.seeding import seeded_generators
+from stereovo.seeding import generator_from_seed_words, seed_words, seeded_generators
 from stereovo.simulation.config import SimulationConfig
 from stereovo.simulation.frame import Frame
 from stereovo.simulation.pair import simulate_pair
@@ -68,6 +68,13 @@ class Sequence:
         self.config = config
         self.seed = seed
         self._root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+        root = self._root
+        # every child's seed words at once (one compiled hash instead of one call a frame); None
+        # where numpy's own seeding must run (entropy outside the fast path)
+        self._seed_words = seed_words(
+            root.entropy, [(*root.spawn_key, _SEQUENCE_NAMESPACE, k) for k in range(config.n_frames + 1)],
+            root.pool_size,
+        )
         twists = config.motion.sample_twists(self._child_rng(0), config.n_frames)
         rotations, translations = se3_exp(-twists)
         poses = np.empty((config.n_frames + 1, 4, 4))
@@ -84,6 +91,8 @@ class Sequence:
 
     def _child_rng(self, k: int) -> np.random.Generator:
         """The generator of ``SeedSequence(root.entropy, spawn_key=(*root.spawn_key, namespace, k))``."""
+        if self._seed_words is not None:
+            return generator_from_seed_words(self._seed_words[k])
         root = self._root
         return seeded_generators(root.entropy, [(*root.spawn_key, _SEQUENCE_NAMESPACE, k)], root.pool_size)[0]
 

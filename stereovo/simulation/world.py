@@ -64,23 +64,27 @@ def see_point(p0, p1, p2, to_prev, to_curr, cam, z_min, z_max, X_prev, X_curr, i
 
 
 @njit(cache=True, nogil=True)
-def _seen_by_both(points, to_prev, to_curr, cam, z_min, z_max):
+def _seen_by_both(points, to_prev, to_curr, cam, z_min, z_max, limit):
     """The points ``(n, 3)`` visible in both cameras (see :func:`see_point`), mapped by the rigid
     transforms ``to_prev``, ``to_curr`` (4x4) into cameras k-1 and k: ``X_prev, X_curr (m, 3)``,
-    in their order."""
+    in their order; at most the first ``limit`` of them (the caller keeps no more: the candidates
+    after them were drawn, and are not looked at)."""
     n = points.shape[0]
     X_prev = np.empty((n, 3))
     X_curr = np.empty((n, 3))
     kept = 0
     for i in range(n):
+        if kept >= limit:
+            break
         kept += see_point(points[i, 0], points[i, 1], points[i, 2], to_prev, to_curr, cam, z_min, z_max, X_prev, X_curr, kept)
     return X_prev[:kept], X_curr[:kept]
 
 
 @njit(cache=True, nogil=True)
-def _street_candidates(u, g, walls, frustum, z_min, z_max, to_prev, to_curr, cam):
+def _street_candidates(u, g, walls, frustum, z_min, z_max, to_prev, to_curr, cam, limit):
     """Street landmarks from uniforms ``u (7, n)`` and normals ``g (2, n)``, seen through the
-    cameras: ``X_prev, X_curr (m, 3)`` of the candidates drawn and visible in both, in their order.
+    cameras: ``X_prev, X_curr (m, 3)`` of the candidates drawn and visible in both, in their order,
+    at most the first ``limit`` (as :func:`_seen_by_both`).
 
     ``walls`` is ``(left, right, height_left, height_right)`` (m), ``frustum`` the tangent bounds
     ``(left, right, top, bottom)``. A candidate is on the ground, a facade or clutter with the
@@ -99,6 +103,8 @@ def _street_candidates(u, g, walls, frustum, z_min, z_max, to_prev, to_curr, cam
     X_curr = np.empty((n, 3))
     kept = 0  # rows written so far: a candidate is written at row `kept` and kept if it counts
     for i in range(n):
+        if kept >= limit:
+            break
         z = z_min * math.exp(u[0, i] * log_range)
         x_lo, x_hi = max(frustum[0] * z, -left_wall), min(frustum[1] * z, right_wall)
         y_top = frustum[2] * z
@@ -140,14 +146,16 @@ class _StreetLayout:
 
     def sample_visible(
         self, rng: np.random.Generator, n: int, cam: StereoCamera, z_min: float, z_max: float,
-        to_prev: np.ndarray, to_curr: np.ndarray,
+        to_prev: np.ndarray, to_curr: np.ndarray, limit: int | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Of ``n`` candidates, those drawn and visible in both cameras, seen through the 4x4
-        ``to_prev``, ``to_curr``: ``X_prev, X_curr (m, 3)`` (m; see :func:`_street_candidates`)."""
+        ``to_prev``, ``to_curr``: ``X_prev, X_curr (m, 3)`` (m; see :func:`_street_candidates`), at
+        most the first ``limit`` (None: all); all ``n`` are drawn either way."""
         u = rng.random((7, n))
         g = rng.standard_normal((2, n))
         return _street_candidates(
-            u, g, self.walls, np.array(_frustum(cam)), z_min, z_max, to_prev, to_curr, camera_vector(cam)
+            u, g, self.walls, np.array(_frustum(cam)), z_min, z_max, to_prev, to_curr, camera_vector(cam),
+            n if limit is None else limit,
         )
 
 
@@ -177,11 +185,16 @@ def visible_landmarks(
         if count >= n:
             break
         batch = min(_MAX_BATCH_SIZE, int(1.3 * (n - count) / acceptance) + 32)
+        # Only the first n - count visible candidates are kept: the kernels stop there (a batch is
+        # oversampled by 1.3 / acceptance, so that skips about a third of the tests). The whole
+        # batch is drawn all the same, and a batch that stops early ends the loop, so the
+        # acceptance it would have measured is never read.
         if layout is not None:
-            X_prev, X_curr = layout.sample_visible(rng, batch, cam, config.z_min, config.z_max, to_prev, to_curr)
+            X_prev, X_curr = layout.sample_visible(rng, batch, cam, config.z_min, config.z_max, to_prev, to_curr,
+                                                   limit=n - count)
         else:
             local = _sample_open(rng, batch, cam, config.z_min, config.z_max)
-            X_prev, X_curr = _seen_by_both(local, to_prev, to_curr, cam_vector, config.z_min, config.z_max)
+            X_prev, X_curr = _seen_by_both(local, to_prev, to_curr, cam_vector, config.z_min, config.z_max, n - count)
         kept_prev.append(X_prev)
         kept_curr.append(X_curr)
         count += len(X_prev)
@@ -191,4 +204,6 @@ def visible_landmarks(
             f"found only {count} of {n} landmarks visible in both frames; the camera and depth range "
             f"[{config.z_min}, {config.z_max}] m see too little of the {world!r} world"
         )
+    if len(kept_prev) == 1:  # the common case: the first batch held them all
+        return kept_prev[0][:n], kept_curr[0][:n]
     return np.concatenate(kept_prev)[:n], np.concatenate(kept_curr)[:n]

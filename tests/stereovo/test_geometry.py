@@ -394,3 +394,86 @@ def test_pose_chain_keeps_a_float_copy_of_an_integer_first_pose():
     assert chain.poses[0].dtype == np.float64
     first[0, 3] = 5
     np.testing.assert_array_equal(chain.poses[0], np.eye(4))
+
+
+def _numpy_inverse(T):
+    """invert_transform's numpy formulation (the compiled single-transform path's reference)."""
+    from stereovo.geometry import make_transform
+
+    T = np.asarray(T, dtype=float)
+    Rt = np.swapaxes(T[..., :3, :3], -1, -2)
+    return make_transform(Rt, -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3]))
+
+
+def test_one_transform_is_inverted_bit_for_bit_as_by_numpy():
+    import itertools
+
+    from stereovo.geometry import invert_transform, make_transform, random_rotation
+
+    rng = np.random.default_rng(0)
+    cases = []
+    for k in range(20000):
+        R = random_rotation(rng) * (1.0 if k % 3 else rng.uniform(0.1, 10.0))
+        t = rng.standard_normal(3) * 10 ** rng.uniform(-5, 5)
+        t[rng.integers(0, 3)] = (0.0, -0.0, t[0])[k % 3]
+        T = make_transform(R, t)
+        if k % 5 == 0:
+            T[3] = rng.standard_normal(4)  # not a rigid last row: still the formulation's result
+        cases.append(T)
+    zeros = [0.0, -0.0, 1.0, -1.0, np.inf, np.nan, 1e308, -1e-310]
+    for values in itertools.product(zeros, repeat=3):
+        for R in (np.eye(3), -np.eye(3), np.array([[-0.0, 1.0, 0.0], [1.0, -0.0, 0.0], [0.0, 0.0, -1.0]])):
+            cases.append(make_transform(R, np.array(values)))
+    for T in cases:
+        ours = invert_transform(T)
+        assert type(ours) is np.ndarray and ours.dtype == np.float64 and ours.flags.c_contiguous
+        assert ours.tobytes() == _numpy_inverse(T).tobytes()
+    stacked = np.stack(cases[:50])  # batches stay numpy's
+    assert invert_transform(stacked).tobytes() == _numpy_inverse(stacked).tobytes()
+
+
+def test_one_rotation_angle_and_translation_error_are_numpys_bit_for_bit():
+    """The float paths for one matrix / one vector pair equal numpy's formulation (trace, add.reduce of
+    the squares, arctan2), which sums three values in order: this test holds numpy to that too."""
+    from stereovo.geometry import random_rotation, rotation_angle, translation_error
+
+    def numpy_angle(R):
+        cos = (np.trace(R, axis1=-2, axis2=-1) - 1) / 2
+        with np.errstate(invalid="ignore"):
+            vee = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]],
+                           axis=-1)
+        return np.arctan2(np.linalg.norm(vee, axis=-1) / 2, cos)
+
+    rng = np.random.default_rng(1)
+    cases = [random_rotation(rng, 10 ** rng.uniform(-9, 0.5)) for _ in range(20000)]
+    cases += [rng.standard_normal((3, 3)) * 10 ** rng.uniform(-3, 3) for _ in range(20000)]
+    cases += [np.diag([-0.0, -0.0, -0.0]), -np.eye(3), np.eye(3), np.full((3, 3), 1e300)]
+    for R in cases:
+        ours, theirs = rotation_angle(R), numpy_angle(R)
+        assert type(ours) is type(theirs) and np.array_equal(ours, theirs, equal_nan=True)
+        assert np.signbit(ours) == np.signbit(theirs)
+    for _ in range(20000):
+        a, b = rng.standard_normal(3) * 10 ** rng.uniform(-5, 5), rng.standard_normal(3)
+        ours, theirs = translation_error(a, b), np.linalg.norm(a - b, axis=-1)
+        assert type(ours) is type(theirs) and ours == theirs
+    stacked = np.stack(cases[:100])
+    assert rotation_angle(stacked).tobytes() == numpy_angle(stacked).tobytes()
+    with pytest.warns(RuntimeWarning):  # NaN and inf take numpy's path, warnings and all
+        assert np.isnan(rotation_angle(np.full((3, 3), np.inf)))
+    assert np.isnan(rotation_angle(np.full((3, 3), np.nan)))
+
+
+def test_pose_update_of_one_motion_is_the_numpy_formulation():
+    from stereovo.geometry import invert_transform, make_transform, pose_update, random_rotation
+
+    rng = np.random.default_rng(2)
+    for k in range(5000):
+        pose = make_transform(random_rotation(rng), rng.standard_normal(3) * 50)
+        R = random_rotation(rng, 0.1) * (1.0 if k % 2 else rng.uniform(0.5, 2.0))
+        t = rng.standard_normal(3) * 10 ** rng.uniform(-4, 2)
+        t[k % 3] = (0.0, -0.0, t[k % 3])[k % 3]
+        expected = np.asarray(pose, dtype=float) @ _numpy_inverse(make_transform(R, t))
+        assert pose_update(pose, R, t).tobytes() == expected.tobytes()
+    R[0, 0] = np.nan  # non-finite motions take the numpy formulation
+    np.testing.assert_array_equal(pose_update(pose, R, t), pose @ invert_transform(make_transform(R, t)))
+    np.testing.assert_array_equal(pose_update(pose, R.T[:, :], t), pose @ _numpy_inverse(make_transform(R.T, t)))

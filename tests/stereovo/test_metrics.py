@@ -212,3 +212,17 @@ def test_trajectory_metrics_bundle():
     assert m.kitti_segments == 3  # 100 m segments from frames 0, 10, 20
     assert m.kitti_t_percent == pytest.approx(1.0)
     assert set(m.as_dict()) >= {"ate_raw_m", "kitti_t_percent", "kitti_r_deg_per_m"}
+
+
+def test_frame_metrics_scalar_success_test_is_is_success():
+    """frame_metrics decides success on floats: the same as the vectorised is_success, bounds and NaN included."""
+    import itertools
+    import math
+
+    from stereovo.metrics import SUCCESS_TRANS_M, SUCCESS_TRANS_REL, _is_success_scalar, is_success
+
+    rot = [0.0, math.radians(1.0), np.nextafter(math.radians(1.0), 0.0), 0.5, math.nan, math.inf]
+    trans = [0.0, SUCCESS_TRANS_M, np.nextafter(SUCCESS_TRANS_M, 0.0), 0.06, 0.1, math.nan, math.inf]
+    norms = [0.0, 1.0, SUCCESS_TRANS_M / SUCCESS_TRANS_REL, 2.0, 1e6, math.nan, math.inf, -1.0]
+    for r, t, n in itertools.product(rot, trans, norms):
+        assert _is_success_scalar(float(r), float(t), float(n)) == bool(is_success(r, t, n)), (r, t, n)

@@ -64,3 +64,21 @@ def test_worker_counts_and_seeds_of_every_layer_follow_the_contract(value):
     for make, message in cases:
         with pytest.raises(ValueError, match=message):
             make()
+
+
+@pytest.mark.parametrize("value", [
+    np.arange(6.0).reshape(3, 2), np.arange(6, dtype=np.float32).reshape(3, 2) / 7, np.arange(6).reshape(3, 2),
+    np.array([[True, False]] * 3), np.arange(6, dtype=np.uint8).reshape(3, 2), np.full((3, 2), np.nan, np.float16),
+    np.ma.masked_array(np.ones((3, 2))), [[1, 2], [3, 4], [5, 6]],
+])
+def test_real_array_gives_numpys_float64_conversion(value):
+    """The fast path for real ndarrays returns what np.asarray(value, float64) returns (the array itself for float64)."""
+    from stereovo.options import real_array
+
+    out = real_array("x", value, ("N", 2))
+    expected = np.asarray(value, dtype=np.float64)
+    assert type(out) is type(expected) and out.dtype == np.float64
+    np.testing.assert_array_equal(out, expected)
+    assert (out is value) == (expected is value)
+    with pytest.raises(ValueError, match=r"^x must have shape \(N, 3\), one row, got \(3, 2\)$"):
+        real_array("x", value, ("N", 3), per="one row")

@@ -46,3 +46,33 @@ def test_seeded_generators_leave_other_entropy_to_numpy():
     with pytest.raises(ValueError, match="non-negative"):
         seeded_generators(-1, [(0,)])  # numpy's own error for negative entropy
     assert seeded_generators(5, []) == []
+
+
+@pytest.mark.parametrize("seed", [0, 7, 2**100 + 5, None, "child", "array"])
+def test_sequence_frames_draw_from_their_spawned_seed_sequences(seed):
+    """A Sequence seeds every frame's generator ahead (seed_words) as numpy's SeedSequence would, one at a time."""
+    from stereovo.simulation import Sequence, SimulationConfig
+    from stereovo.simulation.sequence import _SEQUENCE_NAMESPACE
+
+    if seed == "child":
+        seed = np.random.SeedSequence(12345).spawn(3)[2]
+    elif seed == "array":
+        seed = np.random.SeedSequence(np.array([1, 2, 3], dtype=np.uint32))  # numpy's own path
+    sequence = Sequence(SimulationConfig(n_frames=6, n_correspondences=30), seed)
+    root = sequence.seed_sequence
+    for k in (0, 1, 6, 3):
+        expected = np.random.default_rng(np.random.SeedSequence(
+            root.entropy, spawn_key=(*root.spawn_key, _SEQUENCE_NAMESPACE, k), pool_size=root.pool_size))
+        assert sequence._child_rng(k).bit_generator.state == expected.bit_generator.state
+
+
+def test_seed_words_rows_are_the_generators_of_seeded_generators():
+    from stereovo.seeding import generator_from_seed_words, seed_words, seeded_generators
+
+    keys = [(0, 5), (3,), (), (2**40, 1, 2)]
+    rows = seed_words(2**70 + 3, keys)
+    assert rows.shape == (4, 4) and rows.dtype == np.uint64
+    assert [generator_from_seed_words(r).bit_generator.state for r in rows] == \
+        [g.bit_generator.state for g in seeded_generators(2**70 + 3, keys)]
+    assert seed_words(-1, keys) is None and seed_words(5, [(-1,)]) is None and seed_words(5, [(1,)], 2) is None
+    assert seed_words(5, []).shape == (0, 4)

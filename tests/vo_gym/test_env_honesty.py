@@ -38,34 +38,40 @@ def rot_y(angle: float) -> np.ndarray:
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
+def _call_kwargs(estimator, priors, order, rng) -> dict:
+    """One estimate's arguments as :func:`stereovo.estimation.estimate_problem` would take them:
+    the prepared estimator's method and options, and the step's priors, order and generator."""
+    return {"method": estimator.method, "priors": priors, "order": order, "rng": rng, **estimator.options}
+
+
 def stub_estimator(monkeypatch, fail_at: tuple[int, ...] = ()):
     """Replace the env's estimator call by one returning (WRONG_R, WRONG_T); ``fail_at`` calls (1-based) fail."""
-    real = env_module.estimate_problem
+    real = env_module.PreparedEstimator.estimate
     calls = []
 
-    def wrong(problem, **kwargs):
-        est = real(problem, **kwargs)
+    def wrong(self, problem, priors=None, order=None, rng=0):
+        est = real(self, problem, priors=priors, order=order, rng=rng)
         calls.append(est)
         if len(calls) in fail_at:
             return dataclasses.replace(est, status="failed: stubbed failure", rotation=np.eye(3),
                                        translation=np.zeros(3))
         return dataclasses.replace(est, status="ok", rotation=WRONG_R.copy(), translation=WRONG_T.copy())
 
-    monkeypatch.setattr(env_module, "estimate_problem", wrong)
+    monkeypatch.setattr(env_module.PreparedEstimator, "estimate", wrong)
     return calls
 
 
 def spy_estimator(monkeypatch, read):
-    """Record ``read(kwargs)`` of every estimator call the env makes (before the estimator runs), then
-    run the real one; returns the list the records go to."""
-    real = env_module.estimate_problem
+    """Record ``read(kwargs)`` of every estimator call the env makes (before the estimator runs; ``kwargs``
+    as :func:`_call_kwargs` gives them), then run the real one; returns the list the records go to."""
+    real = env_module.PreparedEstimator.estimate
     received = []
 
-    def spy(problem, **kwargs):
-        received.append(read(kwargs))
-        return real(problem, **kwargs)
+    def spy(self, problem, priors=None, order=None, rng=0):
+        received.append(read(_call_kwargs(self, priors, order, rng)))
+        return real(self, problem, priors=priors, order=order, rng=rng)
 
-    monkeypatch.setattr(env_module, "estimate_problem", spy)
+    monkeypatch.setattr(env_module.PreparedEstimator, "estimate", spy)
     return received
 
 

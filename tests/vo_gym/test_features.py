@@ -532,3 +532,19 @@ def test_screened_consistency_counts_are_the_tests_at_the_gate():
     change = np.abs(np.linalg.norm(Q[:, None] - Q[None], axis=-1) - d)
     ratio = change**2 / (9.0 * (s2[:, None] + s2[None]))
     assert np.count_nonzero(np.abs(ratio - 1) < 0.01) > 500
+
+
+def test_anchor_fractions_are_numpys_formulation():
+    """The compiled fractions equal (count - is_anchor) / (A - is_anchor) cast to float32, bit for bit."""
+    from vo_gym.features import _anchor_fractions
+
+    rng = np.random.default_rng(0)
+    for _ in range(500):
+        n = int(rng.integers(2, 700))
+        anchors = np.sort(rng.permutation(n)[: min(n, 256)]).astype(np.int64)
+        count = rng.integers(0, anchors.size + 1, n).astype(np.int64)
+        is_anchor = np.zeros(n, dtype=bool)
+        is_anchor[anchors] = True
+        expected = ((count - is_anchor) / (anchors.size - is_anchor)).astype(np.float32)
+        ours = _anchor_fractions(count, anchors, np.empty(n, dtype=np.float32))
+        assert ours.dtype == np.float32 and ours.tobytes() == expected.tobytes()

@@ -32,6 +32,7 @@ The kernels by role (import each name from its module):
 - :mod:`~stereovo.estimation.kernels.mahalanobis`: the 3D and the pixel Mahalanobis residuals;
 - :mod:`~stereovo.estimation.kernels.fitting`: rigid fits, minimal-sample fits, degeneracy;
 - :mod:`~stereovo.estimation.kernels.rigidity`: the rigid-distance test (plain and compiled);
+- :mod:`~stereovo.estimation.kernels.depth`: which rows have a resolvable depth;
 - :mod:`~stereovo.estimation.kernels.sampling`: drawing minimal samples and their rigidity check;
 - :mod:`~stereovo.estimation.kernels.refinement`: the refine / re-gate rounds;
 - :mod:`~stereovo.estimation.kernels.verification`: early rejection (T(d,d), SPRT) and the guided stopping bound;

@@ -113,3 +113,21 @@ def test_guided_mlesac_with_calibrated_priors_halves_mlesac_hypotheses():
     assert hyps["calibrated"] <= 0.5 * hyps["mlesac"], hyps
     assert hyps["calibrated"] < hyps["raw"], hyps
     assert success["calibrated"] >= success["mlesac"], success
+
+
+@pytest.mark.parametrize("auc", [0.5, 0.75, 0.95, 0.9999999])
+def test_draw_scores_is_the_clipped_probit_formulation(auc):
+    """The drawn scores are np.clip(ndtr(normal + shift * inlier), tiny, 1 - ulp), bit for bit, every call."""
+    from scipy.special import ndtr
+
+    from stereovo.simulation.scores import latent_shift
+
+    lowest, highest = np.finfo(float).tiny, np.nextafter(1.0, 0.0)
+    for seed in range(5):
+        inlier = np.random.default_rng(seed).random(800) < 0.5
+        ours = draw_scores(inlier, auc, np.random.default_rng(seed))
+        reference_rng = np.random.default_rng(seed)
+        expected = np.clip(ndtr(reference_rng.standard_normal(800) + latent_shift(auc) * inlier), lowest, highest)
+        assert ours.tobytes() == expected.tobytes()
+    with pytest.raises(ValueError):
+        draw_scores(inlier, 1.0, np.random.default_rng(0))  # an AUC of 1 is refused, also after valid ones

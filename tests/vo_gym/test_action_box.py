@@ -1,0 +1,58 @@
+"""vo_gym.action_box.ActionBox: Box.sample's draws, bit for bit, in one generator call."""
+
+from __future__ import annotations
+
+import pickle
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium import spaces
+from gymnasium.vector.utils import batch_space
+
+from vo_gym.action_box import ActionBox
+
+BOXES = [
+    dict(low=-10.0, high=10.0, shape=(500,), dtype=np.float32),
+    dict(low=-1.0, high=1.0, shape=(7, 3), dtype=np.float32),
+    dict(low=np.array([-1.0, 0.0, 2.5]), high=np.array([1.0, 1e-3, 3.0]), dtype=np.float64),
+    dict(low=-np.inf, high=1.0, shape=(5,), dtype=np.float32),  # not bounded: Box.sample itself
+    dict(low=np.array([-np.inf, 0.0], np.float32), high=np.array([np.inf, 1.0], np.float32), dtype=np.float32),
+    dict(low=0, high=5, shape=(4,), dtype=np.int64),  # not float: Box.sample itself
+]
+
+
+@pytest.mark.parametrize("kwargs", BOXES)
+def test_samples_and_generator_states_are_box_samples(kwargs):
+    ours, theirs = ActionBox(**kwargs), spaces.Box(**kwargs)
+    ours.seed(3)
+    theirs.seed(3)
+    for _ in range(20):
+        a, b = ours.sample(), theirs.sample()
+        assert a.dtype == b.dtype and a.shape == b.shape
+        np.testing.assert_array_equal(a, b)
+        assert ours.np_random.bit_generator.state == theirs.np_random.bit_generator.state
+        assert ours.contains(a)
+
+
+def test_it_is_a_box_for_gymnasium():
+    ours = ActionBox(-10.0, 10.0, shape=(6,), dtype=np.float32)
+    assert isinstance(ours, spaces.Box) and ours == spaces.Box(-10.0, 10.0, shape=(6,), dtype=np.float32)
+    batched = batch_space(ours, 3)
+    assert batched.shape == (3, 6) and isinstance(batched, spaces.Box)
+    again = pickle.loads(pickle.dumps(ours))
+    assert isinstance(again, ActionBox) and again == ours
+    again.seed(1)
+    ours.seed(1)
+    np.testing.assert_array_equal(again.sample(), ours.sample())
+    with pytest.raises(gym.error.Error, match="mask"):
+        ours.sample(mask=np.ones(6))  # Box.sample's own refusal
+
+
+@pytest.mark.parametrize("env_id", ["vo_gym/StereoVO-v0", "vo_gym/StereoVOAdaptive-v0"])
+def test_the_environments_act_in_an_action_box(env_id):
+    import vo_gym  # noqa: F401
+
+    env = gym.make(env_id, n_frames=3)
+    assert type(env.action_space) is ActionBox
+    env.close()
