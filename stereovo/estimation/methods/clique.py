@@ -253,6 +253,9 @@ def robust_clique_fit(
         first_batch_size=16,
         polish_iterations=0,
         min_inliers=SAMPLE_SIZE,
+        # a fit inside the clique, not a search for consensus: the clique is the method's verdict,
+        # and the fit starts from the largest consensus found whatever the cap left unconfirmed
+        fail_at_cap=False,
     ), rng)
     checks = inner.n_point_checks
     if inner.status != "ok":
