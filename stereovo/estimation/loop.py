@@ -48,6 +48,10 @@ class SampleCheck(Protocol):
 
 
 class Termination(Protocol):
+    """How many hypotheses the search still needs: ``required`` answers for the best model's inlier
+    count (clipped to ``max_iterations``, the cap). A fixed budget sets ``is_budget = True`` (read
+    with ``getattr``, default False): its cap is the stop itself, not a limit reached before it."""
+
     max_iterations: int
 
     def required(self, n_inliers: int, n: int) -> int: ...
