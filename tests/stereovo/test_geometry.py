@@ -477,3 +477,110 @@ def test_pose_update_of_one_motion_is_the_numpy_formulation():
     R[0, 0] = np.nan  # non-finite motions take the numpy formulation
     np.testing.assert_array_equal(pose_update(pose, R, t), pose @ invert_transform(make_transform(R, t)))
     np.testing.assert_array_equal(pose_update(pose, R.T[:, :], t), pose @ _numpy_inverse(make_transform(R.T, t)))
+
+
+def _inverse_by_formula(R, t):
+    """inv([[R, t], [0, 1]]) = [[R^T, -R^T t], [0, 1]], in float64 and by exact rationals for -R^T t."""
+    R, t = np.asarray(R, dtype=np.float64), np.asarray(t, dtype=np.float64)
+    out = np.eye(4)
+    out[:3, :3] = R.T
+    out[:3, 3] = [-float(sum(Fraction(R[k, i]) * Fraction(t[k]) for k in range(3))) for i in range(3)]
+    return out
+
+
+def test_transforms_of_any_real_dtype_or_nested_lists_are_computed_in_double():
+    """float32, float16, long double and integer entries, and nested lists, give the float64 input's result
+    (float64 out): the fast paths for one 4x4 / one 3x3 take only float64 arrays, and the numpy
+    formulation reads everything else as float64 first."""
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        R, t = random_rotation(rng), rng.standard_normal(3) * 10
+        T = make_transform(R, t)
+        for dtype in (np.float32, np.float16, np.longdouble, np.int64):
+            Tx = (T * (100 if dtype is np.int64 else 1)).astype(dtype)
+            T64 = Tx.astype(np.float64)
+            ours = invert_transform(Tx)
+            assert ours.dtype == np.float64
+            np.testing.assert_allclose(ours, _inverse_by_formula(T64[:3, :3], T64[:3, 3]), rtol=0, atol=1e-12 * 100)
+            assert ours.tobytes() == invert_transform(T64).tobytes()
+            batch = invert_transform(np.stack([Tx, Tx]))
+            assert batch.dtype == np.float64 and batch.tobytes() == np.stack([ours, ours]).tobytes()
+        assert invert_transform(T.tolist()).tobytes() == invert_transform(T).tobytes()
+        np.testing.assert_allclose(invert_transform(T.tolist()), np.linalg.inv(T), rtol=0, atol=1e-13)
+        # rotation angles and translation errors: float32 and long double are read as float64
+        for dtype in (np.float32, np.longdouble):
+            # (a long double t_true or R_true is left as it is: only t_est and R_est are read as float64)
+            Rx, tx = R.astype(dtype), t.astype(dtype)
+            ux = rng.standard_normal(3).astype(np.float32 if dtype is np.float32 else np.float64)
+            Ry = (R.astype(np.float32) if dtype is np.float32 else R).T
+            for ours, theirs in ((rotation_angle(Rx), rotation_angle(Rx.astype(np.float64))),
+                                 (rotation_angle(np.stack([Rx, Rx])),
+                                  rotation_angle(np.stack([Rx, Rx]).astype(np.float64))),
+                                 (translation_error(tx, ux), translation_error(tx.astype(np.float64), ux.astype(np.float64))),
+                                 (rotation_error(Rx, Ry), rotation_error(Rx.astype(np.float64), Ry.astype(np.float64)))):
+                assert ours.dtype == np.float64 and ours.tobytes() == theirs.tobytes()
+        assert rotation_angle(R.tolist()) == rotation_angle(R)
+        # transform_points, se3_log and relative_motion of long double input: float64 results
+        X = rng.standard_normal((4, 3))
+        for args in ((R.astype(np.longdouble), t, X), (R, t, X.astype(np.longdouble))):
+            ours = transform_points(*args)
+            assert ours.dtype == np.float64 and ours.tobytes() == transform_points(R, t, X).tobytes()
+        xi = se3_log(R, t.astype(np.longdouble))
+        assert xi.dtype == np.float64 and xi.tobytes() == se3_log(R, t).tobytes()
+        P = make_transform(random_rotation(rng), rng.standard_normal(3))
+        for Rr, tr in (g.relative_motion(P.astype(np.longdouble), T), g.relative_motion(P, T)):
+            assert Rr.dtype == tr.dtype == np.float64
+        assert g.relative_motion(P.astype(np.longdouble), T)[1].tobytes() == g.relative_motion(P, T)[1].tobytes()
+
+
+def test_translation_error_of_a_batch_of_batches_is_per_innermost_vector():
+    est = np.array([[[1.0, 2.0, 2.0], [0.0, 0.0, 1.0]], [[3.0, 4.0, 0.0], [0.0, 0.0, 0.0]]])
+    true = np.zeros((2, 2, 3))
+    true[0, 1] = [0.0, 3.0, 5.0]
+    np.testing.assert_array_equal(translation_error(est, true), [[3.0, 5.0], [5.0, 0.0]])
+
+
+def test_pose_update_of_batches_lists_and_other_dtypes_is_the_formula():
+    """P_k = P_{k-1} inv([[R, t], [0, 1]]) for every input the fast path for one float64 motion leaves to
+    the numpy formulation: batches (per motion, or one t for all), nested lists, other real dtypes of
+    the motion or the pose (read as float64, float64 out), NaN; malformed shapes are refused."""
+    from stereovo.geometry import pose_update
+
+    rng = np.random.default_rng(6)
+    pose = make_transform(random_rotation(rng), rng.standard_normal(3) * 5)
+    Rs = np.stack([random_rotation(rng, 0.5) for _ in range(3)])
+    ts = rng.standard_normal((3, 3))
+    expected = np.stack([pose @ _inverse_by_formula(R, t) for R, t in zip(Rs, ts)])
+    batch = pose_update(pose, Rs, ts)
+    assert batch.shape == (3, 4, 4) and batch.dtype == np.float64
+    np.testing.assert_allclose(batch, expected, rtol=0, atol=1e-12)
+    shared = pose_update(pose, Rs, ts[0])  # one translation for every rotation
+    np.testing.assert_allclose(shared, [pose @ _inverse_by_formula(R, ts[0]) for R in Rs], rtol=0, atol=1e-12)
+    R, t = Rs[0], ts[0]
+    one = pose_update(pose, R, t)
+    np.testing.assert_allclose(one, expected[0], rtol=0, atol=1e-12)
+    assert pose_update(pose.tolist(), R.tolist(), t.tolist()).tobytes() == one.tobytes()
+    assert pose_update(pose, R.tolist(), t).tobytes() == one.tobytes()
+    assert pose_update(pose, R, t.tolist()).tobytes() == one.tobytes()
+    # motions of other dtypes: read as float64 (float16 entries are exact in float64)
+    for Rx, tx in ((R.astype(np.float32), t.astype(np.float32)), (R.astype(np.float16), t),
+                   (R, t.astype(np.float16)), (R.astype(np.longdouble), t), (R, t.astype(np.longdouble))):
+        ours = pose_update(pose, Rx, tx)
+        theirs = pose_update(pose, Rx.astype(np.float64), tx.astype(np.float64))
+        assert ours.dtype == np.float64 and ours.tobytes() == theirs.tobytes()
+        np.testing.assert_allclose(ours, pose @ _inverse_by_formula(Rx, tx), rtol=0, atol=1e-12)
+    # poses of other dtypes, with a float64 motion (the fast path) and a float32 one (the formulation)
+    for Rx, tx in ((R, t), (R.astype(np.float32), t.astype(np.float32))):
+        for px in (pose.astype(np.longdouble), pose.astype(np.float32), np.eye(4, dtype=np.int64)):
+            ours = pose_update(px, Rx, tx)
+            theirs = pose_update(px.astype(np.float64), Rx, tx)
+            assert ours.dtype == np.float64 and ours.tobytes() == theirs.tobytes()
+    # a NaN in t leaves the rotation part alone and fills the translation column with NaN
+    t_nan = t.copy()
+    t_nan[1] = np.nan
+    nan_pose = pose_update(pose, R, t_nan)
+    np.testing.assert_allclose(nan_pose[:3, :3], one[:3, :3], rtol=0, atol=1e-15)
+    assert np.all(np.isnan(nan_pose[:, 3])) and np.array_equal(nan_pose[3, :3], [0.0, 0.0, 0.0])  # 0 * NaN in row 3
+    for bad_R, bad_t in ((np.zeros((4, 3)), t), (np.zeros((3, 4)), t), (R, np.zeros(4)), (R, np.zeros((2, 3)))):
+        with pytest.raises(ValueError):
+            pose_update(pose, bad_R, bad_t)

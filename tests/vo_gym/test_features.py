@@ -102,6 +102,14 @@ def test_features_from_a_prebuilt_problem_are_identical_and_checked(sequence):
     next_frame = sequence.frame(3)
     with pytest.raises(ValueError, match="same prev, curr, camera and noise_sigma"):
         compute_features(next_frame.prev, next_frame.curr, *args[2:], problem=problem)
+    # A camera equal to the problem's but another object is the same camera; another rig is refused.
+    twin = dataclasses.replace(frame.camera)
+    assert twin is not frame.camera and twin == frame.camera
+    np.testing.assert_array_equal(compute_features(*args[:3], twin, *args[4:], problem=problem), expected)
+    other_rig = StereoProblem.build(frame.prev, frame.curr, dataclasses.replace(frame.camera, baseline=0.6),
+                                    frame.noise_sigma)
+    with pytest.raises(ValueError, match="same prev, curr, camera and noise_sigma"):
+        compute_features(*args, problem=other_rig)
 
 
 def test_shape_dtype_bounds(sequence):
