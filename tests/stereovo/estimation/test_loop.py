@@ -8,9 +8,10 @@ import pytest
 
 from stereovo import estimate_motion
 from stereovo.estimation import EstimatorOptions, StereoProblem, method_spec
-from stereovo.estimation.loop import RansacSearch, run_ransac, final_report
+from stereovo.estimation.loop import RansacComponents, RansacSearch, run_ransac, final_report
 from stereovo.estimation.roles.refinement import ReprojectionRefiner
 from stereovo.estimation.roles.scoring import InlierCount, ReprojectionResidual
+from stereovo.estimation.roles.verification import FullVerification
 from stereovo.geometry import random_rotation, rotation_error, so3_exp
 from stereovo.simulation import SimulationConfig, simulate_frame
 from tests.support.frames import CAMERA, noise_free_pair, belief_frames
@@ -303,3 +304,121 @@ def test_a_search_capped_before_its_stop_fails_unless_the_returned_model_meets_i
     met, errors = run(simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.3), 3), 3,
                       max_iterations=24)
     assert met.ok and met.n_hypotheses == 24 and errors.success
+
+
+class _ScriptedVerifier:
+    """Scores each batch from a script: the runner-up refit's choices then follow by hand."""
+
+    def __init__(self, script):
+        self.script, self.spent = list(script), 0
+
+    def verify(self, ctx, R, t, rng):
+        scores = np.asarray(self.script.pop(0), dtype=float)
+        assert scores.shape == (R.shape[0],)
+        self.spent += 11 * R.shape[0]
+        return scores, 11 * R.shape[0]
+
+
+class _ZeroResidual:
+    """Every row an inlier of every hypothesis (the runner-up's consensus is the whole frame)."""
+
+    def squared(self, problem, R, t, cap=None):
+        return np.zeros((R.shape[0], problem.n))
+
+
+class _ScriptedRefit:
+    subsumed_by_refinement = False
+
+    def __init__(self, search_box, wins):
+        self.calls, self.box, self.wins = [], search_box, dict(wins)
+
+    def improve(self, ctx, R, t, inliers, score, rng):
+        search = self.box[0]
+        self.calls.append((score, rng is search.rng, R.copy()))
+        return R, t, inliers, self.wins.get(score, score), 7
+
+
+class _Listener:
+    def __init__(self):
+        self.heard = []
+
+    def on_new_best(self, inliers, state):
+        self.heard.append((int(np.count_nonzero(inliers)), state.n_hypotheses, state.best_score))
+
+
+def test_runner_up_refit_by_hand_picks_counts_and_announces():
+    """Scripted scores: which hypothesis is the runner-up (the new best at index 0 excluded, a lone
+    or rejected hypothesis none), what it costs in point checks, and what a winning refit changes."""
+    from stereovo.estimation.roles.samplers import UniformSampler
+    from stereovo.estimation.roles.termination import FixedBudget
+
+    rng = np.random.default_rng(5)
+    prev, curr = noise_free_pair(rng, random_rotation(rng, 0.05), np.array([0.1, 0.0, -1.0]), 40)
+    problem = StereoProblem.build(prev, curr, CAMERA)
+    verifier = _ScriptedVerifier([[5, 1, 1, 1], [9, 8, 2, -np.inf], [12, 6], [13], [-np.inf, 3, -np.inf],
+                                  [-np.inf, -np.inf]])
+    box = []
+    refit = _ScriptedRefit(box, wins={6.0: 1006.0, 3.0: 2003.0})  # these two runner-ups' refits win
+    listener = _Listener()
+    components = RansacComponents(
+        sampler=UniformSampler(problem.n), residual_model=_ZeroResidual(), quality=InlierCount(), threshold_sq=1.0,
+        termination=FixedBudget(100), verifier=verifier, local_optimizer=refit, refiner=None, batch_size=4,
+        polish_iterations=0, runner_up_fraction=0.5, listeners=[listener],
+    )
+    search = RansacSearch(problem, components, np.random.default_rng(0))
+    box.append(search)
+    for batch in (4, 4, 2, 1, 3, 2):
+        search.step(batch)
+    n = problem.n
+    # refits: the new bests 5, 9, 12 and the runner-ups 8 (batch 2, beside the new best at index 0), 6
+    # (a batch of two), 13 (alone, no new best) and 3; none in batch 1 (no earlier best) or batch 6
+    # (every hypothesis rejected)
+    assert [score for score, _, _ in refit.calls] == [5, 9, 8, 12, 6, 13, 3]
+    assert all(same_rng for _, same_rng, _ in refit.calls)
+    assert (search.runner_up_runs, search.runner_up_wins, search.local_runs) == (4, 2, 3)
+    # the last winning refit (batch 5's runner-up) is the best, found at the draws made by then, announced
+    assert search.best_score == 2003.0 and search.found_at == 14 and search.drawn == 16
+    np.testing.assert_array_equal(search.best_R, refit.calls[-1][2])
+    assert listener.heard == [(n, 4, 5.0), (n, 8, 9.0), (n, 10, 12.0), (n, 10, 1006.0), (n, 14, 2003.0)]
+    # point checks: the verifier's, the inliers of 3 new bests and 4 runner-ups (computed: the scripted
+    # verifier keeps no residuals), and 7 a refit
+    assert search.checks == verifier.spent + 7 * n + 7 * 7
+    assert search.finish().counters["runner_up_wins"] == 2
+
+
+class _ThreeInliers:
+    """The first three rows are inliers of every hypothesis, the others are not."""
+
+    def squared(self, problem, R, t, cap=None):
+        sq = np.full((R.shape[0], problem.n), 10.0)
+        sq[:, :3] = 0.0
+        return sq
+
+
+def test_runner_up_refit_at_its_bounds_and_on_scored_residuals():
+    """A runner-up with exactly a minimal sample's worth of inliers, and exactly ``fraction`` of the
+    best's, is refit; with full verification its inliers come from the batch's residuals (no checks)."""
+    from stereovo.estimation.roles.samplers import UniformSampler
+    from stereovo.estimation.roles.termination import FixedBudget
+
+    rng = np.random.default_rng(5)
+    prev, curr = noise_free_pair(rng, random_rotation(rng, 0.05), np.array([0.1, 0.0, -1.0]), 40)
+    problem = StereoProblem.build(prev, curr, CAMERA)
+    for verifier, batches, expected in (
+        (_ScriptedVerifier([[5, 1], [9, 8]]), (2, 2), [5, 9, 8]),
+        (FullVerification(), (2, 2), [3, 3]),  # all score 3: one new best, then a runner-up
+    ):
+        box = []
+        refit = _ScriptedRefit(box, wins={})
+        components = RansacComponents(
+            sampler=UniformSampler(problem.n), residual_model=_ThreeInliers(), quality=InlierCount(),
+            threshold_sq=1.0, termination=FixedBudget(100), verifier=verifier, local_optimizer=refit,
+            refiner=None, batch_size=2, polish_iterations=0, runner_up_fraction=1.0,
+        )
+        search = RansacSearch(problem, components, np.random.default_rng(0))
+        box.append(search)
+        for batch in batches:
+            search.step(batch)
+        assert [score for score, _, _ in refit.calls] == expected and search.runner_up_runs == 1
+        if isinstance(verifier, FullVerification):
+            assert search.checks == 4 * problem.n + 2 * 7  # scoring, then two refits; no inlier recount
