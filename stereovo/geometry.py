@@ -134,31 +134,10 @@ def invert_transform(T: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _invert_one(T, out):
-    """:func:`invert_transform` of one ``(4, 4)`` float64 ``T`` into ``out``, bit for bit: einsum
-    sums the three products of ``R^T t`` in order onto 0.0 (no fused multiply-add; ``+0.0`` first, so
-    an all-zero sum is ``+0.0`` and its negation ``-0.0``), and ``make_transform`` writes zeros and a
-    one in the last row (``tests/stereovo/test_geometry.py`` compares the two on random and signed-zero
-    input). Returns False, leaving ``out`` unfinished, when ``T`` holds NaN or inf: numpy's NaN
-    signs are its own business, so such input takes the numpy formulation."""
-    for i in range(4):
-        for j in range(4):
-            if not math.isfinite(T[i, j]):
-                return False
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = T[j, i]
-        out[i, 3] = -(((0.0 + T[0, i] * T[0, 3]) + T[1, i] * T[1, 3]) + T[2, i] * T[2, 3])
-        out[3, i] = 0.0
-    out[3, 3] = 1.0
-    return True
-
-
-@njit(cache=True, nogil=True)
 def _invert_motion(R, t, out):
-    """``out = invert_transform(make_transform(R, t))`` for one finite motion (``_invert_one`` of the
-    4x4 that make_transform writes: its rows are R | t over 0 0 0 1); False, ``out`` unfinished, when
-    R or t holds NaN or inf."""
+    """``out = invert_transform(make_transform(R, t))`` for one finite motion ``R (3, 3)``, ``t (3,)``
+    (float64), bit for bit (see :func:`_invert_one`); False, ``out`` unfinished, when R or t holds
+    NaN or inf."""
     for i in range(3):
         if not math.isfinite(t[i]):
             return False
@@ -172,6 +151,20 @@ def _invert_motion(R, t, out):
         out[3, i] = 0.0
     out[3, 3] = 1.0
     return True
+
+
+@njit(cache=True, nogil=True)
+def _invert_one(T, out):
+    """:func:`invert_transform` of one ``(4, 4)`` float64 ``T`` into ``out``, bit for bit: einsum
+    sums the three products of ``R^T t`` in order onto 0.0 (no fused multiply-add; ``+0.0`` first, so
+    an all-zero sum is ``+0.0`` and its negation ``-0.0``), and ``make_transform`` writes zeros and a
+    one in the last row (``tests/stereovo/test_geometry.py`` compares the two on random and signed-zero
+    input). Returns False, leaving ``out`` unfinished, when ``T`` holds NaN or inf: numpy's NaN
+    signs are its own business, so such input takes the numpy formulation."""
+    for j in range(4):
+        if not math.isfinite(T[3, j]):
+            return False
+    return _invert_motion(T[:3, :3], T[:3, 3], out)
 
 
 def compose(R1: np.ndarray, t1: np.ndarray, R2: np.ndarray, t2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -208,6 +208,25 @@ def estimate_motion(
     return _estimate(problem, spec, shared, extra, priors, order, rng, start)
 
 
+def problem_options(spec: MethodSpec, problem: StereoProblem, options: dict) -> tuple[EstimatorOptions, dict]:
+    """The shared and the method's own options of an estimate on a built ``problem``: its pixel noise
+    and disparity rule fill in, and a caller's differing value is refused (the covariances and the
+    unusable rows were computed with the problem's)."""
+    if "noise_sigma" in options and options["noise_sigma"] != problem.noise_sigma:
+        raise ValueError(
+            f"noise_sigma={options['noise_sigma']!r} differs from the problem's {problem.noise_sigma!r}, "
+            "with which its covariances were computed"
+        )
+    if "min_disparity_sigmas" in options and options["min_disparity_sigmas"] != problem.min_disparity_sigmas:
+        raise ValueError(
+            f"min_disparity_sigmas={options['min_disparity_sigmas']!r} differs from the problem's "
+            f"{problem.min_disparity_sigmas!r}, with which its unusable rows were chosen"
+        )
+    return split_options(
+        spec, {**options, "noise_sigma": problem.noise_sigma, "min_disparity_sigmas": problem.min_disparity_sigmas}
+    )
+
+
 def estimate_problem(
     problem: StereoProblem, method: str = "probabilistic", priors: np.ndarray | None = None,
     order: np.ndarray | None = None, rng: np.random.Generator | int | None = 0, **options,
@@ -228,19 +247,7 @@ def estimate_problem(
     if not isinstance(problem, StereoProblem):
         raise ValueError(f"problem must be a StereoProblem, got {type(problem).__name__}")
     spec = method_spec(method)
-    if "noise_sigma" in options and options["noise_sigma"] != problem.noise_sigma:
-        raise ValueError(
-            f"noise_sigma={options['noise_sigma']!r} differs from the problem's {problem.noise_sigma!r}, "
-            "with which its covariances were computed"
-        )
-    if "min_disparity_sigmas" in options and options["min_disparity_sigmas"] != problem.min_disparity_sigmas:
-        raise ValueError(
-            f"min_disparity_sigmas={options['min_disparity_sigmas']!r} differs from the problem's "
-            f"{problem.min_disparity_sigmas!r}, with which its unusable rows were chosen"
-        )
-    shared, extra = split_options(
-        spec, {**options, "noise_sigma": problem.noise_sigma, "min_disparity_sigmas": problem.min_disparity_sigmas}
-    )
+    shared, extra = problem_options(spec, problem, options)
     return _estimate(problem, spec, shared, extra, priors, order, rng, start)
 
 
@@ -281,20 +288,7 @@ class PreparedEstimator:
         key = (problem.noise_sigma, problem.min_disparity_sigmas)
         derived = self._prepared.get(key)
         if derived is None:
-            options = self._options
-            if "noise_sigma" in options and options["noise_sigma"] != problem.noise_sigma:
-                raise ValueError(
-                    f"noise_sigma={options['noise_sigma']!r} differs from the problem's {problem.noise_sigma!r}, "
-                    "with which its covariances were computed"
-                )
-            if "min_disparity_sigmas" in options and options["min_disparity_sigmas"] != problem.min_disparity_sigmas:
-                raise ValueError(
-                    f"min_disparity_sigmas={options['min_disparity_sigmas']!r} differs from the problem's "
-                    f"{problem.min_disparity_sigmas!r}, with which its unusable rows were chosen"
-                )
-            derived = split_options(
-                self._spec, {**options, "noise_sigma": problem.noise_sigma, "min_disparity_sigmas": problem.min_disparity_sigmas}
-            )
+            derived = problem_options(self._spec, problem, self._options)
             if len(self._prepared) >= self._MAX_PREPARED:
                 self._prepared.clear()
             self._prepared[key] = derived
