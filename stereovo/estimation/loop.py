@@ -92,6 +92,9 @@ class RansacComponents:
             after them, where it defines these methods (an adaptive bound reads a guided sampler's
             q on each new best, SPRT's termination counts the draws made under each test): a
             recipe lists only its other listeners (a termination listed among them is called once).
+        search_runner: optional ``run(search)`` that advances a fresh :class:`RansacSearch` as its
+            steps would, in fewer calls (BANSAC's compiled search); :func:`run_ransac` calls it
+            first and then steps whatever it left undone, so a runner that declines does nothing.
 
     Hooks for cheaper verifiers and adaptive terminations:
         - a verifier with ``uses_samples = True`` gets ``samples=`` ``(H, 3)``, the minimal sample of
@@ -117,6 +120,7 @@ class RansacComponents:
     fail_at_cap: bool = True
     listeners: list[Any] = field(default_factory=list)
     sample_check: SampleCheck | None = None
+    search_runner: Any = None
 
 
 @dataclass
@@ -431,6 +435,8 @@ def final_report(
 def run_ransac(problem: StereoProblem, components: RansacComponents, rng: np.random.Generator) -> RansacReport:
     """Run the RANSAC loop described by ``components`` on ``problem`` until its termination."""
     search = RansacSearch(problem, components, rng)
+    if components.search_runner is not None:
+        components.search_runner(search)
     while not search.done:
         search.step()
     return search.finish()

@@ -68,14 +68,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from stereovo.estimation.estimator_options import EstimatorOptions
+from stereovo.estimation.kernels import bansac_runner as runner_kernels
 from stereovo.estimation.kernels import beliefs as belief_kernels
 from stereovo.estimation.kernels.sampling import weighted_triplets
-from stereovo.estimation.loop import LoopState
+from stereovo.estimation.loop import LoopState, RansacComponents, RansacSearch, local_refit_redundant
 from stereovo.estimation.registry import declare_options, method_spec, register_method
 from stereovo.estimation.roles.local_optimization import ConsensusRefit
+from stereovo.estimation.roles.sample_check import RigidityCheck
 from stereovo.estimation.roles.samplers import WeightedSampler
-from stereovo.estimation.roles.solvers import SAMPLE_SIZE
+from stereovo.estimation.roles.scoring import InlierCount, MahalanobisResidual
+from stereovo.estimation.roles.solvers import DEGENERATE_AREA_RATIO, SAMPLE_SIZE
 from stereovo.estimation.roles.termination import AdaptiveTermination
+from stereovo.estimation.roles.verification import FullVerification
 from stereovo.options import Choice, Integer, Number
 
 BELIEF_FLOOR = 1e-4
@@ -332,6 +336,151 @@ class BansacTermination:
         return {**self.bound.counters(), "bansac_stopped_by_rule": int(self.stopped_by_rule)}
 
 
+# ----------------------------------------------------------------------------- the compiled search
+
+
+COMPILED_SEARCH = True  # False: the paper's BANSAC steps the shared loop (the reference the runner is held to)
+FIRST_UNIFORM_ROWS = 64  # hypotheses' uniforms drawn per block, doubling up to MAX_UNIFORM_ROWS
+MAX_UNIFORM_ROWS = 4096
+
+
+def compiled_search_applies(c: RansacComponents) -> bool:
+    """Whether :func:`compiled_bansac_search` computes exactly what the loop's steps compute for
+    ``c``: the paper's sampler in one-hypothesis batches, its termination, the ``probabilistic``
+    judge (Mahalanobis count, full verification), no rigidity check or the rigidity check, no
+    local optimiser or the consensus refit (which draws nothing), no listeners."""
+    term = c.termination
+    return (
+        type(c.sampler) is BansacSampler
+        and type(term) is BansacTermination and term.sampler is c.sampler
+        and type(term.bound) is AdaptiveTermination and not term.bound.probability.guided
+        and c.batch_size == 1
+        and type(c.verifier) is FullVerification
+        and type(c.residual_model) is MahalanobisResidual and type(c.quality) is InlierCount
+        and (c.sample_check is None or type(c.sample_check) is RigidityCheck)
+        and (c.local_optimizer is None or type(c.local_optimizer) is ConsensusRefit)
+        and not c.listeners
+    )
+
+
+class _CompiledSearch:
+    """One run of :func:`compiled_bansac_search`: the kernel's state arrays beside the search's."""
+
+    def __init__(self, search: RansacSearch) -> None:
+        c = self.c = search.components
+        self.search, self.sampler, self.term = search, c.sampler, c.termination
+        problem = search.problem
+        self.n = search.n
+        self.state = np.zeros(runner_kernels.STATE_SIZE, dtype=np.int64)
+        self.fstate = np.zeros(runner_kernels.FLOAT_STATE_SIZE)
+        self.sample = np.zeros(SAMPLE_SIZE, dtype=np.int64)
+        self.R, self.t = np.zeros((3, 3)), np.zeros(3)
+        self.mask, self.verdicts = np.zeros(self.n, dtype=bool), np.zeros(self.n, dtype=bool)
+        runner_up = c.runner_up_fraction if c.local_optimizer is not None else None
+        rigidity = 0.0 if c.sample_check is None else float(c.sample_check.threshold_sq)
+        self.args = (
+            self.sampler.weighting == "discretised", float(WEIGHT_LEVELS), WEIGHT_FLOOR, self.sampler._outlier_log_odds,
+            TABLE_KNEE, C_MAX, LOG_GATED_IN, LOG_GATED_OUT,
+            problem.points_prev, problem.points_curr, problem.prev, problem.curr, problem.camera.parameters,
+            problem.cov_prev, problem.cov_curr, problem.noise_sigma**2, float(c.threshold_sq),
+            DEGENERATE_AREA_RATIO, int(c.polish_iterations), rigidity, -1.0 if runner_up is None else float(runner_up),
+            self.sample, self.R, self.t, self.mask, self.verdicts,
+        )
+
+    def push(self) -> None:
+        """The search's and the sampler's state into the kernel's arrays."""
+        s, search, sampler = self.state, self.search, self.sampler
+        s[runner_kernels.S_DRAWN], s[runner_kernels.S_SCORED], s[runner_kernels.S_CHECKS] = (
+            search.drawn, search.scored, search.checks)
+        s[runner_kernels.S_DEGENERATE], s[runner_kernels.S_REJECTED] = search.degenerate, search.rejected
+        s[runner_kernels.S_UPDATES], s[runner_kernels.S_BEST_SEEN] = sampler.updates, sampler.best_inliers_seen
+        s[runner_kernels.S_BEST_SUPPORT] = sampler.best_support
+        s[runner_kernels.S_REQUIRED], s[runner_kernels.S_STOPPED] = search.required, self.term.stopped_by_rule
+        self.fstate[runner_kernels.F_BEST_SCORE] = search.best_score
+        if search.best_score > -np.inf:
+            best = int(np.count_nonzero(search.best_inliers))
+            s[runner_kernels.S_BEST_COUNT] = best
+            # the uniform bound for this support; the beliefs' rule is the kernel's to check
+            s[runner_kernels.S_BOUND] = min(self.term.bound.required(best, self.n), self.term.max_iterations)
+
+    def pull(self) -> None:
+        """The kernel's counts back into the search and the sampler."""
+        s, search, sampler = self.state, self.search, self.sampler
+        search.drawn, search.scored, search.checks = (
+            int(s[runner_kernels.S_DRAWN]), int(s[runner_kernels.S_SCORED]), int(s[runner_kernels.S_CHECKS]))
+        search.degenerate, search.rejected = int(s[runner_kernels.S_DEGENERATE]), int(s[runner_kernels.S_REJECTED])
+        sampler.updates, sampler.best_inliers_seen = int(s[runner_kernels.S_UPDATES]), int(s[runner_kernels.S_BEST_SEEN])
+        sampler.best_support = int(s[runner_kernels.S_BEST_SUPPORT])
+        sampler._arrays = None  # the kernel moved the log-odds
+        search.required, self.term.stopped_by_rule = int(s[runner_kernels.S_REQUIRED]), bool(s[runner_kernels.S_STOPPED])
+
+    def run(self) -> None:
+        search, rng = self.search, self.search.rng
+        rows, saved, u = FIRST_UNIFORM_ROWS, None, np.zeros((0, SAMPLE_SIZE))
+        while not search.done:
+            if self.state[runner_kernels.S_ROW] >= u.shape[0]:
+                # Uniforms for the next hypotheses, as one-hypothesis batches would draw them one row
+                # at a time (Generator.random fills its output in order); the rows left unused are
+                # given back below, so the generator ends where the loop leaves it.
+                saved = rng.bit_generator.state
+                u = rng.random((rows, SAMPLE_SIZE))
+                rows = min(2 * rows, MAX_UNIFORM_ROWS)
+                self.state[runner_kernels.S_ROW] = 0
+            self.push()
+            event = runner_kernels.bansac_search(self.sampler.log_odds, u, self.state, self.fstate, *self.args)
+            self.pull()
+            if event in (runner_kernels.NEW_BEST, runner_kernels.RUNNER_UP):
+                self.finish_step(event == runner_kernels.NEW_BEST)
+        used = int(self.state[runner_kernels.S_ROW])
+        if saved is not None and used < u.shape[0]:
+            rng.bit_generator.state = saved
+            rng.random((used, SAMPLE_SIZE))
+
+    def finish_step(self, new_best: bool) -> None:
+        """The rest of a step the kernel handed back, as :meth:`RansacSearch.step` does it for a
+        batch of one scored hypothesis: its new best (with the local refit) or its runner-up
+        refit, then the feedback and the termination."""
+        search, c, n = self.search, self.c, self.n
+        R, t = self.R[None].copy(), self.t[None].copy()
+        score = float(self.fstate[runner_kernels.F_EVENT_SCORE])
+        inliers = self.mask.copy()  # read from the scored (capped) residuals: no point checks
+        if new_best:
+            search.best_R, search.best_t, search.best_score, search.best_inliers = R[0], t[0], score, inliers
+            search.found_at = search.drawn
+            if c.local_optimizer is not None and not local_refit_redundant(c, search.drawn, inliers, n):
+                search.best_R, search.best_t, search.best_inliers, search.best_score, spent = c.local_optimizer.improve(
+                    search.ctx, search.best_R, search.best_t, search.best_inliers, search.best_score, search.rng
+                )
+                search.local_runs += 1
+                search.checks += spent
+        else:
+            R_j, t_j, inliers_j, score_j, spent = c.local_optimizer.improve(search.ctx, R[0], t[0], inliers, score,
+                                                                             search.rng)
+            search.runner_up_runs += 1
+            search.checks += spent
+            if score_j > search.best_score:
+                search.runner_up_wins += 1
+                search.best_R, search.best_t, search.best_inliers, search.best_score = R_j, t_j, inliers_j, score_j
+                search.found_at = search.drawn
+        residual_sq = search.ctx.residuals(R, t)
+        search.checks += n
+        state = LoopState(search.drawn, search.best_score, samples=self.sample[None].copy(),
+                          best_inliers=search.best_inliers)
+        self.sampler.on_hypotheses(R, t, residual_sq < c.threshold_sq, residual_sq, state)
+        bound = self.term.required(int(np.count_nonzero(search.best_inliers)), n)
+        search.required = min(bound, self.term.max_iterations)
+
+
+def compiled_bansac_search(search: RansacSearch) -> None:
+    """Run a fresh search of the paper's BANSAC to its end in the compiled kernel
+    (:func:`stereovo.estimation.kernels.bansac_runner.bansac_search`), returning to Python only
+    for a new best, a runner-up refit and the next block of uniforms: the same steps as the loop's
+    one-hypothesis batches, bit for bit, at a fraction of their cost. Components it does not
+    cover (:func:`compiled_search_applies`) are left to the loop, untouched."""
+    if compiled_search_applies(search.components):
+        _CompiledSearch(search).run()
+
+
 # ----------------------------------------------------------------------------- the project's variant
 
 
@@ -509,6 +658,8 @@ def _build(problem, options, priors, order, extra):
         # the released code keeps the uniform adaptive bound beside the beliefs' stop
         bound = AdaptiveTermination(options.confidence, int(options.max_iterations))
         components.termination = BansacTermination(sampler, bound)
+    if COMPILED_SEARCH:
+        components.search_runner = compiled_bansac_search
     return components
 
 
