@@ -39,10 +39,14 @@ METHODS = (
     ("ransac:batch-1", {"batch_size": 1, "first_batch_size": 1}, False),
     ("probabilistic", {}, False),
     ("bansac", {}, True),
+    ("bansac:loop", {}, True),
     ("p-bansac", {}, True),
+    ("p-bansac:loop", {}, True),
     ("bansac:batch-16", {"bansac_batch": 16}, True),
     ("ars", {}, True),
 )
+"""``(row, options, has a numpy reference)``; a row ``method:loop`` runs the method's one-hypothesis
+steps in the shared loop instead of its compiled search (``bansac.COMPILED_SEARCH`` off)."""
 
 
 @contextlib.contextmanager
@@ -56,11 +60,23 @@ def numpy_samplers():
         bansac.BansacSampler, ars.ArsSampler = saved
 
 
+@contextlib.contextmanager
+def search_path(row: str):
+    """The shared loop's steps in place of BANSAC's compiled search for a ``:loop`` row."""
+    saved = bansac.COMPILED_SEARCH
+    bansac.COMPILED_SEARCH = saved and not row.endswith(":loop")
+    try:
+        yield
+    finally:
+        bansac.COMPILED_SEARCH = saved
+
+
 def timed(frame, method: str, options: dict, priors, seed: int):
-    start = time.process_time()
-    est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method.split(":")[0], priors=priors,
-                          rng=seed, noise_sigma=frame.noise_sigma, **options)
-    return time.process_time() - start, est
+    with search_path(method):
+        start = time.process_time()
+        est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method.split(":")[0], priors=priors,
+                              rng=seed, noise_sigma=frame.noise_sigma, **options)
+        return time.process_time() - start, est
 
 
 def main() -> int:
@@ -87,7 +103,8 @@ def main() -> int:
                     with numpy_samplers():
                         dt_ref, ref = timed(frame, method, options, priors[i], i)
                     best_n = min(best_n, dt_ref)
-                    if not (np.array_equal(est.rotation, ref.rotation) and est.n_hypotheses == ref.n_hypotheses):
+                    if not (np.array_equal(est.rotation, ref.rotation) and np.array_equal(est.inliers, ref.inliers)
+                            and est.n_hypotheses == ref.n_hypotheses and est.counters == ref.counters):
                         raise SystemExit(f"{method}: compiled and numpy samplers disagree on frame {i}")
             compiled_t.append(best_c)
             numpy_t.append(best_n)
@@ -98,13 +115,14 @@ def main() -> int:
     ransac, batch1, prob = rows["ransac"]["us_hyp"], rows["ransac:batch-1"]["us_hyp"], rows["probabilistic"]["us_hyp"]
     print(f"N {args.n}, eps {args.eps}, {args.frames} frames (half with priors), best of {args.repeats}, process CPU time")
     header = (f"{'method':<17} {'ms/frame':>9} {'hyp':>6} {'us/hyp':>8} {'numpy us/hyp':>13} {'compiled/numpy':>15} "
-              f"{'/ransac':>8} {'/ransac b1':>10} {'/probab.':>9}")
+              f"{'/ransac':>8} {'/ransac b1':>10} {'/probab.':>9} {'search/loop':>12}")
     print(header)
     print("-" * len(header))
     for method, r in rows.items():
+        loop = rows.get(f"{method}:loop", {}).get("us_hyp", np.nan)  # the compiled search over the loop's steps
         print(f"{method:<17} {r['ms']:>9.2f} {r['hyps']:>6.0f} {r['us_hyp']:>8.1f} {r['numpy_us_hyp']:>13.1f} "
               f"{r['us_hyp'] / r['numpy_us_hyp']:>15.2f} {r['us_hyp'] / ransac:>8.2f} {r['us_hyp'] / batch1:>10.2f} "
-              f"{r['us_hyp'] / prob:>9.2f}")
+              f"{r['us_hyp'] / prob:>9.2f} {r['us_hyp'] / loop:>12.2f}")
     return 0
 
 

@@ -29,8 +29,8 @@ import math
 
 import numpy as np
 
-from stereovo.estimation.kernels.base import inline_jit, jit
-from stereovo.estimation.kernels.beliefs import bansac_draw_arrays, bansac_log_odds_update
+from stereovo.estimation.kernels.base import MIN_DEPTH, inline_jit, jit
+from stereovo.estimation.kernels.beliefs import bansac_draw_arrays, bansac_log_odds_update, discretised_weight
 from stereovo.estimation.kernels.fitting import minimal_fits
 from stereovo.estimation.kernels.mahalanobis import point_mahalanobis_sq
 from stereovo.estimation.kernels.sampling import rigid_triplets, weighted_triplets
@@ -48,7 +48,8 @@ FLOAT_STATE_SIZE = 2
 # why bansac_search returned
 DONE, NEW_BEST, RUNNER_UP, UNIFORMS_USED = 0, 1, 2, 3
 
-VERDICT_GUARD = 1e-6  # a capped distance within this relative margin above the gate is recomputed exactly
+LEVEL_MARGIN = 1e-7  # log-odds this close to a weight level's edge take the logistic
+VERDICT_GUARD = 1e-6  # a capped distance within this relative margin of the gate is recomputed exactly
 
 
 @jit
@@ -85,6 +86,89 @@ def exact_weighted_redraw(w, u, out):
             i = best
         out[k] = i
         left[i] = 0.0
+
+
+@jit
+def _norm_bounds(r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t, x0, x1, x2, y0, y1, y2,
+                 norm_x, norm_y, c_lateral, c_depth, sigma_sq, cap, settled, bounded):
+    """The first test of :func:`~stereovo.estimation.kernels.mahalanobis.point_mahalanobis_sq` for
+    every point at once, its arithmetic copied operation for operation: ``settled (N,)`` where
+    ``|r|^2`` reaches ``cap`` times the trace bound from norms alone (the point's capped distance
+    is then ``bounded (N,)``, the value that function returns). One branch-free pass vectorises;
+    the points it leaves unsettled take that function whole, which repeats this test."""
+    for i in range(x0.shape[0]):
+        p0 = r00 * x0[i] + r01 * x1[i] + r02 * x2[i] + t0
+        p1 = r10 * x0[i] + r11 * x1[i] + r12 * x2[i] + t1
+        p2 = r20 * x0[i] + r21 * x1[i] + r22 * x2[i] + t2
+        x, y, z = y0[i] - p0, y1[i] - p1, y2[i] - p2
+        r2 = x * x + y * y + z * z
+        far = max(norm_x[i] + norm_t, norm_y[i])
+        far_prev = max(norm_x[i], norm_y[i] + norm_t)
+        far2 = far * far
+        near2 = far_prev * far_prev
+        bound_trace = sigma_sq * (c_lateral * (far2 + near2) + c_depth * (far2 * far2 + near2 * near2))
+        settled[i] = cap > 0.0 and not (p2 <= MIN_DEPTH) and r2 >= cap * bound_trace
+        bounded[i] = r2 / max(bound_trace, 1e-300)
+
+
+@jit
+def level_edges(levels):
+    """``(L + 1,)`` the log-odds where the discretised weight ``max(ceil(L p), 1)`` steps from
+    ``k`` to ``k + 1``: ``logit(k / L)``, with -inf and +inf at the ends (``L = levels``, an integer)."""
+    L = int(levels)
+    edges = np.empty(L + 1)
+    edges[0], edges[L] = -np.inf, np.inf
+    for k in range(1, L):
+        edges[k] = math.log(k / L) - math.log1p(-k / L)
+    return edges
+
+
+@inline_jit
+def _level_from(log_odds, level, edges, levels):
+    """A point's discretised weight ``(k, known)``, searched from its previous weight ``level``:
+    ``known`` when its log-odds lie more than :data:`LEVEL_MARGIN` inside weight k's interval,
+    where the weight :func:`~stereovo.estimation.kernels.beliefs.discretised_weight` computes is
+    exactly k (the interval's edges are off by rounding only, ~1e-15, and a margin of 1e-7 in
+    log-odds keeps ``L p`` at least ~1e-7 L p (1 - p) from an integer, beyond its 1e-9 guard)."""
+    L = int(levels)
+    k = level
+    while k > 1 and log_odds < edges[k - 1] + LEVEL_MARGIN:
+        k -= 1
+    while k < L and log_odds > edges[k] - LEVEL_MARGIN:
+        k += 1
+    known = (k == 1 or log_odds > edges[k - 1] + LEVEL_MARGIN) and (k == L or log_odds < edges[k] - LEVEL_MARGIN)
+    return k, known
+
+
+@inline_jit
+def _discretised_draw_arrays(log_odds, level, edges, levels, weights, w, cdf, before):
+    """:func:`~stereovo.estimation.kernels.beliefs.bansac_draw_arrays`' discretised weights, ``w``,
+    ``cdf`` and ``before``, in place, each weight found from the point's previous one ``level (N,)``
+    (updated) by its log-odds' interval, the logistic only where that is too close to call. The
+    weights are integers, so their sum is exact in any order: it is numpy's pairwise sum."""
+    n = log_odds.shape[0]
+    total = 0.0
+    for i in range(n):
+        k, known = _level_from(log_odds[i], level[i], edges, levels)
+        weights[i] = k if known else discretised_weight(log_odds[i], levels)
+        level[i] = int(weights[i])
+        total += weights[i]
+    running = 0.0
+    for i in range(n):
+        w[i] = weights[i] / total
+        before[i] = running
+        running += w[i]
+        cdf[i] = running
+
+
+@jit
+def discretised_draw_arrays(log_odds, level, edges, levels):
+    """:func:`_discretised_draw_arrays` into new arrays ``(weights, w, cdf, before)``, as
+    :func:`~stereovo.estimation.kernels.beliefs.bansac_draw_arrays` returns them (``level`` updated)."""
+    n = log_odds.shape[0]
+    weights, w, cdf, before = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    _discretised_draw_arrays(log_odds, level, edges, levels, weights, w, cdf, before)
+    return weights, w, cdf, before
 
 
 @inline_jit
@@ -149,9 +233,17 @@ def bansac_search(
         inv_depth[i] = 1.0 / Y[i, 2]
         norm_x[i] = np.sqrt(X[i, 0] ** 2 + X[i, 1] ** 2 + X[i, 2] ** 2)
         norm_y[i] = np.sqrt(Y[i, 0] ** 2 + Y[i, 1] ** 2 + Y[i, 2] ** 2)
-    guard = threshold_sq * (1.0 + VERDICT_GUARD)
+    # the points as columns, so that the norm bounds' loop runs on vectors
+    x0, x1, x2 = X[:, 0].copy(), X[:, 1].copy(), X[:, 2].copy()
+    y0, y1, y2 = Y[:, 0].copy(), Y[:, 1].copy(), Y[:, 2].copy()
+    settled = np.empty(n, dtype=np.bool_)
+    bounded = np.empty(n)
+    guard, low_guard = threshold_sq * (1.0 + VERDICT_GUARD), threshold_sq * (1.0 - VERDICT_GUARD)
     samples = np.empty((1, 3), dtype=np.int64)
-    _, w, cdf, before = bansac_draw_arrays(log_odds, discretised, levels, weight_floor)
+    weights, w, cdf, before = bansac_draw_arrays(log_odds, discretised, levels, weight_floor)
+    if discretised:
+        edges = level_edges(levels)
+        level = weights.astype(np.int64)
     stale = False  # the draw arrays lag an update
     row = state[S_ROW]
     while state[S_DRAWN] < state[S_REQUIRED]:
@@ -159,7 +251,10 @@ def bansac_search(
             state[S_ROW] = row
             return UNIFORMS_USED
         if stale:
-            _, w, cdf, before = bansac_draw_arrays(log_odds, discretised, levels, weight_floor)
+            if discretised:
+                _discretised_draw_arrays(log_odds, level, edges, levels, weights, w, cdf, before)
+            else:
+                weights, w, cdf, before = bansac_draw_arrays(log_odds, discretised, levels, weight_floor)
             stale = False
         drawn, suspect = weighted_triplets(u[row:row + 1], w, cdf, before)
         if suspect[0]:
@@ -181,21 +276,26 @@ def bansac_search(
         )
         t0, t1, t2 = t[0, 0], t[0, 1], t[0, 2]
         norm_t = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+        _norm_bounds(r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t, x0, x1, x2, y0, y1, y2,
+                     norm_x, norm_y, c_lateral, c_depth, sigma_sq, threshold_sq, settled, bounded)
         count = 0  # the score: inliers by the capped residuals
         k = 0  # the verdicts: by the uncapped ones
         for i in range(n):
-            d2 = point_mahalanobis_sq(
-                r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t,
-                X[i, 0], X[i, 1], X[i, 2], Y[i, 0], Y[i, 1], Y[i, 2], inv_depth[i], norm_x[i], norm_y[i],
-                inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, threshold_sq,
-            )
+            if settled[i]:
+                d2 = bounded[i]
+            else:
+                d2 = point_mahalanobis_sq(
+                    r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t,
+                    x0[i], x1[i], x2[i], y0[i], y1[i], y2[i], inv_depth[i], norm_x[i], norm_y[i],
+                    inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, threshold_sq,
+                )
             inside = d2 < threshold_sq
             mask_out[i] = inside
             count += inside
-            if not inside and d2 < guard:
+            if low_guard <= d2 < guard:
                 d2 = point_mahalanobis_sq(
                     r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t,
-                    X[i, 0], X[i, 1], X[i, 2], Y[i, 0], Y[i, 1], Y[i, 2], inv_depth[i], norm_x[i], norm_y[i],
+                    x0[i], x1[i], x2[i], y0[i], y1[i], y2[i], inv_depth[i], norm_x[i], norm_y[i],
                     inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, 0.0,
                 )
                 inside = d2 < threshold_sq

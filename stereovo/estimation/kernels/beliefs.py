@@ -351,6 +351,20 @@ def _belief(log_odds):
     return math.exp(-_logaddexp(0.0, -log_odds))
 
 
+@inline_jit
+def discretised_weight(log_odds, levels):
+    """One point's weight ``max(ceil(levels p), 1)`` for its log-odds, as :func:`bansac_draw_arrays` takes it."""
+    if log_odds < -SURE_LOG_ODDS:
+        return 1.0
+    if log_odds > SURE_LOG_ODDS:
+        return levels
+    scaled = levels / (1.0 + math.exp(-log_odds))
+    k = math.ceil(scaled)
+    if k - scaled < EDGE_GUARD or scaled - (k - 1.0) < EDGE_GUARD:
+        k = math.ceil(levels * _belief(log_odds))
+    return max(k, 1.0)
+
+
 @jit
 def bansac_draw_arrays(log_odds, discretised, levels, floor):
     """The sampling weights of BANSAC's beliefs and what :func:`weighted_triplets` inverts.
@@ -365,18 +379,9 @@ def bansac_draw_arrays(log_odds, discretised, levels, floor):
     n = log_odds.shape[0]
     weights = np.empty(n)
     for i in range(n):
-        lo = log_odds[i]
-        if not discretised:
-            weights[i] = max(_belief(lo), floor)
-        elif lo < -SURE_LOG_ODDS:
-            weights[i] = 1.0
-        elif lo > SURE_LOG_ODDS:
-            weights[i] = levels
+        if discretised:
+            weights[i] = discretised_weight(log_odds[i], levels)
         else:
-            scaled = levels / (1.0 + math.exp(-lo))
-            k = math.ceil(scaled)
-            if k - scaled < EDGE_GUARD or scaled - (k - 1.0) < EDGE_GUARD:
-                k = math.ceil(levels * _belief(lo))
-            weights[i] = max(k, 1.0)
+            weights[i] = max(_belief(log_odds[i]), floor)
     w, cdf, before = cumulative_weights(weights, _pairwise_sum(weights, 0, n))
     return weights, w, cdf, before

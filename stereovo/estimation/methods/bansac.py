@@ -340,6 +340,9 @@ class BansacTermination:
 
 
 COMPILED_SEARCH = True  # False: the paper's BANSAC steps the shared loop (the reference the runner is held to)
+# The classes the compiled search reproduces, bound here: another sampler put in BansacSampler's place
+# (the numpy reference the benchmark patches in) is left to the loop.
+SEARCHED_SAMPLER, SEARCHED_TERMINATION = BansacSampler, BansacTermination
 FIRST_UNIFORM_ROWS = 64  # hypotheses' uniforms drawn per block, doubling up to MAX_UNIFORM_ROWS
 MAX_UNIFORM_ROWS = 4096
 
@@ -351,8 +354,8 @@ def compiled_search_applies(c: RansacComponents) -> bool:
     local optimiser or the consensus refit (which draws nothing), no listeners."""
     term = c.termination
     return (
-        type(c.sampler) is BansacSampler
-        and type(term) is BansacTermination and term.sampler is c.sampler
+        type(c.sampler) is SEARCHED_SAMPLER
+        and type(term) is SEARCHED_TERMINATION and term.sampler is c.sampler
         and type(term.bound) is AdaptiveTermination and not term.bound.probability.guided
         and c.batch_size == 1
         and type(c.verifier) is FullVerification
