@@ -359,7 +359,7 @@ def compiled_search_applies(c: RansacComponents) -> bool:
         and type(term.bound) is AdaptiveTermination and not term.bound.probability.guided
         and c.batch_size == 1
         and type(c.verifier) is FullVerification
-        and type(c.residual_model) is MahalanobisResidual and type(c.quality) is InlierCount
+        and type(c.residual_model) is MahalanobisResidual and type(c.quality) is InlierCount and c.threshold_sq > 0
         and (c.sample_check is None or type(c.sample_check) is RigidityCheck)
         and (c.local_optimizer is None or type(c.local_optimizer) is ConsensusRefit)
         and not c.listeners
