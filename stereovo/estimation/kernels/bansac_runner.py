@@ -184,12 +184,29 @@ def update_scalars(k, n, table_knee, c_max, log_gated_in, log_gated_out):
 
 
 @jit
+def search_constants(X, Y):
+    """What the search's scoring reads of the points, once per search: ``(x0, x1, x2, y0, y1, y2)``
+    the coordinates as columns (so that the scoring loop runs on vectors), ``inv_depth = 1 / y2``,
+    ``norm_x = |X|`` and ``norm_y = |Y|`` (each ``(N,)``), computed as ``mahalanobis_sq`` computes them."""
+    n = X.shape[0]
+    inv_depth = np.empty(n)
+    norm_x = np.empty(n)
+    norm_y = np.empty(n)
+    for i in range(n):
+        inv_depth[i] = 1.0 / Y[i, 2]
+        norm_x[i] = np.sqrt(X[i, 0] ** 2 + X[i, 1] ** 2 + X[i, 2] ** 2)
+        norm_y[i] = np.sqrt(Y[i, 0] ** 2 + Y[i, 1] ** 2 + Y[i, 2] ** 2)
+    return (X[:, 0].copy(), X[:, 1].copy(), X[:, 2].copy(), Y[:, 0].copy(), Y[:, 1].copy(), Y[:, 2].copy(),
+            inv_depth, norm_x, norm_y)
+
+
+@jit
 def bansac_search(
     log_odds, u, state, fstate, discretised, levels, weight_floor, outlier_log_odds,
     table_knee, c_max, log_gated_in, log_gated_out,
     X, Y, mp, mc, cam, cov_prev, cov_curr, sigma_sq, threshold_sq,
-    area_ratio, polish_iterations, rigidity_sq, runner_up_fraction,
-    sample_out, R_out, t_out, mask_out, verdicts,
+    area_ratio, polish_iterations, rigidity_sq, runner_up_fraction, constants, edges, level,
+    weights, w, cdf, before, sample_out, R_out, t_out, mask_out, verdicts,
 ):
     """Run BANSAC's one-hypothesis steps until the search is done or a step needs Python.
 
@@ -206,6 +223,10 @@ def bansac_search(
         area_ratio, polish_iterations: the minimal fit's.
         rigidity_sq: the rigidity check's gate, or <= 0 for no check.
         runner_up_fraction: the loop's runner-up refit fraction, or < 0 for none.
+        constants: :func:`search_constants` of the problem's points.
+        edges, level: :func:`level_edges` of ``levels`` and each point's discretised weight ``(N,)``
+            int64, kept between calls (unused with ``discretised`` False).
+        weights, w, cdf, before: ``(N,)`` the draw arrays, rewritten here.
         sample_out (3,), R_out (3, 3), t_out (3,), mask_out (N,) bool: the hypothesis of a
             ``NEW_BEST`` or ``RUNNER_UP`` step (its inliers from the capped residuals); its score
             in ``fstate[F_EVENT_SCORE]``, its count in ``state[S_EVENT_COUNT]``.
@@ -221,24 +242,11 @@ def bansac_search(
     v_variance = 1.0 / cam[5]
     c_lateral = 2.0 * inv_fx * inv_fx + v_variance * inv_fy * inv_fy
     c_depth = 3.0 * inv_fb * inv_fb
-    inv_depth = np.empty(n)
-    norm_x = np.empty(n)
-    norm_y = np.empty(n)
-    for i in range(n):
-        inv_depth[i] = 1.0 / Y[i, 2]
-        norm_x[i] = np.sqrt(X[i, 0] ** 2 + X[i, 1] ** 2 + X[i, 2] ** 2)
-        norm_y[i] = np.sqrt(Y[i, 0] ** 2 + Y[i, 1] ** 2 + Y[i, 2] ** 2)
-    # the points as columns, so that the scoring loop runs on vectors
-    x0, x1, x2 = X[:, 0].copy(), X[:, 1].copy(), X[:, 2].copy()
-    y0, y1, y2 = Y[:, 0].copy(), Y[:, 1].copy(), Y[:, 2].copy()
+    x0, x1, x2, y0, y1, y2, inv_depth, norm_x, norm_y = constants
     capped = np.empty(n)
     guard, low_guard = threshold_sq * (1.0 + VERDICT_GUARD), threshold_sq * (1.0 - VERDICT_GUARD)
     samples = np.empty((1, 3), dtype=np.int64)
-    weights, w, cdf, before = bansac_draw_arrays(log_odds, discretised, levels, weight_floor)
-    if discretised:
-        edges = level_edges(levels)
-        level = weights.astype(np.int64)
-    stale = False  # the draw arrays lag an update
+    stale = True  # the draw arrays lag the log-odds
     row = state[S_ROW]
     while state[S_DRAWN] < state[S_REQUIRED]:
         if row >= u.shape[0]:
@@ -248,7 +256,8 @@ def bansac_search(
             if discretised:
                 _discretised_draw_arrays(log_odds, level, edges, levels, weights, w, cdf, before)
             else:
-                weights, w, cdf, before = bansac_draw_arrays(log_odds, discretised, levels, weight_floor)
+                fresh = bansac_draw_arrays(log_odds, discretised, levels, weight_floor)
+                weights[:], w[:], cdf[:], before[:] = fresh[0], fresh[1], fresh[2], fresh[3]
             stale = False
         drawn, suspect = weighted_triplets(u[row:row + 1], w, cdf, before)
         if suspect[0]:
@@ -274,21 +283,26 @@ def bansac_search(
                          inv_depth, norm_x, norm_y, inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth,
                          sigma_sq, threshold_sq, capped)
         count = 0  # the score: inliers by the capped residuals
-        k = 0  # the verdicts: by the uncapped ones
+        near = 0
         for i in range(n):
-            d2 = capped[i]
-            inside = d2 < threshold_sq
+            inside = capped[i] < threshold_sq
             mask_out[i] = inside
             count += inside
-            if low_guard <= d2 < guard:
-                d2 = point_mahalanobis_sq(
-                    r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t,
-                    x0[i], x1[i], x2[i], y0[i], y1[i], y2[i], inv_depth[i], norm_x[i], norm_y[i],
-                    inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, 0.0,
-                )
-                inside = d2 < threshold_sq
-            verdicts[i] = inside
-            k += inside
+            near += low_guard <= capped[i] and capped[i] < guard
+        judged, k = mask_out, count  # the verdicts: by the uncapped residuals, the same unless near the gate
+        if near:
+            k = 0
+            for i in range(n):
+                inside = mask_out[i]
+                if low_guard <= capped[i] < guard:
+                    inside = point_mahalanobis_sq(
+                        r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t,
+                        x0[i], x1[i], x2[i], y0[i], y1[i], y2[i], inv_depth[i], norm_x[i], norm_y[i],
+                        inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, 0.0,
+                    ) < threshold_sq
+                verdicts[i] = inside
+                k += inside
+            judged = verdicts
         state[S_SCORED] += 1
         state[S_CHECKS] += n
         score = float(count)
@@ -306,7 +320,7 @@ def bansac_search(
         log_c, gated_offset, gated_scale, shift = _classification_scalars(
             k, n, table_knee, c_max, log_gated_in, log_gated_out
         )
-        bansac_log_odds_update(log_odds, verdicts, log_c, gated_offset, gated_scale, shift)
+        bansac_log_odds_update(log_odds, judged, log_c, gated_offset, gated_scale, shift)
         stale = True
         state[S_UPDATES] += 1
         state[S_BEST_SEEN] = max(state[S_BEST_SEEN], k)

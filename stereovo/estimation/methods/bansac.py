@@ -381,12 +381,18 @@ class _CompiledSearch:
         self.mask, self.verdicts = np.zeros(self.n, dtype=bool), np.zeros(self.n, dtype=bool)
         runner_up = c.runner_up_fraction if c.local_optimizer is not None else None
         rigidity = 0.0 if c.sample_check is None else float(c.sample_check.threshold_sq)
+        discretised = self.sampler.weighting == "discretised"
+        draw_arrays = belief_kernels.bansac_draw_arrays(self.sampler.log_odds, discretised, float(WEIGHT_LEVELS),
+                                                        WEIGHT_FLOOR)
+        level = draw_arrays[0].astype(np.int64)  # each point's weight, where the kernel's search for the next starts
         self.args = (
-            self.sampler.weighting == "discretised", float(WEIGHT_LEVELS), WEIGHT_FLOOR, self.sampler._outlier_log_odds,
+            discretised, float(WEIGHT_LEVELS), WEIGHT_FLOOR, self.sampler._outlier_log_odds,
             TABLE_KNEE, C_MAX, LOG_GATED_IN, LOG_GATED_OUT,
             problem.points_prev, problem.points_curr, problem.prev, problem.curr, problem.camera.parameters,
             problem.cov_prev, problem.cov_curr, problem.noise_sigma**2, float(c.threshold_sq),
             DEGENERATE_AREA_RATIO, int(c.polish_iterations), rigidity, -1.0 if runner_up is None else float(runner_up),
+            runner_kernels.search_constants(problem.points_prev, problem.points_curr),
+            runner_kernels.level_edges(float(WEIGHT_LEVELS)), level, *draw_arrays,
             self.sample, self.R, self.t, self.mask, self.verdicts,
         )
 
