@@ -227,10 +227,10 @@ def bansac_search(
         edges, level: :func:`level_edges` of ``levels`` and each point's discretised weight ``(N,)``
             int64, kept between calls (unused with ``discretised`` False).
         weights, w, cdf, before: ``(N,)`` the draw arrays, rewritten here.
-        sample_out (3,), R_out (3, 3), t_out (3,), mask_out (N,) bool: the hypothesis of a
-            ``NEW_BEST`` or ``RUNNER_UP`` step (its inliers from the capped residuals); its score
-            in ``fstate[F_EVENT_SCORE]``, its count in ``state[S_EVENT_COUNT]``.
-        verdicts: ``(N,)`` bool scratch.
+        sample_out (3,), R_out (3, 3), t_out (3,), mask_out (N,) bool, verdicts (N,) bool: the
+            hypothesis of a ``NEW_BEST`` or ``RUNNER_UP`` step, its inliers from the capped
+            residuals and its verdicts for the beliefs (otherwise scratch); its score in
+            ``fstate[F_EVENT_SCORE]``, its count in ``state[S_EVENT_COUNT]``.
 
     Returns:
         ``DONE`` (drawn >= required), ``NEW_BEST`` or ``RUNNER_UP`` (the hypothesis was drawn,
@@ -311,6 +311,8 @@ def bansac_search(
         ):
             R_out[:, :] = R[0]
             t_out[:] = t[0]
+            if near == 0:
+                verdicts[:] = mask_out
             fstate[F_EVENT_SCORE] = score
             state[S_EVENT_COUNT] = count
             state[S_ROW] = row

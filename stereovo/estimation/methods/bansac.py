@@ -471,11 +471,11 @@ class _CompiledSearch:
                 search.runner_up_wins += 1
                 search.best_R, search.best_t, search.best_inliers, search.best_score = R_j, t_j, inliers_j, score_j
                 search.found_at = search.drawn
-        residual_sq = search.ctx.residuals(R, t)
+        # the feedback, on the verdicts the kernel took as the loop takes them from the uncapped residuals
         search.checks += n
         state = LoopState(search.drawn, search.best_score, samples=self.sample[None].copy(),
                           best_inliers=search.best_inliers)
-        self.sampler.on_hypotheses(R, t, residual_sq < c.threshold_sq, residual_sq, state)
+        self.sampler.on_hypotheses(R, t, self.verdicts[None].copy(), None, state)
         bound = self.term.required(int(np.count_nonzero(search.best_inliers)), n)
         search.required = min(bound, self.term.max_iterations)
 
@@ -660,7 +660,8 @@ def _build(problem, options, priors, order, extra):
         prior_ceiling=None if ceiling is None else float(ceiling),
         weights=extra["bansac_weights"],
     )
-    components = judged_components(problem, options, priors, order, sampler)
+    # the judge without the priors: they would only build the recipe a sampler and a bound that this replaces
+    components = judged_components(problem, options, None, order, sampler)
     batch = extra["bansac_batch"]
     components.batch_size, components.first_batch_size = PAPER_BATCH if batch is None else batch, None
     if options.budget is None:
