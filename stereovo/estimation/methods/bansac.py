@@ -41,6 +41,14 @@ sampling, from the best support: the paper's code keeps OpenCV's SPRT-based boun
 methods' default (``bansac_batch``: :data:`PAPER_BATCH`). With larger batches each hypothesis' update is applied in the
 order drawn, the next batch is drawn from the updated beliefs and the stop is checked per batch.
 
+**The compiled search.** With one hypothesis per update the loop's bookkeeping per batch costs more
+than the hypothesis; :func:`compiled_bansac_search` (the components' ``search_runner``, taken
+wherever :func:`compiled_search_applies`) runs the steps in one numba loop instead
+(:mod:`stereovo.estimation.kernels.bansac_runner`) and returns to the loop's own objects only for a
+new best (its local refit and bound) or a runner-up refit: the same estimates, counters, beliefs and
+generator state as the loop, bit for bit (``tests/stereovo/estimation/methods/test_bansac_runner.py``).
+:data:`COMPILED_SEARCH` False runs the loop's steps, the reference.
+
 **Priors** are the initial beliefs when they lie in [0, 1] (the paper's input); larger weights are
 first divided by their maximum (the project's priors are weights of any scale). Either way they are
 clipped into ``[1e-4, 1 - 1e-4]``: a prior of exactly 1 would make a point an inlier for good.
