@@ -1,8 +1,8 @@
-"""BANSAC's compiled search (stereovo/estimation/kernels/bansac_runner.py) against the shared loop's
-one-hypothesis steps, the reference it replaces: the same estimates, counters, beliefs and generator
-state, bit for bit, on fixed seeds (with and without priors, eps 0.2 / 0.5 / 0.8, the hostile preset,
-frames that fail, the cap reached, the options it covers), and its pieces against the functions
-they reproduce."""
+"""BANSAC's compiled search and ARS's direct search (stereovo/estimation/kernels/bansac_runner.py)
+against the shared loop's steps, the reference they replace: the same estimates, counters, beliefs
+and generator state, bit for bit, on fixed seeds (with and without priors, eps 0.2 / 0.5 / 0.8, the
+hostile preset, frames that fail, the cap reached, the options they cover), and their pieces
+against the functions they reproduce."""
 
 from __future__ import annotations
 
@@ -14,8 +14,10 @@ import pytest
 from stereovo.estimation import StereoProblem, estimate_motion, method_spec
 from stereovo.estimation.kernels import bansac_runner
 from stereovo.estimation.kernels import beliefs as belief_kernels
-from stereovo.estimation.methods import bansac
+from stereovo.estimation.methods import ars, bansac
 from stereovo.estimation.registry import split_options
+from stereovo.estimation.roles.scoring import InlierCount, MahalanobisResidual
+from stereovo.estimation.roles.solvers import minimal_hypotheses
 from stereovo.simulation import SimulationConfig, simulate_frame
 
 REPORT_FIELDS = ("score", "status", "n_hypotheses", "n_scored", "n_point_checks", "n_degenerate",
@@ -27,27 +29,35 @@ def _priors(frame, seed):
     return np.where(frame.truth.inlier, 0.8, 0.3) * np.exp(noise)
 
 
+SEARCHES = {"bansac": (bansac, "compiled_bansac_search"), "p-bansac": (bansac, "compiled_bansac_search"),
+            "ars": (ars, "compiled_ars_search")}
+
+
 def _estimate(monkeypatch, frame, method, priors, seed, compiled, **options):
-    """``estimate_motion`` by the compiled search or the loop; also whether the search ran
-    compiled, and the generator and the sampler's log-odds afterwards."""
-    monkeypatch.setattr(bansac, "COMPILED_SEARCH", compiled)
+    """``estimate_motion`` by the method's compiled search or the loop; also whether the search ran
+    compiled, and the generator and the sampler's beliefs afterwards."""
+    module, name = SEARCHES[method]
+    monkeypatch.setattr(module, "COMPILED_SEARCH", compiled)
     ran, samplers = [], []
-    search, judged = bansac.compiled_bansac_search, bansac.judged_components
+    search, judged = getattr(module, name), module.judged_components
 
     def spy(s):
-        ran.append(bansac.compiled_search_applies(s.components))
+        ran.append(module.compiled_search_applies(s.components))
         search(s)
 
     def built(problem, options, priors, order, sampler):
         samplers.append(sampler)
         return judged(problem, options, priors, order, sampler)
 
-    monkeypatch.setattr(bansac, "compiled_bansac_search", spy)
-    monkeypatch.setattr(bansac, "judged_components", built)
+    monkeypatch.setattr(module, name, spy)
+    monkeypatch.setattr(module, "judged_components", built)
     rng = np.random.default_rng(seed)
     est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, priors=priors, rng=rng,
                           noise_sigma=frame.noise_sigma, **options)
-    beliefs = getattr(samplers[0], "log_odds", None) if samplers else None
+    beliefs = None
+    if samplers:
+        beliefs = getattr(samplers[0], "log_odds", None)
+        beliefs = getattr(samplers[0], "beliefs", None) if beliefs is None else beliefs
     return est, any(ran), rng.bit_generator.state, beliefs
 
 
@@ -70,7 +80,7 @@ def _assert_same(monkeypatch, frame, method, priors, seed, **options):
     return compiled, ran
 
 
-@pytest.mark.parametrize("method", ["bansac", "p-bansac"])
+@pytest.mark.parametrize("method", ["bansac", "p-bansac", "ars"])
 @pytest.mark.parametrize("eps", [0.2, 0.5, 0.8])
 def test_compiled_search_gives_the_loops_estimates_on_fixed_seeds(monkeypatch, method, eps):
     config = SimulationConfig(n_correspondences=300, outlier_ratio=eps)
@@ -81,7 +91,7 @@ def test_compiled_search_gives_the_loops_estimates_on_fixed_seeds(monkeypatch, m
         assert ran and est.n_hypotheses > 0
 
 
-@pytest.mark.parametrize("method", ["bansac", "p-bansac"])
+@pytest.mark.parametrize("method", ["bansac", "p-bansac", "ars"])
 def test_compiled_search_gives_the_loops_estimates_on_the_hostile_preset(monkeypatch, method):
     config = SimulationConfig(n_correspondences=400, outliers="hostile")
     for seed in range(5):
@@ -114,30 +124,53 @@ def test_compiled_search_covers_the_options_of_the_papers_update(monkeypatch, op
         assert sum(est.report.n_rejected_samples for est in estimates) > 0
 
 
-def test_compiled_search_reaches_the_cap_as_the_loop_does(monkeypatch):
+@pytest.mark.parametrize("options", [
+    {"rigidity_gate_probability": 0.999},
+    {"runner_up_refit": 0.5, "local_refit": True},
+    {"batch_size": 8, "first_batch_size": 2},
+    {"budget": 40},
+    {"initial_probability": 0.3, "prior_ceiling": 0.9},
+])
+def test_ars_direct_search_covers_the_loops_options(monkeypatch, options):
+    config = SimulationConfig(n_correspondences=300, outlier_ratio=0.6)
+    estimates = []
+    for seed in range(4):
+        frame = simulate_frame(config, rng=seed)
+        est, ran = _assert_same(monkeypatch, frame, "ars", _priors(frame, seed) if seed % 2 else None, seed, **options)
+        assert ran
+        estimates.append(est)
+    if "runner_up_refit" in options:  # the path was taken
+        assert sum(est.counters["runner_up_refits"] for est in estimates) > 0
+    if "rigidity_gate_probability" in options:
+        assert sum(est.report.n_rejected_samples for est in estimates) > 0
+
+
+@pytest.mark.parametrize("method", ["bansac", "ars"])
+def test_compiled_search_reaches_the_cap_as_the_loop_does(monkeypatch, method):
     frame = simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.8), rng=3)
     for cap in (1, 2, 7, 40):
-        est, ran = _assert_same(monkeypatch, frame, "bansac", None, 3, max_iterations=cap)
+        est, ran = _assert_same(monkeypatch, frame, method, None, 3, max_iterations=cap)
         assert ran and est.n_hypotheses == cap
     assert est.status.startswith("failed: no confident consensus")
 
 
-def test_compiled_search_fails_as_the_loop_does(monkeypatch):
+@pytest.mark.parametrize("method", ["bansac", "ars"])
+def test_compiled_search_fails_as_the_loop_does(monkeypatch, method):
     frame = simulate_frame(SimulationConfig(n_correspondences=120, outlier_ratio=0.3), rng=1)
     # every row an outlier: each row's k match taken from another row
     scrambled = frame.__class__(**{**vars(frame), "curr": np.roll(frame.curr, 7, axis=0)})
     for seed in range(3):
-        est, ran = _assert_same(monkeypatch, scrambled, "bansac", None, seed)
+        est, ran = _assert_same(monkeypatch, scrambled, method, None, seed)
         assert ran
     # few usable rows: the others have no disparity (no depth)
     curr = frame.curr.copy()
     curr[10:, 2] = curr[10:, 0]
     few = frame.__class__(**{**vars(frame), "curr": curr})
-    est, ran = _assert_same(monkeypatch, few, "bansac", None, 0)
+    est, ran = _assert_same(monkeypatch, few, method, None, 0)
     assert ran and est.unusable.sum() == frame.n - 10
     curr[4:, 2] = curr[4:, 0]
     too_few = frame.__class__(**{**vars(frame), "curr": curr})
-    est, ran = _assert_same(monkeypatch, too_few, "bansac", None, 0)
+    est, ran = _assert_same(monkeypatch, too_few, method, None, 0)
     assert not ran and est.status.startswith("failed: too few usable")
 
 
@@ -204,3 +237,24 @@ def test_compiled_exact_redraw_is_the_samplers_fix_up():
         out = np.empty(3, dtype=np.int64)
         bansac_runner.exact_weighted_redraw(w, u, out)
         np.testing.assert_array_equal(out, bansac.exact_weighted_draw(w, u))
+
+
+def test_judged_batch_is_the_loops_judge():
+    frame = simulate_frame(SimulationConfig(n_correspondences=400, outlier_ratio=0.5), rng=2)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    rng = np.random.default_rng(0)
+    samples = np.array([rng.choice(problem.n, 3, replace=False) for _ in range(64)])
+    R, t, valid = minimal_hypotheses(problem, samples)
+    R, t = R[valid], t[valid]
+    R = np.concatenate([R, frame.truth.rotation[None]])
+    t = np.concatenate([t, frame.truth.translation[None]])
+    model = MahalanobisResidual()
+    gate = model.threshold_sq
+    scores, inliers, verdicts = bansac_runner.judged_batch(
+        R, t, problem.points_prev, problem.points_curr, problem.camera.parameters, problem.noise_sigma**2, gate,
+        bansac_runner.search_constants(problem.points_prev, problem.points_curr))
+    capped = model.squared(problem, R, t, cap=gate)
+    np.testing.assert_array_equal(scores, InlierCount().score(capped, gate))
+    np.testing.assert_array_equal(inliers, capped < gate)
+    np.testing.assert_array_equal(verdicts, model.squared(problem, R, t) < gate)
+    assert scores[-1] > 0.4 * problem.n  # the true motion among them
