@@ -3,14 +3,16 @@
 
 On the same seeded frames (N 500, eps 0.5 by default; half the frames with informative priors),
 each method runs with the compiled samplers and, for bansac / p-bansac / ars, with the numpy
-samplers they replaced (tests/support/belief_samplers.py, patched in), the runs of a frame
-alternating ``--repeats`` times, each keeping its fastest (a shared machine only adds time), timed
-in process CPU time. It checks that both give the same estimate and prints, per method, the
-median time per frame, the time per hypothesis (total over total), and the ratios: compiled over
-numpy, and per hypothesis over ``ransac``, over ``ransac`` in batches of one hypothesis (the
-paper's BANSAC updates after every hypothesis, so the loop runs one-hypothesis batches: that
-loop's own cost is the floor), and over ``probabilistic`` (the same Mahalanobis judge). Times
-are ratios within this run; numba's compilation is warmed up first.
+samplers they replaced (tests/support/belief_samplers.py, patched in; they take the shared loop's
+steps), the runs of a frame alternating ``--repeats`` times, each keeping its fastest (a shared
+machine only adds time), timed in process CPU time. Rows ``:loop`` run the compiled samplers in the
+loop's steps instead of the methods' compiled searches (stereovo/estimation/kernels/bansac_runner.py).
+It checks that each run gives the numpy reference's estimate and prints, per method, the median
+time per frame, the time per hypothesis (total over total), and the ratios: compiled over numpy,
+and per hypothesis over ``ransac``, over ``ransac`` in batches of one hypothesis (the paper's
+BANSAC updates after every hypothesis, so the loop runs one-hypothesis batches), over
+``probabilistic`` (the same Mahalanobis judge), and of the compiled search over the loop's steps.
+Times are ratios within this run; numba's compilation is warmed up first.
 
 Usage::
 
@@ -44,9 +46,10 @@ METHODS = (
     ("p-bansac:loop", {}, True),
     ("bansac:batch-16", {"bansac_batch": 16}, True),
     ("ars", {}, True),
+    ("ars:loop", {}, True),
 )
-"""``(row, options, has a numpy reference)``; a row ``method:loop`` runs the method's one-hypothesis
-steps in the shared loop instead of its compiled search (``bansac.COMPILED_SEARCH`` off)."""
+"""``(row, options, has a numpy reference)``; a row ``method:loop`` runs the method's steps in the
+shared loop instead of its compiled search (``bansac.COMPILED_SEARCH``, ``ars.COMPILED_SEARCH`` off)."""
 
 
 @contextlib.contextmanager
@@ -62,13 +65,14 @@ def numpy_samplers():
 
 @contextlib.contextmanager
 def search_path(row: str):
-    """The shared loop's steps in place of BANSAC's compiled search for a ``:loop`` row."""
-    saved = bansac.COMPILED_SEARCH
-    bansac.COMPILED_SEARCH = saved and not row.endswith(":loop")
+    """The shared loop's steps in place of BANSAC's and ARS's compiled searches for a ``:loop`` row."""
+    saved = bansac.COMPILED_SEARCH, ars.COMPILED_SEARCH
+    loop = row.endswith(":loop")
+    bansac.COMPILED_SEARCH, ars.COMPILED_SEARCH = saved[0] and not loop, saved[1] and not loop
     try:
         yield
     finally:
-        bansac.COMPILED_SEARCH = saved
+        bansac.COMPILED_SEARCH, ars.COMPILED_SEARCH = saved
 
 
 def timed(frame, method: str, options: dict, priors, seed: int):
