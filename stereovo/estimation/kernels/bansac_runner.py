@@ -15,9 +15,15 @@ loop's bit for bit (``tests/stereovo/estimation/methods/test_bansac_runner.py``)
 The loop scores a hypothesis on residuals capped at the gate and feeds the beliefs its uncapped
 residuals. Below the gate the two are the same number; at or above it the capped value may be a
 lower bound of the distance (:func:`~stereovo.estimation.kernels.mahalanobis.mahalanobis_sq`), so a
-point whose bound lands within :data:`VERDICT_GUARD` (relative) above the gate gets its exact
-distance here before its verdict is taken; any other bound is farther above the gate than the
-rounding of the exact distance can reach.
+point whose capped value lies within :data:`VERDICT_GUARD` (relative) of the gate gets its exact
+distance here before its verdict is taken. Any other bound is farther from the gate than the
+rounding of the exact distance reaches (its relative error is about the 3x3 covariance's condition
+number times 1e-16; it would need a condition number near 1e10, where the camera's covariances stay
+orders of magnitude below), so its verdict is the uncapped one.
+
+ARS's direct search (:func:`stereovo.estimation.methods.ars.compiled_ars_search`) judges its
+batches with :func:`judged_batch`, the same scoring and verdicts for a batch of hypotheses
+(Wei, Matas & Barath, ICCV 2023).
 
 The loop's state travels in an int64 array indexed by the ``S_*`` constants and a float64 array
 (``F_*``), read and written by the caller between calls.

@@ -21,6 +21,13 @@ feedback hook undoes the update for the sample that raised the best support.
 Initial probabilities: ``initial_probability`` without priors, else priors scaled so that the largest
 is ``prior_ceiling`` (as :mod:`stereovo.estimation.methods.bansac`). Termination: the loop's adaptive bound.
 
+**The direct search.** :func:`compiled_ars_search` (the components' ``search_runner``) takes the
+loop's steps with each batch judged in one compiled pass (the capped score, the inliers and the
+fed-back verdicts, :func:`stereovo.estimation.kernels.bansac_runner.judged_batch`) where the loop
+runs the Mahalanobis kernel twice: the loop's results bit for bit
+(``tests/stereovo/estimation/methods/test_bansac_runner.py``); :data:`COMPILED_SEARCH` False runs
+the loop, the reference.
+
 This module also registers ``ars`` (its belief options as :mod:`~stereovo.estimation.methods.bansac` declares them).
 """
 
