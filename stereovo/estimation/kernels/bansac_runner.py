@@ -18,8 +18,8 @@ lower bound of the distance (:func:`~stereovo.estimation.kernels.mahalanobis.mah
 point whose capped value lies within :data:`VERDICT_GUARD` (relative) of the gate gets its exact
 distance here before its verdict is taken. Any other bound is farther from the gate than the
 rounding of the exact distance reaches (its relative error is about the 3x3 covariance's condition
-number times 1e-16; it would need a condition number near 1e10, where the camera's covariances stay
-orders of magnitude below), so its verdict is the uncapped one.
+number times 1e-16; it would need a condition number near 1e10, where the usable rows of simulated
+frames reach about 1e6, default and hostile presets), so its verdict is the uncapped one.
 
 ARS's direct search (:func:`stereovo.estimation.methods.ars.compiled_ars_search`) judges its
 batches with :func:`judged_batch`, the same scoring and verdicts for a batch of hypotheses
