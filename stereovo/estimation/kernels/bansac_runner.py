@@ -141,18 +141,35 @@ def _level_from(log_odds, level, edges, levels):
 
 
 @inline_jit
-def _discretised_draw_arrays(log_odds, level, edges, levels, weights, w, cdf, before):
+def _discretised_draw_arrays(log_odds, level, lower, upper, edges, levels, weights, w, cdf, before):
     """:func:`~stereovo.estimation.kernels.beliefs.bansac_draw_arrays`' discretised weights, ``w``,
-    ``cdf`` and ``before``, in place, each weight found from the point's previous one ``level (N,)``
-    (updated) by its log-odds' interval, the logistic only where that is too close to call. The
-    weights are integers, so their sum is exact in any order: it is numpy's pairwise sum."""
+    ``cdf`` and ``before``, in place. Each point keeps its weight ``level (N,)`` int64 while its
+    log-odds stay inside ``(lower, upper)`` (its weight's interval less :data:`LEVEL_MARGIN`; an
+    empty interval where the weight took the logistic), a test over all points that runs on vectors;
+    a point outside finds its new weight from its previous one (:func:`_level_from`), the logistic
+    only where that is too close to call, and its interval is updated. The weights are integers, so
+    their sum is exact in any order: it is numpy's pairwise sum."""
     n = log_odds.shape[0]
-    total = 0.0
+    L = int(levels)
+    moved = 0
     for i in range(n):
-        k, known = _level_from(log_odds[i], level[i], edges, levels)
-        weights[i] = k if known else discretised_weight(log_odds[i], levels)
-        level[i] = int(weights[i])
-        total += weights[i]
+        moved += not (lower[i] < log_odds[i] and log_odds[i] < upper[i])
+    if moved:
+        for i in range(n):
+            if not (lower[i] < log_odds[i] < upper[i]):
+                k, known = _level_from(log_odds[i], level[i], edges, levels)
+                if known:
+                    weights[i] = k
+                    lower[i] = -np.inf if k == 1 else edges[k - 1] + LEVEL_MARGIN
+                    upper[i] = np.inf if k == L else edges[k] - LEVEL_MARGIN
+                else:
+                    weights[i] = discretised_weight(log_odds[i], levels)
+                    lower[i], upper[i] = np.inf, -np.inf
+                level[i] = int(weights[i])
+    total = 0
+    for i in range(n):
+        total += level[i]
+    total = float(total)
     for i in range(n):  # apart from the running sum, so that it runs on vectors
         w[i] = weights[i] / total
     running = 0.0
@@ -163,12 +180,15 @@ def _discretised_draw_arrays(log_odds, level, edges, levels, weights, w, cdf, be
 
 
 @jit
-def discretised_draw_arrays(log_odds, level, edges, levels):
+def discretised_draw_arrays(log_odds, level, lower, upper, edges, levels):
     """:func:`_discretised_draw_arrays` into new arrays ``(weights, w, cdf, before)``, as
-    :func:`~stereovo.estimation.kernels.beliefs.bansac_draw_arrays` returns them (``level`` updated)."""
+    :func:`~stereovo.estimation.kernels.beliefs.bansac_draw_arrays` returns them (``level``,
+    ``lower`` and ``upper`` updated: the state a search keeps between updates; ``level`` each
+    point's weight, ``lower = inf``, ``upper = -inf`` where nothing is known yet)."""
     n = log_odds.shape[0]
-    weights, w, cdf, before = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    _discretised_draw_arrays(log_odds, level, edges, levels, weights, w, cdf, before)
+    weights = level.astype(np.float64)
+    w, cdf, before = np.empty(n), np.empty(n), np.empty(n)
+    _discretised_draw_arrays(log_odds, level, lower, upper, edges, levels, weights, w, cdf, before)
     return weights, w, cdf, before
 
 
@@ -211,7 +231,7 @@ def bansac_search(
     log_odds, u, state, fstate, discretised, levels, weight_floor, outlier_log_odds,
     table_knee, c_max, log_gated_in, log_gated_out,
     X, Y, mp, mc, cam, cov_prev, cov_curr, sigma_sq, threshold_sq,
-    area_ratio, polish_iterations, rigidity_sq, runner_up_fraction, constants, edges, level,
+    area_ratio, polish_iterations, rigidity_sq, runner_up_fraction, constants, edges, level, lower, upper,
     weights, w, cdf, before, sample_out, R_out, t_out, mask_out, verdicts,
 ):
     """Run BANSAC's one-hypothesis steps until the search is done or a step needs Python.
@@ -230,8 +250,9 @@ def bansac_search(
         rigidity_sq: the rigidity check's gate, or <= 0 for no check.
         runner_up_fraction: the loop's runner-up refit fraction, or < 0 for none.
         constants: :func:`search_constants` of the problem's points.
-        edges, level: :func:`level_edges` of ``levels`` and each point's discretised weight ``(N,)``
-            int64, kept between calls (unused with ``discretised`` False).
+        edges, level, lower, upper: :func:`level_edges` of ``levels``, each point's discretised
+            weight ``(N,)`` int64 and the interval of log-odds that keeps it ``(N,)``, kept between
+            calls (:func:`discretised_draw_arrays`; unused with ``discretised`` False).
         weights, w, cdf, before: ``(N,)`` the draw arrays, rewritten here.
         sample_out (3,), R_out (3, 3), t_out (3,), mask_out (N,) bool, verdicts (N,) bool: the
             hypothesis of a ``NEW_BEST`` or ``RUNNER_UP`` step, its inliers from the capped
@@ -260,7 +281,7 @@ def bansac_search(
             return UNIFORMS_USED
         if stale:
             if discretised:
-                _discretised_draw_arrays(log_odds, level, edges, levels, weights, w, cdf, before)
+                _discretised_draw_arrays(log_odds, level, lower, upper, edges, levels, weights, w, cdf, before)
             else:
                 fresh = bansac_draw_arrays(log_odds, discretised, levels, weight_floor)
                 weights[:], w[:], cdf[:], before[:] = fresh[0], fresh[1], fresh[2], fresh[3]

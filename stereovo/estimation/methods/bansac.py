@@ -400,7 +400,9 @@ class _CompiledSearch:
             problem.cov_prev, problem.cov_curr, problem.noise_sigma**2, float(c.threshold_sq),
             DEGENERATE_AREA_RATIO, int(c.polish_iterations), rigidity, -1.0 if runner_up is None else float(runner_up),
             runner_kernels.search_constants(problem.points_prev, problem.points_curr),
-            runner_kernels.level_edges(float(WEIGHT_LEVELS)), level, *draw_arrays,
+            # nothing known yet of each weight's interval: the kernel's first draw finds them
+            runner_kernels.level_edges(float(WEIGHT_LEVELS)), level, np.full(self.n, np.inf), np.full(self.n, -np.inf),
+            *draw_arrays,
             self.sample, self.R, self.t, self.mask, self.verdicts,
         )
 

@@ -216,10 +216,15 @@ def test_weights_found_from_the_previous_level_are_the_draw_arrays_weights():
     log_odds = np.concatenate([rng.normal(0, 3, 3000), on_edges, np.nextafter(on_edges, np.inf),
                                np.nextafter(on_edges, -np.inf), [-50.0, 50.0, 0.0]])
     level = np.ones(log_odds.size, dtype=np.int64)
-    for step in range(6):
-        shifted = np.ascontiguousarray(log_odds + rng.normal(0, 0.5 if step else 0.0, log_odds.size))
+    lower, upper = np.full(log_odds.size, np.inf), np.full(log_odds.size, -np.inf)
+    shifted = log_odds
+    for step in range(12):
+        # small moves (most points keep their weight's interval) and large ones
+        shifted = np.ascontiguousarray(shifted + rng.normal(0, (0.01, 0.5)[step % 2] if step else 0.0, log_odds.size))
+        if step == 7:
+            shifted[-len(on_edges):] = on_edges  # back onto the edges, from inside a known interval
         expected = belief_kernels.bansac_draw_arrays(shifted, True, levels, bansac.WEIGHT_FLOOR)
-        got = bansac_runner.discretised_draw_arrays(shifted, level, edges, levels)
+        got = bansac_runner.discretised_draw_arrays(shifted, level, lower, upper, edges, levels)
         for a, b in zip(got, expected):
             np.testing.assert_array_equal(a, b)
         np.testing.assert_array_equal(level, expected[0].astype(np.int64))
