@@ -93,7 +93,7 @@ class RansacComponents:
             q on each new best, SPRT's termination counts the draws made under each test): a
             recipe lists only its other listeners (a termination listed among them is called once).
         search_runner: optional ``run(search)`` that advances a fresh :class:`RansacSearch` as its
-            steps would, in fewer calls (BANSAC's compiled search); :func:`run_ransac` calls it
+            steps would, in fewer calls (BANSAC's and ARS's compiled searches); :func:`run_ransac` calls it
             first and then steps whatever it left undone, so a runner that declines does nothing.
 
     Hooks for cheaper verifiers and adaptive terminations:
