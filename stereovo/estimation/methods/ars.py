@@ -154,8 +154,9 @@ SEARCHED_SAMPLER = ArsSampler
 
 def compiled_search_applies(c: RansacComponents) -> bool:
     """Whether :func:`compiled_ars_search` computes exactly what the loop's steps compute for ``c``:
-    ARS's sampler, the ``probabilistic`` judge (Mahalanobis count, full verification), no rigidity
-    check or the rigidity check, no local optimiser or the consensus refit (which draws nothing)."""
+    ARS's sampler, the ``probabilistic`` judge (Mahalanobis count, full verification), with or
+    without the rigidity check, with the consensus refit (which draws nothing) or no local optimiser;
+    any termination and listeners (they are called as the loop calls them)."""
     return (
         type(c.sampler) is SEARCHED_SAMPLER
         and type(c.verifier) is FullVerification

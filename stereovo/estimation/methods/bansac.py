@@ -358,8 +358,8 @@ MAX_UNIFORM_ROWS = 4096
 def compiled_search_applies(c: RansacComponents) -> bool:
     """Whether :func:`compiled_bansac_search` computes exactly what the loop's steps compute for
     ``c``: the paper's sampler in one-hypothesis batches, its termination, the ``probabilistic``
-    judge (Mahalanobis count, full verification), no rigidity check or the rigidity check, no
-    local optimiser or the consensus refit (which draws nothing), no listeners."""
+    judge (Mahalanobis count, full verification), with or without the rigidity check, with the
+    consensus refit (which draws nothing) or no local optimiser, no listeners."""
     term = c.termination
     return (
         type(c.sampler) is SEARCHED_SAMPLER
