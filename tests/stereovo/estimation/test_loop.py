@@ -580,3 +580,130 @@ def test_a_search_with_nothing_scored_says_why():
     report = degenerate.finish()
     assert report.status == "failed: all samples degenerate" and report.n_degenerate == 3
     assert report.score == -np.inf
+
+
+def test_final_report_returns_float_poses_from_integer_input():
+    problem = _small_problem()
+    model = _FixedResiduals(np.zeros(problem.n))
+    report = final_report(problem, np.eye(3, dtype=np.int64), np.zeros(3, dtype=np.int64),
+                          np.ones(problem.n, dtype=bool), 0.0, None, model, InlierCount(), 9.0, 3, {}, **COUNTS)
+    assert report.status == "ok"
+    assert report.rotation.dtype == np.float64 and report.translation.dtype == np.float64
+
+
+class _Required:
+    """A termination whose bound is set by hand (``bound``; ``zero`` for a count of zero)."""
+
+    def __init__(self, bound, max_iterations=100, zero=None):
+        self.bound, self.max_iterations, self.zero, self.heard = bound, max_iterations, zero, 0
+
+    def required(self, n_inliers, n):
+        return self.zero if n_inliers == 0 and self.zero is not None else self.bound
+
+    def on_new_best(self, inliers, state):
+        self.heard += 1
+
+
+def test_local_refit_is_redundant_only_with_a_refiner_in_the_batch_that_meets_the_bound():
+    from types import SimpleNamespace
+
+    from stereovo.estimation.loop import local_refit_redundant
+
+    best = np.ones(10, dtype=bool)
+    refit = SimpleNamespace(subsumed_by_refinement=True)
+    with_refiner = SimpleNamespace(refiner=object(), local_optimizer=refit, termination=_Required(5))
+    assert local_refit_redundant(with_refiner, 5, best, 10)  # the draws meet the bound exactly
+    assert not local_refit_redundant(with_refiner, 4, best, 10)
+    capped = SimpleNamespace(refiner=object(), local_optimizer=refit, termination=_Required(50, max_iterations=5))
+    assert local_refit_redundant(capped, 5, best, 10)  # the cap ends the search as well
+    no_refiner = SimpleNamespace(refiner=None, local_optimizer=refit, termination=_Required(5))
+    assert not local_refit_redundant(no_refiner, 5, best, 10)  # nothing after it would refit
+    searching = SimpleNamespace(refiner=object(), local_optimizer=SimpleNamespace(subsumed_by_refinement=False),
+                                termination=_Required(5))
+    assert not local_refit_redundant(searching, 5, best, 10)
+
+
+def test_a_fresh_search_holds_no_model():
+    problem = _small_problem(20)
+    search = _scripted_search(problem)
+    np.testing.assert_array_equal(search.best_R, np.eye(3))
+    np.testing.assert_array_equal(search.best_t, np.zeros(3))
+    assert search.best_inliers.dtype == np.bool_ and search.best_inliers.shape == (20,)
+    assert not search.best_inliers.any() and search.best_score == -np.inf and not search.done
+
+
+def test_the_termination_hears_each_new_best_once_listed_or_not():
+    problem = _small_problem(20)
+    for listed in (False, True):
+        termination, other = _Required(100), _Listener()
+        search = _scripted_search(problem, verifier=_ScriptedVerifier([[1, 2], [3, 1]]),
+                                  listeners=[other, termination] if listed else [other])
+        search.components.termination = termination
+        search = RansacSearch(problem, search.components, np.random.default_rng(0))
+        search.step(2)
+        search.step(2)
+        assert termination.heard == 2 and len(other.heard) == 2
+
+
+def test_the_bound_is_asked_only_once_a_model_exists():
+    problem = _small_problem(20)
+    # a termination that would stop at once on a count of zero: a batch with every hypothesis rejected
+    # leaves the cap as the bound
+    search = _scripted_search(problem, verifier=_ScriptedVerifier([[-np.inf, -np.inf]]))
+    search.components.termination = _Required(100, zero=1)
+    search = RansacSearch(problem, search.components, np.random.default_rng(0))
+    search.step(2)
+    assert search.required == 100 and not search.done
+
+
+class _Recorder:
+    """A sampler recording what the feedback hook hands it."""
+
+    def __init__(self, n):
+        from stereovo.estimation.roles.samplers import UniformSampler
+
+        self.inner, self.seen = UniformSampler(n), []
+
+    def draw(self, batch, rng):
+        return self.inner.draw(batch, rng)
+
+    def on_hypotheses(self, R, t, inlier_masks, residual_sq, state):
+        self.seen.append((t.copy(), inlier_masks.copy(), state.best_score,
+                          None if state.best_inliers is None else state.best_inliers.copy()))
+
+
+def test_feedback_gets_the_batch_its_inliers_below_the_gate_and_the_best_so_far():
+    problem = _small_problem(20)
+    sq = np.zeros(20)
+    sq[:5] = 1.0  # exactly on the gate (threshold_sq 1.0): not inliers
+    search = _scripted_search(problem, verifier=_ScriptedVerifier([[2, 1], [1, 3]]), residual_model=_FixedResiduals(sq))
+    recorder = _Recorder(20)
+    search.components.sampler = recorder
+    search = RansacSearch(problem, search.components, np.random.default_rng(0))
+    search.step(2)
+    search.step(2)
+    assert len(recorder.seen) == 2
+    for t, masks, best_score, best_inliers in recorder.seen:
+        assert t.shape == (2, 3) and np.isfinite(t).all()
+        assert masks.shape == (2, 20) and not masks[:, :5].any() and masks[:, 5:].all()
+        assert best_inliers is not None and best_inliers.shape == (20,)
+    assert [seen[2] for seen in recorder.seen] == [2.0, 3.0]  # the best after each batch's update
+    np.testing.assert_array_equal(recorder.seen[1][3], search.best_inliers)
+
+
+def test_degenerate_samples_are_counted_over_batches():
+    problem = _small_problem(20)
+    search = _scripted_search(problem)
+    search.components.sampler = type("Same", (), {"draw": lambda self, b, rng: np.zeros((b, 3), dtype=np.int64)})()
+    search.step(3)
+    search.step(2)
+    assert search.finish().n_degenerate == 5
+
+
+def test_a_search_with_nothing_scored_reports_its_components_counters():
+    problem = _small_problem(20)
+    search = _scripted_search(problem, sample_check=_DropFirst(4))
+    search.components.sampler = _CountingSampler(search.components.sampler)
+    search.step(4)
+    report = search.finish()
+    assert report.status.startswith("failed: no sample passed") and report.counters == {"batches_seen": 0}
