@@ -207,9 +207,44 @@ def method_spec(name: str) -> MethodSpec:
     return _METHODS[name]
 
 
+_SPLIT_CACHE: dict[tuple, tuple[MethodSpec, EstimatorOptions, dict[str, Any]]] = {}
+_SPLIT_CACHE_SIZE = 256
+_CACHEABLE_VALUES = (bool, int, float, str, type(None), np.bool_, np.integer, np.floating)
+
+
+def _split_key(spec: MethodSpec, options: Mapping[str, Any]) -> tuple | None:
+    """The cache key of a call's options: names, value types and values (``1``, ``1.0`` and ``True``
+    hash alike but are checked differently), or None where a value is not a plain scalar."""
+    items = []
+    for name, value in options.items():
+        if not isinstance(value, _CACHEABLE_VALUES):
+            return None
+        items.append((name, type(value), value))
+    return (spec.name, tuple(sorted(items, key=lambda item: item[0])))
+
+
 def split_options(spec: MethodSpec, options: Mapping[str, Any]) -> tuple[EstimatorOptions, dict[str, Any]]:
     """``options`` of a call to method ``spec`` as its :class:`EstimatorOptions` (the method's
-    :attr:`~MethodSpec.defaults` under the given shared options) and its own options, validated."""
+    :attr:`~MethodSpec.defaults` under the given shared options) and its own options, validated.
+
+    A call with the scalar options of an earlier one gets that call's result (the method's own
+    options as a fresh dict): deriving and checking them costs as much as the search of an easy
+    frame, and the benchmarks and scripts repeat one call frame after frame. Options that were
+    refused are not kept, so they are refused again."""
+    key = _split_key(spec, options)
+    cached = _SPLIT_CACHE.get(key) if key is not None else None
+    if cached is not None and cached[0] is spec:
+        return cached[1], dict(cached[2])
+    shared, extra = _split_options(spec, options)
+    if key is not None:
+        if len(_SPLIT_CACHE) >= _SPLIT_CACHE_SIZE:
+            _SPLIT_CACHE.clear()
+        _SPLIT_CACHE[key] = (spec, shared, dict(extra))
+    return shared, extra
+
+
+def _split_options(spec: MethodSpec, options: Mapping[str, Any]) -> tuple[EstimatorOptions, dict[str, Any]]:
+    """:func:`split_options` without the cache."""
     extra = spec.check_options({k: v for k, v in options.items() if k not in SHARED_OPTIONS})
     given = {k: v for k, v in options.items() if k in SHARED_OPTIONS}
     merged = {**spec.defaults, **given}

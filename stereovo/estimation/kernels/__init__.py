@@ -30,6 +30,7 @@ The kernels by role (import each name from its module):
 - :mod:`~stereovo.estimation.kernels.residuals`: symmetric residuals and Jacobians, the forward error;
 - :mod:`~stereovo.estimation.kernels.least_squares`: Gauss-Newton / Levenberg-Marquardt;
 - :mod:`~stereovo.estimation.kernels.mahalanobis`: the 3D and the pixel Mahalanobis residuals;
+- :mod:`~stereovo.estimation.kernels.scores`: the inlier count of a batch;
 - :mod:`~stereovo.estimation.kernels.fitting`: rigid fits, minimal-sample fits, degeneracy;
 - :mod:`~stereovo.estimation.kernels.rigidity`: the rigid-distance test (plain and compiled);
 - :mod:`~stereovo.estimation.kernels.depth`: which rows have a resolvable depth;

@@ -16,6 +16,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from stereovo.estimation.kernels.mahalanobis import mahalanobis_sq, pixel_mahalanobis_sq
+from stereovo.estimation.kernels.scores import count_below
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.roles.reprojection import reprojection_sq
 
@@ -119,7 +120,10 @@ class InlierCount:
     saturates: bool = True
 
     def score(self, residual_sq: np.ndarray, threshold_sq: float) -> np.ndarray:
-        return np.sum(residual_sq < threshold_sq, axis=-1, dtype=float)
+        sq = np.asarray(residual_sq)
+        if sq.ndim == 2 and sq.dtype == np.float64:  # a batch: counted compiled, the same integers
+            return count_below(np.ascontiguousarray(sq), float(threshold_sq))
+        return np.sum(sq < threshold_sq, axis=-1, dtype=float)
 
 
 @dataclass(frozen=True)

@@ -37,7 +37,8 @@ def required_iterations(
     One count gives an ``int`` (scalar arithmetic: the loop asks after every batch); an array of
     counts gives an int64 array of the same shape.
     """
-    if np.ndim(n_inliers) > 0:
+    # one count, the loop's case after every batch: np.ndim costs more than the cached bound
+    if not isinstance(n_inliers, (int, np.integer)) and np.ndim(n_inliers) > 0:
         counts = np.asarray(n_inliers)
         bounds = [required_iterations(int(i), n, confidence, max_iterations, sample_size) for i in counts.ravel()]
         return np.array(bounds, dtype=np.int64).reshape(counts.shape)

@@ -443,3 +443,11 @@ def test_estimate_problem_scatters_like_estimate_motion(frame):
     b = estimate_motion(prev, curr, CAMERA, rng=4)
     np.testing.assert_array_equal(a.inliers, b.inliers)
     np.testing.assert_array_equal(a.unusable, b.unusable)
+
+
+@pytest.mark.parametrize("seed", [0, 7, 2**63, np.int64(11), np.uint32(3), np.random.SeedSequence(5)])
+def test_a_seed_gives_numpys_default_generator_stream(seed):
+    from stereovo.estimation.api import as_generator
+
+    np.testing.assert_array_equal(as_generator(seed).random(8), np.random.default_rng(seed).random(8))
+    assert type(as_generator(seed).bit_generator) is np.random.PCG64

@@ -422,3 +422,288 @@ def test_runner_up_refit_at_its_bounds_and_on_scored_residuals():
         assert [score for score, _, _ in refit.calls] == expected and search.runner_up_runs == 1
         if isinstance(verifier, FullVerification):
             assert search.checks == 4 * problem.n + 2 * 7  # scoring, then two refits; no inlier recount
+
+
+class _FixedResiduals:
+    """The same squared residuals ``(N,)`` under every hypothesis, whatever its pose."""
+
+    def __init__(self, sq):
+        self.sq = np.asarray(sq, dtype=float)
+
+    def squared(self, problem, R, t, cap=None):
+        return np.tile(self.sq, (np.shape(R)[0], 1))
+
+
+class _RecordingRefiner:
+    """Returns a set pose (and no residuals: the caller scores it) and records each call."""
+
+    def __init__(self, R, t, gate=None, rounds=2):
+        self.R, self.t, self.gate, self.rounds, self.calls = R, t, gate, rounds, 0
+
+    def refine_with_residuals(self, problem, R, t, inliers, residual_model, threshold_sq):
+        self.calls += 1
+        return self.R, self.t, inliers, None
+
+
+def _small_problem(n=12):
+    rng = np.random.default_rng(5)
+    prev, curr = noise_free_pair(rng, random_rotation(rng, 0.05), np.array([0.1, 0.0, -1.0]), n)
+    return StereoProblem.build(prev, curr, CAMERA)
+
+
+def test_final_report_at_the_bounds_of_its_gate_and_its_count():
+    """Exactly ``min_inliers`` rows under the gate is a consensus; a residual equal to the gate is not
+    under it; the report keeps the gate, the score and float poses; the refinement's point checks
+    are added to the caller's."""
+    problem = _small_problem()
+    n = problem.n
+    sq = np.full(n, 9.0)
+    sq[:3] = 1.0  # three inliers; the others sit exactly on the gate, which they do not pass
+    model = _FixedResiduals(sq)
+    R_int, t = np.eye(3, dtype=np.int64), np.zeros(3)
+    inliers = np.zeros(n, dtype=bool)
+    inliers[:3] = True
+    refiner = _RecordingRefiner(np.eye(3), np.zeros(3))
+    report = final_report(problem, R_int, t, inliers, 0.0, refiner, model, InlierCount(), 9.0, 3, {},
+                          **{**COUNTS, "n_point_checks": 5})
+    assert report.status == "ok" and report.inliers.sum() == 3 and not report.inliers[3:].any()
+    assert refiner.calls == 1  # three inliers are enough to refine
+    assert report.score == 3.0 and report.gate == (model, 9.0)
+    assert report.rotation.dtype == np.float64 and report.translation.dtype == np.float64
+    # scored before (n), refined (n a round) and the refined pose scored anew (n)
+    assert report.n_point_checks == 5 + n + refiner.rounds * n + n
+    counts = {k: v for k, v in COUNTS.items()}
+    without = final_report(problem, R_int, t, inliers, 0.0, _RecordingRefiner(np.eye(3), np.zeros(3)), model,
+                           InlierCount(), 9.0, 3, {}, **counts)
+    assert without.n_point_checks == n + 2 * n + n
+    # one more inlier asked for than there is: no consensus, and the failure names both counts
+    short = final_report(problem, R_int, t, inliers, 0.0, None, model, InlierCount(), 9.0, 4, {}, **COUNTS)
+    assert short.status == "failed: no consensus (best model has 3 inliers under its final gate, need 4)"
+    assert short.score == 3.0 and short.gate == (model, 9.0) and short.n_point_checks == n
+    # a refiner's own gate judges the final inliers, not the method's
+    wide = _FixedResiduals(np.zeros(n))
+    gated = final_report(problem, np.eye(3), t, inliers, 0.0, _RecordingRefiner(np.eye(3), t, gate=(wide, 2.0)),
+                         model, InlierCount(), 9.0, 3, {}, **COUNTS)
+    assert gated.gate == (wide, 2.0) and gated.inliers.all()
+
+
+def test_final_report_with_too_few_inliers_to_refine_and_a_non_finite_translation():
+    problem = _small_problem()
+    n = problem.n
+    model = _FixedResiduals(np.zeros(n))
+    two = np.zeros(n, dtype=bool)
+    two[:2] = True
+    refiner = _RecordingRefiner(np.eye(3), np.zeros(3))
+    report = final_report(problem, np.eye(3), np.zeros(3), two, 0.0, refiner, model, InlierCount(), 9.0, 3, {},
+                          **COUNTS)
+    assert refiner.calls == 0 and report.status == "ok"  # two inliers are not refined; all n pass the gate
+    # a refinement to a finite rotation with a non-finite translation is rolled back, even where the
+    # gate would pass every row under it
+    all_rows = np.ones(n, dtype=bool)
+    bad_t = final_report(problem, np.eye(3), np.zeros(3), all_rows, 0.0,
+                         _RecordingRefiner(np.eye(3), np.array([np.nan, 0.0, 0.0])), model, InlierCount(), 9.0, 3,
+                         {}, **COUNTS)
+    assert bad_t.status == "ok" and bad_t.counters["refine_rolled_back"] == 1
+    np.testing.assert_array_equal(bad_t.translation, np.zeros(3))
+    # a non-finite translation to start from fails, with the reason, and keeps the score it was given
+    failed = final_report(problem, np.eye(3), np.array([0.0, np.inf, 0.0]), all_rows, 0.0, None, model,
+                          InlierCount(), 9.0, 3, {}, **COUNTS)
+    assert failed.status == "failed: the best model is not finite" and failed.score == float(n)
+    assert not failed.inliers.any()
+
+
+class _DropFirst:
+    """A sample check that removes the first ``k`` samples of every batch."""
+
+    def __init__(self, k):
+        self.k = k
+
+    def accept(self, problem, samples):
+        keep = np.ones(samples.shape[0], dtype=bool)
+        keep[: self.k] = False
+        return keep
+
+
+class _Budget:
+    def __init__(self, budget):
+        self.max_iterations, self.is_budget = budget, True
+
+    def required(self, n_inliers, n):
+        return self.max_iterations
+
+
+def _scripted_search(problem, sample_check=None, verifier=None, optimiser=None, residual_model=None, batch=4,
+                     listeners=()):
+    from stereovo.estimation.roles.samplers import UniformSampler
+
+    components = RansacComponents(
+        sampler=UniformSampler(problem.n), residual_model=residual_model or _ZeroResidual(), quality=InlierCount(),
+        threshold_sq=1.0, termination=_Budget(100), verifier=verifier or FullVerification(),
+        local_optimizer=optimiser, refiner=None, batch_size=batch, polish_iterations=0, sample_check=sample_check,
+        listeners=list(listeners),
+    )
+    return RansacSearch(problem, components, np.random.default_rng(0))
+
+
+def test_search_counts_rejected_degenerate_and_local_runs_and_reports_them():
+    problem = _small_problem(20)
+    box = []
+    refit = _ScriptedRefit(box, wins={})
+    listener = _Listener()
+    search = _scripted_search(problem, sample_check=_DropFirst(1), verifier=_ScriptedVerifier([[1, 2, 3], [5, 4, 4]]),
+                              optimiser=refit, listeners=[listener])
+    box.append(search)
+    search.step(4)
+    search.step(4)
+    assert (search.drawn, search.rejected, search.scored) == (8, 2, 6)
+    assert search.local_runs == 2 and search.found_at == 8 and search.best_score == 5.0
+    # the verifier's checks, the two new bests' inliers (computed: nothing kept), 7 a refit
+    assert search.checks == 66 + 2 * problem.n + 2 * 7
+    assert listener.heard == [(problem.n, 4, 3.0), (problem.n, 8, 5.0)]
+    report = search.finish()
+    assert report.n_rejected_samples == 2 and report.best_found_at == 8 and report.n_local_optimizations == 2
+    assert report.n_scored == 6 and report.n_hypotheses == 8
+
+
+def test_a_search_with_nothing_scored_says_why():
+    problem = _small_problem(20)
+    rejected = _scripted_search(problem, sample_check=_DropFirst(4))
+    rejected.step(4)
+    rejected.step(4)
+    report = rejected.finish()
+    assert report.status == "failed: no sample passed the sample check (8 of 8 rejected, 0 degenerate)"
+    assert report.score == -np.inf and report.n_rejected_samples == 8 and isinstance(report.counters, dict)
+    # every sample degenerate: three copies of one point
+    degenerate = _scripted_search(problem)
+    degenerate.components.sampler = type("Same", (), {"draw": lambda self, b, rng: np.zeros((b, 3), dtype=np.int64)})()
+    degenerate.step(3)
+    report = degenerate.finish()
+    assert report.status == "failed: all samples degenerate" and report.n_degenerate == 3
+    assert report.score == -np.inf
+
+
+def test_final_report_returns_float_poses_from_integer_input():
+    problem = _small_problem()
+    model = _FixedResiduals(np.zeros(problem.n))
+    report = final_report(problem, np.eye(3, dtype=np.int64), np.zeros(3, dtype=np.int64),
+                          np.ones(problem.n, dtype=bool), 0.0, None, model, InlierCount(), 9.0, 3, {}, **COUNTS)
+    assert report.status == "ok"
+    assert report.rotation.dtype == np.float64 and report.translation.dtype == np.float64
+
+
+class _Required:
+    """A termination whose bound is set by hand (``bound``; ``zero`` for a count of zero)."""
+
+    def __init__(self, bound, max_iterations=100, zero=None):
+        self.bound, self.max_iterations, self.zero, self.heard = bound, max_iterations, zero, 0
+
+    def required(self, n_inliers, n):
+        return self.zero if n_inliers == 0 and self.zero is not None else self.bound
+
+    def on_new_best(self, inliers, state):
+        self.heard += 1
+
+
+def test_local_refit_is_redundant_only_with_a_refiner_in_the_batch_that_meets_the_bound():
+    from types import SimpleNamespace
+
+    from stereovo.estimation.loop import local_refit_redundant
+
+    best = np.ones(10, dtype=bool)
+    refit = SimpleNamespace(subsumed_by_refinement=True)
+    with_refiner = SimpleNamespace(refiner=object(), local_optimizer=refit, termination=_Required(5))
+    assert local_refit_redundant(with_refiner, 5, best, 10)  # the draws meet the bound exactly
+    assert not local_refit_redundant(with_refiner, 4, best, 10)
+    capped = SimpleNamespace(refiner=object(), local_optimizer=refit, termination=_Required(50, max_iterations=5))
+    assert local_refit_redundant(capped, 5, best, 10)  # the cap ends the search as well
+    no_refiner = SimpleNamespace(refiner=None, local_optimizer=refit, termination=_Required(5))
+    assert not local_refit_redundant(no_refiner, 5, best, 10)  # nothing after it would refit
+    searching = SimpleNamespace(refiner=object(), local_optimizer=SimpleNamespace(subsumed_by_refinement=False),
+                                termination=_Required(5))
+    assert not local_refit_redundant(searching, 5, best, 10)
+
+
+def test_a_fresh_search_holds_no_model():
+    problem = _small_problem(20)
+    search = _scripted_search(problem)
+    np.testing.assert_array_equal(search.best_R, np.eye(3))
+    np.testing.assert_array_equal(search.best_t, np.zeros(3))
+    assert search.best_inliers.dtype == np.bool_ and search.best_inliers.shape == (20,)
+    assert not search.best_inliers.any() and search.best_score == -np.inf and not search.done
+
+
+def test_the_termination_hears_each_new_best_once_listed_or_not():
+    problem = _small_problem(20)
+    for listed in (False, True):
+        termination, other = _Required(100), _Listener()
+        search = _scripted_search(problem, verifier=_ScriptedVerifier([[1, 2], [3, 1]]),
+                                  listeners=[other, termination] if listed else [other])
+        search.components.termination = termination
+        search = RansacSearch(problem, search.components, np.random.default_rng(0))
+        search.step(2)
+        search.step(2)
+        assert termination.heard == 2 and len(other.heard) == 2
+
+
+def test_the_bound_is_asked_only_once_a_model_exists():
+    problem = _small_problem(20)
+    # a termination that would stop at once on a count of zero: a batch with every hypothesis rejected
+    # leaves the cap as the bound
+    search = _scripted_search(problem, verifier=_ScriptedVerifier([[-np.inf, -np.inf]]))
+    search.components.termination = _Required(100, zero=1)
+    search = RansacSearch(problem, search.components, np.random.default_rng(0))
+    search.step(2)
+    assert search.required == 100 and not search.done
+
+
+class _Recorder:
+    """A sampler recording what the feedback hook hands it."""
+
+    def __init__(self, n):
+        from stereovo.estimation.roles.samplers import UniformSampler
+
+        self.inner, self.seen = UniformSampler(n), []
+
+    def draw(self, batch, rng):
+        return self.inner.draw(batch, rng)
+
+    def on_hypotheses(self, R, t, inlier_masks, residual_sq, state):
+        self.seen.append((t.copy(), inlier_masks.copy(), state.best_score,
+                          None if state.best_inliers is None else state.best_inliers.copy()))
+
+
+def test_feedback_gets_the_batch_its_inliers_below_the_gate_and_the_best_so_far():
+    problem = _small_problem(20)
+    sq = np.zeros(20)
+    sq[:5] = 1.0  # exactly on the gate (threshold_sq 1.0): not inliers
+    search = _scripted_search(problem, verifier=_ScriptedVerifier([[2, 1], [1, 3]]), residual_model=_FixedResiduals(sq))
+    recorder = _Recorder(20)
+    search.components.sampler = recorder
+    search = RansacSearch(problem, search.components, np.random.default_rng(0))
+    search.step(2)
+    search.step(2)
+    assert len(recorder.seen) == 2
+    for t, masks, best_score, best_inliers in recorder.seen:
+        assert t.shape == (2, 3) and np.isfinite(t).all()
+        assert masks.shape == (2, 20) and not masks[:, :5].any() and masks[:, 5:].all()
+        assert best_inliers is not None and best_inliers.shape == (20,)
+    assert [seen[2] for seen in recorder.seen] == [2.0, 3.0]  # the best after each batch's update
+    np.testing.assert_array_equal(recorder.seen[1][3], search.best_inliers)
+
+
+def test_degenerate_samples_are_counted_over_batches():
+    problem = _small_problem(20)
+    search = _scripted_search(problem)
+    search.components.sampler = type("Same", (), {"draw": lambda self, b, rng: np.zeros((b, 3), dtype=np.int64)})()
+    search.step(3)
+    search.step(2)
+    assert search.finish().n_degenerate == 5
+
+
+def test_a_search_with_nothing_scored_reports_its_components_counters():
+    problem = _small_problem(20)
+    search = _scripted_search(problem, sample_check=_DropFirst(4))
+    search.components.sampler = _CountingSampler(search.components.sampler)
+    search.step(4)
+    report = search.finish()
+    assert report.status.startswith("failed: no sample passed") and report.counters == {"batches_seen": 0}
