@@ -38,5 +38,6 @@ The kernels by role (import each name from its module):
 - :mod:`~stereovo.estimation.kernels.refinement`: the refine / re-gate rounds;
 - :mod:`~stereovo.estimation.kernels.verification`: early rejection (T(d,d), SPRT) and the guided stopping bound;
 - :mod:`~stereovo.estimation.kernels.beliefs`: BANSAC's and ARS's belief updates and draws;
+- :mod:`~stereovo.estimation.kernels.bansac_runner`: BANSAC's and ARS's compiled searches;
 - :mod:`~stereovo.estimation.kernels.covariance`: the normal equations of the pose covariance.
 """

@@ -65,6 +65,9 @@ all-inlier sample was drawn with ``confidence``: ``1 - prod_t (1 - prod_{j in S_
 scaled so the largest is ``prior_ceiling`` (:data:`PRIOR_CEILING` by default).
 
 This module also declares the belief and ``bansac_*`` options and registers ``bansac`` and ``p-bansac``.
+It runs past 600 lines because the paper's sampler and stop, the glue of their compiled search
+(:mod:`stereovo.estimation.kernels.bansac_runner`) and the project's verdict-likelihood variant share
+these options and one builder; splitting them would make the modules import each other.
 """
 
 from __future__ import annotations
