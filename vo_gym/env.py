@@ -26,6 +26,7 @@ from stereovo.options import real_array
 from stereovo.simulation import Frame, Sequence
 from vo_gym.action_box import ActionBox
 from vo_gym.features import FEATURE_BOUND, FEATURE_LAYOUT_VERSION, FEATURE_NAMES, N_FEATURES, compute_features
+from vo_gym.ordering import descending_order
 from vo_gym.rewards import inlier_reward, msac_reward, pose_error_ratio, supervised_reward
 from vo_gym.settings import (
     DEFAULT_ESTIMATOR_OPTIONS,
@@ -378,7 +379,7 @@ class StereoVOEnv(gym.Env):
             logits = values * self.logit_scale
             priors = np.exp(logits - logits.max())
         else:
-            order = np.argsort(-values, kind="stable")
+            order = descending_order(values)  # np.argsort(-values, kind="stable"), by radix
 
         est = self._estimator.estimate(self._problem, priors=priors, order=order, rng=self._ransac_rng)
         metrics = frame_metrics(est, frame.truth)

@@ -71,6 +71,7 @@ from stereovo.estimation.problem import StereoProblem, as_measurements
 from stereovo.estimation.roles.reprojection import reprojection_sq
 from stereovo.estimation.kernels.rigidity import distance_change_sq_jit, rigid_distance_consistent_jit
 from stereovo.options import real_array
+from vo_gym.ordering import descending_order
 
 __all__ = [
     "FEATURE_NAMES",
@@ -183,7 +184,7 @@ def rigid_consistency_degree(
     elif priority is None:
         anchors = np.linspace(0, n - 1, MAX_ANCHORS).round().astype(np.int64)
     else:
-        order = np.argsort(-np.asarray(priority), kind="stable") if priority_order is None else priority_order
+        order = descending_order(np.asarray(priority)) if priority_order is None else priority_order
         anchors = np.sort(order[:MAX_ANCHORS])
     s2 = np.square(np.asarray(spread, dtype=float))
     count = _consistent_pairs(
@@ -423,7 +424,7 @@ def compute_features(
         cov_prev, cov_curr = problem.cov_prev, problem.cov_curr
         usable = problem.usable
 
-    by_score = np.argsort(-scores, kind="stable")  # best first; also picks the consistency anchors
+    by_score = descending_order(scores)  # np.argsort(-scores, kind="stable"): best first; also picks the anchors
     u_scale, v_scale = 2.0 / max(camera.width - 1, 1), 2.0 / max(camera.height - 1, 1)
     spread = np.empty(n)  # the root of the summed covariance traces at k-1 and k
     _plain_columns(out, scores, by_score, prev, curr, u_scale, v_scale, _DISPARITY_REF / camera.fx,
