@@ -556,3 +556,25 @@ def test_anchor_fractions_are_numpys_formulation():
         expected = ((count - is_anchor) / (anchors.size - is_anchor)).astype(np.float32)
         ours = _anchor_fractions(count, anchors, np.empty(n, dtype=np.float32))
         assert ours.dtype == np.float32 and ours.tobytes() == expected.tobytes()
+
+
+def test_screened_counts_share_the_anchor_pairs_as_the_test_counts_them():
+    """Each pair of two anchors is tested once and counted for both: the counts are the test's for
+    sorted, unsorted and repeated anchors, coincident points, a zero spread and pairs near the gate."""
+    rng = np.random.default_rng(7)
+    for trial in range(300):
+        n = int(rng.integers(0, 600))
+        P = rng.uniform([-20, -5, 3], [20, 5, 60], (n, 3))
+        Q = P * (1 + 1e-3) + rng.normal(0, 0.01 * (trial % 3), (n, 3))  # trial % 3 == 0: many near the gate
+        s2 = np.full(n, 1e-4) * rng.uniform(0.5, 1.5, n)
+        if trial % 4 == 0 and n:
+            s2[rng.integers(0, n)] = 0.0
+        if trial % 5 == 0 and n > 3:
+            P[1], Q[1] = P[2], Q[2]
+        anchors = np.sort(rng.permutation(n)[: min(n, int(rng.integers(1, 300)))]).astype(np.int64)
+        if trial % 7 == 0:
+            anchors = rng.permutation(anchors)
+        if trial % 9 == 0 and anchors.size > 2:
+            anchors[1] = anchors[0]
+        args = (P, Q, s2, anchors, 9.0)
+        np.testing.assert_array_equal(F._consistent_pairs(*args), F._consistent_pairs_exact(*args))
