@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from stereovo.estimation import EstimatorOptions, StereoProblem
 from stereovo.estimation.loop import LoopState, RansacSearch
@@ -48,6 +49,52 @@ GLOBAL_FEATURE_NAMES: tuple[str, ...] = (
 was scored; ``log(1 + angle / 0.1 deg)`` and ``log(1 + |dt| / 5 cm)`` of the best model's motion against
 the previous frame's (constant-velocity prediction; 0 without one); 1 when a previous motion is known;
 the belief-weighted support of the hypothesis the frame would end on now, under the last action."""
+
+
+_LOG1P_COUNTS = np.log1p(np.arange(65, dtype=np.float64))  # grown by observation_rows when a frame scores more
+
+
+def observation_rows(features: np.ndarray, best_column: np.ndarray | None, best_inliers: np.ndarray,
+                     votes: np.ndarray, scored: int, rows: int) -> np.ndarray:
+    """The observation's ``(rows, F + 4)`` float32 block (:meth:`InFrameSearch.observation`): the frame
+    features ``(N, F)``, then :data:`LOOP_FEATURE_NAMES` from ``best_column`` (``log1p(e^2 / T^2)``
+    under the best model, None before the first one, when it and ``in_best`` are 0), ``best_inliers``
+    ``(N,)`` bool and ``votes`` ``(N,)`` int64 of ``scored`` hypotheses, clipped to the bound; rows past
+    N are 0.
+
+    One compiled pass instead of a dozen numpy calls on ``(N, 4)`` and ``(N, 18)`` arrays, the values
+    numpy's: the vote share is the same float64 quotient, ``log1p`` of a count is read from a table
+    numpy computed (counts are integers up to ``scored``), the clip compares as ``np.maximum`` /
+    ``np.minimum`` do and the float32 casts round alike (``tests/vo_gym/test_in_frame.py``).
+    """
+    global _LOG1P_COUNTS
+    if scored >= _LOG1P_COUNTS.shape[0]:
+        _LOG1P_COUNTS = np.log1p(np.arange(max(scored + 1, 2 * _LOG1P_COUNTS.shape[0]), dtype=np.float64))
+    n = features.shape[0]
+    has_best = best_column is not None
+    column = best_column if has_best else np.zeros(n)
+    inliers = best_inliers if has_best else np.zeros(n, dtype=bool)
+    out = np.zeros((rows, features.shape[1] + len(LOOP_FEATURE_NAMES)), dtype=np.float32)
+    _observation_rows(out, features, column, inliers, votes, scored, _LOG1P_COUNTS, FEATURE_BOUND)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _observation_rows(out, features, best_column, best_inliers, votes, scored, log1p_counts, bound):
+    """In place into ``out``'s first N rows (see :func:`observation_rows`)."""
+    n, f = features.shape
+    share = float(max(scored, 1))
+    for i in range(n):
+        for j in range(f):
+            out[i, j] = features[i, j]
+        loop = (best_column[i], votes[i] / share, log1p_counts[votes[i]], 1.0 if best_inliers[i] else 0.0)
+        for j in range(4):
+            x = loop[j]
+            if x < -bound:  # np.maximum(x, -bound): NaN stays NaN
+                x = -bound
+            if x > bound:
+                x = bound
+            out[i, f + j] = np.float32(x)
 
 
 MASK_ROWS_START = 64  # rows of a frame's mask buffer at first (doubled when a frame scores more)
@@ -144,6 +191,7 @@ class InFrameSearch:
         self.search = RansacSearch(problem, components, rng)
         self.best_residual: np.ndarray | None = None
         self._best_column: tuple[np.ndarray | None, np.ndarray | None] = (None, None)  # (residual, its column)
+        self._best_distance: tuple = (None, None, 0.0, 0.0)  # (best_R, best_t, globals 3 and 4 of them)
         self.weights = np.full(problem.n, 1.0 / problem.n)
 
     @property
@@ -205,19 +253,13 @@ class InFrameSearch:
         n = self.problem.n
         M = n if max_correspondences is None else int(max_correspondences)
         scored = sampler.n_scored()
-        loop = np.zeros((n, len(LOOP_FEATURE_NAMES)), dtype=np.float64)
+        best_column = None
         if self.best_residual is not None:
             # the best model's column changes only with the best model: kept for the steps between
             if self._best_column[0] is not self.best_residual:
                 self._best_column = (self.best_residual, np.log1p(self.best_residual / search.components.threshold_sq))
-            loop[:, 0] = self._best_column[1]
-            loop[:, 3] = search.best_inliers
-        loop[:, 1] = sampler.votes / max(scored, 1)
-        loop[:, 2] = np.log1p(sampler.votes)
-        features = np.zeros((M, N_FEATURES + len(LOOP_FEATURE_NAMES)), dtype=np.float32)
-        features[:n, :N_FEATURES] = self.features
-        # np.clip's values without its Python wrapper (twice a step)
-        features[:n, N_FEATURES:] = np.minimum(np.maximum(loop, -FEATURE_BOUND, out=loop), FEATURE_BOUND, out=loop)
+            best_column = self._best_column[1]
+        features = observation_rows(self.features, best_column, search.best_inliers, sampler.votes, scored, M)
         mask = np.zeros(M, dtype=np.int8)
         mask[:n] = 1
         g = np.zeros(len(GLOBAL_FEATURE_NAMES))
@@ -227,10 +269,15 @@ class InFrameSearch:
         if self.previous_motion is not None:
             g[5] = 1.0
             if scored:
-                R_prev, t_prev = self.previous_motion
-                cos = (np.trace(search.best_R @ R_prev.T) - 1) / 2
-                g[3] = math.log1p(math.degrees(math.acos(min(max(cos, -1.0), 1.0))) / 0.1)
-                g[4] = math.log1p(float(np.linalg.norm(search.best_t - t_prev)) / 0.05)
+                # the best model's distance from the prediction changes only with the best model (the
+                # loop replaces best_R and best_t, never writes into them): kept for the steps between
+                if self._best_distance[0] is not search.best_R or self._best_distance[1] is not search.best_t:
+                    R_prev, t_prev = self.previous_motion
+                    cos = (np.trace(search.best_R @ R_prev.T) - 1) / 2
+                    self._best_distance = (search.best_R, search.best_t,
+                                           math.log1p(math.degrees(math.acos(min(max(cos, -1.0), 1.0))) / 0.1),
+                                           math.log1p(float(np.linalg.norm(search.best_t - t_prev)) / 0.05))
+                g[3], g[4] = self._best_distance[2], self._best_distance[3]
         chosen = sampler.select(self.weights)
         if chosen is not None:
             g[6] = float(sampler.scored_masks[chosen] @ self.weights)
