@@ -71,7 +71,7 @@ from stereovo.estimation.problem import StereoProblem, as_measurements
 from stereovo.estimation.roles.reprojection import reprojection_sq
 from stereovo.estimation.kernels.rigidity import distance_change_sq_jit, rigid_distance_consistent_jit
 from stereovo.options import real_array
-from vo_gym.ordering import descending_order
+from vo_gym.ordering import descending_order, finite_descending_order
 
 __all__ = [
     "FEATURE_NAMES",
@@ -143,9 +143,31 @@ def check_feature_layout(names: Sequence[str], version: int) -> None:
         )
 
 
+_NOISE_SIGMAS: dict[float, float] = {}  # floats that passed the rule (an environment asks for one every frame)
+
+
+def _checked_noise_sigma(noise_sigma) -> float:
+    """The estimator's own rule for noise_sigma (the one options contract), so both accept the same
+    values; a float that passed it once is not checked again (the rule's answer is the same)."""
+    if type(noise_sigma) is float and noise_sigma in _NOISE_SIGMAS:
+        return _NOISE_SIGMAS[noise_sigma]
+    checked = ESTIMATOR_OPTION_RULES["noise_sigma"].check("noise_sigma", noise_sigma, prefix="")
+    if type(noise_sigma) is float and len(_NOISE_SIGMAS) < 64:
+        _NOISE_SIGMAS[noise_sigma] = checked
+    return checked
+
+
 def _validate_motion(previous_motion) -> tuple[np.ndarray, np.ndarray] | None:
     if previous_motion is None:
         return None
+    if type(previous_motion) is tuple and len(previous_motion) == 2:
+        # the common case (an environment's last motion): float64 arrays of the right shapes, whose
+        # twelve values are read as floats (numpy's isfinite on each costs more than the test)
+        R, t = previous_motion
+        if (type(R) is np.ndarray and type(t) is np.ndarray and R.dtype == np.float64 and t.dtype == np.float64
+                and R.shape == (3, 3) and t.shape == (3,)
+                and all(map(math.isfinite, R.ravel().tolist())) and all(map(math.isfinite, t.tolist()))):
+            return R, t
     try:
         R, t = previous_motion
     except (TypeError, ValueError):
@@ -442,10 +464,10 @@ def compute_features(
     if curr.shape[0] != n:
         raise ValueError(f"prev and curr must have the same number of rows, got {n} and {curr.shape[0]}")
     scores = real_array("scores", scores, (n,), what=f"a finite ({n},) array of numbers")
-    if not np.isfinite(scores).all():
+    by_score = finite_descending_order(scores)  # best first; also picks the consistency anchors
+    if by_score is None:
         raise ValueError(f"scores must be finite, got NaN or inf in {np.count_nonzero(~np.isfinite(scores))} row(s)")
-    # The estimator's own rule for noise_sigma (the one options contract), so both accept the same values.
-    noise_sigma = ESTIMATOR_OPTION_RULES["noise_sigma"].check("noise_sigma", noise_sigma, prefix="")
+    noise_sigma = _checked_noise_sigma(noise_sigma)
     motion = _validate_motion(previous_motion)
 
     out = np.zeros((n, N_FEATURES), dtype=np.float32)
@@ -466,7 +488,6 @@ def compute_features(
         cov_prev, cov_curr = problem.cov_prev, problem.cov_curr
         usable = problem.usable
 
-    by_score = descending_order(scores)  # np.argsort(-scores, kind="stable"): best first; also picks the anchors
     u_scale, v_scale = 2.0 / max(camera.width - 1, 1), 2.0 / max(camera.height - 1, 1)
     spread = np.empty(n)  # the root of the summed covariance traces at k-1 and k
     _plain_columns(out, scores, by_score, prev, curr, u_scale, v_scale, _DISPARITY_REF / camera.fx,
@@ -491,6 +512,20 @@ def compute_features(
         out[~usable, 11] = 0.0
         out[~usable, 13] = 0.0
         out[~usable, 2:8] = np.nan_to_num(out[~usable, 2:8], nan=0.0)  # a NaN row's pixels say nothing
-    # np.clip(out, -FEATURE_BOUND, FEATURE_BOUND, out=out) without its Python wrapper: the same values
-    np.minimum(np.maximum(out, -FEATURE_BOUND, out=out), FEATURE_BOUND, out=out)
+    return _clip_in_place(out, FEATURE_BOUND)
+
+
+@njit(cache=True, nogil=True)
+def _clip_in_place(out, bound):
+    """``np.clip(out, -bound, bound, out=out)`` of a float32 array in one pass, numpy's values
+    (``np.maximum``, then ``np.minimum``: a NaN stays NaN; the bound is a float32 number)."""
+    low, high = np.float32(-bound), np.float32(bound)
+    flat = out.reshape(-1)
+    for i in range(flat.shape[0]):
+        x = flat[i]
+        if x < low:
+            x = low
+        if x > high:
+            x = high
+        flat[i] = x
     return out

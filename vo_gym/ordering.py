@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["descending_order"]
+__all__ = ["descending_order", "finite_descending_order"]
 
 _SIGN64 = np.uint64(1 << 63)
 _SIGN32 = np.uint32(1 << 31)
@@ -29,13 +29,29 @@ def descending_order(values: np.ndarray) -> np.ndarray:
     Finite values go through the radix sort; an array with NaN or inf, of another dtype or
     shape, goes to numpy (whose ordering of NaN the radix keys do not reproduce).
     """
+    order = _radix_descending_order(values)
+    return np.argsort(-np.asarray(values), kind="stable") if order is None else order
+
+
+def finite_descending_order(values: np.ndarray) -> np.ndarray | None:
+    """:func:`descending_order` of 1-D values that are all finite; None when one is NaN or infinite
+    (the check of finite values and the sort in one pass, for callers that refuse them)."""
+    order = _radix_descending_order(values)
+    if order is not None:
+        return order
+    a = np.asarray(values)
+    return np.argsort(-a, kind="stable") if np.isfinite(a).all() else None
+
+
+def _radix_descending_order(values) -> np.ndarray | None:
+    """The radix order of a 1-D float64 or float32 ndarray of finite values; None otherwise."""
     a = values
     if type(a) is np.ndarray and a.ndim == 1 and (a.dtype == np.float64 or a.dtype == np.float32):
         a = np.ascontiguousarray(a)
         order = _descending_order64(a) if a.dtype == np.float64 else _descending_order32(a)
         if order.shape[0] == a.shape[0]:
             return order
-    return np.argsort(-np.asarray(values), kind="stable")
+    return None
 
 
 # The keys: for -v, the bit pattern with its sign bit set when -v >= 0 and every bit flipped when

@@ -59,3 +59,19 @@ def test_the_input_is_left_alone():
     descending_order(x)
     np.testing.assert_array_equal(x, [0.5, -0.0, 0.25])
     assert np.signbit(x[1])
+
+
+def test_finite_order_is_the_order_or_none():
+    from vo_gym.ordering import finite_descending_order
+
+    rng = np.random.default_rng(4)
+    for dtype in (np.float64, np.float32):
+        x = rng.random(300).astype(dtype)
+        np.testing.assert_array_equal(finite_descending_order(x), np.argsort(-x, kind="stable"))
+        for bad in (np.nan, np.inf, -np.inf):
+            y = x.copy()
+            y[17] = bad
+            assert finite_descending_order(y) is None
+    assert finite_descending_order(np.array([np.nan])) is None
+    np.testing.assert_array_equal(finite_descending_order([2, 5, 5]), [1, 2, 0])
+    assert finite_descending_order(np.zeros(0)).shape == (0,)
