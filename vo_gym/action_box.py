@@ -1,4 +1,5 @@
-"""The environments' action space: a Gymnasium ``Box`` whose ``sample()`` costs less.
+"""The environments' action space: a Gymnasium ``Box`` whose ``sample()`` costs less, and the clip of
+an action's values that the environments apply on each step (:func:`clipped_finite`).
 
 Gymnasium's ``Box.sample`` classifies every coordinate as bounded, half-bounded or unbounded
 on each call and draws each class apart (about 25 us for 500 slots, 4 % of a one-shot step
@@ -13,8 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 from gymnasium import spaces
+from numba import njit
 
-__all__ = ["ActionBox"]
+__all__ = ["ActionBox", "clipped_finite"]
 
 
 class ActionBox(spaces.Box):
@@ -41,3 +43,27 @@ class ActionBox(spaces.Box):
             return super().sample(mask, probability)
         low, high = self._bounds
         return self.np_random.uniform(low=low, high=high, size=self.shape).astype(self.dtype)
+
+
+def clipped_finite(values: np.ndarray, bound: float, scale: float = 1.0) -> np.ndarray | None:
+    """``np.minimum(np.maximum(values, -bound), bound) * scale`` of a 1-D float64 array whose values
+    are all finite, in one compiled pass with numpy's values (``bound`` and ``scale`` floats); None when
+    a value is NaN or infinite (the caller says what that means). np.isfinite, two clips and a product
+    cost about 10 us on an action of 500 slots, the compiled pass 1."""
+    out = np.empty(values.shape[0])
+    return out if _clipped_finite(values, float(bound), float(scale), out) else None
+
+
+@njit(cache=True, nogil=True)
+def _clipped_finite(values, bound, scale, out):
+    low = -bound
+    for i in range(values.shape[0]):
+        x = values[i]
+        if not np.isfinite(x):
+            return False
+        if x < low:  # np.maximum(x, -bound); x and the bound are finite
+            x = low
+        if x > bound:
+            x = bound
+        out[i] = x * scale
+    return True
