@@ -108,7 +108,7 @@ class AgentPriorSampler:
     def __init__(self, n: int) -> None:
         self.n = n
         self.weights = np.full(n, 1.0 / n)
-        self._sampler = WeightedDraw(self.weights)
+        self._sampler: WeightedDraw | None = None  # built on the first draw (the search sets weights first)
         self.votes = np.zeros(n, dtype=np.int64)
         # every scored hypothesis' inlier mask, in order (rows [0, scored)): select() reads them each step
         self._all_masks = np.zeros((MASK_ROWS_START, n), dtype=bool)
@@ -126,6 +126,8 @@ class AgentPriorSampler:
         self._sampler = WeightedDraw(weights)
 
     def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
+        if self._sampler is None:
+            self._sampler = WeightedDraw(self.weights)
         return self._sampler.draw(batch, rng)
 
     def on_hypotheses(self, R, t, inlier_masks, residual_sq, state: LoopState) -> None:
