@@ -492,16 +492,22 @@ def compute_features(
     spread = np.empty(n)  # the root of the summed covariance traces at k-1 and k
     _plain_columns(out, scores, by_score, prev, curr, u_scale, v_scale, _DISPARITY_REF / camera.fx,
                    cov_prev, cov_curr, spread)
-    with np.errstate(invalid="ignore"):  # NaN on rows without depth, overwritten below
-        out[:, 8] = np.log(points_prev[:, 2] / _DEPTH_REF_M)
-        out[:, 9] = np.log(points_curr[:, 2] / _DEPTH_REF_M)
-        out[:, 10] = 0.5 * np.log(np.maximum(cov_prev[:, 2, 2], 1e-300))
+    sq = None
     if motion is not None:
         R, t = motion
         sq = reprojection_sq(camera, R[None], t[None], points_prev, curr)[0]  # inf behind the camera
-        with np.errstate(over="ignore", invalid="ignore"):
+    # one errstate for both blocks (the logarithms cannot overflow, so ignoring it there changes no
+    # warning); the logarithms write into their argument's temporary
+    with np.errstate(over="ignore", invalid="ignore"):  # NaN on rows without depth, overwritten below
+        column = points_prev[:, 2] / _DEPTH_REF_M
+        out[:, 8] = np.log(column, out=column)
+        column = points_curr[:, 2] / _DEPTH_REF_M
+        out[:, 9] = np.log(column, out=column)
+        column = np.maximum(cov_prev[:, 2, 2], 1e-300)
+        out[:, 10] = 0.5 * np.log(column, out=column)
+        if sq is not None:
             out[:, 11] = np.log1p(np.sqrt(sq / 4.0) / noise_sigma)
-        out[:, 12] = 1.0
+            out[:, 12] = 1.0
     if usable is None:
         out[:, 13] = rigid_consistency_degree(points_prev, points_curr, spread, priority=scores, priority_order=by_score)
     else:

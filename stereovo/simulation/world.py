@@ -162,9 +162,8 @@ class _StreetLayout:
     """One frame's street, in the frame of camera k-1: facades at ``x = -left, +right``."""
 
     def __init__(self, rng: np.random.Generator) -> None:
-        left, right = rng.uniform(4.0, 10.0, 2)
-        height_left, height_right = rng.uniform(6.0, 20.0, 2)
-        self.walls = np.array([left, right, height_left, height_right])
+        # (left, right, height_left, height_right): the two draws end to end
+        self.walls = np.concatenate((rng.uniform(4.0, 10.0, 2), rng.uniform(6.0, 20.0, 2)))
 
     def sample_visible(
         self, rng: np.random.Generator, n: int, cam: StereoCamera, z_min: float, z_max: float,
