@@ -518,7 +518,8 @@ def compute_features(
         out[~usable, 11] = 0.0
         out[~usable, 13] = 0.0
         out[~usable, 2:8] = np.nan_to_num(out[~usable, 2:8], nan=0.0)  # a NaN row's pixels say nothing
-    return _clip_in_place(out, FEATURE_BOUND)
+    _clip_in_place(out, FEATURE_BOUND)  # returns nothing: boxing an array costs a dtype lookup
+    return out
 
 
 @njit(cache=True, nogil=True)
@@ -534,4 +535,3 @@ def _clip_in_place(out, bound):
         if x > high:
             x = high
         flat[i] = x
-    return out

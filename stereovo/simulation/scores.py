@@ -47,7 +47,9 @@ def draw_scores(inlier: np.ndarray, auc: float, rng: np.random.Generator) -> np.
         # `latent + shift * inlier` in place, then ndtr into the same array and np.clip's values
         # (a NaN stays NaN), each in one pass: numpy's values without its temporaries
         _shift_rows(latent, inlier, float(shift))
-        return _clip_rows(ndtr(latent, out=latent), _LOWEST, _HIGHEST)
+        ndtr(latent, out=latent)
+        _clip_rows(latent, _LOWEST, _HIGHEST)  # returns nothing: boxing an array costs a dtype lookup
+        return latent
     latent = latent + shift * inlier
     scores = ndtr(latent)
     return np.minimum(np.maximum(scores, _LOWEST, out=scores), _HIGHEST, out=scores)
@@ -70,7 +72,6 @@ def _clip_rows(values, low, high):
         if x > high:
             x = high
         values[i] = x
-    return values
 
 
 _SHIFTS: dict[float, float] = {}  # latent_shift of the AUCs drawn with so far (checked ones only)

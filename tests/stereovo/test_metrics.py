@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
+import math
+
 import numpy as np
 import pytest
 
@@ -242,3 +244,16 @@ def test_mask_counts_are_numpys_counts():
     assert inlier_precision_recall(np.zeros(4, bool), np.zeros(4, bool)) == (0.0, 0.0)
     with pytest.raises(ValueError, match="differ in shape"):
         _mask_counts(np.zeros(3, bool), np.zeros(4, bool))
+
+
+def test_the_truths_norm_is_numpys():
+    from stereovo.metrics import _norm
+
+    rng = np.random.default_rng(3)
+    for _ in range(20000):
+        t = rng.standard_normal(3) * 10.0 ** rng.integers(-8, 8, 3)
+        assert _norm(t) == float(np.linalg.norm(t))
+    for t in (np.zeros(3), np.array([-0.0, 0.0, -0.0]), np.array([np.nan, 1.0, 0.0]), np.array([np.inf, 1.0, 0.0]),
+              np.array([1e200, 1e200, 0.0]), np.arange(6.0)[::2], [3.0, 4.0, 0.0], np.array([3, 4, 0])):
+        ours, want = _norm(t), float(np.linalg.norm(t))
+        assert ours == want or (math.isnan(ours) and math.isnan(want))
