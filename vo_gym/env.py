@@ -24,7 +24,7 @@ from stereovo.geometry import PoseChain
 from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, FrameMetrics, frame_metrics, trajectory_metrics
 from stereovo.options import real_array
 from stereovo.simulation import Frame, Sequence
-from vo_gym.action_box import ActionBox, clipped_finite
+from vo_gym.action_box import ActionBox, clipped_finite, exp_shifted
 from vo_gym.features import FEATURE_BOUND, FEATURE_LAYOUT_VERSION, FEATURE_NAMES, N_FEATURES, compute_features
 from vo_gym.ordering import descending_order
 from vo_gym.rewards import inlier_reward, msac_reward, pose_error_ratio, supervised_reward
@@ -378,8 +378,7 @@ class StereoVOEnv(gym.Env):
         frame = self._frame
         priors = order = None
         if self.sampling == "guided":
-            logits = values * self.logit_scale
-            priors = np.exp(logits - logits.max())
+            priors = exp_shifted(values, self.logit_scale)  # np.exp(logits - logits.max()), logits = values * scale
         else:
             order = descending_order(values)  # np.argsort(-values, kind="stable"), by radix
 

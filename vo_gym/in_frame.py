@@ -25,6 +25,7 @@ from stereovo.estimation.api import MotionEstimate
 from stereovo.estimation.registry import MethodSpec
 from stereovo.estimation.methods.bansac import WeightedDraw
 from stereovo.estimation.roles.termination import FixedBudget
+from vo_gym.action_box import exp_shifted
 from vo_gym.features import FEATURE_BOUND, FEATURE_NAMES, N_FEATURES
 
 __all__ = [
@@ -214,7 +215,10 @@ class InFrameSearch:
         Returns:
             ``(drawn in this step, stopped, done)``: ``done`` when the caller stopped or the cap is reached.
         """
-        weights = np.exp(logits - logits.max())
+        if type(logits) is np.ndarray and logits.dtype == np.float64 and logits.ndim == 1:
+            weights = exp_shifted(logits)  # np.exp(logits - logits.max()) in one pass and numpy's exp
+        else:  # e.g. an agent's float32 logits: numpy's float32 arithmetic
+            weights = np.exp(logits - logits.max())
         weights /= weights.sum()
         self.weights = weights
         search, sampler = self.search, self.sampler
