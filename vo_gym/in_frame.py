@@ -76,14 +76,27 @@ def observation_rows(features: np.ndarray, best_column: np.ndarray | None, best_
     column = best_column if has_best else np.zeros(n)
     inliers = best_inliers if has_best else np.zeros(n, dtype=bool)
     out = np.zeros((rows, features.shape[1] + len(LOOP_FEATURE_NAMES)), dtype=np.float32)
-    _observation_rows(out, features, column, inliers, votes, scored, _LOG1P_COUNTS, FEATURE_BOUND)
+    if not _observation_rows(out, features, column, inliers, votes, scored, _LOG1P_COUNTS, FEATURE_BOUND):
+        # a count outside the table (no search's: a row votes at most once a hypothesis): numpy's columns
+        loop = np.zeros((n, len(LOOP_FEATURE_NAMES)), dtype=np.float64)
+        if has_best:
+            loop[:, 0] = best_column
+            loop[:, 3] = best_inliers
+        loop[:, 1] = votes / max(scored, 1)
+        loop[:, 2] = np.log1p(votes)
+        out[:n, : features.shape[1]] = features
+        out[:n, features.shape[1]:] = np.minimum(np.maximum(loop, -FEATURE_BOUND, out=loop), FEATURE_BOUND, out=loop)
     return out
 
 
 @njit(cache=True, nogil=True)
 def _observation_rows(out, features, best_column, best_inliers, votes, scored, log1p_counts, bound):
-    """In place into ``out``'s first N rows (see :func:`observation_rows`)."""
+    """In place into ``out``'s first N rows (see :func:`observation_rows`); False, with ``out``
+    unfinished, when a count lies outside ``log1p_counts``."""
     n, f = features.shape
+    for i in range(n):
+        if not 0 <= votes[i] < log1p_counts.shape[0]:
+            return False
     share = float(max(scored, 1))
     for i in range(n):
         for j in range(f):
@@ -96,6 +109,7 @@ def _observation_rows(out, features, best_column, best_inliers, votes, scored, l
             if x > bound:
                 x = bound
             out[i, f + j] = np.float32(x)
+    return True
 
 
 MASK_ROWS_START = 64  # rows of a frame's mask buffer at first (doubled when a frame scores more)

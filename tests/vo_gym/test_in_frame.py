@@ -66,6 +66,17 @@ def test_observation_rows_are_numpys_on_random_inputs():
         assert ours.tobytes() == want.tobytes()
 
 
+def test_counts_outside_the_table_take_numpys_columns():
+    rng = np.random.default_rng(1)
+    features = rng.standard_normal((6, N_FEATURES)).astype(np.float32)
+    best, inliers = rng.standard_normal(6), rng.random(6) < 0.5
+    for votes in (np.array([0, 1, 2, 10**6, 3, 0]), np.array([0, -1, 2, 1, 3, 0])):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            want = _reference_rows(features, best, inliers, votes, 5, 8)
+            ours = observation_rows(features, best, inliers, votes, 5, 8)
+        assert ours.tobytes() == want.tobytes()
+
+
 def test_the_log1p_table_is_numpys_log1p_of_counts_anywhere_in_an_array():
     rng = np.random.default_rng(5)
     observation_rows(np.zeros((1, N_FEATURES), np.float32), None, np.zeros(1, bool), np.zeros(1, np.int64), 4000, 1)
