@@ -5,7 +5,10 @@ twice a step (the frame's masks concatenated, against the buffer); per frame of 
 rigid-consistency counts of the features (every pair through the double-precision test, against
 the single-precision screen), on the usable rows of simulated frames (default and hostile); with
 ``--before DIR`` (a checkout of earlier code) also a frame's whole ``compute_features``, DIR's
-``vo_gym/features.py`` against this one's. Each is timed ``--repeats``
+``vo_gym/features.py`` against this one's; and the stable descending order of a frame's scores
+(``np.argsort(-x, kind="stable")`` against :func:`vo_gym.ordering.descending_order`), on one array
+sorted again and again and on 64 fresh arrays in turn (numpy's merge sort is three times slower on
+fresh values: a branch predictor learns one repeated array). Each is timed ``--repeats``
 times over ``--loops`` calls, the fastest kept (process CPU time); the results are checked equal
 first, on generators seeded alike. Usage::
 
@@ -16,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import itertools
 import time
 from pathlib import Path
 
@@ -26,6 +30,7 @@ from stereovo.estimation.methods.bansac import WeightedDraw
 from stereovo.estimation.roles.samplers import WeightedSampler
 from stereovo.simulation import SimulationConfig, simulate_frame
 from vo_gym import features as F
+from vo_gym.ordering import descending_order
 
 
 def fastest(fn, loops: int, repeats: int) -> float:
@@ -63,6 +68,12 @@ def main() -> int:
          lambda: int(np.argmax(np.concatenate(masks) @ weights)),
          lambda: int(np.argmax(buffer[:32] @ weights))),
     ]
+    fresh = [rng.random(n) for _ in range(64)]
+    for label, arrays in (("one array again", fresh[:1]), ("64 fresh arrays", fresh)):
+        numpy_turn, radix_turn = itertools.cycle(arrays), itertools.cycle(arrays)
+        checks.append((f"score order ({label})",
+                       lambda t=numpy_turn: np.argsort(-next(t), kind="stable"),
+                       lambda t=radix_turn: descending_order(next(t))))
     for outliers in ("default", "hostile"):
         frame = simulate_frame(SimulationConfig(n_correspondences=n, outlier_ratio=0.5, outliers=outliers), rng=3)
         problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, 0.5)

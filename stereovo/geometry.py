@@ -262,6 +262,8 @@ def _rotation_angle_one(R: np.ndarray) -> np.float64 | None:
 
 def rotation_error(R_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:
     """Angle in radians of ``R_est^T R_true`` (the geodesic distance on SO(3))."""
+    if type(R_est) is np.ndarray and R_est.ndim == 2 and R_est.dtype == np.float64:
+        return rotation_angle(R_est.T @ R_true)  # the same transposed view, without swapaxes' wrapper
     return rotation_angle(np.swapaxes(np.asarray(R_est, dtype=float), -1, -2) @ R_true)
 
 

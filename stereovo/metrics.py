@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass, fields
 from typing import Any, Sequence
 
 import numpy as np
+from numba import njit
 
 from stereovo.geometry import invert_transform, rotation_angle, rotation_error, translation_error
 
@@ -79,14 +80,33 @@ def inlier_precision_recall(predicted: np.ndarray, actual: np.ndarray) -> tuple[
     NaN-free by definition: precision is 0 when nothing is predicted, recall is
     0 when there are no true inliers.
     """
+    tp, n_pred, n_true = _mask_counts(predicted, actual)
+    return (tp / n_pred if n_pred else 0.0), (tp / n_true if n_true else 0.0)
+
+
+def _mask_counts(predicted: np.ndarray, actual: np.ndarray) -> tuple[int, int, int]:
+    """``(|predicted & actual|, |predicted|, |actual|)`` of two inlier masks (read as bool); one
+    compiled pass for two 1-D bool arrays (a frame's), numpy's counts otherwise."""
+    if (type(predicted) is np.ndarray and type(actual) is np.ndarray and predicted.dtype == np.bool_
+            and actual.dtype == np.bool_ and predicted.ndim == 1 and predicted.shape == actual.shape):
+        tp, n_pred, n_true = _bool_counts(predicted, actual)
+        return int(tp), int(n_pred), int(n_true)
     predicted = np.asarray(predicted, dtype=bool)
     actual = np.asarray(actual, dtype=bool)
     if predicted.shape != actual.shape:
         raise ValueError(f"inlier masks differ in shape: {predicted.shape} vs {actual.shape}")
-    tp = int(np.count_nonzero(predicted & actual))
-    n_pred = int(np.count_nonzero(predicted))
-    n_true = int(np.count_nonzero(actual))
-    return (tp / n_pred if n_pred else 0.0), (tp / n_true if n_true else 0.0)
+    return int(np.count_nonzero(predicted & actual)), int(np.count_nonzero(predicted)), int(np.count_nonzero(actual))
+
+
+@njit(cache=True, nogil=True)
+def _bool_counts(predicted, actual):
+    tp = n_pred = n_true = 0
+    for i in range(predicted.shape[0]):
+        p, a = predicted[i], actual[i]
+        tp += p and a
+        n_pred += p
+        n_true += a
+    return tp, n_pred, n_true
 
 
 @dataclass(frozen=True)
@@ -128,6 +148,14 @@ class FrameMetrics:
         return {name: getattr(self, name) for name in names}
 
 
+def _norm(t: Any) -> float:
+    """``float(np.linalg.norm(t))``; for a contiguous 1-D float64 array without its wrapper: the norm
+    is then ``sqrt(t.dot(t))`` (the same dot, and a correctly rounded root in both)."""
+    if type(t) is np.ndarray and t.dtype == np.float64 and t.ndim == 1 and t.flags.c_contiguous:
+        return math.sqrt(float(t.dot(t)))
+    return float(np.linalg.norm(t))
+
+
 def frame_metrics(estimate: Any, truth: Any) -> FrameMetrics:
     """Compare a ``MotionEstimate`` with a ``FrameTruth``.
 
@@ -137,9 +165,10 @@ def frame_metrics(estimate: Any, truth: Any) -> FrameMetrics:
     """
     rot_err = float(rotation_error(estimate.rotation, truth.rotation))
     trans_err = float(translation_error(estimate.translation, truth.translation))
-    t_norm = float(np.linalg.norm(truth.translation))
+    t_norm = _norm(truth.translation)
     status = str(estimate.status)
-    precision, recall = inlier_precision_recall(estimate.inliers, truth.inlier)
+    tp, n_pred, n_true = _mask_counts(estimate.inliers, truth.inlier)
+    precision, recall = (tp / n_pred if n_pred else 0.0), (tp / n_true if n_true else 0.0)  # inlier_precision_recall
     return FrameMetrics(
         rot_err_deg=math.degrees(rot_err),  # np.rad2deg's product by 180 / pi, on a float
         trans_err_m=trans_err,
@@ -147,7 +176,7 @@ def frame_metrics(estimate: Any, truth: Any) -> FrameMetrics:
         success=bool(status == "ok" and _is_success_scalar(rot_err, trans_err, t_norm)),
         precision=precision,
         recall=recall,
-        n_inliers=int(np.count_nonzero(estimate.inliers)),
+        n_inliers=n_pred,  # np.count_nonzero(estimate.inliers): nonzero is True as bool
         n_hypotheses=int(estimate.n_hypotheses),
         n_scored=int(estimate.n_scored),
         n_point_checks=int(estimate.n_point_checks),

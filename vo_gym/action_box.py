@@ -1,4 +1,6 @@
-"""The environments' action space: a Gymnasium ``Box`` whose ``sample()`` costs less.
+"""The environments' action space: a Gymnasium ``Box`` whose ``sample()`` costs less, and what the
+environments do with an action's values on each step: the clip (:func:`clipped_finite`) and the
+softmax's unnormalised weights (:func:`exp_shifted`).
 
 Gymnasium's ``Box.sample`` classifies every coordinate as bounded, half-bounded or unbounded
 on each call and draws each class apart (about 25 us for 500 slots, 4 % of a one-shot step
@@ -13,8 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 from gymnasium import spaces
+from numba import njit
 
-__all__ = ["ActionBox"]
+__all__ = ["ActionBox", "clipped_finite", "exp_shifted"]
 
 
 class ActionBox(spaces.Box):
@@ -41,3 +44,56 @@ class ActionBox(spaces.Box):
             return super().sample(mask, probability)
         low, high = self._bounds
         return self.np_random.uniform(low=low, high=high, size=self.shape).astype(self.dtype)
+
+
+def clipped_finite(values: np.ndarray, bound: float, scale: float = 1.0) -> np.ndarray | None:
+    """``np.minimum(np.maximum(values, -bound), bound) * scale`` of a 1-D float64 array whose values
+    are all finite, in one compiled pass with numpy's values (``bound`` and ``scale`` floats); None when
+    a value is NaN or infinite (the caller says what that means). np.isfinite, two clips and a product
+    cost about 10 us on an action of 500 slots, the compiled pass 1."""
+    out = np.empty(values.shape[0])
+    return out if _clipped_finite(values, float(bound), float(scale), out) else None
+
+
+@njit(cache=True, nogil=True)
+def _clipped_finite(values, bound, scale, out):
+    low = -bound
+    for i in range(values.shape[0]):
+        x = values[i]
+        if not np.isfinite(x):
+            return False
+        if x < low:  # np.maximum(x, -bound); x and the bound are finite
+            x = low
+        if x > bound:
+            x = bound
+        out[i] = x * scale
+    return True
+
+
+def exp_shifted(values: np.ndarray, scale: float = 1.0) -> np.ndarray:
+    """``np.exp(l - l.max())`` with ``l = values * scale``, for a 1-D float64 array: the product, the
+    maximum and the difference in one compiled pass, the exponential numpy's. Finite values give
+    numpy's weights bit for bit (when the maximum is a zero, its sign does not reach them: ``x - 0.0``
+    and ``x + 0.0`` differ only for ``x = -0.0``, and ``exp`` maps both zeros to 1); an empty array or
+    one with NaN or inf takes numpy's expression itself."""
+    out = np.empty(values.shape[0])
+    if values.shape[0] and _shifted(values, float(scale), out):
+        return np.exp(out, out=out)
+    logits = values * scale
+    return np.exp(logits - logits.max())
+
+
+@njit(cache=True, nogil=True)
+def _shifted(values, scale, out):
+    """``out = values * scale - max(values * scale)``; False (``out`` unfinished) on a non-finite value."""
+    top = -np.inf
+    for i in range(values.shape[0]):
+        x = values[i] * scale
+        if not np.isfinite(x):
+            return False
+        out[i] = x
+        if x > top:
+            top = x
+    for i in range(values.shape[0]):
+        out[i] = out[i] - top
+    return True

@@ -32,10 +32,10 @@ from gymnasium import spaces
 from stereovo.compilation import announce_compiling
 from stereovo.estimation import StereoProblem
 from stereovo.geometry import PoseChain
-from stereovo.metrics import frame_metrics
+from stereovo.metrics import FrameMetrics, frame_metrics
 from stereovo.options import real_array
 from stereovo.simulation import Frame, Sequence
-from vo_gym.action_box import ActionBox
+from vo_gym.action_box import ActionBox, clipped_finite
 from vo_gym.features import FEATURE_BOUND, N_FEATURES, compute_features
 from vo_gym.in_frame import (
     ADAPTIVE_FEATURE_NAMES,
@@ -59,6 +59,7 @@ __all__ = [
 ]
 
 _OWNER = "StereoVOAdaptiveEnv"  # the messages' prefix
+_INFO_METRICS = tuple(f.name for f in dataclasses.fields(FrameMetrics) if f.name != "time_s")
 
 
 class StereoVOAdaptiveEnv(gym.Env):
@@ -276,7 +277,8 @@ class StereoVOAdaptiveEnv(gym.Env):
         metrics = frame_metrics(est, frame.truth)
         self._chain.append(est.ok, est.rotation, est.translation)
         self._successes.append(metrics.success)
-        info.update({k: v for k, v in metrics.as_dict().items() if k != "time_s"})
+        for name in _INFO_METRICS:  # the metrics but their wall time, as the step environment's info
+            info[name] = getattr(metrics, name)
         info["pose_error_ratio"] = pose_error_ratio(metrics)
         info["fallback"] = not est.ok
         info["outlier_ratio"] = float(frame.truth.outlier_ratio)
@@ -305,11 +307,12 @@ class StereoVOAdaptiveEnv(gym.Env):
         M, n = self.max_correspondences, self._frame.n
         a = real_array("the action", action, (M + 1,), entries="values", per="a logit per slot and the stop slot",
                        what=f"a numeric array of shape ({M + 1},)", prefix="StereoVOAdaptiveEnv: ")
-        if not (np.isfinite(a[:n]).all() and math.isfinite(a[M])):
+        # np.clip's values on the slots read (the others are ignored), times the logit scale; clipping
+        # keeps the stop's sign
+        logits = clipped_finite(a[:n], self.action_bound, self.logit_scale)
+        if logits is None or not math.isfinite(a[M]):
             raise ValueError("StereoVOAdaptiveEnv: the action has NaN or inf in a valid slot or the stop slot")
-        # np.clip's values on the slots read (the others are ignored); clipping keeps the stop's sign
-        bound = self.action_bound
-        return np.minimum(np.maximum(a[:n], -bound), bound) * self.logit_scale, bool(a[M] > 0)
+        return logits, bool(a[M] > 0)
 
     def _observation(self) -> dict[str, np.ndarray]:
         return self._search.observation(self.max_correspondences)

@@ -21,11 +21,12 @@ from stereovo.camera import StereoCamera
 from stereovo.compilation import announce_compiling
 from stereovo.estimation import EstimatorOptions, PreparedEstimator, StereoProblem
 from stereovo.geometry import PoseChain
-from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, frame_metrics, trajectory_metrics
+from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, FrameMetrics, frame_metrics, trajectory_metrics
 from stereovo.options import real_array
 from stereovo.simulation import Frame, Sequence
-from vo_gym.action_box import ActionBox
+from vo_gym.action_box import ActionBox, clipped_finite, exp_shifted
 from vo_gym.features import FEATURE_BOUND, FEATURE_LAYOUT_VERSION, FEATURE_NAMES, N_FEATURES, compute_features
+from vo_gym.ordering import descending_order
 from vo_gym.rewards import inlier_reward, msac_reward, pose_error_ratio, supervised_reward
 from vo_gym.settings import (
     DEFAULT_ESTIMATOR_OPTIONS,
@@ -41,6 +42,8 @@ __all__ = ["StereoVOEnv", "SAMPLING_MODES", "DEFAULT_ESTIMATOR_OPTIONS"]
 
 # FrameMetrics fields that must not reach info: wall-clock time breaks determinism.
 _NON_DETERMINISTIC_METRICS = ("time_s",)
+# the info's metrics, in the fields' order (FrameMetrics.as_dict() less those, without building it)
+_INFO_METRICS = tuple(f.name for f in dataclasses.fields(FrameMetrics) if f.name not in _NON_DETERMINISTIC_METRICS)
 _OWNER = "StereoVOEnv"  # the messages' prefix, also of the images environment built on it
 
 
@@ -375,10 +378,9 @@ class StereoVOEnv(gym.Env):
         frame = self._frame
         priors = order = None
         if self.sampling == "guided":
-            logits = values * self.logit_scale
-            priors = np.exp(logits - logits.max())
+            priors = exp_shifted(values, self.logit_scale)  # np.exp(logits - logits.max()), logits = values * scale
         else:
-            order = np.argsort(-values, kind="stable")
+            order = descending_order(values)  # np.argsort(-values, kind="stable"), by radix
 
         est = self._estimator.estimate(self._problem, priors=priors, order=order, rng=self._ransac_rng)
         metrics = frame_metrics(est, frame.truth)
@@ -387,7 +389,8 @@ class StereoVOEnv(gym.Env):
 
         reward = self._reward(est, metrics, frame)
         info: dict[str, Any] = {"frame": int(frame.index)}
-        info.update({k: v for k, v in metrics.as_dict().items() if k not in _NON_DETERMINISTIC_METRICS})
+        for name in _INFO_METRICS:
+            info[name] = getattr(metrics, name)
         info["pose_error_ratio"] = pose_error_ratio(metrics)
         info["fallback"] = not est.ok
         info["outlier_ratio"] = float(frame.truth.outlier_ratio)
@@ -434,6 +437,9 @@ class StereoVOEnv(gym.Env):
         a = real_array("the action", action, (M,), entries="values", per="one value per correspondence slot",
                        what=f"a numeric array of shape ({M},)", prefix=f"{_OWNER}: ")
         a = a[:n]
+        clipped = clipped_finite(a, self.action_bound)  # np.clip's values, in one pass (the bounds are ordered)
+        if clipped is not None:
+            return clipped
         finite = np.isfinite(a)
         if not finite.all():
             usable = self._problem.usable if self._problem is not None else None

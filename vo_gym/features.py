@@ -71,6 +71,7 @@ from stereovo.estimation.problem import StereoProblem, as_measurements
 from stereovo.estimation.roles.reprojection import reprojection_sq
 from stereovo.estimation.kernels.rigidity import distance_change_sq_jit, rigid_distance_consistent_jit
 from stereovo.options import real_array
+from vo_gym.ordering import descending_order, finite_descending_order
 
 __all__ = [
     "FEATURE_NAMES",
@@ -142,9 +143,31 @@ def check_feature_layout(names: Sequence[str], version: int) -> None:
         )
 
 
+_NOISE_SIGMAS: dict[float, float] = {}  # floats that passed the rule (an environment asks for one every frame)
+
+
+def _checked_noise_sigma(noise_sigma) -> float:
+    """The estimator's own rule for noise_sigma (the one options contract), so both accept the same
+    values; a float that passed it once is not checked again (the rule's answer is the same)."""
+    if type(noise_sigma) is float and noise_sigma in _NOISE_SIGMAS:
+        return _NOISE_SIGMAS[noise_sigma]
+    checked = ESTIMATOR_OPTION_RULES["noise_sigma"].check("noise_sigma", noise_sigma, prefix="")
+    if type(noise_sigma) is float and len(_NOISE_SIGMAS) < 64:
+        _NOISE_SIGMAS[noise_sigma] = checked
+    return checked
+
+
 def _validate_motion(previous_motion) -> tuple[np.ndarray, np.ndarray] | None:
     if previous_motion is None:
         return None
+    if type(previous_motion) is tuple and len(previous_motion) == 2:
+        # the common case (an environment's last motion): float64 arrays of the right shapes, whose
+        # twelve values are read as floats (numpy's isfinite on each costs more than the test)
+        R, t = previous_motion
+        if (type(R) is np.ndarray and type(t) is np.ndarray and R.dtype == np.float64 and t.dtype == np.float64
+                and R.shape == (3, 3) and t.shape == (3,)
+                and all(map(math.isfinite, R.ravel().tolist())) and all(map(math.isfinite, t.tolist()))):
+            return R, t
     try:
         R, t = previous_motion
     except (TypeError, ValueError):
@@ -183,7 +206,7 @@ def rigid_consistency_degree(
     elif priority is None:
         anchors = np.linspace(0, n - 1, MAX_ANCHORS).round().astype(np.int64)
     else:
-        order = np.argsort(-np.asarray(priority), kind="stable") if priority_order is None else priority_order
+        order = descending_order(np.asarray(priority)) if priority_order is None else priority_order
         anchors = np.sort(order[:MAX_ANCHORS])
     s2 = np.square(np.asarray(spread, dtype=float))
     count = _consistent_pairs(
@@ -273,6 +296,18 @@ def _consistent_pairs(points_prev, points_curr, s2, anchors, gate_sq):
     dpx, dpy, dpz = points_prev[anchors, 0].copy(), points_prev[anchors, 1].copy(), points_prev[anchors, 2].copy()
     dqx, dqy, dqz = points_curr[anchors, 0].copy(), points_curr[anchors, 1].copy(), points_curr[anchors, 2].copy()
     s2_anchor = s2[anchors]
+    # The test is symmetric bit for bit (the differences of a swapped pair are negated exactly, the
+    # variances added in either order), and so is the screen: a pair of two anchors is tested once,
+    # from the row of the later anchor, and its result also counted for the earlier one (``later``
+    # holds those counts). That spares a quarter of the pairs at N = 500, A = 256. Anchors named
+    # twice (no caller's) take every pair from both sides.
+    position = np.full(n, -1, dtype=np.int64)
+    for k in range(a):
+        if position[anchors[k]] >= 0:
+            position[:] = -1
+            break
+        position[anchors[k]] = k
+    later = np.zeros(a, dtype=np.int64)
     undecided = np.zeros(a, dtype=np.uint8)
     counts = np.zeros(n, dtype=np.int64)
     for i in range(n):
@@ -281,29 +316,59 @@ def _consistent_pairs(points_prev, points_curr, s2, anchors, gate_sq):
         s2i = s32[i]
         c = 0
         left = 0
-        for k in range(a):
-            x0, x1, x2 = px[k] - p0, py[k] - p1, pz[k] - p2
-            y0, y1, y2 = qx[k] - q0, qy[k] - q1, qz[k] - q2
-            change = abs(np.sqrt(y0 * y0 + y1 * y1 + y2 * y2) - np.sqrt(x0 * x0 + x1 * x1 + x2 * x2))
-            gate = gate32 * (s2i + s2_anchor32[k])
-            high = change + bound
-            low = max(change - bound, zero)
-            passes = high * high < gate * below
-            fails = low * low > gate * above
-            c += passes
-            flag = not (passes or fails)
-            undecided[k] = flag
-            left += flag
+        own = position[i]
+        # an anchor's row: the anchors before it, then its own pair (a loop from 0: one that starts
+        # further on runs at half the speed)
+        stop = own + 1 if own >= 0 else a
+        if own >= 0:
+            before = later[own]  # the later anchors' pairs with this one, so far
+            for k in range(stop):
+                x0, x1, x2 = px[k] - p0, py[k] - p1, pz[k] - p2
+                y0, y1, y2 = qx[k] - q0, qy[k] - q1, qz[k] - q2
+                change = abs(np.sqrt(y0 * y0 + y1 * y1 + y2 * y2) - np.sqrt(x0 * x0 + x1 * x1 + x2 * x2))
+                gate = gate32 * (s2i + s2_anchor32[k])
+                high = change + bound
+                low = max(change - bound, zero)
+                passes = high * high < gate * below
+                fails = low * low > gate * above
+                c += passes
+                flag = not (passes or fails)
+                undecided[k] = flag + 2 * passes  # one array written: a second stops the vectors
+                left += flag
+            for k in range(stop):
+                later[k] += undecided[k] >> 1
+        else:
+            for k in range(a):
+                x0, x1, x2 = px[k] - p0, py[k] - p1, pz[k] - p2
+                y0, y1, y2 = qx[k] - q0, qy[k] - q1, qz[k] - q2
+                change = abs(np.sqrt(y0 * y0 + y1 * y1 + y2 * y2) - np.sqrt(x0 * x0 + x1 * x1 + x2 * x2))
+                gate = gate32 * (s2i + s2_anchor32[k])
+                high = change + bound
+                low = max(change - bound, zero)
+                passes = high * high < gate * below
+                fails = low * low > gate * above
+                c += passes
+                flag = not (passes or fails)
+                undecided[k] = flag
+                left += flag
         if left:
             d0, d1, d2 = points_prev[i, 0], points_prev[i, 1], points_prev[i, 2]
             e0, e1, e2 = points_curr[i, 0], points_curr[i, 1], points_curr[i, 2]
             ds2 = s2[i]
-            for k in range(a):
-                if undecided[k]:
+            for k in range(stop):
+                if undecided[k] & 1:
                     change_sq = distance_change_sq_jit(dpx[k] - d0, dpy[k] - d1, dpz[k] - d2,
                                                        dqx[k] - e0, dqy[k] - e1, dqz[k] - e2)
-                    c += rigid_distance_consistent_jit(change_sq, ds2 + s2_anchor[k], gate_sq)
+                    result = rigid_distance_consistent_jit(change_sq, ds2 + s2_anchor[k], gate_sq)
+                    c += result
+                    if own >= 0:
+                        later[k] += result
+        if own >= 0:
+            later[own] = before  # its own pair is counted once, in c
         counts[i] = c
+    for k in range(a):
+        if position[anchors[k]] == k:
+            counts[anchors[k]] += later[k]
     return counts
 
 
@@ -399,10 +464,10 @@ def compute_features(
     if curr.shape[0] != n:
         raise ValueError(f"prev and curr must have the same number of rows, got {n} and {curr.shape[0]}")
     scores = real_array("scores", scores, (n,), what=f"a finite ({n},) array of numbers")
-    if not np.isfinite(scores).all():
+    by_score = finite_descending_order(scores)  # best first; also picks the consistency anchors
+    if by_score is None:
         raise ValueError(f"scores must be finite, got NaN or inf in {np.count_nonzero(~np.isfinite(scores))} row(s)")
-    # The estimator's own rule for noise_sigma (the one options contract), so both accept the same values.
-    noise_sigma = ESTIMATOR_OPTION_RULES["noise_sigma"].check("noise_sigma", noise_sigma, prefix="")
+    noise_sigma = _checked_noise_sigma(noise_sigma)
     motion = _validate_motion(previous_motion)
 
     out = np.zeros((n, N_FEATURES), dtype=np.float32)
@@ -423,21 +488,26 @@ def compute_features(
         cov_prev, cov_curr = problem.cov_prev, problem.cov_curr
         usable = problem.usable
 
-    by_score = np.argsort(-scores, kind="stable")  # best first; also picks the consistency anchors
     u_scale, v_scale = 2.0 / max(camera.width - 1, 1), 2.0 / max(camera.height - 1, 1)
     spread = np.empty(n)  # the root of the summed covariance traces at k-1 and k
     _plain_columns(out, scores, by_score, prev, curr, u_scale, v_scale, _DISPARITY_REF / camera.fx,
                    cov_prev, cov_curr, spread)
-    with np.errstate(invalid="ignore"):  # NaN on rows without depth, overwritten below
-        out[:, 8] = np.log(points_prev[:, 2] / _DEPTH_REF_M)
-        out[:, 9] = np.log(points_curr[:, 2] / _DEPTH_REF_M)
-        out[:, 10] = 0.5 * np.log(np.maximum(cov_prev[:, 2, 2], 1e-300))
+    sq = None
     if motion is not None:
         R, t = motion
         sq = reprojection_sq(camera, R[None], t[None], points_prev, curr)[0]  # inf behind the camera
-        with np.errstate(over="ignore", invalid="ignore"):
+    # one errstate for both blocks (the logarithms cannot overflow, so ignoring it there changes no
+    # warning); the logarithms write into their argument's temporary
+    with np.errstate(over="ignore", invalid="ignore"):  # NaN on rows without depth, overwritten below
+        column = points_prev[:, 2] / _DEPTH_REF_M
+        out[:, 8] = np.log(column, out=column)
+        column = points_curr[:, 2] / _DEPTH_REF_M
+        out[:, 9] = np.log(column, out=column)
+        column = np.maximum(cov_prev[:, 2, 2], 1e-300)
+        out[:, 10] = 0.5 * np.log(column, out=column)
+        if sq is not None:
             out[:, 11] = np.log1p(np.sqrt(sq / 4.0) / noise_sigma)
-        out[:, 12] = 1.0
+            out[:, 12] = 1.0
     if usable is None:
         out[:, 13] = rigid_consistency_degree(points_prev, points_curr, spread, priority=scores, priority_order=by_score)
     else:
@@ -448,6 +518,20 @@ def compute_features(
         out[~usable, 11] = 0.0
         out[~usable, 13] = 0.0
         out[~usable, 2:8] = np.nan_to_num(out[~usable, 2:8], nan=0.0)  # a NaN row's pixels say nothing
-    # np.clip(out, -FEATURE_BOUND, FEATURE_BOUND, out=out) without its Python wrapper: the same values
-    np.minimum(np.maximum(out, -FEATURE_BOUND, out=out), FEATURE_BOUND, out=out)
+    _clip_in_place(out, FEATURE_BOUND)  # returns nothing: boxing an array costs a dtype lookup
     return out
+
+
+@njit(cache=True, nogil=True)
+def _clip_in_place(out, bound):
+    """``np.clip(out, -bound, bound, out=out)`` of a float32 array in one pass, numpy's values
+    (``np.maximum``, then ``np.minimum``: a NaN stays NaN; the bound is a float32 number)."""
+    low, high = np.float32(-bound), np.float32(bound)
+    flat = out.reshape(-1)
+    for i in range(flat.shape[0]):
+        x = flat[i]
+        if x < low:
+            x = low
+        if x > high:
+            x = high
+        flat[i] = x

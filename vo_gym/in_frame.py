@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from stereovo.estimation import EstimatorOptions, StereoProblem
 from stereovo.estimation.loop import LoopState, RansacSearch
@@ -24,6 +25,7 @@ from stereovo.estimation.api import MotionEstimate
 from stereovo.estimation.registry import MethodSpec
 from stereovo.estimation.methods.bansac import WeightedDraw
 from stereovo.estimation.roles.termination import FixedBudget
+from vo_gym.action_box import exp_shifted
 from vo_gym.features import FEATURE_BOUND, FEATURE_NAMES, N_FEATURES
 
 __all__ = [
@@ -50,6 +52,66 @@ the previous frame's (constant-velocity prediction; 0 without one); 1 when a pre
 the belief-weighted support of the hypothesis the frame would end on now, under the last action."""
 
 
+_LOG1P_COUNTS = np.log1p(np.arange(65, dtype=np.float64))  # grown by observation_rows when a frame scores more
+
+
+def observation_rows(features: np.ndarray, best_column: np.ndarray | None, best_inliers: np.ndarray,
+                     votes: np.ndarray, scored: int, rows: int) -> np.ndarray:
+    """The observation's ``(rows, F + 4)`` float32 block (:meth:`InFrameSearch.observation`): the frame
+    features ``(N, F)``, then :data:`LOOP_FEATURE_NAMES` from ``best_column`` (``log1p(e^2 / T^2)``
+    under the best model, None before the first one, when it and ``in_best`` are 0), ``best_inliers``
+    ``(N,)`` bool and ``votes`` ``(N,)`` int64 of ``scored`` hypotheses, clipped to the bound; rows past
+    N are 0.
+
+    One compiled pass instead of a dozen numpy calls on ``(N, 4)`` and ``(N, 18)`` arrays, the values
+    numpy's: the vote share is the same float64 quotient, ``log1p`` of a count is read from a table
+    numpy computed (counts are integers up to ``scored``), the clip compares as ``np.maximum`` /
+    ``np.minimum`` do and the float32 casts round alike (``tests/vo_gym/test_in_frame.py``).
+    """
+    global _LOG1P_COUNTS
+    if scored >= _LOG1P_COUNTS.shape[0]:
+        _LOG1P_COUNTS = np.log1p(np.arange(max(scored + 1, 2 * _LOG1P_COUNTS.shape[0]), dtype=np.float64))
+    n = features.shape[0]
+    has_best = best_column is not None
+    column = best_column if has_best else np.zeros(n)
+    inliers = best_inliers if has_best else np.zeros(n, dtype=bool)
+    out = np.zeros((rows, features.shape[1] + len(LOOP_FEATURE_NAMES)), dtype=np.float32)
+    if not _observation_rows(out, features, column, inliers, votes, scored, _LOG1P_COUNTS, FEATURE_BOUND):
+        # a count outside the table (no search's: a row votes at most once a hypothesis): numpy's columns
+        loop = np.zeros((n, len(LOOP_FEATURE_NAMES)), dtype=np.float64)
+        if has_best:
+            loop[:, 0] = best_column
+            loop[:, 3] = best_inliers
+        loop[:, 1] = votes / max(scored, 1)
+        loop[:, 2] = np.log1p(votes)
+        out[:n, : features.shape[1]] = features
+        out[:n, features.shape[1]:] = np.minimum(np.maximum(loop, -FEATURE_BOUND, out=loop), FEATURE_BOUND, out=loop)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _observation_rows(out, features, best_column, best_inliers, votes, scored, log1p_counts, bound):
+    """In place into ``out``'s first N rows (see :func:`observation_rows`); False, with ``out``
+    unfinished, when a count lies outside ``log1p_counts``."""
+    n, f = features.shape
+    for i in range(n):
+        if not 0 <= votes[i] < log1p_counts.shape[0]:
+            return False
+    share = float(max(scored, 1))
+    for i in range(n):
+        for j in range(f):
+            out[i, j] = features[i, j]
+        loop = (best_column[i], votes[i] / share, log1p_counts[votes[i]], 1.0 if best_inliers[i] else 0.0)
+        for j in range(4):
+            x = loop[j]
+            if x < -bound:  # np.maximum(x, -bound): NaN stays NaN
+                x = -bound
+            if x > bound:
+                x = bound
+            out[i, f + j] = np.float32(x)
+    return True
+
+
 MASK_ROWS_START = 64  # rows of a frame's mask buffer at first (doubled when a frame scores more)
 
 
@@ -61,7 +123,7 @@ class AgentPriorSampler:
     def __init__(self, n: int) -> None:
         self.n = n
         self.weights = np.full(n, 1.0 / n)
-        self._sampler = WeightedDraw(self.weights)
+        self._sampler: WeightedDraw | None = None  # built on the first draw (the search sets weights first)
         self.votes = np.zeros(n, dtype=np.int64)
         # every scored hypothesis' inlier mask, in order (rows [0, scored)): select() reads them each step
         self._all_masks = np.zeros((MASK_ROWS_START, n), dtype=bool)
@@ -79,6 +141,8 @@ class AgentPriorSampler:
         self._sampler = WeightedDraw(weights)
 
     def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
+        if self._sampler is None:
+            self._sampler = WeightedDraw(self.weights)
         return self._sampler.draw(batch, rng)
 
     def on_hypotheses(self, R, t, inlier_masks, residual_sq, state: LoopState) -> None:
@@ -144,6 +208,7 @@ class InFrameSearch:
         self.search = RansacSearch(problem, components, rng)
         self.best_residual: np.ndarray | None = None
         self._best_column: tuple[np.ndarray | None, np.ndarray | None] = (None, None)  # (residual, its column)
+        self._best_distance: tuple = (None, None, 0.0, 0.0)  # (best_R, best_t, globals 3 and 4 of them)
         self.weights = np.full(problem.n, 1.0 / problem.n)
 
     @property
@@ -164,7 +229,10 @@ class InFrameSearch:
         Returns:
             ``(drawn in this step, stopped, done)``: ``done`` when the caller stopped or the cap is reached.
         """
-        weights = np.exp(logits - logits.max())
+        if type(logits) is np.ndarray and logits.dtype == np.float64 and logits.ndim == 1:
+            weights = exp_shifted(logits)  # np.exp(logits - logits.max()) in one pass and numpy's exp
+        else:  # e.g. an agent's float32 logits: numpy's float32 arithmetic
+            weights = np.exp(logits - logits.max())
         weights /= weights.sum()
         self.weights = weights
         search, sampler = self.search, self.sampler
@@ -205,19 +273,13 @@ class InFrameSearch:
         n = self.problem.n
         M = n if max_correspondences is None else int(max_correspondences)
         scored = sampler.n_scored()
-        loop = np.zeros((n, len(LOOP_FEATURE_NAMES)), dtype=np.float64)
+        best_column = None
         if self.best_residual is not None:
             # the best model's column changes only with the best model: kept for the steps between
             if self._best_column[0] is not self.best_residual:
                 self._best_column = (self.best_residual, np.log1p(self.best_residual / search.components.threshold_sq))
-            loop[:, 0] = self._best_column[1]
-            loop[:, 3] = search.best_inliers
-        loop[:, 1] = sampler.votes / max(scored, 1)
-        loop[:, 2] = np.log1p(sampler.votes)
-        features = np.zeros((M, N_FEATURES + len(LOOP_FEATURE_NAMES)), dtype=np.float32)
-        features[:n, :N_FEATURES] = self.features
-        # np.clip's values without its Python wrapper (twice a step)
-        features[:n, N_FEATURES:] = np.minimum(np.maximum(loop, -FEATURE_BOUND, out=loop), FEATURE_BOUND, out=loop)
+            best_column = self._best_column[1]
+        features = observation_rows(self.features, best_column, search.best_inliers, sampler.votes, scored, M)
         mask = np.zeros(M, dtype=np.int8)
         mask[:n] = 1
         g = np.zeros(len(GLOBAL_FEATURE_NAMES))
@@ -227,10 +289,15 @@ class InFrameSearch:
         if self.previous_motion is not None:
             g[5] = 1.0
             if scored:
-                R_prev, t_prev = self.previous_motion
-                cos = (np.trace(search.best_R @ R_prev.T) - 1) / 2
-                g[3] = math.log1p(math.degrees(math.acos(min(max(cos, -1.0), 1.0))) / 0.1)
-                g[4] = math.log1p(float(np.linalg.norm(search.best_t - t_prev)) / 0.05)
+                # the best model's distance from the prediction changes only with the best model (the
+                # loop replaces best_R and best_t, never writes into them): kept for the steps between
+                if self._best_distance[0] is not search.best_R or self._best_distance[1] is not search.best_t:
+                    R_prev, t_prev = self.previous_motion
+                    cos = (np.trace(search.best_R @ R_prev.T) - 1) / 2
+                    self._best_distance = (search.best_R, search.best_t,
+                                           math.log1p(math.degrees(math.acos(min(max(cos, -1.0), 1.0))) / 0.1),
+                                           math.log1p(float(np.linalg.norm(search.best_t - t_prev)) / 0.05))
+                g[3], g[4] = self._best_distance[2], self._best_distance[3]
         chosen = sampler.select(self.weights)
         if chosen is not None:
             g[6] = float(sampler.scored_masks[chosen] @ self.weights)

@@ -237,15 +237,17 @@ def moving_object(
             direction = rng.standard_normal(3)
             velocity = direction / np.linalg.norm(direction) * rng.uniform(0.5, 2.0)
             spin = random_rotation(rng, _MAX_SPIN)
-        # Object motion in camera k-1 coordinates: rotate about its centre, then translate.
-        obj_t = centre - spin @ centre + velocity
+        # Object motion in camera k-1 coordinates: rotate about its centre, then translate
+        # (centre - spin @ centre + velocity, element by element; the product stays numpy's).
+        (c0, c1, c2), (r0, r1, r2), (v0, v1, v2) = centre.tolist(), (spin @ centre).tolist(), velocity.tolist()
         # np.cumsum of the face areas, normalised by its last entry
         areas = (half[1] * half[2], half[0] * half[2], half[0] * half[1])
         total = areas[0] + areas[1] + areas[2]
         face_cdf = np.array([areas[0] / total, (areas[0] + areas[1]) / total, total / total])
         # Object points live in camera k-1 coordinates; at k the object has moved by obj first.
-        obj = np.zeros((4, 4))
-        obj[:3, :3], obj[:3, 3], obj[3, 3] = spin, obj_t, 1.0
+        (s00, s01, s02), (s10, s11, s12), (s20, s21, s22) = spin.tolist()
+        obj = np.array([[s00, s01, s02, (c0 - r0) + v0], [s10, s11, s12, (c1 - r1) + v1],
+                        [s20, s21, s22, (c2 - r2) + v2], [0.0, 0.0, 0.0, 1.0]])
         to_curr_moved = to_curr_static @ obj
         half = np.array(half)
 

@@ -164,6 +164,32 @@ def _add_noise(
     return out
 
 
+def _shuffled_rows(order: np.ndarray, prev: np.ndarray, curr: np.ndarray, scores: np.ndarray, inlier: np.ndarray,
+                   kind: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``prev[order], curr[order], scores[order], inlier[order], kind[order]`` in one compiled pass
+    (the values are copied, so they are numpy's; the arrays come from numpy: see
+    :func:`stereovo.camera._project_rows`)."""
+    n = order.shape[0]
+    out = (np.empty((n, 4)), np.empty((n, 4)), np.empty(n), np.empty(n, dtype=bool), np.empty(n, dtype=np.int8))
+    if prev.dtype == np.float64 and curr.dtype == np.float64 and scores.dtype == np.float64 \
+            and inlier.dtype == np.bool_ and kind.dtype == np.int8 and prev.shape == curr.shape == (n, 4):
+        _gather_rows(order, np.ascontiguousarray(prev), np.ascontiguousarray(curr), scores, inlier, kind, *out)
+        return out
+    return prev[order], curr[order], scores[order], inlier[order], kind[order]
+
+
+@njit(cache=True, nogil=True)
+def _gather_rows(order, prev, curr, scores, inlier, kind, prev_out, curr_out, scores_out, inlier_out, kind_out):
+    for i in range(order.shape[0]):
+        j = order[i]
+        for c in range(4):
+            prev_out[i, c] = prev[j, c]
+            curr_out[i, c] = curr[j, c]
+        scores_out[i] = scores[j]
+        inlier_out[i] = inlier[j]
+        kind_out[i] = kind[j]
+
+
 def simulate_pair(
     config: SimulationConfig, pose_prev: np.ndarray, pose_curr: np.ndarray, index: int, rng: np.random.Generator
 ) -> Frame:
@@ -243,20 +269,21 @@ def simulate_pair(
     scores = draw_scores(inlier, config.score_auc, score_rng)
 
     order = order_rng.permutation(N)
+    rows = _shuffled_rows(order, prev, curr, scores, inlier, kind)
     truth = FrameTruth(
         rotation=rotation,
         translation=translation,
-        inlier=inlier[order],
-        outlier_kind=kind[order],
+        inlier=rows[3],
+        outlier_kind=rows[4],
         pose_prev=np.array(pose_prev, dtype=float),
         pose_curr=np.array(pose_curr, dtype=float),
         outlier_ratio=float(epsilon),
     )
     return Frame(
         index=int(index),
-        prev=prev[order],
-        curr=curr[order],
-        scores=scores[order],
+        prev=rows[0],
+        curr=rows[1],
+        scores=rows[2],
         camera=cam,
         noise_sigma=config.noise_sigma,
         score_auc=config.score_auc,

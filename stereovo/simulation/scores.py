@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from scipy.special import expit, ndtr, ndtri
 
 from stereovo.options import Number
@@ -41,10 +42,36 @@ def draw_scores(inlier: np.ndarray, auc: float, rng: np.random.Generator) -> np.
         shift = latent_shift(auc)
         if type(auc) is float and len(_SHIFTS) < 64:
             _SHIFTS[auc] = shift  # a simulator asks for its one AUC every frame
-    latent = rng.standard_normal(inlier.shape[0]) + shift * inlier
+    latent = rng.standard_normal(inlier.shape[0])
+    if type(inlier) is np.ndarray and inlier.dtype == np.bool_ and inlier.ndim == 1:
+        # `latent + shift * inlier` in place, then ndtr into the same array and np.clip's values
+        # (a NaN stays NaN), each in one pass: numpy's values without its temporaries
+        _shift_rows(latent, inlier, float(shift))
+        ndtr(latent, out=latent)
+        _clip_rows(latent, _LOWEST, _HIGHEST)  # returns nothing: boxing an array costs a dtype lookup
+        return latent
+    latent = latent + shift * inlier
     scores = ndtr(latent)
-    # np.clip's values (a NaN stays NaN) without its Python wrapper: the bounds are ordered
     return np.minimum(np.maximum(scores, _LOWEST, out=scores), _HIGHEST, out=scores)
+
+
+@njit(cache=True, nogil=True)
+def _shift_rows(latent, inlier, shift):
+    """``latent += shift * inlier`` as numpy computes it (the label as 1.0 or 0.0, times the shift)."""
+    for i in range(latent.shape[0]):
+        latent[i] = latent[i] + shift * (1.0 if inlier[i] else 0.0)
+
+
+@njit(cache=True, nogil=True)
+def _clip_rows(values, low, high):
+    """``np.minimum(np.maximum(values, low), high)`` in place (ordered bounds; a NaN stays NaN)."""
+    for i in range(values.shape[0]):
+        x = values[i]
+        if x < low:
+            x = low
+        if x > high:
+            x = high
+        values[i] = x
 
 
 _SHIFTS: dict[float, float] = {}  # latent_shift of the AUCs drawn with so far (checked ones only)

@@ -132,17 +132,38 @@ def _street_candidates(u, g, walls, frustum, z_min, z_max, to_prev, to_curr, cam
 
 
 def camera_vector(cam: StereoCamera) -> np.ndarray:
-    """The rig as the compiled visibility test takes it (see :func:`see_point`)."""
-    return np.array([cam.fx, cam.fy, cam.cx, cam.cy, cam.baseline, cam.width, cam.height, cam.min_disparity])
+    """The rig as the compiled visibility test takes it (see :func:`see_point`); read-only, one per camera."""
+    return _camera_arrays(cam)[0]
+
+
+def _frustum_vector(cam: StereoCamera) -> np.ndarray:
+    """:func:`_frustum` as an array (the street kernel's argument); read-only, one per camera."""
+    return _camera_arrays(cam)[1]
+
+
+_CAMERA_ARRAYS: dict[int, tuple[StereoCamera, np.ndarray, np.ndarray]] = {}
+
+
+def _camera_arrays(cam: StereoCamera) -> tuple[np.ndarray, np.ndarray]:
+    """The camera's vector and frustum, built once per camera (a frame asks for them three times;
+    the camera is frozen): by identity, the camera kept so that its id is not reused."""
+    entry = _CAMERA_ARRAYS.get(id(cam))
+    if entry is None or entry[0] is not cam:
+        vector = np.array([cam.fx, cam.fy, cam.cx, cam.cy, cam.baseline, cam.width, cam.height, cam.min_disparity])
+        frustum = np.array(_frustum(cam))
+        vector.flags.writeable = frustum.flags.writeable = False
+        if len(_CAMERA_ARRAYS) >= 32:
+            _CAMERA_ARRAYS.clear()
+        entry = _CAMERA_ARRAYS[id(cam)] = (cam, vector, frustum)
+    return entry[1], entry[2]
 
 
 class _StreetLayout:
     """One frame's street, in the frame of camera k-1: facades at ``x = -left, +right``."""
 
     def __init__(self, rng: np.random.Generator) -> None:
-        left, right = rng.uniform(4.0, 10.0, 2)
-        height_left, height_right = rng.uniform(6.0, 20.0, 2)
-        self.walls = np.array([left, right, height_left, height_right])
+        # (left, right, height_left, height_right): the two draws end to end
+        self.walls = np.concatenate((rng.uniform(4.0, 10.0, 2), rng.uniform(6.0, 20.0, 2)))
 
     def sample_visible(
         self, rng: np.random.Generator, n: int, cam: StereoCamera, z_min: float, z_max: float,
@@ -154,7 +175,7 @@ class _StreetLayout:
         u = rng.random((7, n))
         g = rng.standard_normal((2, n))
         return _street_candidates(
-            u, g, self.walls, np.array(_frustum(cam)), z_min, z_max, to_prev, to_curr, camera_vector(cam),
+            u, g, self.walls, _frustum_vector(cam), z_min, z_max, to_prev, to_curr, camera_vector(cam),
             n if limit is None else limit,
         )
 

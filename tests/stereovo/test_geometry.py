@@ -584,3 +584,16 @@ def test_pose_update_of_batches_lists_and_other_dtypes_is_the_formula():
     for bad_R, bad_t in ((np.zeros((4, 3)), t), (np.zeros((3, 4)), t), (R, np.zeros(4)), (R, np.zeros((2, 3)))):
         with pytest.raises(ValueError):
             pose_update(pose, bad_R, bad_t)
+
+
+def test_rotation_error_of_float64_matrices_is_the_swapaxes_formulation():
+    rng = np.random.default_rng(5)
+    for _ in range(5000):
+        R_est = so3_exp(rng.standard_normal(3) * rng.uniform(0, 3))
+        R_true = so3_exp(rng.standard_normal(3) * rng.uniform(0, 3))
+        if rng.random() < 0.3:
+            R_est = np.asfortranarray(R_est)
+        want = rotation_angle(np.swapaxes(np.asarray(R_est, dtype=float), -1, -2) @ R_true)
+        assert rotation_error(R_est, R_true) == want
+    stack = np.stack([np.eye(3), so3_exp(np.array([0.1, 0.2, 0.3]))])
+    np.testing.assert_array_equal(rotation_error(stack, np.eye(3)), rotation_angle(np.swapaxes(stack, -1, -2)))

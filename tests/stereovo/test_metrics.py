@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
+import math
+
 import numpy as np
 import pytest
 
@@ -226,3 +228,33 @@ def test_frame_metrics_scalar_success_test_is_is_success():
     norms = [0.0, 1.0, SUCCESS_TRANS_M / SUCCESS_TRANS_REL, 2.0, 1e6, math.nan, math.inf, -1.0]
     for r, t, n in itertools.product(rot, trans, norms):
         assert _is_success_scalar(float(r), float(t), float(n)) == bool(is_success(r, t, n)), (r, t, n)
+
+
+def test_mask_counts_are_numpys_counts():
+    from stereovo.metrics import _mask_counts, inlier_precision_recall
+
+    rng = np.random.default_rng(2)
+    for _ in range(300):
+        n = int(rng.integers(0, 700))
+        p, a = rng.random(n) < rng.random(), rng.random(n) < rng.random()
+        want = (int(np.count_nonzero(p & a)), int(np.count_nonzero(p)), int(np.count_nonzero(a)))
+        assert _mask_counts(p, a) == want
+        assert _mask_counts(p.astype(np.int64) * 3, a.tolist()) == want  # other types: numpy's reading
+        assert _mask_counts(p[::-1], a[::-1]) == want  # strided
+    assert inlier_precision_recall(np.zeros(4, bool), np.zeros(4, bool)) == (0.0, 0.0)
+    with pytest.raises(ValueError, match="differ in shape"):
+        _mask_counts(np.zeros(3, bool), np.zeros(4, bool))
+
+
+def test_the_truths_norm_is_numpys():
+    from stereovo.metrics import _norm
+
+    rng = np.random.default_rng(3)
+    for _ in range(20000):
+        t = rng.standard_normal(3) * 10.0 ** rng.integers(-8, 8, 3)
+        assert _norm(t) == float(np.linalg.norm(t))
+    for t in (np.zeros(3), np.array([-0.0, 0.0, -0.0]), np.array([np.nan, 1.0, 0.0]), np.array([np.inf, 1.0, 0.0]),
+              np.array([1e200, 1e200, 0.0]), np.arange(6.0)[::2], [3.0, 4.0, 0.0], np.array([3, 4, 0])):
+        with np.errstate(over="ignore"):  # 1e200 squared: both warn alike
+            ours, want = _norm(t), float(np.linalg.norm(t))
+        assert ours == want or (math.isnan(ours) and math.isnan(want))

@@ -56,3 +56,45 @@ def test_the_environments_act_in_an_action_box(env_id):
     env = gym.make(env_id, n_frames=3)
     assert type(env.action_space) is ActionBox
     env.close()
+
+
+def test_clipped_finite_is_numpys_clip_times_the_scale():
+    from vo_gym.action_box import clipped_finite
+
+    rng = np.random.default_rng(8)
+    for trial in range(300):
+        n = int(rng.integers(0, 600))
+        x = rng.standard_normal(n) * 10.0 ** rng.integers(-3, 4)
+        if n:
+            x[rng.integers(0, n, 4)] = rng.choice([0.0, -0.0, 10.0, -10.0, np.nextafter(10, 11), 1e308, -1e308], 4)
+        if trial % 5 == 0:
+            x = np.repeat(x, 2)[::2]  # a strided view
+        bound, scale = float(rng.choice([10.0, 1.0, 0.5])), float(rng.choice([1.0, 10.0, 0.3]))
+        ours = clipped_finite(x, bound, scale)
+        want = np.minimum(np.maximum(x, -bound), bound) * scale
+        assert ours.dtype == want.dtype and ours.tobytes() == want.tobytes()
+    for bad in (np.nan, np.inf, -np.inf):
+        assert clipped_finite(np.array([0.0, bad, 1.0]), 10.0) is None
+
+
+def test_exp_shifted_is_numpys_softmax_numerator():
+    from vo_gym.action_box import exp_shifted
+
+    rng = np.random.default_rng(11)
+    for trial in range(400):
+        n = int(rng.integers(1, 600))
+        x = rng.uniform(-10, 10, n) * rng.choice([1.0, 1e-3, 30.0])
+        if trial % 4 == 0:
+            x[rng.integers(0, n, 3)] = rng.choice([0.0, -0.0], 3)
+        if trial % 7 == 0:
+            x[:] = rng.choice([0.0, -0.0], n)  # the maximum is a zero of either sign
+        scale = float(rng.choice([1.0, 10.0, 0.3, -2.0]))
+        logits = x * scale
+        want = np.exp(logits - logits.max())
+        assert exp_shifted(x, scale).tobytes() == want.tobytes()
+    for bad in (np.array([0.0, np.nan]), np.array([np.inf, 1.0]), np.array([1e308, -1.0])):
+        with np.errstate(invalid="ignore", over="ignore"):
+            got, want = exp_shifted(bad, 10.0), np.exp(bad * 10.0 - (bad * 10.0).max())
+        np.testing.assert_array_equal(got, want)
+    with pytest.raises(ValueError):
+        exp_shifted(np.zeros(0))  # numpy's error: no maximum of nothing

@@ -556,3 +556,57 @@ def test_anchor_fractions_are_numpys_formulation():
         expected = ((count - is_anchor) / (anchors.size - is_anchor)).astype(np.float32)
         ours = _anchor_fractions(count, anchors, np.empty(n, dtype=np.float32))
         assert ours.dtype == np.float32 and ours.tobytes() == expected.tobytes()
+
+
+def test_screened_counts_share_the_anchor_pairs_as_the_test_counts_them():
+    """Each pair of two anchors is tested once and counted for both: the counts are the test's for
+    sorted, unsorted and repeated anchors, coincident points, a zero spread and pairs near the gate."""
+    rng = np.random.default_rng(7)
+    for trial in range(300):
+        n = int(rng.integers(0, 600))
+        P = rng.uniform([-20, -5, 3], [20, 5, 60], (n, 3))
+        Q = P * (1 + 1e-3) + rng.normal(0, 0.01 * (trial % 3), (n, 3))  # trial % 3 == 0: many near the gate
+        s2 = np.full(n, 1e-4) * rng.uniform(0.5, 1.5, n)
+        if trial % 4 == 0 and n:
+            s2[rng.integers(0, n)] = 0.0
+        if trial % 5 == 0 and n > 3:
+            P[1], Q[1] = P[2], Q[2]
+        anchors = np.sort(rng.permutation(n)[: min(n, int(rng.integers(1, 300)))]).astype(np.int64)
+        if trial % 7 == 0:
+            anchors = rng.permutation(anchors)
+        if trial % 9 == 0 and anchors.size > 2:
+            anchors[1] = anchors[0]
+        args = (P, Q, s2, anchors, 9.0)
+        np.testing.assert_array_equal(F._consistent_pairs(*args), F._consistent_pairs_exact(*args))
+
+
+def test_the_compiled_clip_is_numpys():
+    from vo_gym.features import _clip_in_place
+
+    rng = np.random.default_rng(9)
+    for _ in range(200):
+        x = (rng.standard_normal((int(rng.integers(0, 40)), N_FEATURES)) * 10.0 ** rng.integers(-2, 3)).astype(np.float32)
+        if x.size:
+            x.flat[rng.integers(0, x.size, 5)] = rng.choice(np.array(
+                [np.nan, np.inf, -np.inf, -0.0, 10.0, -10.0, np.nextafter(10, 11), np.nextafter(-10, -11)], np.float32), 5)
+        want = np.clip(x, -FEATURE_BOUND, FEATURE_BOUND)
+        _clip_in_place(x, FEATURE_BOUND)
+        assert x.tobytes() == want.tobytes()
+
+
+def test_previous_motion_and_noise_sigma_are_checked_every_time(sequence):
+    frame = sequence.frame(1)
+    args = (frame.prev, frame.curr, frame.scores, frame.camera)
+    R, t = np.eye(3), np.zeros(3)
+    good = compute_features(*args, 0.5, (R, t))
+    for _ in range(2):  # a value once accepted, then refused
+        for bad_R, bad_t in ((np.where(np.eye(3) == 1, np.nan, 0.0), t), (R, np.array([0.0, np.inf, 0.0])),
+                             (R[:2], t), (R, t[:2])):
+            with pytest.raises(ValueError, match="previous_motion"):
+                compute_features(*args, 0.5, (bad_R, bad_t))
+        for bad in (0.0, -1.0, float("nan"), float("inf")):
+            with pytest.raises(ValueError, match="noise_sigma"):
+                compute_features(*args, bad, (R, t))
+    same = compute_features(*args, 0.5, [R.tolist(), t.tolist()])  # lists take numpy's reading
+    np.testing.assert_array_equal(same, good)
+    np.testing.assert_array_equal(compute_features(*args, 0.5, (R.astype(np.float32), t)), good)

@@ -166,3 +166,51 @@ def test_spawned_generators_leave_other_entropy_to_numpy():
     assert ours.bit_generator.state == np.random.default_rng(np.random.SeedSequence([3, 2**40]).spawn(1)[0]).bit_generator.state
     with pytest.raises(ValueError, match="non-negative"):
         spawned_generators(np.array([3, -1], dtype=np.int64), 2)  # numpy's own error
+
+
+def test_shuffled_rows_are_numpys_fancy_indexing():
+    rng = np.random.default_rng(6)
+    kinds, inlier = pair_module._row_kinds((7, 3, 2, 4, 0, 1, 0, 3))  # read-only, as a frame's
+    n = kinds.shape[0]
+    for _ in range(50):
+        order = rng.permutation(n)
+        prev, curr, scores = rng.standard_normal((n, 4)), rng.standard_normal((n, 4)), rng.random(n)
+        prev[0, 1] = -0.0
+        ours = pair_module._shuffled_rows(order, prev, curr, scores, inlier, kinds)
+        for got, want in zip(ours, (prev[order], curr[order], scores[order], inlier[order], kinds[order])):
+            assert got.dtype == want.dtype and got.shape == want.shape and got.tobytes() == want.tobytes()
+            assert got.flags.c_contiguous and got.flags.writeable
+    # other dtypes take numpy's indexing
+    order = rng.permutation(n)
+    ours = pair_module._shuffled_rows(order, prev.astype(np.float32), curr, scores, inlier, kinds)
+    assert ours[0].dtype == np.float32 and ours[0].tobytes() == prev.astype(np.float32)[order].tobytes()
+
+
+def test_camera_arrays_are_built_once_per_camera_and_read_only():
+    from stereovo.camera import StereoCamera
+
+    config = SimulationConfig()
+    a, b = camera_vector(config.camera), camera_vector(config.camera)
+    assert a is b and not a.flags.writeable
+    np.testing.assert_array_equal(a, [config.camera.fx, config.camera.fy, config.camera.cx, config.camera.cy,
+                                      config.camera.baseline, config.camera.width, config.camera.height,
+                                      config.camera.min_disparity])
+    np.testing.assert_array_equal(world_module._frustum_vector(config.camera), world_module._frustum(config.camera))
+    other = StereoCamera(fx=500.0, fy=500.0, cx=320.0, cy=240.0, baseline=0.3, width=640, height=480)
+    assert camera_vector(other)[0] == 500.0 and world_module._frustum_vector(other)[1] == pytest.approx(1.15 * 319 / 500)
+
+
+def test_frames_refuse_wrong_shapes_on_both_paths():
+    from stereovo.simulation.frame import Frame
+
+    frame = Sequence(SimulationConfig(n_frames=2), seed=0).frame(1)
+    good = dict(index=1, prev=frame.prev, curr=frame.curr, scores=frame.scores, camera=frame.camera,
+                noise_sigma=0.5, score_auc=0.75, truth=frame.truth)
+    Frame(**good)
+    Frame(**{**good, "prev": frame.prev.tolist()})  # lists: numpy's shape reading
+    for bad in ({"prev": frame.prev[:, :3]}, {"curr": frame.curr[1:]}, {"scores": frame.scores[1:]},
+                {"prev": frame.prev[0]}, {"scores": frame.scores[:, None]}):
+        with pytest.raises(ValueError):
+            Frame(**{**good, **bad})
+        with pytest.raises(ValueError):
+            Frame(**{**good, **{k: np.asarray(v).tolist() for k, v in bad.items()}})

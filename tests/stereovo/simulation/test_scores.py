@@ -131,3 +131,21 @@ def test_draw_scores_is_the_clipped_probit_formulation(auc):
         assert ours.tobytes() == expected.tobytes()
     with pytest.raises(ValueError):
         draw_scores(inlier, 1.0, np.random.default_rng(0))  # an AUC of 1 is refused, also after valid ones
+
+
+@pytest.mark.parametrize("auc", [0.5, 0.75, 0.9999999])
+def test_draw_scores_of_read_only_and_other_labels_is_the_formulation(auc):
+    from scipy.special import ndtr
+
+    from stereovo.simulation.scores import latent_shift
+
+    lowest, highest = np.finfo(float).tiny, np.nextafter(1.0, 0.0)
+    for seed in range(5):
+        inlier = np.random.default_rng(seed).random(600) < 0.3
+        expected = np.clip(ndtr(np.random.default_rng(seed).standard_normal(600) + latent_shift(auc) * inlier),
+                           lowest, highest)
+        frozen = inlier.copy()
+        frozen.flags.writeable = False  # the simulator's cached labels
+        for labels in (frozen, inlier.astype(np.int8), inlier.tolist()):
+            labels_array = np.asarray(labels)
+            assert draw_scores(labels_array, auc, np.random.default_rng(seed)).tobytes() == expected.tobytes()
