@@ -102,10 +102,17 @@ def msac_reward(
     hypothesis_cost: float = 0.0,
     failure_reward: float = -1.0,
 ) -> float:
-    """Normalised MSAC score ``1 + score / N`` of the chosen model under a reprojection gate (px^2)."""
+    """Normalised MSAC score ``1 + score / N`` of the chosen model under a reprojection gate (px^2).
+
+    A row without depth at k-1 (disparity at or below the camera's minimum, or no finite
+    triangulation: the hostile preset's mismatches, a real front end's far points) cannot be
+    reprojected; it counts as an outlier, at the full cost of the gate, as it would beyond it."""
     if not ok:
         return _clip(failure_reward)
     n = prev.shape[0]
-    sq = reprojection_sq(camera, rotation[None], translation[None], camera.triangulate(prev), curr)
+    points, _, usable = camera.triangulate_usable(prev, 1.0)
+    sq = np.full((1, n), np.inf)
+    if usable.any():
+        sq[0, usable] = reprojection_sq(camera, rotation[None], translation[None], points[usable], curr[usable])[0]
     score = float(TruncatedQuadratic().score(sq, threshold_sq)[0])
     return _clip(1.0 + score / max(n, 1) - hypothesis_cost * n_hypotheses)

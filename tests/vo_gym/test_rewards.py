@@ -146,6 +146,36 @@ def test_msac_reward_is_one_for_an_exact_model_minus_the_cost():
     )
 
 
+def test_msac_reward_counts_rows_without_depth_as_outliers():
+    """Rows the k-1 pair cannot triangulate (no disparity, negative disparity, NaN) cost the full gate,
+    as an outlier beyond it does; the others are scored as ever."""
+    camera = StereoCamera(fx=500.0, fy=480.0, cx=320.0, cy=240.0, baseline=0.3, width=640, height=480)
+    prev, curr, R, t = stereo_pair(camera)
+    prev = prev.copy()
+    prev[0, 2] = prev[0, 0]  # zero disparity
+    prev[3, 2] = prev[3, 0] + 2.0  # negative disparity
+    prev[5] = np.nan
+    assert msac_reward(True, R, t, prev, curr, camera, 4.0, 0) == pytest.approx(5 / 8, abs=1e-9)
+    prev[:] = np.nan  # no row has depth: every row an outlier
+    assert msac_reward(True, R, t, prev, curr, camera, 4.0, 0) == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("env_id", ["vo_gym/StereoVO-v0", "vo_gym/StereoVOAdaptive-v0"])
+def test_the_msac_reward_on_hostile_frames(env_id):
+    import gymnasium as gym
+
+    env = gym.make(env_id, reward_mode="msac", outliers="hostile")
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    rewards = []
+    for _ in range(12):
+        _, reward, terminated, truncated, _ = env.step(env.action_space.sample())
+        rewards.append(reward)
+        if terminated or truncated:
+            env.reset()
+    assert np.all(np.isfinite(rewards)) and max(rewards) > 0.0
+
+
 def test_msac_reward_truncates_each_squared_error_at_the_gate():
     camera = StereoCamera(fx=500.0, fy=480.0, cx=320.0, cy=240.0, baseline=0.3, width=640, height=480)
     prev, curr, R, t = stereo_pair(camera)
