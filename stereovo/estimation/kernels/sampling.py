@@ -2,7 +2,7 @@
 
 :func:`distinct_triplets` (uniform) and :func:`weighted_triplets` (proportional to weights)
 draw three distinct indices per row from given uniforms; :func:`prior_defects` checks the
-weights in one pass; :func:`rigid_triplets` keeps the samples whose pairwise distances agree
+weights in one pass and :func:`cumulative_weights` builds the weighted draw's tables; :func:`rigid_triplets` keeps the samples whose pairwise distances agree
 between k-1 and k (:mod:`stereovo.estimation.kernels.rigidity`).
 """
 
@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from stereovo.estimation.kernels.base import inline_jit, jit
+from stereovo.estimation.kernels.beliefs import numpy_sum
 from stereovo.estimation.kernels.rigidity import distance_change_sq_jit, rigid_distance_consistent_jit
 
 
@@ -95,6 +96,45 @@ def prior_defects(p):
         if x > 0:
             positive += 1
     return nonfinite, minimum, positive
+
+
+@jit
+def cumulative_weights(p, tiny):
+    """A guided sampler's tables from valid priors ``p (N,)`` in one pass: ``w = p / sum(p)`` (the sum
+    numpy's pairwise one, bit for bit), the inclusive and exclusive cumulative sums (numpy's
+    running ``cumsum``), whether the positive weights are all equal and how many there are.
+
+    Returns ``(w, cdf, before, equal, n_positive, direct)``; ``direct`` is False where the sum is not
+    a finite number of at least ``tiny`` or a positive weight's quotient falls below ``tiny``: the
+    caller then takes :func:`stereovo.estimation.roles.samplers.normalised_weights`' careful path,
+    and the other values are not to be read.
+    """
+    N = p.shape[0]
+    w = np.empty(N)
+    cdf = np.empty(N)
+    before = np.empty(N)
+    total = numpy_sum(p)
+    if not (np.isfinite(total) and total >= tiny):
+        return w, cdf, before, False, 0, False
+    running = 0.0
+    first = 0.0
+    n_positive = 0
+    equal = True
+    for i in range(N):
+        wi = p[i] / total
+        if p[i] > 0 and wi < tiny:
+            return w, cdf, before, False, 0, False
+        w[i] = wi
+        if wi > 0:
+            if n_positive == 0:
+                first = wi
+            elif wi != first:
+                equal = False
+            n_positive += 1
+        before[i] = running
+        running += wi
+        cdf[i] = running
+    return w, cdf, before, equal, n_positive, True
 
 
 @inline_jit

@@ -14,7 +14,9 @@ from typing import ClassVar, Protocol
 import numpy as np
 
 from stereovo.estimation.kernels.verification import weighted_all_inlier_probability
-from stereovo.estimation.kernels.sampling import distinct_triplets, prior_defects, weighted_triplets
+from stereovo.estimation.kernels.sampling import (
+    cumulative_weights, distinct_triplets, prior_defects, weighted_triplets,
+)
 from stereovo.estimation.roles.solvers import SAMPLE_SIZE
 from stereovo.estimation.roles.termination import all_inlier_probability as uniform_all_inlier_probability
 from stereovo.options import real_array
@@ -128,13 +130,23 @@ class WeightedSampler:
             raise ValueError(f"priors must be a 1-D array, one weight per correspondence, got shape {np.shape(priors)}")
         self.priors = validate_priors(priors, len(priors))
         self.n = self.priors.shape[0]
-        self._w = normalised_weights(self.priors)
-        positive = self._w[self._w > 0]
+        # the quotient, the cumulative sums and the equal-weight test in one compiled pass; weights
+        # whose sum overflows or underflows take normalised_weights' careful path
+        w, cdf, before, equal, n_positive, direct = cumulative_weights(
+            np.ascontiguousarray(self.priors, dtype=float), np.finfo(float).tiny
+        )
+        if not direct:
+            w = normalised_weights(self.priors)
+            positive = w[w > 0]
+            equal, n_positive = bool(np.all(positive == positive[0])), int(positive.size)
+            cdf = np.cumsum(w)
+            before = np.concatenate([[0.0], cdf[:-1]])
+        self._w = w
         # Equal positive weights: uniform sampling over them, whose q is the count formula exactly.
-        self._equal_weights = bool(np.all(positive == positive[0]))
-        self._n_positive = int(positive.size)
-        self._cdf = np.cumsum(self._w)  # inclusive: mass of [0, i]
-        self._before = np.concatenate([[0.0], self._cdf[:-1]])  # exclusive: mass of [0, i)
+        self._equal_weights = bool(equal)
+        self._n_positive = int(n_positive)
+        self._cdf = cdf  # inclusive: mass of [0, i]
+        self._before = before  # exclusive: mass of [0, i)
 
     def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
         w = self._w

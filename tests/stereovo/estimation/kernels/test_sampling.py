@@ -33,3 +33,49 @@ def test_compiled_weighted_draw_inverts_the_cut_cumulative_weights_like_searchso
         np.testing.assert_array_equal(samples, np.stack([a, b, c], axis=1))
         expected = (b == a) | (c == a) | (c == b) | (w[a] == 0) | (w[b] == 0) | (w[c] == 0)
         np.testing.assert_array_equal(suspect, expected)
+
+
+def _tables_by_numpy(priors):
+    """The guided sampler's tables as numpy built them: normalised weights, cumsum, shifted cumsum."""
+    from stereovo.estimation.roles.samplers import normalised_weights
+
+    w = normalised_weights(priors)
+    positive = w[w > 0]
+    cdf = np.cumsum(w)
+    return w, cdf, np.concatenate([[0.0], cdf[:-1]]), bool(np.all(positive == positive[0])), int(positive.size)
+
+
+def _prior_sets(rng):
+    n = 517  # past numpy's pairwise block of 128, not a multiple of 8
+    yield rng.random(n)
+    yield rng.exponential(1.0, n) * (rng.random(n) < 0.3)  # many zeros
+    yield np.full(n, 0.25)  # equal weights
+    yield np.where(rng.random(n) < 0.5, 2.0, 0.0)  # equal positive weights among zeros
+    yield np.exp(rng.normal(0.0, 30.0, n))  # a wide range of scales
+    yield rng.random(5)
+    yield np.array([0.0, 1e-310, 1.0, 3.0])  # a quotient below the smallest normal: the careful path
+    yield np.full(40, 1e307)  # the sum overflows: the careful path
+    yield np.full(9, 5e-324)  # the sum is subnormal: the careful path
+    yield rng.integers(0, 4, n).astype(float)
+
+
+def test_cumulative_weights_are_numpys_tables_or_decline():
+    from stereovo.estimation.kernels.sampling import cumulative_weights
+    from stereovo.estimation.roles.samplers import WeightedSampler
+
+    rng = np.random.default_rng(8)
+    declined = 0
+    for priors in _prior_sets(rng):
+        w, cdf, before, equal, n_positive, direct = cumulative_weights(priors, np.finfo(float).tiny)
+        expected = _tables_by_numpy(priors)
+        sampler = WeightedSampler(priors)
+        for got, want in zip((sampler._w, sampler._cdf, sampler._before), expected[:3]):
+            np.testing.assert_array_equal(got, want)
+        assert (sampler._equal_weights, sampler._n_positive) == expected[3:]
+        if direct:
+            for got, want in zip((w, cdf, before), expected[:3]):
+                np.testing.assert_array_equal(got, want)
+            assert (equal, n_positive) == expected[3:]
+        else:
+            declined += 1
+    assert declined == 3  # the three careful cases, and only those
