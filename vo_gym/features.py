@@ -320,37 +320,23 @@ def _consistent_pairs(points_prev, points_curr, s2, anchors, gate_sq):
         # an anchor's row: the anchors before it, then its own pair (a loop from 0: one that starts
         # further on runs at half the speed)
         stop = own + 1 if own >= 0 else a
+        for k in range(stop):
+            x0, x1, x2 = px[k] - p0, py[k] - p1, pz[k] - p2
+            y0, y1, y2 = qx[k] - q0, qy[k] - q1, qz[k] - q2
+            change = abs(np.sqrt(y0 * y0 + y1 * y1 + y2 * y2) - np.sqrt(x0 * x0 + x1 * x1 + x2 * x2))
+            gate = gate32 * (s2i + s2_anchor32[k])
+            high = change + bound
+            low = max(change - bound, zero)
+            passes = high * high < gate * below
+            fails = low * low > gate * above
+            c += passes
+            flag = not (passes or fails)
+            undecided[k] = flag + 2 * passes  # one array written: a second stops the vectors
+            left += flag
         if own >= 0:
             before = later[own]  # the later anchors' pairs with this one, so far
             for k in range(stop):
-                x0, x1, x2 = px[k] - p0, py[k] - p1, pz[k] - p2
-                y0, y1, y2 = qx[k] - q0, qy[k] - q1, qz[k] - q2
-                change = abs(np.sqrt(y0 * y0 + y1 * y1 + y2 * y2) - np.sqrt(x0 * x0 + x1 * x1 + x2 * x2))
-                gate = gate32 * (s2i + s2_anchor32[k])
-                high = change + bound
-                low = max(change - bound, zero)
-                passes = high * high < gate * below
-                fails = low * low > gate * above
-                c += passes
-                flag = not (passes or fails)
-                undecided[k] = flag + 2 * passes  # one array written: a second stops the vectors
-                left += flag
-            for k in range(stop):
                 later[k] += undecided[k] >> 1
-        else:
-            for k in range(a):
-                x0, x1, x2 = px[k] - p0, py[k] - p1, pz[k] - p2
-                y0, y1, y2 = qx[k] - q0, qy[k] - q1, qz[k] - q2
-                change = abs(np.sqrt(y0 * y0 + y1 * y1 + y2 * y2) - np.sqrt(x0 * x0 + x1 * x1 + x2 * x2))
-                gate = gate32 * (s2i + s2_anchor32[k])
-                high = change + bound
-                low = max(change - bound, zero)
-                passes = high * high < gate * below
-                fails = low * low > gate * above
-                c += passes
-                flag = not (passes or fails)
-                undecided[k] = flag
-                left += flag
         if left:
             d0, d1, d2 = points_prev[i, 0], points_prev[i, 1], points_prev[i, 2]
             e0, e1, e2 = points_curr[i, 0], points_curr[i, 1], points_curr[i, 2]
