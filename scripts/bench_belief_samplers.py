@@ -46,10 +46,9 @@ METHODS = (
     ("p-bansac:loop", {}, True),
     ("bansac:batch-16", {"bansac_batch": 16}, True),
     ("ars", {}, True),
-    ("ars:loop", {}, True),
 )
 """``(row, options, has a numpy reference)``; a row ``method:loop`` runs the method's steps in the
-shared loop instead of its compiled search (``bansac.COMPILED_SEARCH``, ``ars.COMPILED_SEARCH`` off)."""
+shared loop instead of its compiled search (``bansac.COMPILED_SEARCH`` off)."""
 
 
 @contextlib.contextmanager
@@ -65,14 +64,13 @@ def numpy_samplers():
 
 @contextlib.contextmanager
 def search_path(row: str):
-    """The shared loop's steps in place of BANSAC's and ARS's compiled searches for a ``:loop`` row."""
-    saved = bansac.COMPILED_SEARCH, ars.COMPILED_SEARCH
-    loop = row.endswith(":loop")
-    bansac.COMPILED_SEARCH, ars.COMPILED_SEARCH = saved[0] and not loop, saved[1] and not loop
+    """The shared loop's steps in place of BANSAC's compiled search for a ``:loop`` row."""
+    saved = bansac.COMPILED_SEARCH
+    bansac.COMPILED_SEARCH = saved and not row.endswith(":loop")
     try:
         yield
     finally:
-        bansac.COMPILED_SEARCH, ars.COMPILED_SEARCH = saved
+        bansac.COMPILED_SEARCH = saved
 
 
 def timed(frame, method: str, options: dict, priors, seed: int):

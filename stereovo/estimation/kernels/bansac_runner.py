@@ -21,10 +21,6 @@ rounding of the exact distance reaches (its relative error is about the 3x3 cova
 number times 1e-16; it would need a condition number near 1e10, where the usable rows of simulated
 frames reach about 1e6, default and hostile presets), so its verdict is the uncapped one.
 
-ARS's direct search (:func:`stereovo.estimation.methods.ars.compiled_ars_search`) judges its
-batches with :func:`judged_batch`, the same scoring and verdicts for a batch of hypotheses
-(Wei, Matas & Barath, ICCV 2023).
-
 The loop's state travels in an int64 array indexed by the ``S_*`` constants and a float64 array
 (``F_*``), read and written by the caller between calls.
 """
@@ -365,54 +361,3 @@ def bansac_search(
             state[S_REQUIRED] = state[S_BOUND]
     state[S_ROW] = row
     return DONE
-
-
-@jit
-def judged_batch(R, t, X, Y, cam, sigma_sq, threshold_sq, constants):
-    """The Mahalanobis judge of a batch as the loop applies it for a sampler fed back every verdict
-    (ARS's direct runner, :func:`stereovo.estimation.methods.ars.compiled_ars_search`), in one pass
-    per hypothesis: ``scores (H,)`` the inlier counts under the capped residuals (float, as
-    ``InlierCount`` scores), ``inliers (H, N)`` bool those inliers (what the loop reads a new best's
-    or runner-up's consensus from) and ``verdicts (H, N)`` bool the inliers by the uncapped
-    residuals (what the loop feeds back; the same but within :data:`VERDICT_GUARD` of the gate).
-    ``R (H, 3, 3)``, ``t (H, 3)``; ``constants``: :func:`search_constants` of ``X, Y``."""
-    n = X.shape[0]
-    H = R.shape[0]
-    fx, fy, bl = cam[0], cam[1], cam[4]
-    inv_fx, inv_fy, inv_fb = 1.0 / fx, 1.0 / fy, 1.0 / (fx * bl)
-    v_variance = 1.0 / cam[5]
-    c_lateral = 2.0 * inv_fx * inv_fx + v_variance * inv_fy * inv_fy
-    c_depth = 3.0 * inv_fb * inv_fb
-    x0, x1, x2, y0, y1, y2, inv_depth, norm_x, norm_y = constants
-    guard, low_guard = threshold_sq * (1.0 + VERDICT_GUARD), threshold_sq * (1.0 - VERDICT_GUARD)
-    capped = np.empty(n)
-    scores = np.empty(H)
-    inliers = np.empty((H, n), dtype=np.bool_)
-    verdicts = np.empty((H, n), dtype=np.bool_)
-    for h in range(H):
-        r00, r01, r02, r10, r11, r12, r20, r21, r22 = (
-            R[h, 0, 0], R[h, 0, 1], R[h, 0, 2], R[h, 1, 0], R[h, 1, 1], R[h, 1, 2], R[h, 2, 0], R[h, 2, 1], R[h, 2, 2]
-        )
-        t0, t1, t2 = t[h, 0], t[h, 1], t[h, 2]
-        norm_t = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
-        capped_distances(r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t, x0, x1, x2, y0, y1, y2,
-                         inv_depth, norm_x, norm_y, inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth,
-                         sigma_sq, threshold_sq, capped)
-        count = 0
-        near = 0
-        for i in range(n):
-            inside = capped[i] < threshold_sq
-            inliers[h, i] = inside
-            verdicts[h, i] = inside
-            count += inside
-            near += low_guard <= capped[i] and capped[i] < guard
-        scores[h] = count
-        if near:
-            for i in range(n):
-                if low_guard <= capped[i] < guard:
-                    verdicts[h, i] = point_mahalanobis_sq(
-                        r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t,
-                        x0[i], x1[i], x2[i], y0[i], y1[i], y2[i], inv_depth[i], norm_x[i], norm_y[i],
-                        inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, 0.0,
-                    ) < threshold_sq
-    return scores, inliers, verdicts

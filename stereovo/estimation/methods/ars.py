@@ -21,13 +21,6 @@ feedback hook undoes the update for the sample that raised the best support.
 Initial probabilities: ``initial_probability`` without priors, else priors scaled so that the largest
 is ``prior_ceiling`` (as :mod:`stereovo.estimation.methods.bansac`). Termination: the loop's adaptive bound.
 
-**The direct search.** :func:`compiled_ars_search` (the components' ``search_runner``) takes the
-loop's steps with each batch judged in one compiled pass (the capped score, the inliers and the
-fed-back verdicts, :func:`stereovo.estimation.kernels.bansac_runner.judged_batch`) where the loop
-runs the Mahalanobis kernel twice: the loop's results bit for bit
-(``tests/stereovo/estimation/methods/test_bansac_runner.py``); :data:`COMPILED_SEARCH` False runs
-the loop, the reference.
-
 This module also registers ``ars`` (its belief options as :mod:`~stereovo.estimation.methods.bansac` declares them).
 """
 
@@ -37,9 +30,8 @@ import itertools
 
 import numpy as np
 
-from stereovo.estimation.kernels import bansac_runner as runner_kernels
 from stereovo.estimation.kernels import beliefs as belief_kernels
-from stereovo.estimation.loop import LoopState, RansacComponents, RansacSearch, local_refit_redundant
+from stereovo.estimation.loop import LoopState
 from stereovo.estimation.methods.bansac import (
     BELIEF_FLOOR,
     CEILING_RULE,
@@ -49,11 +41,7 @@ from stereovo.estimation.methods.bansac import (
     judged_components,
 )
 from stereovo.estimation.registry import register_method
-from stereovo.estimation.roles.local_optimization import ConsensusRefit
-from stereovo.estimation.roles.sample_check import RigidityCheck
-from stereovo.estimation.roles.scoring import InlierCount, MahalanobisResidual
-from stereovo.estimation.roles.solvers import SAMPLE_SIZE, minimal_hypotheses
-from stereovo.estimation.roles.verification import FullVerification
+from stereovo.estimation.roles.solvers import SAMPLE_SIZE
 
 CANDIDATES = 8
 CANDIDATE_TRIPLES = np.array(list(itertools.combinations(range(CANDIDATES), SAMPLE_SIZE)), dtype=np.int64)
@@ -144,133 +132,6 @@ class ArsSampler:
         return {"ars_successes": self.successes, "ars_tried": self._tried}
 
 
-# ----------------------------------------------------------------------------- the direct search
-
-
-COMPILED_SEARCH = True  # False: ars steps the shared loop (the reference the direct search is held to)
-# the class the direct search feeds back, bound here: another sampler put in ArsSampler's place is left to the loop
-SEARCHED_SAMPLER = ArsSampler
-
-
-def compiled_search_applies(c: RansacComponents) -> bool:
-    """Whether :func:`compiled_ars_search` computes exactly what the loop's steps compute for ``c``:
-    ARS's sampler, the ``probabilistic`` judge (Mahalanobis count, full verification), with or
-    without the rigidity check, with the consensus refit (which draws nothing) or no local optimiser;
-    any termination and listeners (they are called as the loop calls them)."""
-    return (
-        type(c.sampler) is SEARCHED_SAMPLER
-        and type(c.verifier) is FullVerification
-        and type(c.residual_model) is MahalanobisResidual and type(c.quality) is InlierCount and c.threshold_sq > 0
-        and (c.sample_check is None or type(c.sample_check) is RigidityCheck)
-        and (c.local_optimizer is None or type(c.local_optimizer) is ConsensusRefit)
-    )
-
-
-def compiled_ars_search(search: RansacSearch) -> None:
-    """Run a fresh search of ``ars`` to its end: the loop's steps (its batch schedule, draws, checks,
-    new bests, runner-up refits, listeners and bound, as :meth:`RansacSearch.step` takes them), with
-    each batch judged in one compiled pass
-    (:func:`stereovo.estimation.kernels.bansac_runner.judged_batch`): the loop scores on capped
-    residuals and computes every residual again, uncapped, for the sampler's feedback, with the
-    Mahalanobis kernel's per-batch loop; one vectorised pass gives the scores, the inliers and the
-    verdicts, bit for bit. Components it does not cover (:func:`compiled_search_applies`) are left
-    to the loop, untouched."""
-    c = search.components
-    if not compiled_search_applies(c):
-        return
-    problem, n, term = search.problem, search.n, c.termination
-    constants = runner_kernels.search_constants(problem.points_prev, problem.points_curr)
-    sigma_sq, threshold_sq = problem.noise_sigma**2, float(c.threshold_sq)
-    listening = [*c.listeners, *([] if any(x is term for x in c.listeners) else [term])]
-    best_listeners = [listener for listener in listening if hasattr(listener, "on_new_best")]
-    batch_listeners = [listener for listener in listening if hasattr(listener, "on_batch")]
-    size = min(c.first_batch_size, c.batch_size) if c.first_batch_size else c.batch_size
-    while not search.done:
-        batch = int(min(size, search.required - search.drawn))
-        size = min(2 * size, c.batch_size)
-        samples = c.sampler.draw(batch, search.rng)
-        search.drawn += batch
-        if c.sample_check is not None:
-            keep = c.sample_check.accept(problem, samples)
-            search.rejected += batch - int(np.count_nonzero(keep))
-            samples = samples[keep]
-        R, t, valid = minimal_hypotheses(problem, samples, c.polish_iterations)
-        n_valid = int(np.count_nonzero(valid))
-        search.degenerate += len(valid) - n_valid
-        if n_valid:
-            if n_valid < len(valid):
-                R, t, samples = R[valid], t[valid], samples[valid]
-            scores, inliers, verdicts = runner_kernels.judged_batch(
-                R, t, problem.points_prev, problem.points_curr, problem.camera.parameters, sigma_sq, threshold_sq,
-                constants,
-            )
-            search.scored += R.shape[0]
-            search.checks += R.shape[0] * n
-            i = int(np.argmax(scores))
-            earlier_best = search.best_score > -np.inf
-            new_best = bool(scores[i] > search.best_score)
-            if new_best:
-                _take_new_best(search, R, t, inliers, i, float(scores[i]), best_listeners)
-            if c.runner_up_fraction is not None and c.local_optimizer is not None and earlier_best:
-                _refit_runner_up(search, R, t, scores, inliers, i if new_best else -1, best_listeners)
-            search.checks += R.shape[0] * n
-            state = LoopState(search.drawn, search.best_score, samples=samples, best_inliers=search.best_inliers)
-            c.sampler.on_hypotheses(R, t, verdicts, None, state)
-        if batch_listeners:
-            state = search.state
-            for listener in batch_listeners:
-                listener.on_batch(state)
-        if search.best_score > -np.inf:
-            bound = term.required(int(np.count_nonzero(search.best_inliers)), n)
-            search.required = min(bound, term.max_iterations)
-
-
-def _take_new_best(search: RansacSearch, R, t, inliers, i: int, score: float, listeners) -> None:
-    """Hypothesis ``i`` of the batch as the new best, with the loop's local refit and listeners."""
-    c, n = search.components, search.n
-    search.best_R, search.best_t, search.best_score = R[i], t[i], score
-    search.best_inliers = inliers[i].copy()  # from the scored residuals: no point checks
-    search.found_at = search.drawn
-    if c.local_optimizer is not None and not local_refit_redundant(c, search.drawn, search.best_inliers, n):
-        search.best_R, search.best_t, search.best_inliers, search.best_score, spent = c.local_optimizer.improve(
-            search.ctx, search.best_R, search.best_t, search.best_inliers, search.best_score, search.rng
-        )
-        search.local_runs += 1
-        search.checks += spent
-    state = search.state
-    for listener in listeners:
-        listener.on_new_best(search.best_inliers, state)
-
-
-def _refit_runner_up(search: RansacSearch, R, t, scores, inliers, new_best: int, listeners) -> None:
-    """The loop's runner-up refit: the batch's best hypothesis other than ``new_best`` (-1: none),
-    refitted if its consensus is near the best's, made the best if it then scores higher."""
-    c = search.components
-    if new_best >= 0:
-        if scores.shape[0] < 2:
-            return
-        scores = scores.copy()
-        scores[new_best] = -np.inf
-    j = int(np.argmax(scores))
-    if scores[j] == -np.inf:
-        return
-    count = np.count_nonzero(inliers[j])
-    if count < SAMPLE_SIZE or count < c.runner_up_fraction * np.count_nonzero(search.best_inliers):
-        return
-    R_j, t_j, inliers_j, score_j, spent = c.local_optimizer.improve(
-        search.ctx, R[j], t[j], inliers[j].copy(), float(scores[j]), search.rng
-    )
-    search.runner_up_runs += 1
-    search.checks += spent
-    if score_j > search.best_score:
-        search.runner_up_wins += 1
-        search.best_R, search.best_t, search.best_inliers, search.best_score = R_j, t_j, inliers_j, score_j
-        search.found_at = search.drawn
-        state = search.state
-        for listener in listeners:
-            listener.on_new_best(search.best_inliers, state)
-
-
 # ----------------------------------------------------------------------------- the method
 
 
@@ -283,7 +144,4 @@ def _refit_runner_up(search: RansacSearch, R, t, scores, inliers, new_best: int,
     extra_options={"initial_probability": None, "prior_ceiling": CEILING_RULE},
 )
 def _build_ars(problem, options, priors, order, extra):
-    components = judged_components(problem, options, priors, order, ArsSampler(problem.n, priors, **belief_options(extra)))
-    if COMPILED_SEARCH:
-        components.search_runner = compiled_ars_search
-    return components
+    return judged_components(problem, options, priors, order, ArsSampler(problem.n, priors, **belief_options(extra)))

@@ -1,7 +1,7 @@
-"""BANSAC's compiled search and ARS's direct search (stereovo/estimation/kernels/bansac_runner.py)
-against the shared loop's steps, the reference they replace: the same estimates, counters, beliefs
+"""BANSAC's compiled search (stereovo/estimation/kernels/bansac_runner.py) against the shared loop's
+steps, the reference it replaces: the same estimates, counters, beliefs
 and generator state, bit for bit, on fixed seeds (with and without priors, eps 0.2 / 0.5 / 0.8, the
-hostile preset, frames that fail, the cap reached, the options they cover), and their pieces
+hostile preset, frames that fail, the cap reached, the options it covers), and its pieces
 against the functions they reproduce."""
 
 from __future__ import annotations
@@ -14,10 +14,8 @@ import pytest
 from stereovo.estimation import StereoProblem, estimate_motion, method_spec
 from stereovo.estimation.kernels import bansac_runner
 from stereovo.estimation.kernels import beliefs as belief_kernels
-from stereovo.estimation.methods import ars, bansac
+from stereovo.estimation.methods import bansac
 from stereovo.estimation.registry import split_options
-from stereovo.estimation.roles.scoring import InlierCount, MahalanobisResidual
-from stereovo.estimation.roles.solvers import minimal_hypotheses
 from stereovo.simulation import SimulationConfig, simulate_frame
 
 REPORT_FIELDS = ("score", "status", "n_hypotheses", "n_scored", "n_point_checks", "n_degenerate",
@@ -29,8 +27,7 @@ def _priors(frame, seed):
     return np.where(frame.truth.inlier, 0.8, 0.3) * np.exp(noise)
 
 
-SEARCHES = {"bansac": (bansac, "compiled_bansac_search"), "p-bansac": (bansac, "compiled_bansac_search"),
-            "ars": (ars, "compiled_ars_search")}
+SEARCHES = {"bansac": (bansac, "compiled_bansac_search"), "p-bansac": (bansac, "compiled_bansac_search")}
 
 
 def _estimate(monkeypatch, frame, method, priors, seed, compiled, **options):
@@ -80,7 +77,7 @@ def _assert_same(monkeypatch, frame, method, priors, seed, **options):
     return compiled, ran
 
 
-@pytest.mark.parametrize("method", ["bansac", "p-bansac", "ars"])
+@pytest.mark.parametrize("method", ["bansac", "p-bansac"])
 @pytest.mark.parametrize("eps", [0.2, 0.5, 0.8])
 def test_compiled_search_gives_the_loops_estimates_on_fixed_seeds(monkeypatch, method, eps):
     config = SimulationConfig(n_correspondences=300, outlier_ratio=eps)
@@ -91,7 +88,7 @@ def test_compiled_search_gives_the_loops_estimates_on_fixed_seeds(monkeypatch, m
         assert ran and est.n_hypotheses > 0
 
 
-@pytest.mark.parametrize("method", ["bansac", "p-bansac", "ars"])
+@pytest.mark.parametrize("method", ["bansac", "p-bansac"])
 def test_compiled_search_gives_the_loops_estimates_on_the_hostile_preset(monkeypatch, method):
     config = SimulationConfig(n_correspondences=400, outliers="hostile")
     for seed in range(5):
@@ -124,28 +121,7 @@ def test_compiled_search_covers_the_options_of_the_papers_update(monkeypatch, op
         assert sum(est.report.n_rejected_samples for est in estimates) > 0
 
 
-@pytest.mark.parametrize("options", [
-    {"rigidity_gate_probability": 0.999},
-    {"runner_up_refit": 0.5, "local_refit": True},
-    {"batch_size": 8, "first_batch_size": 2},
-    {"budget": 40},
-    {"initial_probability": 0.3, "prior_ceiling": 0.9},
-])
-def test_ars_direct_search_covers_the_loops_options(monkeypatch, options):
-    config = SimulationConfig(n_correspondences=300, outlier_ratio=0.6)
-    estimates = []
-    for seed in range(4):
-        frame = simulate_frame(config, rng=seed)
-        est, ran = _assert_same(monkeypatch, frame, "ars", _priors(frame, seed) if seed % 2 else None, seed, **options)
-        assert ran
-        estimates.append(est)
-    if "runner_up_refit" in options:  # the path was taken
-        assert sum(est.counters["runner_up_refits"] for est in estimates) > 0
-    if "rigidity_gate_probability" in options:
-        assert sum(est.report.n_rejected_samples for est in estimates) > 0
-
-
-@pytest.mark.parametrize("method", ["bansac", "ars"])
+@pytest.mark.parametrize("method", ["bansac"])
 def test_compiled_search_reaches_the_cap_as_the_loop_does(monkeypatch, method):
     frame = simulate_frame(SimulationConfig(n_correspondences=300, outlier_ratio=0.8), rng=3)
     for cap in (1, 2, 7, 40):
@@ -154,7 +130,7 @@ def test_compiled_search_reaches_the_cap_as_the_loop_does(monkeypatch, method):
     assert est.status.startswith("failed: no confident consensus")
 
 
-@pytest.mark.parametrize("method", ["bansac", "ars"])
+@pytest.mark.parametrize("method", ["bansac"])
 def test_compiled_search_fails_as_the_loop_does(monkeypatch, method):
     frame = simulate_frame(SimulationConfig(n_correspondences=120, outlier_ratio=0.3), rng=1)
     # every row an outlier: each row's k match taken from another row
@@ -244,22 +220,3 @@ def test_compiled_exact_redraw_is_the_samplers_fix_up():
         np.testing.assert_array_equal(out, bansac.exact_weighted_draw(w, u))
 
 
-def test_judged_batch_is_the_loops_judge():
-    frame = simulate_frame(SimulationConfig(n_correspondences=400, outlier_ratio=0.5), rng=2)
-    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
-    rng = np.random.default_rng(0)
-    samples = np.array([rng.choice(problem.n, 3, replace=False) for _ in range(64)])
-    R, t, valid = minimal_hypotheses(problem, samples)
-    R, t = R[valid], t[valid]
-    R = np.concatenate([R, frame.truth.rotation[None]])
-    t = np.concatenate([t, frame.truth.translation[None]])
-    model = MahalanobisResidual()
-    gate = model.threshold_sq
-    scores, inliers, verdicts = bansac_runner.judged_batch(
-        R, t, problem.points_prev, problem.points_curr, problem.camera.parameters, problem.noise_sigma**2, gate,
-        bansac_runner.search_constants(problem.points_prev, problem.points_curr))
-    capped = model.squared(problem, R, t, cap=gate)
-    np.testing.assert_array_equal(scores, InlierCount().score(capped, gate))
-    np.testing.assert_array_equal(inliers, capped < gate)
-    np.testing.assert_array_equal(verdicts, model.squared(problem, R, t) < gate)
-    assert scores[-1] > 0.4 * problem.n  # the true motion among them
