@@ -193,13 +193,16 @@ class RansacSearch:
     termination is met; ``finish()`` refines the best model and returns the :class:`RansacReport`.
     A sampler that defines ``on_hypotheses(R (H, 3, 3), t (H, 3), inlier_masks (H, N) bool,
     residual_sq (H, N), loop_state)`` gets every verified batch with its full squared residuals
-    (computed for it alone, counted in ``n_point_checks``) and ``loop_state.samples``.
+    (uncapped and read-only: kept from the scoring pass where that scored the whole batch, else
+    computed for it; counted in ``n_point_checks`` either way) and ``loop_state.samples``.
     """
 
     def __init__(self, problem: StereoProblem, components: RansacComponents, rng: np.random.Generator) -> None:
         c = self.components = components
         self.problem, self.rng, self.n = problem, rng, problem.n
-        self.ctx = ScoringContext(problem, c.residual_model, c.quality, c.threshold_sq)
+        self._feedback = getattr(c.sampler, "on_hypotheses", None)
+        self.ctx = ScoringContext(problem, c.residual_model, c.quality, c.threshold_sq,
+                                  keep_exact=self._feedback is not None)
         self.best_R, self.best_t = np.eye(3), np.zeros(3)
         self.best_inliers = np.zeros(self.n, dtype=bool)
         self.best_score = -np.inf
@@ -211,7 +214,6 @@ class RansacSearch:
         listening = [*c.listeners, *([] if any(x is c.termination for x in c.listeners) else [c.termination])]
         self._best_listeners = [listener for listener in listening if hasattr(listener, "on_new_best")]
         self._batch_listeners = [listener for listener in listening if hasattr(listener, "on_batch")]
-        self._feedback = getattr(c.sampler, "on_hypotheses", None)
         # An adaptive search starts small (the bound often falls below a full batch at once) and doubles
         # its batches up to batch_size: each batch costs bookkeeping here, as much as several
         # hypotheses, so a long search (high contamination) should take few, large ones.
@@ -258,7 +260,8 @@ class RansacSearch:
             if c.runner_up_fraction is not None and c.local_optimizer is not None and earlier_best:
                 self._refit_runner_up(R, t, scores, i if new_best else -1)
             if self._feedback is not None:
-                residual_sq = ctx.residuals(R, t)
+                # kept from the scoring pass where it scored the whole batch; counted as before
+                residual_sq = ctx.exact_residuals(R, t)
                 self.checks += R.shape[0] * n
                 state = LoopState(self.drawn, self.best_score, samples=samples, best_inliers=self.best_inliers)
                 self._feedback(R, t, residual_sq < c.threshold_sq, residual_sq, state)

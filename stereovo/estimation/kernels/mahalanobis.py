@@ -141,7 +141,19 @@ def point_mahalanobis_sq(r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2
 def point_mahalanobis_sq_lanes(r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t,
                                x0, x1, x2, y0, y1, y2, inv_depth, norm_x, norm_y,
                                inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, cap):
-    """:func:`point_mahalanobis_sq`, bit for bit, without its early returns.
+    """:func:`point_mahalanobis_sq`, bit for bit, in vector lanes (:func:`point_mahalanobis_sq_pair`'s first value)."""
+    return point_mahalanobis_sq_pair(
+        r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t, x0, x1, x2, y0, y1, y2, inv_depth, norm_x,
+        norm_y, inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, cap,
+    )[0]
+
+
+@inline_jit
+def point_mahalanobis_sq_pair(r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t,
+                              x0, x1, x2, y0, y1, y2, inv_depth, norm_x, norm_y,
+                              inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, cap):
+    """:func:`point_mahalanobis_sq` under ``cap``, bit for bit, without its early returns; and the
+    distance without a cap (``point_mahalanobis_sq`` with cap 0), which the full form has computed anyway.
 
     Every branch's value is computed and the answer selected, so that a loop over points compiles to
     vector instructions (about a third of the time of the branching form on 16 hypotheses x 1000
@@ -185,9 +197,9 @@ def point_mahalanobis_sq_lanes(r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, 
         c00 + sy00, c01 + sy01, c02 + sy02, c11 + sy11, c12 + sy12, c22 + sy22, x, y, z,
     )
     capped = cap > 0.0 and not behind
-    value = np.inf if behind else d2
-    value = r2 / max(trace, 1e-300) if capped and r2 >= cap * trace else value
-    return r2 / max(bound_trace, 1e-300) if capped and r2 >= cap * bound_trace else value
+    exact = np.inf if behind else d2
+    value = r2 / max(trace, 1e-300) if capped and r2 >= cap * trace else exact
+    return r2 / max(bound_trace, 1e-300) if capped and r2 >= cap * bound_trace else value, exact
 
 
 @jit
@@ -212,11 +224,29 @@ def mahalanobis_sq(R, t, X, Y, cam, sigma_sq, cap):
     ``P`` and ``Y``, is no farther than ``max(|X| + |t|, |Y|)``, the one at k-1 (of ``X`` and
     ``W``) no farther than ``max(|X|, |Y| + |t|)``.
     """
+    out = np.empty((R.shape[0], X.shape[0]))
+    _scan(R, t, X, Y, cam, sigma_sq, cap, out, out, False)
+    return out
+
+
+@jit
+def mahalanobis_sq_and_exact(R, t, X, Y, cam, sigma_sq, cap):
+    """``(capped, exact)``, each ``(H, N)``: :func:`mahalanobis_sq` under ``cap`` and with cap 0, bit
+    for bit, from one pass (the lanes compute a point's full distance whatever the cap decides)."""
+    out = np.empty((R.shape[0], X.shape[0]))
+    exact = np.empty((R.shape[0], X.shape[0]))
+    _scan(R, t, X, Y, cam, sigma_sq, cap, out, exact, True)
+    return out, exact
+
+
+@inline_jit
+def _scan(R, t, X, Y, cam, sigma_sq, cap, out, exact, keep_exact):
+    """Fill ``out (H, N)`` with :func:`mahalanobis_sq`'s distances under ``cap``, and ``exact`` with
+    the uncapped ones if ``keep_exact`` (a constant of each caller, so each compiles its own loop)."""
     fx, fy, bl = cam[0], cam[1], cam[4]
     inv_fx, inv_fy, inv_fb = 1.0 / fx, 1.0 / fy, 1.0 / (fx * bl)
     v_variance = 1.0 / cam[5]
     H, N = R.shape[0], X.shape[0]
-    out = np.empty((H, N))
     c_lateral = 2.0 * inv_fx * inv_fx + v_variance * inv_fy * inv_fy
     c_depth = 3.0 * inv_fb * inv_fb
     # the points as columns (contiguous per coordinate), so the loop over them runs in vector lanes
@@ -234,13 +264,21 @@ def mahalanobis_sq(R, t, X, Y, cam, sigma_sq, cap):
         r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2 = _motion_entries(R, t, h)
         norm_t = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
         row = out[h]
-        for n in range(N):
-            row[n] = point_mahalanobis_sq_lanes(
-                r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t,
-                x0[n], x1[n], x2[n], y0[n], y1[n], y2[n], inv_depth[n], norm_x[n], norm_y[n],
-                inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, cap,
-            )
-    return out
+        if keep_exact:
+            exact_row = exact[h]
+            for n in range(N):
+                row[n], exact_row[n] = point_mahalanobis_sq_pair(
+                    r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t,
+                    x0[n], x1[n], x2[n], y0[n], y1[n], y2[n], inv_depth[n], norm_x[n], norm_y[n],
+                    inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, cap,
+                )
+        else:
+            for n in range(N):
+                row[n] = point_mahalanobis_sq_lanes(
+                    r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, norm_t,
+                    x0[n], x1[n], x2[n], y0[n], y1[n], y2[n], inv_depth[n], norm_x[n], norm_y[n],
+                    inv_fx, inv_fy, inv_fb, v_variance, c_lateral, c_depth, sigma_sq, cap,
+                )
 
 
 @jit

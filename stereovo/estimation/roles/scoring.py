@@ -10,12 +10,12 @@ of Brink et al. = count under the Mahalanobis gate.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import ClassVar, Protocol
 
 import numpy as np
 from scipy.stats import chi2
 
-from stereovo.estimation.kernels.mahalanobis import mahalanobis_sq, pixel_mahalanobis_sq
+from stereovo.estimation.kernels.mahalanobis import mahalanobis_sq, mahalanobis_sq_and_exact, pixel_mahalanobis_sq
 from stereovo.estimation.kernels.scores import count_below
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.roles.reprojection import reprojection_sq
@@ -40,6 +40,23 @@ class ResidualModel(Protocol):
         ...
 
 
+def squared_and_exact(
+    model: ResidualModel, problem: StereoProblem, R: np.ndarray, t: np.ndarray, cap: float | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(scored, exact)``, each ``(H, N)``: ``model.squared`` under ``cap`` and without one, in one
+    pass where the model allows it. A model whose ``bounds_at_cap`` is False computes every residual
+    whatever the cap, so one array serves as both (read-only); one with ``squared_and_exact`` fills
+    both at once; any other model is called twice. A sampler's feedback reads the exact residuals of
+    the batch the loop has just scored, and this spares it the second pass."""
+    if cap is None or not getattr(model, "bounds_at_cap", True):
+        sq = model.squared(problem, R, t, cap=cap)
+        return sq, sq
+    both = getattr(model, "squared_and_exact", None)
+    if both is not None:
+        return both(problem, R, t, cap)
+    return model.squared(problem, R, t, cap=cap), model.squared(problem, R, t)
+
+
 @dataclass(frozen=True)
 class MahalanobisResidual:
     """Brink et al.: ``r_i = Y_i - (R X_i + t)`` under ``R Sigma_X R^T + Sigma_Y``; unit-free, chi-square(3).
@@ -53,12 +70,21 @@ class MahalanobisResidual:
 
     threshold_sq: float = CHI2_3_95
     name: str = "mahalanobis"
+    bounds_at_cap: ClassVar[bool] = True
 
     def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray, cap: float | None = None) -> np.ndarray:
         return mahalanobis_sq(
             np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float),
             problem.points_prev, problem.points_curr, problem.camera.parameters, problem.noise_sigma**2,
             0.0 if cap is None else float(cap),
+        )
+
+    def squared_and_exact(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray,
+                          cap: float) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`squared` under ``cap`` and without one, ``(H, N)`` each, from one pass."""
+        return mahalanobis_sq_and_exact(
+            np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(t, dtype=float),
+            problem.points_prev, problem.points_curr, problem.camera.parameters, problem.noise_sigma**2, float(cap),
         )
 
 
@@ -78,6 +104,7 @@ class PixelMahalanobisResidual:
 
     threshold_sq: float = CHI2_3_99
     name: str = "pixel-mahalanobis"
+    bounds_at_cap: ClassVar[bool] = False  # every residual is computed, whatever the cap
 
     def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray, cap: float | None = None) -> np.ndarray:
         return pixel_mahalanobis_sq(
@@ -94,6 +121,7 @@ class ReprojectionResidual:
 
     threshold_sq: float = 9.0  # (3 px)^2; estimate_motion scales it with the pixel noise
     name: str = "reprojection"
+    bounds_at_cap: ClassVar[bool] = False  # every residual is computed, whatever the cap
 
     def squared(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray, cap: float | None = None) -> np.ndarray:
         return reprojection_sq(problem.camera, R, t, problem.points_prev, problem.curr)

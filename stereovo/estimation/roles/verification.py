@@ -14,7 +14,7 @@ from typing import Protocol
 import numpy as np
 
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.roles.scoring import Quality, ResidualModel
+from stereovo.estimation.roles.scoring import Quality, ResidualModel, squared_and_exact
 
 
 @dataclass
@@ -25,13 +25,25 @@ class ScoringContext:
     residual_model: ResidualModel
     quality: Quality
     threshold_sq: float
+    # keep the uncapped residuals of each batch scored on all points, for a sampler's feedback
+    # (:meth:`exact_residuals`): one pass computes both where the residual model allows it
+    keep_exact: bool = False
     # the hypotheses last scored on all points and their residuals: the loop reads the new best's
     # inliers from them instead of computing its residuals again
     # (R of the batch, residuals (M, N), row of each hypothesis in them or None for row i = hypothesis i)
     _last_scored: tuple | None = field(default=None, repr=False, compare=False)
+    _last_exact: tuple | None = field(default=None, repr=False, compare=False)  # (R of the batch, residuals (H, N))
 
     def residuals(self, R: np.ndarray, t: np.ndarray) -> np.ndarray:
         return self.residual_model.squared(self.problem, R, t)
+
+    def exact_residuals(self, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """:meth:`residuals` ``(H, N)`` of the batch ``R, t``: those kept when it was just scored on
+        all points with ``keep_exact`` (read-only), else computed now. The same values either way."""
+        last = self._last_exact
+        if last is not None and last[0] is R:
+            return last[1]
+        return self.residuals(R, t)
 
     def inliers_of(self, R: np.ndarray, t: np.ndarray, i: int) -> tuple[np.ndarray, bool]:
         """Inlier mask ``(N,)`` of hypothesis ``i`` of the batch ``R, t``, and whether its residuals
@@ -53,7 +65,11 @@ class ScoringContext:
 
     def _scored_residuals(self, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         cap = self.threshold_sq if self.quality.saturates else None
-        sq = self.residual_model.squared(self.problem, R, t, cap=cap)
+        if self.keep_exact:
+            sq, exact = squared_and_exact(self.residual_model, self.problem, R, t, cap)
+            self._last_exact = (R, exact)
+        else:
+            sq = self.residual_model.squared(self.problem, R, t, cap=cap)
         self._last_scored = (R, sq)
         return self.quality.score(sq, self.threshold_sq), sq
 

@@ -14,7 +14,7 @@ from stereovo import estimate_motion
 from stereovo.estimation import EstimatorOptions, StereoProblem, method_spec
 from stereovo.estimation.loop import RansacComponents, RansacSearch, run_ransac, final_report
 from stereovo.estimation.roles.refinement import ReprojectionRefiner
-from stereovo.estimation.roles.scoring import InlierCount, ReprojectionResidual
+from stereovo.estimation.roles.scoring import InlierCount, MahalanobisResidual, ReprojectionResidual
 from stereovo.estimation.roles.verification import FullVerification
 from stereovo.geometry import random_rotation, rotation_error, so3_exp
 from stereovo.simulation import SimulationConfig, simulate_frame
@@ -693,6 +693,46 @@ def test_feedback_gets_the_batch_its_inliers_below_the_gate_and_the_best_so_far(
         assert best_inliers is not None and best_inliers.shape == (20,)
     assert [seen[2] for seen in recorder.seen] == [2.0, 3.0]  # the best after each batch's update
     np.testing.assert_array_equal(recorder.seen[1][3], search.best_inliers)
+
+
+class _LoggedMahalanobis(MahalanobisResidual):
+    """The 3-D Mahalanobis model, logging each call: ``("squared", cap)`` or ``("both", cap)``."""
+
+    def __init__(self):
+        super().__init__()
+        object.__setattr__(self, "log", [])
+
+    def squared(self, problem, R, t, cap=None):
+        self.log.append(("squared", cap))
+        return super().squared(problem, R, t, cap)
+
+    def squared_and_exact(self, problem, R, t, cap):
+        self.log.append(("both", cap))
+        return super().squared_and_exact(problem, R, t, cap)
+
+
+class _ResidualRecorder(_Recorder):
+    def on_hypotheses(self, R, t, inlier_masks, residual_sq, state):
+        self.seen.append((R.copy(), t.copy(), residual_sq.copy()))
+
+
+def test_feedback_reads_the_exact_residuals_kept_from_the_scoring_pass():
+    """A sampler's feedback gets the batch's uncapped residuals bit for bit, and where the batch's
+    scoring pass was the last one (no refit since), from that pass rather than a second one."""
+    frame = simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.8, outliers="hostile"), 4)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    components = method_spec("probabilistic").build(problem, EstimatorOptions(), None, None, {})
+    components.residual_model = model = _LoggedMahalanobis()
+    components.sampler = recorder = _ResidualRecorder(problem.n)
+    search = RansacSearch(problem, components, np.random.default_rng(0))
+    for _ in range(6):
+        search.step(32)
+    assert len(recorder.seen) == 6
+    for R, t, residual_sq in recorder.seen:
+        np.testing.assert_array_equal(residual_sq, MahalanobisResidual().squared(problem, R, t))
+    assert ("both", components.threshold_sq) in model.log
+    # one uncapped pass a batch before: now only after a batch whose scoring a refit displaced
+    assert sum(1 for kind, cap in model.log if kind == "squared" and cap is None) < len(recorder.seen)
 
 
 def test_degenerate_samples_are_counted_over_batches():

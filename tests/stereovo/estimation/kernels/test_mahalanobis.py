@@ -1,13 +1,18 @@
 """The compiled Mahalanobis kernels (stereovo/estimation/kernels/mahalanobis.py): the batch scorer's
 branch-free point distance against the branching one the compiled SPRT scans with, bit for bit, and
-the pixel distance of a point behind the camera."""
+the pixel distance of a point behind the camera, and the capped and exact distances from one pass."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from stereovo.estimation.kernels.mahalanobis import mahalanobis_sq, pixel_mahalanobis_sq, point_mahalanobis_sq
+from stereovo.estimation.kernels.mahalanobis import (
+    mahalanobis_sq,
+    mahalanobis_sq_and_exact,
+    pixel_mahalanobis_sq,
+    point_mahalanobis_sq,
+)
 from stereovo.estimation.problem import StereoProblem
 from stereovo.geometry import random_rotation
 from stereovo.simulation import SimulationConfig, simulate_frame
@@ -71,6 +76,21 @@ def test_batch_scorer_equals_the_branching_point_distance_bit_for_bit(outliers, 
         # every branch was taken somewhere: the norm bound, the trace bound and the full distance
         assert np.any(got < cap) and np.any(got >= cap)
         assert np.any(np.isfinite(got) & (got >= cap))
+
+
+@pytest.mark.parametrize("outliers", ["default", "hostile"])
+@pytest.mark.parametrize("cap", [CHI2_3_95, 1e-3, 0.0])
+def test_one_pass_gives_the_capped_and_the_exact_distances_bit_for_bit(outliers, cap):
+    frame, problem = usable_problem(60, 0.8, outliers, 3)
+    R, t = motions(frame, np.random.default_rng(9))
+    args = (problem.points_prev, problem.points_curr, problem.camera.parameters, problem.noise_sigma**2)
+    capped, exact = mahalanobis_sq_and_exact(R, t, *args, cap)
+    np.testing.assert_array_equal(capped, mahalanobis_sq(R, t, *args, cap))
+    np.testing.assert_array_equal(exact, mahalanobis_sq(R, t, *args, 0.0))
+    if cap == CHI2_3_95:
+        # the cap bounded some distances, so the two outputs are not one array read twice
+        assert np.any(capped != exact)
+        assert np.array_equal(capped < cap, exact < cap)
 
 
 def test_pixel_distance_is_inf_behind_the_camera_and_finite_elsewhere():

@@ -13,7 +13,9 @@ from stereovo.estimation.roles.scoring import (
     MahalanobisResidual,
     PixelMahalanobisResidual,
     InlierCount,
+    ReprojectionResidual,
     TruncatedQuadratic,
+    squared_and_exact,
 )
 from stereovo.geometry import random_rotation
 from stereovo.simulation import SimulationConfig, simulate_frame
@@ -199,3 +201,56 @@ def test_residual_models_compute_in_double_precision_whatever_the_motions_dtype(
     # Single-precision motions are the same motions read exactly in float64.
     expected = model.squared(problem, R32.astype(np.float64), t32.astype(np.float64))
     np.testing.assert_array_equal(model.squared(problem, R32, t32), expected)
+
+
+class _CallLog:
+    """A residual model that forwards to ``inner`` and records each call's cap; ``bounds_at_cap``
+    copied from ``inner`` unless ``declare`` is False (a model that says nothing about caps)."""
+
+    def __init__(self, inner, declare=True):
+        self.inner, self.caps = inner, []
+        self.name, self.threshold_sq = inner.name, inner.threshold_sq
+        if declare:
+            self.bounds_at_cap = inner.bounds_at_cap
+
+    def squared(self, problem, R, t, cap=None):
+        self.caps.append(cap)
+        return self.inner.squared(problem, R, t, cap=cap)
+
+
+def _problem_and_motions():
+    frame = simulate_frame(SimulationConfig(n_correspondences=60, outlier_ratio=0.5, outliers="hostile"), 8)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    rng = np.random.default_rng(2)
+    R = np.stack([random_rotation(rng, np.radians(a)) @ frame.truth.rotation for a in (0.0, 3.0, 40.0)])
+    t = frame.truth.translation + rng.normal(0.0, 0.5, (3, 3))
+    return problem, R, t
+
+
+@pytest.mark.parametrize("model", [ReprojectionResidual(), PixelMahalanobisResidual()], ids=lambda m: m.name)
+def test_a_model_that_ignores_the_cap_is_computed_once_for_both(model):
+    problem, R, t = _problem_and_motions()
+    log = _CallLog(model)
+    scored, exact = squared_and_exact(log, problem, R, t, model.threshold_sq)
+    assert log.caps == [model.threshold_sq] and scored is exact
+    np.testing.assert_array_equal(exact, model.squared(problem, R, t))
+
+
+def test_the_mahalanobis_model_fills_capped_and_exact_in_one_pass_bit_for_bit():
+    problem, R, t = _problem_and_motions()
+    model = MahalanobisResidual()
+    scored, exact = squared_and_exact(model, problem, R, t, model.threshold_sq)
+    np.testing.assert_array_equal(scored, model.squared(problem, R, t, cap=model.threshold_sq))
+    np.testing.assert_array_equal(exact, model.squared(problem, R, t))
+    assert np.any(scored != exact)  # the cap bounded some distances
+
+
+def test_a_model_that_says_nothing_about_caps_is_called_twice_and_once_without_a_cap():
+    problem, R, t = _problem_and_motions()
+    log = _CallLog(MahalanobisResidual(), declare=False)
+    scored, exact = squared_and_exact(log, problem, R, t, 7.8)
+    assert log.caps == [7.8, None]
+    np.testing.assert_array_equal(exact, MahalanobisResidual().squared(problem, R, t))
+    log.caps.clear()
+    scored, exact = squared_and_exact(log, problem, R, t, None)
+    assert log.caps == [None] and scored is exact
