@@ -10,7 +10,7 @@ normal equations, a cost, one squared residual). The Python wrappers in
 refinement, whose refine / re-gate rounds run here in one call), the early-rejection
 verifiers of :mod:`stereovo.estimation.methods.tdd` and :mod:`~stereovo.estimation.methods.sprt`,
 the belief samplers of :mod:`~stereovo.estimation.methods.bansac` and
-:mod:`~stereovo.estimation.methods.ars`, the clique of :mod:`~stereovo.estimation.methods.clique`
+:mod:`~stereovo.estimation.methods.ars`, MLESAC's mixture likelihood (:mod:`~stereovo.estimation.methods.mlesac`), the clique of :mod:`~stereovo.estimation.methods.clique`
 and :mod:`stereovo.estimation.covariance` keep the shapes and documentation.
 
 Conventions (as in :mod:`stereovo.estimation.roles.reprojection`): a motion maps
@@ -37,7 +37,8 @@ The kernels by role (import each name from its module):
 - :mod:`~stereovo.estimation.kernels.sampling`: drawing minimal samples and their rigidity check;
 - :mod:`~stereovo.estimation.kernels.refinement`: the refine / re-gate rounds;
 - :mod:`~stereovo.estimation.kernels.verification`: early rejection (T(d,d), SPRT) and the guided stopping bound;
+- :mod:`~stereovo.estimation.kernels.logaddexp`: numpy's ``logaddexp``, bit for bit (scalar and ``(H, N)``);
 - :mod:`~stereovo.estimation.kernels.beliefs`: BANSAC's and ARS's belief updates and draws;
-- :mod:`~stereovo.estimation.kernels.bansac_runner`: BANSAC's and ARS's compiled searches;
+- :mod:`~stereovo.estimation.kernels.bansac_runner`: BANSAC's compiled search;
 - :mod:`~stereovo.estimation.kernels.covariance`: the normal equations of the pose covariance.
 """

@@ -22,22 +22,9 @@ import math
 import numpy as np
 
 from stereovo.estimation.kernels.base import inline_jit, jit
+from stereovo.estimation.kernels.logaddexp import logaddexp
 
-LOG_2 = 0.693147180559945309417232121458176568  # numpy's NPY_LOGE2
 EMPTY = -1  # an unused slot of a tried-sample table
-
-
-@inline_jit
-def _logaddexp(x, y):
-    """``np.logaddexp(x, y)`` for two float64, numpy's formula (``npy_logaddexp``)."""
-    if x == y:
-        return x + LOG_2
-    d = x - y
-    if d > 0:
-        return x + math.log1p(math.exp(-d))
-    if d <= 0:
-        return y + math.log1p(math.exp(d))
-    return d  # a NaN
 
 
 @jit
@@ -53,7 +40,7 @@ def bansac_log_odds_update(log_odds, verdicts, log_c, gated_offset, gated_scale,
     gated = 0
     for i in range(log_odds.shape[0]):
         if verdicts[i]:
-            log_odds[i] = _logaddexp(log_c + log_odds[i], gated_offset) - gated_scale
+            log_odds[i] = logaddexp(log_c + log_odds[i], gated_offset) - gated_scale
             gated += 1
         else:
             log_odds[i] = log_odds[i] + ungated_shift
@@ -66,7 +53,7 @@ def logistic_beliefs(log_odds):
     n = log_odds.shape[0]
     out = np.empty(n)
     for i in range(n):
-        out[i] = math.exp(-_logaddexp(0.0, -log_odds[i]))
+        out[i] = math.exp(-logaddexp(0.0, -log_odds[i]))
     return out
 
 
@@ -348,7 +335,7 @@ EDGE_GUARD = 1e-9  # a product levels * p this close to an integer is rounded ex
 
 @inline_jit
 def _belief(log_odds):
-    return math.exp(-_logaddexp(0.0, -log_odds))
+    return math.exp(-logaddexp(0.0, -log_odds))
 
 
 @inline_jit

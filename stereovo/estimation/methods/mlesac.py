@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stereovo.estimation.estimator_options import MAX_COUNT
+from stereovo.estimation.kernels.logaddexp import logaddexp_2d
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.recipes import base_components
 from stereovo.estimation.registry import register_method
@@ -94,6 +95,21 @@ def _finite_sq(residual_sq: np.ndarray) -> np.ndarray:
     return np.maximum(np.nan_to_num(residual_sq, nan=np.inf), 0.0)
 
 
+def log_add_exp(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.logaddexp(a, b)`` bit for bit, for ``(H, N)`` arrays after broadcasting, compiled
+    (:func:`stereovo.estimation.kernels.logaddexp.logaddexp_2d`): numpy's ``exp`` and ``log1p`` an
+    entry dominated MLESAC's EM, and under most hypotheses most residuals lie so far outside the
+    gate that the exp underflows, where the kernel skips both."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    shape = np.broadcast_shapes(a.shape, b.shape)
+    if len(shape) != 2:
+        return np.logaddexp(a, b)
+    # the EM's arguments already have the full shape; others are expanded (a copy, not a view)
+    a = a if a.shape == shape else np.broadcast_to(a, shape).copy()
+    b = b if b.shape == shape else np.broadcast_to(b, shape).copy()
+    return logaddexp_2d(a, b)
+
+
 def mixture_log_likelihood(gamma: np.ndarray, log_p_in: np.ndarray, log_p_out: float | np.ndarray) -> np.ndarray:
     """``L (H,) = sum_i log(gamma p_in,i + (1 - gamma) p_out)`` for one global ``gamma`` per hypothesis.
 
@@ -103,7 +119,7 @@ def mixture_log_likelihood(gamma: np.ndarray, log_p_in: np.ndarray, log_p_out: f
         log_p_out: scalar or ``(N,)`` log outlier density, same units.
     """
     g = np.clip(np.asarray(gamma, dtype=float), _GAMMA_CLIP, 1 - _GAMMA_CLIP)[:, None]
-    return np.sum(np.logaddexp(np.log(g) + log_p_in, np.log1p(-g) + log_p_out), axis=-1)
+    return np.sum(log_add_exp(np.log(g) + log_p_in, np.log1p(-g) + log_p_out), axis=-1)
 
 
 def mlesac_em(
@@ -134,7 +150,7 @@ def mlesac_em(
         g = np.clip(gamma, _GAMMA_CLIP, 1 - _GAMMA_CLIP)[:, None]
         a = np.log(g) + log_p_in
         b = np.log1p(-g) + log_p_out
-        z = np.exp(a - np.logaddexp(a, b))
+        z = np.exp(a - log_add_exp(a, b))
         new = np.mean(z, axis=1)
         change = np.max(np.abs(new - gamma))
         gamma = new
@@ -194,7 +210,7 @@ class GuidedMlesacQuality:
 
     def score(self, residual_sq: np.ndarray, threshold_sq: float) -> np.ndarray:
         log_p_in = self.log_normaliser - 0.5 * _finite_sq(residual_sq)
-        return np.sum(np.logaddexp(np.log(self.gamma) + log_p_in, np.log1p(-self.gamma) + self.log_p_out), axis=-1)
+        return np.sum(log_add_exp(np.log(self.gamma) + log_p_in, np.log1p(-self.gamma) + self.log_p_out), axis=-1)
 
 
 @register_method(
