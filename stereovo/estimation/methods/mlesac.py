@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stereovo.estimation.estimator_options import MAX_COUNT
-from stereovo.estimation.kernels.logaddexp import logaddexp_2d
+from stereovo.estimation.kernels.logaddexp import logaddexp_2d, mixture_logaddexp
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.recipes import base_components
 from stereovo.estimation.registry import register_method
@@ -97,9 +97,10 @@ def _finite_sq(residual_sq: np.ndarray) -> np.ndarray:
 
 def log_add_exp(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``np.logaddexp(a, b)`` bit for bit, for ``(H, N)`` arrays after broadcasting, compiled
-    (:func:`stereovo.estimation.kernels.logaddexp.logaddexp_2d`): numpy's ``exp`` and ``log1p`` an
-    entry dominated MLESAC's EM, and under most hypotheses most residuals lie so far outside the
-    gate that the exp underflows, where the kernel skips both."""
+    (:func:`stereovo.estimation.kernels.logaddexp.logaddexp_2d`; other shapes: numpy's own), for
+    Guided-MLESAC's per-point mixture: numpy's ``exp`` and ``log1p`` an entry cost the most there,
+    and under most hypotheses most residuals lie so far outside the gate that the exp underflows,
+    where the kernel skips both."""
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     shape = np.broadcast_shapes(a.shape, b.shape)
     if len(shape) != 2:
@@ -118,8 +119,20 @@ def mixture_log_likelihood(gamma: np.ndarray, log_p_in: np.ndarray, log_p_out: f
         log_p_in: ``(H, N)`` log inlier densities.
         log_p_out: scalar or ``(N,)`` log outlier density, same units.
     """
-    g = np.clip(np.asarray(gamma, dtype=float), _GAMMA_CLIP, 1 - _GAMMA_CLIP)[:, None]
-    return np.sum(log_add_exp(np.log(g) + log_p_in, np.log1p(-g) + log_p_out), axis=-1)
+    g = np.clip(np.asarray(gamma, dtype=float), _GAMMA_CLIP, 1 - _GAMMA_CLIP)
+    return np.sum(_mixture_terms(g, log_p_in, log_p_out, False), axis=-1)
+
+
+def _mixture_terms(g: np.ndarray, log_p_in: np.ndarray, log_p_out, responsibilities: bool) -> np.ndarray:
+    """``(H, N)`` ``logaddexp(log g + log p_in, log(1 - g) + log p_out)`` for ``g (H,)`` (clipped), or
+    with ``responsibilities`` the log responsibilities ``log g + log p_in`` minus it: numpy's values
+    bit for bit (the logarithms of ``g`` by numpy's own log, the rest in
+    :func:`~stereovo.estimation.kernels.logaddexp.mixture_logaddexp`)."""
+    log_p_in = np.atleast_2d(np.asarray(log_p_in, dtype=float))
+    log_p_out = np.broadcast_to(np.asarray(log_p_out, dtype=float), log_p_in.shape[-1:]).copy()
+    log_p_in = np.broadcast_to(log_p_in, (g.shape[0], log_p_in.shape[-1]))
+    log_g, log_1mg = np.log(g), np.log1p(-g)
+    return mixture_logaddexp(log_g, log_1mg, log_p_in, log_p_out, responsibilities)
 
 
 def mlesac_em(
@@ -147,10 +160,7 @@ def mlesac_em(
     gamma = np.full(log_p_in.shape[0], float(gamma0))
     history = [(gamma.copy(), mixture_log_likelihood(gamma, log_p_in, log_p_out))] if return_history else None
     for _ in range(iterations):
-        g = np.clip(gamma, _GAMMA_CLIP, 1 - _GAMMA_CLIP)[:, None]
-        a = np.log(g) + log_p_in
-        b = np.log1p(-g) + log_p_out
-        z = np.exp(a - log_add_exp(a, b))
+        z = np.exp(_mixture_terms(np.clip(gamma, _GAMMA_CLIP, 1 - _GAMMA_CLIP), log_p_in, log_p_out, True))
         new = np.mean(z, axis=1)
         change = np.max(np.abs(new - gamma))
         gamma = new

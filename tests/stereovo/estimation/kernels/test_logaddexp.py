@@ -54,3 +54,42 @@ def test_mlesac_wrapper_broadcasts_like_numpy(b_shape):
     assert got.shape == (7, 30)
     np.testing.assert_array_equal(bits(got), bits(np.logaddexp(a, b)))
     np.testing.assert_array_equal(bits(log_add_exp(a[0], b)), bits(np.logaddexp(a[0], b)))  # 1-D: numpy's own
+
+
+def numpy_mixture_log_likelihood(gamma, log_p_in, log_p_out):
+    """MLESAC's likelihood as numpy computed it before the kernel."""
+    g = np.clip(gamma, 1e-6, 1 - 1e-6)[:, None]
+    return np.sum(np.logaddexp(np.log(g) + log_p_in, np.log1p(-g) + log_p_out), axis=-1)
+
+
+def numpy_em(log_p_in, log_p_out, iterations=5, tolerance=1e-4):
+    """MLESAC's EM as numpy computed it before the kernel: ``(gamma, L)``."""
+    gamma = np.full(log_p_in.shape[0], 0.5)
+    for _ in range(iterations):
+        g = np.clip(gamma, 1e-6, 1 - 1e-6)[:, None]
+        a = np.log(g) + log_p_in
+        b = np.log1p(-g) + log_p_out
+        new = np.mean(np.exp(a - np.logaddexp(a, b)), axis=1)
+        change = np.max(np.abs(new - gamma))
+        gamma = new
+        if change < tolerance:
+            break
+    return gamma, numpy_mixture_log_likelihood(gamma, log_p_in, log_p_out)
+
+
+@pytest.mark.parametrize("scalar_out", [False, True])
+def test_mlesac_likelihood_and_em_equal_their_numpy_formulas_bit_for_bit(scalar_out):
+    from stereovo.estimation.methods.mlesac import mixture_log_likelihood, mlesac_em
+
+    rng = np.random.default_rng(4)
+    # squared distances as scoring gives them: inliers near 0, outliers up to 1e9, some inf
+    sq = np.where(rng.random((40, 300)) < 0.3, rng.chisquare(3, (40, 300)), 10.0 ** rng.uniform(0, 9, (40, 300)))
+    sq[rng.random(sq.shape) < 0.01] = np.inf
+    log_p_in = rng.normal(2.0, 3.0, 300) - 0.5 * sq
+    log_p_out = -4.0 if scalar_out else rng.normal(-4.0, 2.0, 300)
+    gamma = rng.uniform(0.0, 1.0, 40)
+    gamma[:3] = (0.0, 1.0, 0.5)
+    np.testing.assert_array_equal(bits(mixture_log_likelihood(gamma, log_p_in, log_p_out)),
+                                  bits(numpy_mixture_log_likelihood(gamma, log_p_in, log_p_out)))
+    for got, expected in zip(mlesac_em(log_p_in, log_p_out), numpy_em(log_p_in, log_p_out)):
+        np.testing.assert_array_equal(bits(got), bits(expected))
