@@ -735,6 +735,20 @@ def test_feedback_reads_the_exact_residuals_kept_from_the_scoring_pass():
     assert sum(1 for kind, cap in model.log if kind == "squared" and cap is None) < len(recorder.seen)
 
 
+def test_feedback_residuals_are_computed_where_none_were_kept():
+    frame = simulate_frame(SimulationConfig(n_correspondences=120, outlier_ratio=0.5, outliers="hostile"), 6)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    components = method_spec("probabilistic").build(problem, EstimatorOptions(), None, None, {})
+    components.sampler = recorder = _ResidualRecorder(problem.n)
+    search = RansacSearch(problem, components, np.random.default_rng(1))
+    search.ctx.keep_exact = False  # as a verifier that scores point by point keeps none
+    search.step(16)
+    search.step(16)
+    assert len(recorder.seen) == 2
+    for R, t, residual_sq in recorder.seen:
+        np.testing.assert_array_equal(residual_sq, MahalanobisResidual().squared(problem, R, t))
+
+
 def test_degenerate_samples_are_counted_over_batches():
     problem = _small_problem(20)
     search = _scripted_search(problem)

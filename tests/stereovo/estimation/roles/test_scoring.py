@@ -186,6 +186,26 @@ def test_inlier_count_is_strictly_under_the_gate_and_a_float_score():
     assert score.dtype == np.float64
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_inlier_count_counts_strictly_under_the_gate_for_one_hypothesis_or_a_batch(dtype):
+    """A batch of float64 residuals is counted compiled, anything else by numpy: the same counts,
+    one float64 per hypothesis (a 0-d one for a single row of residuals)."""
+    rows = np.array([[8.99, 9.0, 9.01, 0.0, np.inf, np.nan], [9.0] * 6, [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]], dtype=dtype)
+    batch = InlierCount().score(rows, 9.0)
+    assert batch.shape == (3,) and batch.dtype == np.float64 and batch.tolist() == [2.0, 0.0, 6.0]
+    for row, expected in zip(rows, [2.0, 0.0, 6.0]):
+        one = InlierCount().score(row, 9.0)
+        assert np.shape(one) == () and np.asarray(one).dtype == np.float64 and one == expected
+
+
+def test_inlier_count_of_float32_residuals_compares_in_float32_as_numpy_does():
+    gate = 7.814727903251178  # chi-square(3) at 0.95, not a float32
+    at_gate = np.float32(gate)  # the float32 nearest the gate, a little below it
+    assert float(at_gate) < gate
+    residual_sq = np.array([[at_gate, 1.0]], dtype=np.float32)
+    assert InlierCount().score(residual_sq, gate).tolist() == [1.0]  # at the gate in float32: not an inlier
+
+
 def test_truncated_quadratic_is_normalised_by_the_gate():
     # -(1 + 4 + 9) / 9 for (1, 4, 100) at T^2 = 9: each residual counts at most the gate.
     score = TruncatedQuadratic().score(np.array([[1.0, 4.0, 100.0], [0.0, 0.0, 0.0]]), 9.0)
@@ -198,9 +218,14 @@ def test_residual_models_compute_in_double_precision_whatever_the_motions_dtype(
     problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
     R32 = frame.truth.rotation[None].astype(np.float32)
     t32 = frame.truth.translation[None].astype(np.float32)
-    # Single-precision motions are the same motions read exactly in float64.
-    expected = model.squared(problem, R32.astype(np.float64), t32.astype(np.float64))
-    np.testing.assert_array_equal(model.squared(problem, R32, t32), expected)
+    # Single-precision motions are the same motions read exactly in float64, with a cap or without.
+    for cap in (None, model.threshold_sq):
+        expected = model.squared(problem, R32.astype(np.float64), t32.astype(np.float64), cap=cap)
+        np.testing.assert_array_equal(model.squared(problem, R32, t32, cap=cap), expected)
+    if hasattr(model, "squared_and_exact"):
+        both = model.squared_and_exact(problem, R32.astype(np.float64), t32.astype(np.float64), model.threshold_sq)
+        for got, want in zip(model.squared_and_exact(problem, R32, t32, model.threshold_sq), both):
+            np.testing.assert_array_equal(got, want)
 
 
 class _CallLog:
