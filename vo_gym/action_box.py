@@ -50,7 +50,8 @@ def clipped_finite(values: np.ndarray, bound: float, scale: float = 1.0) -> np.n
     """``np.minimum(np.maximum(values, -bound), bound) * scale`` of a 1-D float64 array whose values
     are all finite, in one compiled pass with numpy's values (``bound`` and ``scale`` floats); None when
     a value is NaN or infinite (the caller says what that means). np.isfinite, two clips and a product
-    cost about 10 us on an action of 500 slots, the compiled pass 1."""
+    cost about 10 us on an action of 500 slots, the compiled pass 1. A float32 array gives the values
+    of its float64 cast (each float32 is a float64 exactly), without the cast."""
     out = np.empty(values.shape[0])
     return out if _clipped_finite(values, float(bound), float(scale), out) else None
 
@@ -59,7 +60,7 @@ def clipped_finite(values: np.ndarray, bound: float, scale: float = 1.0) -> np.n
 def _clipped_finite(values, bound, scale, out):
     low = -bound
     for i in range(values.shape[0]):
-        x = values[i]
+        x = np.float64(values[i])
         if not np.isfinite(x):
             return False
         if x < low:  # np.maximum(x, -bound); x and the bound are finite
