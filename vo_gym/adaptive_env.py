@@ -36,7 +36,7 @@ from stereovo.metrics import FrameMetrics, frame_metrics
 from stereovo.options import real_array
 from stereovo.simulation import Frame, Sequence
 from vo_gym.action_box import ActionBox, clipped_finite
-from vo_gym.batch_info import padded_batch
+from vo_gym.step_info import any_all_inlier, padded_batch
 from vo_gym.features import FEATURE_BOUND, N_FEATURES, compute_features
 from vo_gym.in_frame import (
     ADAPTIVE_FEATURE_NAMES,
@@ -285,8 +285,7 @@ class StereoVOAdaptiveEnv(gym.Env):
         info["fallback"] = not est.ok
         info["outlier_ratio"] = float(frame.truth.outlier_ratio)
         info["stopped"] = stopped
-        samples = search.all_samples()
-        info["all_inlier_drawn"] = bool(samples.shape[0] and np.any(np.all(frame.truth.inlier[samples], axis=1)))
+        info["all_inlier_drawn"] = any_all_inlier(search.all_samples(), frame.truth.inlier)
         if self._k == self.sim_config.n_frames:
             info["success_rate"] = float(np.mean(self._successes))
         if self.reward_mode == "supervised":

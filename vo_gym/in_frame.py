@@ -134,7 +134,7 @@ def _global_row(out, drawn, max_hypotheses, best_inliers, scored, has_previous, 
         out[j] = np.float32(x)
 
 
-MASK_ROWS_START = 64  # rows of a frame's mask buffer at first (doubled when a frame scores more)
+MASK_ROWS_START = 16  # rows of a frame's mask buffers at first (doubled when a frame scores more)
 
 
 class AgentPriorSampler:
@@ -149,14 +149,17 @@ class AgentPriorSampler:
         self.votes = np.zeros(n, dtype=np.int64)
         # every scored hypothesis' inlier mask, in order (rows [0, scored)), and the same as 0.0 / 1.0:
         # select() reads them each step, and numpy's product of the bool masks casts them so first
-        self._all_masks = np.zeros((MASK_ROWS_START, n), dtype=bool)
-        self._all_masks_f64 = np.zeros((MASK_ROWS_START, n))
+        # (rows past `scored` are never read: uninitialised; 16 rows, since a larger buffer of float64
+        # comes from fresh pages on every frame)
+        self._all_masks = np.empty((MASK_ROWS_START, n), dtype=bool)
+        self._all_masks_f64 = np.empty((MASK_ROWS_START, n))
         self._scored = 0
         self.R: list[np.ndarray] = []
         self.t: list[np.ndarray] = []
         self.samples: list[np.ndarray] = []
         self.last_samples = np.zeros((0, 3), dtype=np.int64)
         self.last_masks = np.zeros((0, n), dtype=bool)
+        self.last_residuals: np.ndarray | None = None  # (H, N) squared residuals of the last batch
 
     def set_weights(self, weights: np.ndarray, draw: WeightedDraw | None = None) -> None:
         """``weights (N,)``: a softmax of bounded logits (all positive and normal), so the draw skips
@@ -175,12 +178,13 @@ class AgentPriorSampler:
         self.t.append(t)
         self.samples.append(state.samples)
         self.last_samples, self.last_masks = state.samples, inlier_masks
+        self.last_residuals = residual_sq
         end = self._scored + inlier_masks.shape[0]
         if end > self._all_masks.shape[0]:
-            grown = np.zeros((max(2 * self._all_masks.shape[0], end), self.n), dtype=bool)
+            grown = np.empty((max(2 * self._all_masks.shape[0], end), self.n), dtype=bool)
             grown[: self._scored] = self._all_masks[: self._scored]
             self._all_masks = grown
-            grown_f64 = np.zeros(grown.shape)
+            grown_f64 = np.empty(grown.shape)
             grown_f64[: self._scored] = self._all_masks_f64[: self._scored]
             self._all_masks_f64 = grown_f64
         if inlier_masks.dtype == np.bool_ and inlier_masks.ndim == 2 and inlier_masks.shape[1] == self.n:
@@ -212,6 +216,15 @@ class AgentPriorSampler:
         if not self._scored:
             return None
         return int(np.argmax(self._all_masks_f64[: self._scored] @ weights))
+
+    def hypothesis(self, h: int) -> tuple[np.ndarray, np.ndarray]:
+        """Copies of scored hypothesis ``h``'s ``R (3, 3)`` and ``t (3,)`` (``np.concatenate(self.R)[h]``
+        without joining the batches)."""
+        for R, t in zip(self.R, self.t):
+            if h < R.shape[0]:
+                return R[h].copy(), t[h].copy()
+            h -= R.shape[0]
+        raise IndexError("no such scored hypothesis")
 
     def weighted_support(self, h: int, weights: np.ndarray) -> float:
         """``scored_masks[h] @ weights``: hypothesis ``h``'s ``weights``-weighted support (as :meth:`select`)."""
@@ -289,9 +302,8 @@ class InFrameSearch:
         self._best_column: tuple[np.ndarray | None, np.ndarray | None] = (None, None)  # (residual, its column)
         self._best_distance: tuple = (None, None, 0.0, 0.0)  # (best_R, best_t, globals 3 and 4 of them)
         self.weights = np.full(problem.n, 1.0 / problem.n)
-        # a stopping step's empty batch (read-only: nothing to write in an empty array anyway)
+        # a stopping step's empty batch, shared by the frame's steps (an empty array holds nothing to change)
         self._no_samples, self._no_masks = np.zeros((0, 3), dtype=np.int64), np.zeros((0, problem.n), bool)
-        self._no_samples.flags.writeable = self._no_masks.flags.writeable = False
 
     @property
     def drawn(self) -> int:
@@ -330,8 +342,21 @@ class InFrameSearch:
             search.step(batch)
             drawn = batch
             if search.best_score != before:
-                self.best_residual = search.ctx.residuals(search.best_R[None], search.best_t[None])[0]
+                self.best_residual = self._best_residuals()
         return drawn, stopping, stopping or search.drawn >= self.max_hypotheses
+
+    def _best_residuals(self) -> np.ndarray:
+        """``(N,)`` squared residuals of the loop's best model: the batch's row when the best is a
+        hypothesis of the last batch as it was scored (same bytes; the loop's residuals of a batch are
+        each hypothesis' own, bit for bit), else computed."""
+        search, sampler = self.search, self.sampler
+        R, t, residual_sq = sampler.R[-1], sampler.t[-1], sampler.last_residuals
+        if residual_sq is not None and residual_sq.shape == (R.shape[0], self.problem.n):
+            best_R, best_t = search.best_R.tobytes(), search.best_t.tobytes()
+            for i in range(R.shape[0]):
+                if R[i].tobytes() == best_R and t[i].tobytes() == best_t:
+                    return residual_sq[i]
+        return search.ctx.residuals(search.best_R[None], search.best_t[None])[0]
 
     def finish(self, method: str) -> MotionEstimate:
         """Select the hypothesis of largest belief-weighted support, refine it, report it (``time_s`` 0)."""
@@ -339,8 +364,8 @@ class InFrameSearch:
         chosen = sampler.select(self.weights)
         if chosen is not None:
             masks = sampler.scored_masks
-            search.choose(np.concatenate(sampler.R)[chosen], np.concatenate(sampler.t)[chosen], masks[chosen].copy(),
-                          float(np.count_nonzero(masks[chosen])))
+            R, t = sampler.hypothesis(chosen)
+            search.choose(R, t, masks[chosen].copy(), float(np.count_nonzero(masks[chosen])))
         return MotionEstimate.from_report(search.finish(), method, 0.0)
 
     def all_samples(self) -> np.ndarray:

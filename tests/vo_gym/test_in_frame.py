@@ -113,6 +113,10 @@ def test_adaptive_observations_equal_the_numpy_formulation(kwargs):
                                search.sampler.n_scored(), env.unwrapped.max_correspondences)
         assert obs["features"].tobytes() == want.tobytes()
         assert obs["globals"].tobytes() == _reference_globals(search, env.unwrapped.max_hypotheses).tobytes()
+        if search.best_residual is not None:  # the batch's row of the best model: its residuals computed alone
+            loop = search.search
+            alone = loop.ctx.residuals(loop.best_R[None], loop.best_t[None])[0]
+            assert search.best_residual.tobytes() == alone.tobytes()
         if term or trunc:
             env.reset()
 
