@@ -17,7 +17,7 @@ import numpy as np
 from gymnasium import spaces
 from numba import njit
 
-__all__ = ["ActionBox", "clipped_finite", "exp_shifted"]
+__all__ = ["ActionBox", "clipped_finite", "exp_shifted", "plain_float_action"]
 
 
 class ActionBox(spaces.Box):
@@ -44,6 +44,15 @@ class ActionBox(spaces.Box):
             return super().sample(mask, probability)
         low, high = self._bounds
         return self.np_random.uniform(low=low, high=high, size=self.shape).astype(self.dtype)
+
+
+_FLOAT_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
+
+
+def plain_float_action(action: object, length: int) -> bool:
+    """True for a float32 or float64 ndarray of shape ``(length,)``: an action :func:`clipped_finite`
+    reads as it is, without ``real_array``'s check and float64 cast (``ActionBox.sample`` gives float32)."""
+    return type(action) is np.ndarray and action.dtype in _FLOAT_DTYPES and action.shape == (length,)
 
 
 def clipped_finite(values: np.ndarray, bound: float, scale: float = 1.0) -> np.ndarray | None:

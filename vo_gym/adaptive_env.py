@@ -35,7 +35,7 @@ from stereovo.geometry import PoseChain
 from stereovo.metrics import FrameMetrics, frame_metrics
 from stereovo.options import real_array
 from stereovo.simulation import Frame, Sequence
-from vo_gym.action_box import ActionBox, clipped_finite
+from vo_gym.action_box import ActionBox, clipped_finite, plain_float_action
 from vo_gym.step_info import any_all_inlier, padded_batch
 from vo_gym.features import FEATURE_BOUND, N_FEATURES, compute_features
 from vo_gym.in_frame import (
@@ -60,7 +60,6 @@ __all__ = [
 ]
 
 _OWNER = "StereoVOAdaptiveEnv"  # the messages' prefix
-_FLOAT_ACTIONS = (np.dtype(np.float32), np.dtype(np.float64))  # read without a cast (_validate_action)
 _INFO_METRICS = tuple(f.name for f in dataclasses.fields(FrameMetrics) if f.name != "time_s")
 
 
@@ -313,7 +312,7 @@ class StereoVOAdaptiveEnv(gym.Env):
 
     def _validate_action(self, action) -> tuple[np.ndarray, bool]:
         M, n = self.max_correspondences, self._frame.n
-        if type(action) is np.ndarray and action.dtype in _FLOAT_ACTIONS and action.shape == (M + 1,):
+        if plain_float_action(action, M + 1):
             a = action  # the clip reads float32 values as the float64 ones real_array's cast would give
         else:
             a = real_array("the action", action, (M + 1,), entries="values", per="a logit per slot and the stop slot",
