@@ -76,7 +76,9 @@ def observation_rows(features: np.ndarray, best_column: np.ndarray | None, best_
     has_best = best_column is not None
     column = best_column if has_best else np.zeros(n)
     inliers = best_inliers if has_best else np.zeros(n, dtype=bool)
-    out = np.zeros((rows, features.shape[1] + len(LOOP_FEATURE_NAMES)), dtype=np.float32)
+    # the first n rows are all written below (by the kernel or numpy's columns): only the padding is zeroed
+    out = np.empty((rows, features.shape[1] + len(LOOP_FEATURE_NAMES)), dtype=np.float32)
+    out[n:] = 0.0
     if not _observation_rows(out, features, column, inliers, votes, scored, _LOG1P_COUNTS, FEATURE_BOUND):
         # a count outside the table (no search's: a row votes at most once a hypothesis): numpy's columns
         loop = np.zeros((n, len(LOOP_FEATURE_NAMES)), dtype=np.float64)
@@ -389,8 +391,8 @@ class InFrameSearch:
                 self._best_column = (self.best_residual, np.log1p(self.best_residual / search.components.threshold_sq))
             best_column = self._best_column[1]
         features = observation_rows(self.features, best_column, search.best_inliers, sampler.votes, scored, M)
-        mask = np.zeros(M, dtype=np.int8)
-        mask[:n] = 1
+        mask = np.ones(M, dtype=np.int8)
+        mask[n:] = 0
         has_previous = self.previous_motion is not None
         cv_rotation = cv_translation = weighted = 0.0
         if has_previous and scored:
