@@ -173,3 +173,24 @@ def test_normalised_priors_are_numpys_weights_and_draw():
             a, b = np.random.default_rng(n), np.random.default_rng(n)
             np.testing.assert_array_equal(draw.draw(8, a), reference.draw(8, b))
             assert a.random() == b.random()
+
+
+@pytest.mark.parametrize("method", ["ransac", "probabilistic"])
+def test_the_best_models_residuals_are_its_own_under_other_judges(method):
+    import gymnasium as gym
+
+    env = gym.make("vo_gym/StereoVOAdaptive-v0", n_frames=3, method=method)
+    env.reset(seed=2)
+    env.action_space.seed(2)
+    checked = 0
+    for _ in range(40):
+        _, _, term, trunc, _ = env.step(env.action_space.sample())
+        search = env.unwrapped._search
+        if search.best_residual is not None:
+            loop = search.search
+            alone = loop.ctx.residuals(loop.best_R[None], loop.best_t[None])[0]
+            assert search.best_residual.tobytes() == alone.tobytes()
+            checked += 1
+        if term or trunc:
+            env.reset()
+    assert checked
