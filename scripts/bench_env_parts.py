@@ -1,7 +1,11 @@
 """The environments' parts that were made faster, against the formulation each replaced, in one
 process: per step of ``vo_gym/StereoVOAdaptive-v0``, a batch's draw (``WeightedSampler`` built
 from the agent's weights, then four samples, against ``WeightedDraw``) and the selection read
-twice a step (the frame's masks concatenated, against the buffer); per frame of every env, the
+twice a step (the frame's masks concatenated, against the buffer; the bool buffer, against its
+float64 copy), the priors' normalisation with the draw's tables (numpy's and ``WeightedDraw``'s,
+against :func:`vo_gym.in_frame.normalised_priors`), the padded batch infos (numpy's fills and copies,
+against :func:`vo_gym.step_info.padded_batch`) and a frame's all-inlier info (numpy's expression,
+against :func:`vo_gym.step_info.any_all_inlier`); per frame of every env, the
 rigid-consistency counts of the features (every pair through the double-precision test, against
 the single-precision screen), on the usable rows of simulated frames (default and hostile); with
 ``--before DIR`` (a checkout of earlier code) also a frame's whole ``compute_features``, DIR's
@@ -30,6 +34,9 @@ from stereovo.estimation.methods.bansac import WeightedDraw
 from stereovo.estimation.roles.samplers import WeightedSampler
 from stereovo.simulation import SimulationConfig, simulate_frame
 from vo_gym import features as F
+from vo_gym.action_box import exp_shifted
+from vo_gym.in_frame import normalised_priors
+from vo_gym.step_info import any_all_inlier, padded_batch
 from vo_gym.ordering import descending_order
 
 
@@ -41,6 +48,28 @@ def fastest(fn, loops: int, repeats: int) -> float:
             fn()
         best = min(best, (time.process_time() - start) / loops)
     return best
+
+
+def _numpy_priors(logits: np.ndarray) -> WeightedDraw:
+    """The in-frame step's priors before they were compiled: numpy's softmax, then ``WeightedDraw``."""
+    weights = np.exp(logits - logits.max())
+    weights /= weights.sum()
+    return WeightedDraw(weights)
+
+
+def _numpy_padded(samples: np.ndarray, masks: np.ndarray, rows: int, columns: int) -> np.ndarray:
+    """The adaptive env's padded batch infos before they were compiled (the inliers returned)."""
+    batch_samples = np.full((rows, 3), -1, dtype=np.int64)
+    batch_samples[: samples.shape[0]] = samples
+    batch_inliers = np.zeros((rows, columns), dtype=bool)
+    batch_inliers[: masks.shape[0], : masks.shape[1]] = masks
+    return batch_inliers
+
+
+def _compiled_padded(samples: np.ndarray, masks: np.ndarray, rows: int, columns: int) -> np.ndarray:
+    batch_samples, batch_inliers = np.empty((rows, 3), dtype=np.int64), np.empty((rows, columns), dtype=bool)
+    padded_batch(samples, masks, batch_samples, batch_inliers)
+    return batch_inliers
 
 
 def main() -> int:
@@ -57,6 +86,9 @@ def main() -> int:
     weights /= weights.sum()
     masks = [rng.random((4, n)) < 0.4 for _ in range(8)]  # eight batches of four scored hypotheses
     buffer = np.concatenate(masks)
+    buffer_f64 = buffer.astype(np.float64)
+    samples = rng.integers(0, n, (4, 3)).astype(np.int64)
+    all_samples, labels = rng.integers(0, n, (12, 3)).astype(np.int64), rng.random(n) < 0.3
     assert np.array_equal(WeightedSampler(weights).draw(400, np.random.default_rng(1)),
                           WeightedDraw(weights).draw(400, np.random.default_rng(1)))
     g = np.random.default_rng(2)
@@ -67,6 +99,18 @@ def main() -> int:
         ("adaptive selection (32 scored)",
          lambda: int(np.argmax(np.concatenate(masks) @ weights)),
          lambda: int(np.argmax(buffer[:32] @ weights))),
+        ("adaptive selection, float64 masks (32)",
+         lambda: int(np.argmax(buffer[:32] @ weights)),
+         lambda: int(np.argmax(buffer_f64[:32] @ weights))),
+        ("adaptive priors and draw tables",
+         lambda: _numpy_priors(logits).cdf,
+         lambda: normalised_priors(exp_shifted(logits)).cdf),
+        ("adaptive padded batch infos (4 x N)",
+         lambda: _numpy_padded(samples, masks[0], 4, n),
+         lambda: _compiled_padded(samples, masks[0], 4, n)),
+        ("adaptive all-inlier info (12 samples)",
+         lambda: bool(all_samples.shape[0] and np.any(np.all(labels[all_samples], axis=1))),
+         lambda: any_all_inlier(all_samples, labels)),
     ]
     fresh = [rng.random(n) for _ in range(64)]
     for label, arrays in (("one array again", fresh[:1]), ("64 fresh arrays", fresh)):

@@ -35,7 +35,8 @@ from stereovo.geometry import PoseChain
 from stereovo.metrics import FrameMetrics, frame_metrics
 from stereovo.options import real_array
 from stereovo.simulation import Frame, Sequence
-from vo_gym.action_box import ActionBox, clipped_finite
+from vo_gym.action_box import ActionBox, clipped_finite, plain_float_action
+from vo_gym.step_info import any_all_inlier, padded_batch
 from vo_gym.features import FEATURE_BOUND, N_FEATURES, compute_features
 from vo_gym.in_frame import (
     ADAPTIVE_FEATURE_NAMES,
@@ -283,8 +284,7 @@ class StereoVOAdaptiveEnv(gym.Env):
         info["fallback"] = not est.ok
         info["outlier_ratio"] = float(frame.truth.outlier_ratio)
         info["stopped"] = stopped
-        samples = search.all_samples()
-        info["all_inlier_drawn"] = bool(samples.shape[0] and np.any(np.all(frame.truth.inlier[samples], axis=1)))
+        info["all_inlier_drawn"] = any_all_inlier(search.all_samples(), frame.truth.inlier)
         if self._k == self.sim_config.n_frames:
             info["success_rate"] = float(np.mean(self._successes))
         if self.reward_mode == "supervised":
@@ -297,16 +297,26 @@ class StereoVOAdaptiveEnv(gym.Env):
     def _batch_info(self, samples: np.ndarray, masks: np.ndarray) -> dict[str, Any]:
         """The step's hypotheses at a fixed shape (see Info): ``batch_count`` real rows, then padding."""
         count = int(samples.shape[0])
-        batch_samples = np.full((self.batch_size, 3), -1, dtype=np.int64)
-        batch_samples[:count] = samples
-        batch_inliers = np.zeros((self.batch_size, self.max_correspondences), dtype=bool)
-        batch_inliers[:count, : masks.shape[1]] = masks
+        batch_samples = np.empty((self.batch_size, 3), dtype=np.int64)
+        batch_inliers = np.empty((self.batch_size, self.max_correspondences), dtype=bool)
+        if samples.dtype == np.int64 and masks.dtype == np.bool_ and samples.ndim == masks.ndim == 2 \
+                and samples.shape[1] == 3 and masks.shape[0] == count <= self.batch_size \
+                and masks.shape[1] <= self.max_correspondences:
+            padded_batch(samples, masks, batch_samples, batch_inliers)  # the two fills and copies in one pass
+        else:
+            batch_samples.fill(-1)
+            batch_samples[:count] = samples
+            batch_inliers.fill(False)
+            batch_inliers[:count, : masks.shape[1]] = masks
         return {"batch_samples": batch_samples, "batch_inliers": batch_inliers, "batch_count": count}
 
     def _validate_action(self, action) -> tuple[np.ndarray, bool]:
         M, n = self.max_correspondences, self._frame.n
-        a = real_array("the action", action, (M + 1,), entries="values", per="a logit per slot and the stop slot",
-                       what=f"a numeric array of shape ({M + 1},)", prefix="StereoVOAdaptiveEnv: ")
+        if plain_float_action(action, M + 1):
+            a = action  # the clip reads float32 values as the float64 ones real_array's cast would give
+        else:
+            a = real_array("the action", action, (M + 1,), entries="values", per="a logit per slot and the stop slot",
+                           what=f"a numeric array of shape ({M + 1},)", prefix="StereoVOAdaptiveEnv: ")
         # np.clip's values on the slots read (the others are ignored), times the logit scale; clipping
         # keeps the stop's sign
         logits = clipped_finite(a[:n], self.action_bound, self.logit_scale)

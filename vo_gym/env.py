@@ -24,7 +24,7 @@ from stereovo.geometry import PoseChain
 from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, FrameMetrics, frame_metrics, trajectory_metrics
 from stereovo.options import real_array
 from stereovo.simulation import Frame, Sequence
-from vo_gym.action_box import ActionBox, clipped_finite, exp_shifted
+from vo_gym.action_box import ActionBox, clipped_finite, exp_shifted, plain_float_action
 from vo_gym.features import FEATURE_BOUND, FEATURE_LAYOUT_VERSION, FEATURE_NAMES, N_FEATURES, compute_features
 from vo_gym.ordering import descending_order
 from vo_gym.rewards import inlier_reward, msac_reward, pose_error_ratio, supervised_reward
@@ -434,6 +434,11 @@ class StereoVOEnv(gym.Env):
     def _validate_action(self, action) -> np.ndarray:
         # the frame's own count: image frames have fewer matches than slots, the simulator's exactly n
         M, n = self.max_correspondences, self._frame.n if self._frame is not None else self.n_correspondences
+        if plain_float_action(action, M):
+            # float32 values read as their float64 cast; a NaN or inf takes the checks below
+            clipped = clipped_finite(action[:n], self.action_bound)
+            if clipped is not None:
+                return clipped
         a = real_array("the action", action, (M,), entries="values", per="one value per correspondence slot",
                        what=f"a numeric array of shape ({M},)", prefix=f"{_OWNER}: ")
         a = a[:n]

@@ -482,18 +482,18 @@ def compute_features(
     if motion is not None:
         R, t = motion
         sq = reprojection_sq(camera, R[None], t[None], points_prev, curr)[0]  # inf behind the camera
-    # one errstate for both blocks (the logarithms cannot overflow, so ignoring it there changes no
-    # warning); the logarithms write into their argument's temporary
+    # The logarithms' arguments in one compiled pass (quotients, a maximum and a root: correctly
+    # rounded either way), numpy's log over the three rows at once (its vector loop gives each value
+    # whatever its place in a contiguous array, tests/vo_gym/test_features.py) and its log1p, then
+    # the float32 columns in one pass. One errstate for both (the logarithms cannot overflow, so
+    # ignoring it there changes no warning).
+    arguments = np.empty((3 if sq is None else 4, n))
+    _log_arguments(points_prev, points_curr, cov_prev, sq, float(noise_sigma), arguments)
     with np.errstate(over="ignore", invalid="ignore"):  # NaN on rows without depth, overwritten below
-        column = points_prev[:, 2] / _DEPTH_REF_M
-        out[:, 8] = np.log(column, out=column)
-        column = points_curr[:, 2] / _DEPTH_REF_M
-        out[:, 9] = np.log(column, out=column)
-        column = np.maximum(cov_prev[:, 2, 2], 1e-300)
-        out[:, 10] = 0.5 * np.log(column, out=column)
+        np.log(arguments[:3], out=arguments[:3])
         if sq is not None:
-            out[:, 11] = np.log1p(np.sqrt(sq / 4.0) / noise_sigma)
-            out[:, 12] = 1.0
+            np.log1p(arguments[3], out=arguments[3])
+    _log_columns(arguments, out)
     if usable is None:
         out[:, 13] = rigid_consistency_degree(points_prev, points_curr, spread, priority=scores, priority_order=by_score)
     else:
@@ -506,6 +506,34 @@ def compute_features(
         out[~usable, 2:8] = np.nan_to_num(out[~usable, 2:8], nan=0.0)  # a NaN row's pixels say nothing
     _clip_in_place(out, FEATURE_BOUND)  # returns nothing: boxing an array costs a dtype lookup
     return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _log_arguments(points_prev, points_curr, cov_prev, sq, noise_sigma, arguments):
+    """Rows of ``arguments (3 or 4, N)``: ``z_prev / 10``, ``z_curr / 10``, ``np.maximum(var_z_prev,
+    1e-300)`` (a NaN stays NaN) and, with ``sq`` (N,) (None: no fourth row), ``np.sqrt(sq / 4) /
+    noise_sigma``; each value as numpy's column expression computes it."""
+    for i in range(points_prev.shape[0]):
+        arguments[0, i] = points_prev[i, 2] / _DEPTH_REF_M
+        arguments[1, i] = points_curr[i, 2] / _DEPTH_REF_M
+        v = cov_prev[i, 2, 2]
+        arguments[2, i] = v if (v >= 1e-300 or v != v) else 1e-300
+    if sq is not None:
+        for i in range(sq.shape[0]):
+            arguments[3, i] = np.sqrt(sq[i] / 4.0) / noise_sigma
+
+
+@njit(cache=True, nogil=True)
+def _log_columns(logs, out):
+    """Columns 8 to 12 of ``out (N, F)`` float32 from ``logs (3 or 4, N)``: the two log-depths,
+    ``0.5 *`` the log-variance, and with a fourth row the prediction residual and the flag 1."""
+    for i in range(out.shape[0]):
+        out[i, 8] = np.float32(logs[0, i])
+        out[i, 9] = np.float32(logs[1, i])
+        out[i, 10] = np.float32(0.5 * logs[2, i])
+        if logs.shape[0] > 3:
+            out[i, 11] = np.float32(logs[3, i])
+            out[i, 12] = np.float32(1.0)
 
 
 @njit(cache=True, nogil=True)

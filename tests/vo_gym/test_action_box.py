@@ -77,6 +77,24 @@ def test_clipped_finite_is_numpys_clip_times_the_scale():
         assert clipped_finite(np.array([0.0, bad, 1.0]), 10.0) is None
 
 
+def test_clipped_finite_reads_float32_as_its_float64_cast():
+    from vo_gym.action_box import clipped_finite
+
+    rng = np.random.default_rng(9)
+    for trial in range(300):
+        n = int(rng.integers(0, 600))
+        x = (rng.standard_normal(n) * 10.0 ** rng.integers(-3, 4)).astype(np.float32)
+        if n:
+            x[rng.integers(0, n, 4)] = rng.choice([0.0, -0.0, 10.0, -10.0, np.nextafter(np.float32(10), 11), 3e38], 4)
+        if trial % 5 == 0:
+            x = np.repeat(x, 2)[::2]
+        bound, scale = float(rng.choice([10.0, 1.0, 0.5])), float(rng.choice([1.0, 10.0, 0.3]))
+        ours, want = clipped_finite(x, bound, scale), clipped_finite(x.astype(np.float64), bound, scale)
+        assert ours.dtype == np.float64 and ours.tobytes() == want.tobytes()
+    for bad in (np.nan, np.inf, -np.inf):
+        assert clipped_finite(np.array([0.0, bad, 1.0], dtype=np.float32), 10.0) is None
+
+
 def test_exp_shifted_is_numpys_softmax_numerator():
     from vo_gym.action_box import exp_shifted
 

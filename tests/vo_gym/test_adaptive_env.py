@@ -127,6 +127,15 @@ def test_bad_actions_and_arguments_raise_naming_them():
     bad[0] = np.nan
     with pytest.raises(ValueError, match="NaN"):
         env.step(bad)
+    for dtype in (np.float32, np.float64):  # float actions are read without real_array's cast
+        for slot in (0, -1):
+            bad = act(env, False).astype(dtype)
+            bad[slot] = np.inf
+            with pytest.raises(ValueError, match="NaN or inf"):
+                env.step(bad)
+    for dtype in (np.float32, np.float64, np.int64):
+        with pytest.raises(ValueError, match="shape"):
+            env.step(np.zeros(5, dtype=dtype))
     for kwargs, name in (({"batch_size": 0}, "batch_size"), ({"hypothesis_cost": -1}, "hypothesis_cost"),
                          ({"reward_mode": "x"}, "reward_mode"), ({"max_correspondences": 10}, "max_correspondences")):
         with pytest.raises(ValueError, match=name):

@@ -227,6 +227,25 @@ def test_spaces_and_episode_end():
     assert env.estimated_poses.shape == env.true_poses.shape == (4, 4, 4)
 
 
+@pytest.mark.parametrize("env_id", ["vo_gym/StereoVO-v0", "vo_gym/StereoVOProsac-v0", "vo_gym/StereoVOAdaptive-v0"])
+def test_float32_actions_step_as_their_float64_cast(env_id):
+    records = []
+    for dtype in (np.float32, np.float64):
+        env = gym.make(env_id, n_frames=3, max_correspondences=520)
+        env.reset(seed=4)
+        rng = np.random.default_rng(4)
+        steps = []
+        for _ in range(10):
+            action = (rng.standard_normal(env.action_space.shape) * 8).astype(np.float32)  # some past the bound
+            action[500:-1] = np.nan  # padding: ignored
+            obs, reward, _, truncated, info = env.step(action.astype(dtype))
+            steps.append((obs, reward, info))
+            if truncated:
+                env.reset()
+        records.append(steps)
+    assert _same(records[0], records[1])
+
+
 def test_padding_and_action_validation():
     env = StereoVOEnv(n_frames=2, n_correspondences=50, max_correspondences=64)
     with pytest.raises(RuntimeError, match="reset"):
@@ -237,10 +256,11 @@ def test_padding_and_action_validation():
     for bad, match in ((np.zeros(50), "shape"), (np.zeros((64, 1)), "shape"), ("logits", "numeric")):
         with pytest.raises(ValueError, match=match):
             env.step(bad)
-    nan = np.zeros(64)
-    nan[7] = np.nan
-    with pytest.raises(ValueError, match="NaN or inf"):
-        env.step(nan)
+    for dtype in (np.float64, np.float32):  # float32 actions are clipped without the cast
+        nan = np.zeros(64, dtype=dtype)
+        nan[7] = np.nan
+        with pytest.raises(ValueError, match="NaN or inf"):
+            env.step(nan)
     masked = np.zeros(64)
     masked[50:] = -np.inf  # masked logits in padded slots are ignored
     env.step(masked)

@@ -1,4 +1,5 @@
-"""vo_gym.in_frame: the compiled observation block and the kept globals are the numpy formulation's, bit for bit."""
+"""vo_gym.in_frame: the compiled observation block, the kept and compiled globals, the recorded masks and votes,
+the selection and the normalised priors are the numpy formulation's, bit for bit."""
 
 from __future__ import annotations
 
@@ -7,7 +8,10 @@ import pytest
 
 import vo_gym  # noqa: F401  (registers the ids)
 from vo_gym.features import FEATURE_BOUND, N_FEATURES
-from vo_gym.in_frame import LOOP_FEATURE_NAMES, observation_rows
+from stereovo.estimation.loop import LoopState
+from stereovo.estimation.methods.bansac import WeightedDraw
+from vo_gym.action_box import exp_shifted
+from vo_gym.in_frame import MASK_ROWS_START, LOOP_FEATURE_NAMES, AgentPriorSampler, normalised_priors, observation_rows
 
 
 def _reference_rows(features, best_column, best_inliers, votes, scored, rows):
@@ -41,9 +45,9 @@ def _reference_globals(search, max_hypotheses):
             cos = (np.trace(loop.best_R @ R_prev.T) - 1) / 2
             g[3] = math.log1p(math.degrees(math.acos(min(max(cos, -1.0), 1.0))) / 0.1)
             g[4] = math.log1p(float(np.linalg.norm(loop.best_t - t_prev)) / 0.05)
-    chosen = sampler.select(search.weights)
-    if chosen is not None:
-        g[6] = float(sampler.scored_masks[chosen] @ search.weights)
+    if sampler.n_scored():
+        masks = sampler.scored_masks
+        g[6] = float(masks[int(np.argmax(masks @ search.weights))] @ search.weights)
     return np.minimum(np.maximum(g, -FEATURE_BOUND), FEATURE_BOUND).astype(np.float32)
 
 
@@ -109,5 +113,84 @@ def test_adaptive_observations_equal_the_numpy_formulation(kwargs):
                                search.sampler.n_scored(), env.unwrapped.max_correspondences)
         assert obs["features"].tobytes() == want.tobytes()
         assert obs["globals"].tobytes() == _reference_globals(search, env.unwrapped.max_hypotheses).tobytes()
+        if search.best_residual is not None:  # the batch's row of the best model: its residuals computed alone
+            loop = search.search
+            alone = loop.ctx.residuals(loop.best_R[None], loop.best_t[None])[0]
+            assert search.best_residual.tobytes() == alone.tobytes()
         if term or trunc:
             env.reset()
+
+
+def test_recorded_masks_and_votes_are_numpys():
+    rng = np.random.default_rng(3)
+    for n in (1, 7, 500):
+        sampler, masks = AgentPriorSampler(n), []
+        for _ in range(40):  # past MASK_ROWS_START rows: the buffers grow
+            batch = rng.random((int(rng.integers(1, 9)), n)) < rng.random()
+            sampler.on_hypotheses(np.zeros((batch.shape[0], 3, 3)), np.zeros((batch.shape[0], 3)), batch, None,
+                                  LoopState(0, 0.0, samples=np.zeros((batch.shape[0], 3), np.int64)))
+            masks.append(batch)
+            every = np.concatenate(masks)
+            np.testing.assert_array_equal(sampler.scored_masks, every)
+            np.testing.assert_array_equal(sampler.votes, np.count_nonzero(every, axis=0))
+        assert sampler.n_scored() > MASK_ROWS_START
+        # a mask of ints (no search's) takes numpy's count and copy
+        sampler.on_hypotheses(None, None, np.ones((2, n), dtype=np.int64), None, LoopState(0, 0.0, samples=None))
+        np.testing.assert_array_equal(sampler.votes, np.count_nonzero(every, axis=0) + 2)
+
+
+def test_selection_is_the_product_of_the_bool_masks():
+    rng = np.random.default_rng(4)
+    for _ in range(300):
+        n, h = int(rng.integers(3, 600)), int(rng.integers(1, 90))
+        sampler = AgentPriorSampler(n)
+        batch = rng.random((h, n)) < rng.random()
+        sampler.on_hypotheses(None, None, batch, None, LoopState(0, 0.0, samples=None))
+        weights = np.exp(rng.standard_normal(n) * rng.uniform(0, 10))
+        weights /= weights.sum()
+        product = batch @ weights
+        chosen = sampler.select(weights)
+        assert chosen == int(np.argmax(product))
+        k = int(rng.integers(h))
+        assert sampler.weighted_support(k, weights) == float(batch[k] @ weights)
+    assert AgentPriorSampler(4).select(np.full(4, 0.25)) is None
+
+
+def test_normalised_priors_are_numpys_weights_and_draw():
+    rng = np.random.default_rng(6)
+    for _ in range(300):
+        n = int(rng.integers(1, 700))
+        logits = np.clip(rng.standard_normal(n) * rng.uniform(0, 20), -10, 10)
+        want = np.exp(logits - logits.max())
+        want /= want.sum()
+        weights = exp_shifted(logits)
+        draw = normalised_priors(weights)
+        assert weights.tobytes() == want.tobytes()
+        reference = WeightedDraw(want)
+        for ours, theirs in ((draw.w, reference.w), (draw.cdf, reference.cdf), (draw.before, reference.before)):
+            assert ours.tobytes() == theirs.tobytes()
+        if n >= 3:
+            a, b = np.random.default_rng(n), np.random.default_rng(n)
+            np.testing.assert_array_equal(draw.draw(8, a), reference.draw(8, b))
+            assert a.random() == b.random()
+
+
+@pytest.mark.parametrize("method", ["ransac", "probabilistic"])
+def test_the_best_models_residuals_are_its_own_under_other_judges(method):
+    import gymnasium as gym
+
+    env = gym.make("vo_gym/StereoVOAdaptive-v0", n_frames=3, method=method)
+    env.reset(seed=2)
+    env.action_space.seed(2)
+    checked = 0
+    for _ in range(40):
+        _, _, term, trunc, _ = env.step(env.action_space.sample())
+        search = env.unwrapped._search
+        if search.best_residual is not None:
+            loop = search.search
+            alone = loop.ctx.residuals(loop.best_R[None], loop.best_t[None])[0]
+            assert search.best_residual.tobytes() == alone.tobytes()
+            checked += 1
+        if term or trunc:
+            env.reset()
+    assert checked
