@@ -177,6 +177,11 @@ class StereoVOAdaptiveEnv(gym.Env):
             _OWNER, StereoVOAdaptiveEnv, method, settings, fixed={"noise_sigma": self.estimator_noise_sigma},
             also_known=SIMULATOR_KEYWORDS,
         )
+        if self._spec.inputs != "any":  # the agent's weights drive the sampler: the judge must take none
+            why = ("needs priors= or order= from its caller" if self._spec.inputs in ("priors", "order")
+                   else "draws no hypotheses for the agent to steer")
+            raise ValueError(f"{_OWNER}: method {method!r} cannot judge the in-frame search: it {why}; "
+                             "judge with a sampling method, e.g. 'msac' (the default), 'mlesac' or 'probabilistic'")
         self.method = method
         F = N_FEATURES + len(LOOP_FEATURE_NAMES)
         self.observation_space = spaces.Dict({

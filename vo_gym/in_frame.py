@@ -37,7 +37,8 @@ LOOP_FEATURE_NAMES: tuple[str, ...] = ("best_residual", "vote_fraction", "log_vo
 """Per-correspondence columns appended to the frame features (:data:`vo_gym.features.FEATURE_NAMES`):
 
 - ``best_residual``: ``log(1 + e^2 / T^2)`` of the match's squared residual ``e^2`` under the current
-  best model, ``T^2`` the estimator's gate (0 before the first hypothesis);
+  best model, ``T^2`` the estimator's gate (0 before the first hypothesis; the bound where the
+  judge gives a row no residual: a row without depth under a 3-D judge);
 - ``vote_fraction``: share of the frame's scored hypotheses that counted it an inlier;
 - ``log_votes``: ``log(1 + count)`` of the same;
 - ``in_best``: 1 if it is in the current best model's consensus."""
@@ -388,7 +389,9 @@ class InFrameSearch:
         if self.best_residual is not None:
             # the best model's column changes only with the best model: kept for the steps between
             if self._best_column[0] is not self.best_residual:
-                self._best_column = (self.best_residual, np.log1p(self.best_residual / search.components.threshold_sq))
+                # a row without depth has no residual under the 3-D judges (NaN): no fit, so the bound
+                residual = np.where(np.isnan(self.best_residual), np.inf, self.best_residual)
+                self._best_column = (self.best_residual, np.log1p(residual / search.components.threshold_sq))
             best_column = self._best_column[1]
         features = observation_rows(self.features, best_column, search.best_inliers, sampler.votes, scored, M)
         mask = np.ones(M, dtype=np.int8)

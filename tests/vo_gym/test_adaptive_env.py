@@ -7,6 +7,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from stereovo.estimation import StereoProblem
 from stereovo.estimation.loop import LoopState
 from stereovo.metrics import FrameMetrics
 from vo_gym.adaptive_env import (
@@ -142,6 +143,29 @@ def test_bad_actions_and_arguments_raise_naming_them():
             small(**kwargs)
     with pytest.raises(RuntimeError, match="reset"):
         small().step(np.zeros(81))
+
+
+@pytest.mark.parametrize("method", ["guided-mlesac", "prosac", "inlier-detection"])
+def test_a_method_that_cannot_judge_the_search_is_refused_at_construction(method):
+    with pytest.raises(ValueError, match=f"method '{method}' cannot judge the in-frame search"):
+        small(method=method)
+
+
+def test_mlesac_judges_frames_with_rows_without_depth():
+    """The search judges the whole frame, rows without depth included: MLESAC's densities stay
+    finite there (such a row is an outlier under every motion) and the episode runs."""
+    env = small(method="mlesac", n_frames=4, n_correspondences=120, outliers="hostile")
+    env.reset(seed=1)
+    all_rows_have_depth = []  # of the frame judged at each step
+    while True:
+        frame, options = env.current_frame, env.estimator_options
+        all_rows_have_depth.append(StereoProblem.build(frame.prev, frame.curr, frame.camera, options.noise_sigma,
+                                                       options.min_disparity_sigmas).usable_mask.all())
+        obs, reward, terminated, truncated, info = env.step(act(env, env.frame_hypotheses >= 32))
+        assert np.isfinite(reward) and all(np.isfinite(value).all() for value in obs.values())
+        if truncated:
+            break
+    assert not any(all_rows_have_depth)
 
 
 def test_agent_sampler_keeps_every_scored_mask_in_order_across_its_buffer_growth():

@@ -59,8 +59,23 @@ float64 keeps about 16 digits of a 3x3 matrix, so a smaller eigenvalue is roundi
 
 
 def inlier_log_normaliser(problem: StereoProblem) -> np.ndarray:
-    """``(N,)`` ``log((2 pi)^(-3/2) |S_X,i + S_Y,i|^(-1/2))`` in log m^-3 (finite for every row)."""
+    """``(N,)`` ``log((2 pi)^(-3/2) |S_X,i + S_Y,i|^(-1/2))`` in log m^-3 (finite for every row).
+
+    A row without a finite covariance (no depth: the in-frame environment judges the whole frame)
+    gets the normaliser of a unit determinant. Its residual is infinite under every motion, so its
+    inlier density is 0 whatever the normaliser, and it counts as an outlier."""
     S = problem.cov_prev + problem.cov_curr
+    finite = np.isfinite(S).all(axis=(1, 2))
+    if finite.all():
+        return _gaussian_log_normaliser(S)
+    out = np.full(S.shape[0], -1.5 * np.log(2 * np.pi))
+    if finite.any():
+        out[finite] = _gaussian_log_normaliser(S[finite])
+    return out
+
+
+def _gaussian_log_normaliser(S: np.ndarray) -> np.ndarray:
+    """:func:`inlier_log_normaliser` of finite covariances ``S (M, 3, 3)``."""
     sign, logdet = np.linalg.slogdet(S)
     eig = np.linalg.eigvalsh(S)  # ascending
     # Only numerically singular rows change: the others keep slogdet's value bit for bit.
@@ -81,10 +96,14 @@ def outlier_log_density(problem: StereoProblem) -> np.ndarray:
     """
     cam = problem.camera
     disparity = cam.disparity(problem.curr)
-    largest = min(max(float(np.max(disparity)), 1.0), float(cam.width))
+    finite = disparity[np.isfinite(disparity)]
+    largest = min(max(float(np.max(finite)) if finite.size else 1.0, 1.0), float(cam.width))
     log_volume = np.log(cam.width) + np.log(cam.height) + np.log(largest)
     focal_baseline = cam.fx * cam.baseline
-    depth = np.clip(problem.points_curr[:, 2], focal_baseline / cam.width, focal_baseline / cam.min_disparity)
+    # a row without depth is an outlier under every motion (its inlier density is 0), so the depth its
+    # outlier density is taken at only shifts every hypothesis' likelihood alike: the farthest allowed
+    depth = np.clip(np.nan_to_num(problem.points_curr[:, 2], nan=np.inf), focal_baseline / cam.width,
+                    focal_baseline / cam.min_disparity)
     log_det_jacobian = 4 * np.log(depth) - 2 * np.log(cam.fx) - np.log(cam.fy) - np.log(cam.baseline)
     return -log_volume - log_det_jacobian
 

@@ -359,3 +359,20 @@ def test_inlier_normaliser_keeps_slogdet_and_floors_only_ill_conditioned_rows():
     # eig 1e-20 < 1e-12 x 1: floored to 1e-12; eig 2e-12 < 1e-12 x 4: floored to 4e-12.
     assert abs(got[0] - (base - 0.5 * math.log(COVARIANCE_FLOOR * 1.0))) < 1e-12
     assert abs(got[1] - (base - 0.5 * (math.log(4e-12) + math.log(1.0) + math.log(4.0)))) < 1e-12
+
+
+def test_densities_are_finite_on_rows_without_depth_and_unchanged_on_the_others():
+    """The in-frame environment judges whole frames: rows without depth (NaN points and covariances)
+    get finite densities, and every other row the value it has in the usable part alone."""
+    frame = simulate_frame(SimulationConfig(n_correspondences=150, outlier_ratio=0.8, outliers="hostile"), 3)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    usable = problem.usable_mask
+    assert not usable.all()
+    sub = problem.select(np.flatnonzero(usable))
+    for density in (inlier_log_normaliser, outlier_log_density):
+        whole = density(problem)
+        assert np.isfinite(whole).all()
+        np.testing.assert_array_equal(whole[usable], density(sub))
+    quality = MlesacQuality.for_problem(problem)
+    R, t = frame.truth.rotation[None], frame.truth.translation[None]
+    assert np.isfinite(quality.score(MahalanobisResidual().squared(problem, R, t), 7.81)).all()
