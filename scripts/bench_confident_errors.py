@@ -3,6 +3,7 @@ above 1 m, for every registered method on hostile frames (or another outliers pr
 
     python scripts/bench_confident_errors.py --frames 10000 --methods probabilistic
     python scripts/bench_confident_errors.py --frames 600          # every method
+    python scripts/bench_confident_errors.py --frames 5000 --first 5000 --methods mlesac   # the second half
 
 Frames cycle through the cells N 200 / 500 / 1000 x eps 0.2, 0.5, 0.8, 0.9 (seeded by their index,
 so every method sees the same frames). A method that needs sampling input gets the calibrated
@@ -34,11 +35,15 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=600, help="frames per method (default 600)")
     parser.add_argument("--methods", default="all", help="comma-separated names, or 'all' (default)")
     parser.add_argument("--outliers", default="hostile", choices=sorted(OUTLIER_PRESETS))
+    parser.add_argument("--first", type=int, default=0,
+                        help="index of the first frame of the stream (default 0): split a long run into parts")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", help="CSV of the table")
     args = parser.parse_args()
     if args.frames < 1:
         parser.error(f"--frames must be >= 1, got {args.frames}")
+    if args.first < 0:
+        parser.error(f"--first must be >= 0, got {args.first}")
     methods = sorted(available_methods()) if args.methods == "all" else args.methods.split(",")
     for name in methods:
         method_spec(name)  # an unknown name fails here, before any work
@@ -46,7 +51,7 @@ def main() -> None:
     print(f"{'method':28s} {'frames':>7s} {'success':>8s} {'wrong ok':>9s} {'failed':>7s}")
     for method in methods:
         success = wrong = failed = 0
-        for i in tqdm(range(args.frames), desc=method, leave=False):
+        for i in tqdm(range(args.first, args.first + args.frames), desc=method, leave=False):
             n, eps = CELLS[i % len(CELLS)]
             frame = simulate_frame(
                 SimulationConfig(n_correspondences=n, outlier_ratio=eps, outliers=args.outliers), args.seed * 10**7 + i
