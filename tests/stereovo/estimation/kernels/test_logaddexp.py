@@ -53,7 +53,21 @@ def test_mlesac_wrapper_broadcasts_like_numpy(b_shape):
     got = log_add_exp(a, b)
     assert got.shape == (7, 30)
     np.testing.assert_array_equal(bits(got), bits(np.logaddexp(a, b)))
+    np.testing.assert_array_equal(bits(log_add_exp(b, a)), bits(np.logaddexp(b, a)))  # the full shape second
     np.testing.assert_array_equal(bits(log_add_exp(a[0], b)), bits(np.logaddexp(a[0], b)))  # 1-D: numpy's own
+
+
+def test_mlesac_wrapper_computes_in_float64_and_leaves_other_ranks_to_numpy():
+    rng = np.random.default_rng(3)
+    a, b = rng.normal(-20.0, 30.0, (5, 40)), rng.normal(-20.0, 30.0, (5, 40))
+    a32, b32 = a.astype(np.float32), b.astype(np.float32)
+    expected = np.logaddexp(a32.astype(np.float64), b32.astype(np.float64))
+    for x, y in ((a32, b32), (a32, b32.astype(np.float64)), (a32.astype(np.float64), b32)):
+        got = log_add_exp(x, y)
+        assert got.dtype == np.float64
+        np.testing.assert_array_equal(bits(got), bits(expected))
+    cube = rng.normal(-20.0, 30.0, (2, 3, 4))
+    np.testing.assert_array_equal(bits(log_add_exp(cube, cube[::-1])), bits(np.logaddexp(cube, cube[::-1])))
 
 
 def numpy_mixture_log_likelihood(gamma, log_p_in, log_p_out):

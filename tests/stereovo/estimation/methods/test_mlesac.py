@@ -373,6 +373,23 @@ def test_densities_are_finite_on_rows_without_depth_and_unchanged_on_the_others(
         whole = density(problem)
         assert np.isfinite(whole).all()
         np.testing.assert_array_equal(whole[usable], density(sub))
+    # as documented: a unit determinant, and the outlier density at the farthest depth allowed
+    np.testing.assert_array_equal(inlier_log_normaliser(problem)[~usable], -1.5 * np.log(2 * np.pi))
+    cam = problem.camera
+    largest = min(max(float(np.max(cam.disparity(problem.curr))), 1.0), float(cam.width))
+    farthest = cam.fx * cam.baseline / cam.min_disparity
+    expected = -(np.log(cam.width) + np.log(cam.height) + np.log(largest)) - (
+        4 * np.log(farthest) - 2 * np.log(cam.fx) - np.log(cam.fy) - np.log(cam.baseline))
+    np.testing.assert_allclose(outlier_log_density(problem)[~usable], expected, rtol=1e-12)
     quality = MlesacQuality.for_problem(problem)
     R, t = frame.truth.rotation[None], frame.truth.translation[None]
     assert np.isfinite(quality.score(MahalanobisResidual().squared(problem, R, t), 7.81)).all()
+
+
+def test_outlier_density_of_a_frame_without_a_finite_disparity_takes_a_one_pixel_box_side():
+    cam = StereoCamera()
+    nothing = SimpleNamespace(camera=cam, curr=np.full((3, 4), np.nan), points_curr=np.full((3, 3), np.nan))
+    farthest = cam.fx * cam.baseline / cam.min_disparity
+    expected = -(np.log(cam.width) + np.log(cam.height) + np.log(1.0)) - (
+        4 * np.log(farthest) - 2 * np.log(cam.fx) - np.log(cam.fy) - np.log(cam.baseline))
+    np.testing.assert_allclose(outlier_log_density(nothing), expected, rtol=1e-12)
