@@ -246,6 +246,25 @@ def test_float32_actions_step_as_their_float64_cast(env_id):
     assert _same(records[0], records[1])
 
 
+def test_settings_reach_the_simulator_and_messages_name_the_environment():
+    env = StereoVOEnv(n_correspondences=50, outliers="hostile", noise_dof=4.0)
+    assert env.sim_config.outliers == "hostile" and env.sim_config.noise_dof == 4.0
+    for kwargs, error, match in (
+        ({"max_correspondences": 5}, ValueError, r"^StereoVOEnv: max_correspondences=5 is smaller"),
+        ({"outliers": "nope"}, ValueError, r"^StereoVOEnv: invalid simulator setting"),
+        ({"budget": -3}, ValueError, r"^StereoVOEnv: budget must be"),
+        ({"msac_threshold": 1.0}, TypeError, r"^StereoVOEnv got unexpected keyword argument"),
+    ):
+        with pytest.raises(error, match=match):
+            StereoVOEnv(**kwargs)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"^StereoVOEnv: the action must have shape \(50,\), one value per "
+                                         r"correspondence slot, got \(1, 2\)$"):
+        env.step([[1.0, 2.0]])
+    _, reward, *_ = env.step(list(np.zeros(50)))  # a list of floats takes the checked path
+    assert np.isfinite(reward)
+
+
 def test_padding_and_action_validation():
     env = StereoVOEnv(n_frames=2, n_correspondences=50, max_correspondences=64)
     with pytest.raises(RuntimeError, match="reset"):

@@ -377,6 +377,12 @@ def test_previous_motion_and_camera_are_validated_with_exact_messages():
         features((np.eye(3), [np.nan, 0.0, 0.0]))
     with pytest.raises(ValueError, match=r"^camera must be a StereoCamera, got str$"):
         features(None, camera="rig")
+    for not_a_pair in (5, (np.eye(3),), (np.eye(3), np.zeros(3), 0)):  # no length, or not two: the same message
+        with pytest.raises(ValueError, match=r"^previous_motion must be None or a pair"):
+            features(not_a_pair)
+    for bad_sigma in ([0.5], "0.5", -1.0):  # a list is not hashed into the checked values' cache
+        with pytest.raises(ValueError, match="noise_sigma"):
+            compute_features(frame.prev, frame.curr, frame.scores, frame.camera, bad_sigma, None)
     # Integer motions are the same motions: the identity given as ints predicts like the float one.
     np.testing.assert_array_equal(features((np.eye(3, dtype=int), [0, 0, 0])), features((np.eye(3), np.zeros(3))))
 
@@ -613,3 +619,4 @@ def test_previous_motion_and_noise_sigma_are_checked_every_time(sequence):
     same = compute_features(*args, 0.5, [R.tolist(), t.tolist()])  # lists take numpy's reading
     np.testing.assert_array_equal(same, good)
     np.testing.assert_array_equal(compute_features(*args, 0.5, (R.astype(np.float32), t)), good)
+
