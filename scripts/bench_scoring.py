@@ -23,7 +23,7 @@ import time
 import numpy as np
 from numba import njit
 
-from stereovo.estimation.kernels.mahalanobis import mahalanobis_sq, point_mahalanobis_sq
+from stereovo.estimation.kernels.mahalanobis import mahalanobis_sq, point_columns, point_mahalanobis_sq
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.roles.sample_check import RigidityCheck
 from stereovo.estimation.roles.scoring import CHI2_3_95
@@ -44,13 +44,7 @@ def branching_sq(R, t, X, Y, cam, sigma_sq, cap):
     out = np.empty((H, N))
     c_lateral = 2.0 * inv_fx * inv_fx + v_variance * inv_fy * inv_fy
     c_depth = 3.0 * inv_fb * inv_fb
-    inv_depth = np.empty(N)
-    norm_x = np.empty(N)
-    norm_y = np.empty(N)
-    for n in range(N):
-        inv_depth[n] = 1.0 / Y[n, 2]
-        norm_x[n] = np.sqrt(X[n, 0] ** 2 + X[n, 1] ** 2 + X[n, 2] ** 2)
-        norm_y[n] = np.sqrt(Y[n, 0] ** 2 + Y[n, 1] ** 2 + Y[n, 2] ** 2)
+    inv_depth, norm_x, norm_y = point_columns(X, Y)[6:]
     for h in range(H):
         norm_t = np.sqrt(t[h, 0] ** 2 + t[h, 1] ** 2 + t[h, 2] ** 2)
         for n in range(N):

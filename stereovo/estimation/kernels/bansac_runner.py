@@ -205,23 +205,6 @@ def update_scalars(k, n, table_knee, c_max, log_gated_in, log_gated_out):
 
 
 @jit
-def search_constants(X, Y):
-    """What the search's scoring reads of the points, once per search: ``(x0, x1, x2, y0, y1, y2)``
-    the coordinates as columns (so that the scoring loop runs on vectors), ``inv_depth = 1 / y2``,
-    ``norm_x = |X|`` and ``norm_y = |Y|`` (each ``(N,)``), computed as ``mahalanobis_sq`` computes them."""
-    n = X.shape[0]
-    inv_depth = np.empty(n)
-    norm_x = np.empty(n)
-    norm_y = np.empty(n)
-    for i in range(n):
-        inv_depth[i] = 1.0 / Y[i, 2]
-        norm_x[i] = np.sqrt(X[i, 0] ** 2 + X[i, 1] ** 2 + X[i, 2] ** 2)
-        norm_y[i] = np.sqrt(Y[i, 0] ** 2 + Y[i, 1] ** 2 + Y[i, 2] ** 2)
-    return (X[:, 0].copy(), X[:, 1].copy(), X[:, 2].copy(), Y[:, 0].copy(), Y[:, 1].copy(), Y[:, 2].copy(),
-            inv_depth, norm_x, norm_y)
-
-
-@jit
 def bansac_search(
     log_odds, u, state, fstate, discretised, levels, weight_floor, outlier_log_odds,
     table_knee, c_max, log_gated_in, log_gated_out,
@@ -244,7 +227,7 @@ def bansac_search(
         area_ratio, polish_iterations: the minimal fit's.
         rigidity_sq: the rigidity check's gate, or <= 0 for no check.
         runner_up_fraction: the loop's runner-up refit fraction, or < 0 for none.
-        constants: :func:`search_constants` of the problem's points.
+        constants: :func:`~stereovo.estimation.kernels.mahalanobis.point_columns` of the problem's points.
         edges, level, lower, upper: :func:`level_edges` of ``levels``, each point's discretised
             weight ``(N,)`` int64 and the interval of log-odds that keeps it ``(N,)``, kept between
             calls (:func:`discretised_draw_arrays`; unused with ``discretised`` False).

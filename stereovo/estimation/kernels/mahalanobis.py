@@ -202,6 +202,26 @@ def point_mahalanobis_sq_pair(r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t
     return r2 / max(bound_trace, 1e-300) if capped and r2 >= cap * bound_trace else value, exact
 
 
+@inline_jit
+def point_columns(X, Y):
+    """What the 3-D scorer reads of the points ``X, Y (N, 3)``, per point and whatever the motion:
+    ``(x0, x1, x2, y0, y1, y2, inv_depth, norm_x, norm_y)``, each ``(N,)`` and contiguous (the points
+    as columns, so that a loop over them runs in vector lanes), ``inv_depth = 1 / y2``, ``norm_x = |X|``,
+    ``norm_y = |Y|``. The scorer, BANSAC's compiled search and the branching form's callers share it,
+    so all read the same values."""
+    n = X.shape[0]
+    columns = np.empty((9, n))
+    for i in range(n):
+        for k in range(3):
+            columns[k, i] = X[i, k]
+            columns[3 + k, i] = Y[i, k]
+        columns[6, i] = 1.0 / Y[i, 2]
+        columns[7, i] = np.sqrt(X[i, 0] ** 2 + X[i, 1] ** 2 + X[i, 2] ** 2)
+        columns[8, i] = np.sqrt(Y[i, 0] ** 2 + Y[i, 1] ** 2 + Y[i, 2] ** 2)
+    return (columns[0], columns[1], columns[2], columns[3], columns[4], columns[5], columns[6], columns[7],
+            columns[8])
+
+
 @jit
 def mahalanobis_sq(R, t, X, Y, cam, sigma_sq, cap):
     """``(H, N)`` squared Mahalanobis distances of ``r = Y - (R X + t)`` under ``R S_X R^T + S_Y``.
@@ -249,17 +269,7 @@ def _scan(R, t, X, Y, cam, sigma_sq, cap, out, exact, keep_exact):
     H, N = R.shape[0], X.shape[0]
     c_lateral = 2.0 * inv_fx * inv_fx + v_variance * inv_fy * inv_fy
     c_depth = 3.0 * inv_fb * inv_fb
-    # the points as columns (contiguous per coordinate), so the loop over them runs in vector lanes
-    columns = np.empty((9, N))
-    for n in range(N):
-        for k in range(3):
-            columns[k, n] = X[n, k]
-            columns[3 + k, n] = Y[n, k]
-        columns[6, n] = 1.0 / Y[n, 2]
-        columns[7, n] = np.sqrt(X[n, 0] ** 2 + X[n, 1] ** 2 + X[n, 2] ** 2)
-        columns[8, n] = np.sqrt(Y[n, 0] ** 2 + Y[n, 1] ** 2 + Y[n, 2] ** 2)
-    x0, x1, x2, y0, y1, y2 = columns[0], columns[1], columns[2], columns[3], columns[4], columns[5]
-    inv_depth, norm_x, norm_y = columns[6], columns[7], columns[8]
+    x0, x1, x2, y0, y1, y2, inv_depth, norm_x, norm_y = point_columns(X, Y)
     for h in range(H):
         r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2 = _motion_entries(R, t, h)
         norm_t = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)

@@ -81,6 +81,7 @@ import numpy as np
 from stereovo.estimation.estimator_options import EstimatorOptions
 from stereovo.estimation.kernels import bansac_runner as runner_kernels
 from stereovo.estimation.kernels import beliefs as belief_kernels
+from stereovo.estimation.kernels.mahalanobis import point_columns
 from stereovo.estimation.kernels.sampling import weighted_triplets
 from stereovo.estimation.loop import LoopState, RansacComponents, RansacSearch, local_refit_redundant
 from stereovo.estimation.registry import declare_options, method_spec, register_method
@@ -402,7 +403,7 @@ class _CompiledSearch:
             problem.points_prev, problem.points_curr, problem.prev, problem.curr, problem.camera.parameters,
             problem.cov_prev, problem.cov_curr, problem.noise_sigma**2, float(c.threshold_sq),
             DEGENERATE_AREA_RATIO, int(c.polish_iterations), rigidity, -1.0 if runner_up is None else float(runner_up),
-            runner_kernels.search_constants(problem.points_prev, problem.points_curr),
+            point_columns(problem.points_prev, problem.points_curr),
             # nothing known yet of each weight's interval: the kernel's first draw finds them
             runner_kernels.level_edges(float(WEIGHT_LEVELS)), level, np.full(self.n, np.inf), np.full(self.n, -np.inf),
             *draw_arrays,
