@@ -42,7 +42,8 @@ def claim_diagnostics(rows: Sequence[Mapping[str, Any]], seed: int, max_frames: 
       share of hypotheses it pre-tested, from ``r-ransac``'s counters;
     - ``waldsac-time``: the SPRT's early rejections, from ``waldsac``'s counters;
     - ``clique-robust``: the share of ``inlier-detection``'s returned inliers that are moving-object
-      points, and in how many frames the moving object outnumbers the static inliers.
+      points, and in how many frames the moving object outnumbers the static inliers; on frames
+      without a moving object (the hostile preset), the share that are outliers and their main kind.
 
     Returns an empty dict when ``rows`` hold no frames.
     """
@@ -70,6 +71,7 @@ def claim_diagnostics(rows: Sequence[Mapping[str, Any]], seed: int, max_frames: 
     true_support: list[float] = []
     alphas, pretested, tdd_tested, tdd_passed, sprt_rejected, sprt_tested = [], [], [], [], [], []
     moving_share, moving_wins, clique_wrong = [], 0, 0
+    any_moving, outlier_share, wrong_kinds = False, [], np.zeros(len(OutlierKind), dtype=np.int64)
     for trial in trials:
         frame = simulate_trial(trial, seed)
         problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
@@ -104,9 +106,13 @@ def claim_diagnostics(rows: Sequence[Mapping[str, Any]], seed: int, max_frames: 
                               rng=seeds["inlier-detection"], noise_sigma=frame.noise_sigma)
         found = np.asarray(est.inliers, dtype=bool)
         n_moving = int(np.count_nonzero(kind == OutlierKind.MOVING_OBJECT))
+        any_moving |= n_moving > 0
         if found.any():
             moving_share.append(np.count_nonzero(found & (kind == OutlierKind.MOVING_OBJECT)) / np.count_nonzero(found))
             clique_wrong += moving_share[-1] > 0.5
+            wrong = found & (kind != OutlierKind.INLIER)
+            outlier_share.append(np.count_nonzero(wrong) / np.count_nonzero(found))
+            wrong_kinds += np.bincount(kind[wrong].astype(np.int64), minlength=len(OutlierKind))
         moving_wins += n_moving > idx.size
     n = len(trials)
     out: dict[str, str] = {}
@@ -138,7 +144,21 @@ def claim_diagnostics(rows: Sequence[Mapping[str, Any]], seed: int, max_frames: 
             f" (median {np.median(sprt_tested):.0f} tested per frame): with the closed-form fits' small support"
             f" (above) good hypotheses look like bad ones to the test, so the run goes to the hypothesis cap"
         )
-    if moving_share:
+    if moving_share and not any_moving:  # frames without a moving object (the hostile preset)
+        top = OutlierKind(int(np.argmax(wrong_kinds)))
+        mostly = (f"; the outliers among them are mostly {top.name.lower().replace('_', ' ')} rows"
+                  f" ({100 * wrong_kinds[top] / wrong_kinds.sum():.0f} %)" if wrong_kinds.sum() else "")
+        taken = sum(share > 0.5 for share in outlier_share)
+        why = (": a group of wrong matches that agree with one another (a repetitive-texture cluster is rigid by"
+               " construction) passes the pairwise-distance test together, and the maximum consistent set is the"
+               " method's defined answer" if taken else
+               ": the static inliers are the largest mutually consistent set in every frame")
+        out["clique-robust"] = (
+            f"{where} (no moving object in them), in {taken} of {len(outlier_share)} frames most of"
+            f" inlier-detection's inliers are outliers (median share {100 * np.median(outlier_share):.0f} %)"
+            f"{mostly}{why}"
+        )
+    elif moving_share:
         out["clique-robust"] = (
             f"{where}, in {clique_wrong} of {len(moving_share)} frames most of inlier-detection's inliers are"
             f" moving-object points (median share {100 * np.median(moving_share):.0f} %), although the moving"

@@ -28,13 +28,17 @@ import numpy as np
 from stereovo.options import Integer
 from stereovo.simulation import Frame, SimulationConfig, simulate_frame
 
-OUTLIER_MIXES: dict[str, tuple[float, float, float]] = {
+OUTLIER_MIXES: dict[str, tuple[float, float, float] | None] = {
     "mix": SimulationConfig().outlier_mix,  # the simulator's default blend
     "random": (1.0, 0.0, 0.0),
     "stereo": (0.0, 1.0, 0.0),
     "moving": (0.0, 0.0, 1.0),
+    "hostile": None,  # the simulator's hostile preset: its own mix and Student-t pixel noise
 }
-"""Outlier kinds of the grid -> ``SimulationConfig.outlier_mix`` weights (random, stereo, moving object)."""
+"""Outlier kinds of the grid -> ``SimulationConfig.outlier_mix`` weights (random, stereo, moving
+object); None: the simulator's ``outliers="hostile"`` preset (independent left/right mismatches,
+duplicates, far clutter, repetitive texture and a few random and stereo mismatches, with Student-t
+pixel noise of scale sigma), match errors the default grid never makes."""
 
 
 @dataclass(frozen=True)
@@ -52,13 +56,15 @@ class GridCell:
         """The simulator config of this cell (validated by :class:`SimulationConfig`)."""
         if self.outlier_kind not in OUTLIER_MIXES:
             raise ValueError(f"unknown outlier kind {self.outlier_kind!r}; known: {', '.join(OUTLIER_MIXES)}")
+        mix = OUTLIER_MIXES[self.outlier_kind]
         return SimulationConfig(
             preset=self.preset,
             n_frames=1,
             n_correspondences=int(self.n),
             noise_sigma=float(self.noise_sigma),
             outlier_ratio=float(self.epsilon),
-            outlier_mix=OUTLIER_MIXES[self.outlier_kind],
+            outlier_mix=mix,
+            outliers="default" if mix is not None else "hostile",
             score_auc=float(self.score_auc),
         )
 

@@ -80,6 +80,27 @@ def test_config_error_is_reported_not_raised(tmp_path, capsys):
     assert not (tmp_path / "x").exists()
 
 
+def test_the_hostile_preset_reaches_the_simulated_sequence(tmp_path, capsys):
+    from stereovo.simulation import OUTLIER_PRESETS
+    from vo_gym_cli.commands.common import OUTLIER_PRESETS as named
+
+    assert named == tuple(OUTLIER_PRESETS)
+    argv = ["vo", "--frames", "3", "--n", "200", "--seed", "5", "--no-progress"]
+    assert main([*argv, "--out", str(tmp_path / "default")]) == 0
+    assert main([*argv, "--outlier-preset", "hostile", "--out", str(tmp_path / "hostile")]) == 0
+    summary = json.loads((tmp_path / "hostile" / "summary.json").read_text())
+    assert summary["settings"]["outlier_preset"] == "hostile"
+    assert "outliers 0.5 (hostile)" in capsys.readouterr().out
+    true_default, _ = read_tum(tmp_path / "default" / "trajectory_true.tum")
+    true_hostile, _ = read_tum(tmp_path / "hostile" / "trajectory_true.tum")
+    np.testing.assert_array_equal(true_default, true_hostile)  # the same motion, other match errors
+    assert (tmp_path / "default" / "frames.csv").read_text() != (tmp_path / "hostile" / "frames.csv").read_text()
+    with pytest.raises(SystemExit) as exc:
+        main([*argv, "--outlier-preset", "sky", "--out", str(tmp_path / "x")])
+    assert exc.value.code == 2
+    assert "--outlier-preset" in capsys.readouterr().err and not (tmp_path / "x").exists()
+
+
 def test_parse_outliers():
     assert parse_outliers("0.5") == 0.5
     assert parse_outliers("0") == 0.0

@@ -108,7 +108,9 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--ns", type=csv_list(int, "--ns"), default=None, metavar="N,...",
                         help="override the grid's correspondence counts")
     parser.add_argument("--outlier-kinds", type=csv_list(str, "--outlier-kinds"), default=None, metavar="K,...",
-                        help="override the grid's outlier kinds (mix, random, stereo, moving)")
+                        help="override the grid's outlier kinds (mix, random, stereo, moving; hostile: the "
+                             "simulator's hostile preset, match errors and Student-t noise the default grid never "
+                             "makes)")
     parser.add_argument("--max-iterations", type=positive_int("--max-iterations"), default=None, metavar="K",
                         help="hypothesis cap for every method (default: 2000; --full: the core's default)")
     parser.add_argument("--preset", default="car", choices=list(PRESETS), help="motion preset (default: car)")

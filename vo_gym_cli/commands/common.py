@@ -129,6 +129,10 @@ def finite_float(name: str, low: float | None = None, high: float | None = None,
 PRESETS = ("car", "free")
 """The motion presets of the simulator and of rendered sequences (``--preset``, ``rendered:PRESET``)."""
 
+OUTLIER_PRESETS = ("default", "hostile")
+"""The simulator's outlier presets (``stereovo.simulation.OUTLIER_PRESETS``' keys, named here so
+that building the parser imports no simulation code; a test keeps the two equal)."""
+
 
 def parse_source(text: str) -> str:
     """``--source``: ``rendered``, ``rendered:PRESET`` or ``kitti:PATH[:SEQ]`` (checked, returned as given)."""

@@ -25,6 +25,7 @@ from typing import Any, Iterator
 
 from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
 from vo_gym_cli.commands.common import (
+    OUTLIER_PRESETS,
     PRESETS,
     UsageError,
     bounded_int,
@@ -86,8 +87,8 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
         help="run on images through the front end instead of simulated matches: a rendered sequence "
              "(needs the 'images' and 'render' extras; PRESET car or free, else --preset) or a KITTI odometry "
              "sequence on disk (PATH a dataset folder with sequences/SEQ/, default SEQ 00, or one sequence's "
-             "folder; needs the 'images' extra); --outliers, --n and --auc apply to simulated matches only "
-             "(default: simulated matches)",
+             "folder; needs the 'images' extra); --outliers, --outlier-preset, --n and --auc apply to simulated "
+             "matches only (default: simulated matches)",
     )
     parser.add_argument("--resolution", default="kitti", choices=["kitti", "vga"],
                         help="a rendered source's image size: kitti (1241x376) or vga (640x480)")
@@ -97,6 +98,11 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--outliers", type=parse_outliers, default=0.5, metavar="EPS|LO:HI",
         help="outlier ratio, fixed (0.5) or drawn per frame from a range (0.3:0.9)",
+    )
+    parser.add_argument(
+        "--outlier-preset", default="default", choices=list(OUTLIER_PRESETS),
+        help="the kinds of match errors: the simulator's default mix, or hostile (independent left/right "
+             "mismatches, duplicates, far clutter, repetitive texture, Student-t pixel noise)",
     )
     parser.add_argument("--noise", type=finite_float("--noise", 1e-3, 1e3), default=0.5,
                         help="pixel noise sigma (px), in [0.001, 1000]")
@@ -230,7 +236,7 @@ def _sampling(args: argparse.Namespace, noise_sigma: float) -> dict[str, Any]:
 
 # SimulationConfig's field -> the flag that sets it.
 _CONFIG_FLAGS = {"preset": "--preset", "n_frames": "--frames", "n_correspondences": "--n", "noise_sigma": "--noise",
-                 "outlier_ratio": "--outliers", "score_auc": "--auc"}
+                 "outlier_ratio": "--outliers", "outliers": "--outlier-preset", "score_auc": "--auc"}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -240,7 +246,9 @@ def run(args: argparse.Namespace) -> int:
     from stereovo.simulation import Sequence, SimulationConfig
 
     try:
-        config = SimulationConfig(**{field: getattr(args, flag[2:]) for field, flag in _CONFIG_FLAGS.items()})
+        config = SimulationConfig(
+            **{field: getattr(args, flag[2:].replace("-", "_")) for field, flag in _CONFIG_FLAGS.items()}
+        )
         sequence = Sequence(config, seed=args.seed)
     except ValueError as err:
         # Invalid settings (the config validates them, naming its field): the message names the flag.
@@ -250,13 +258,15 @@ def run(args: argparse.Namespace) -> int:
     out: Path = check_output_dir(args.out)  # before computing: a bad --out loses no result
     result = run_odometry(sequence, method=args.method, seed=args.seed, progress=not args.no_progress, **sampling)
     settings = {
-        "preset": args.preset, "frames": args.frames, "outliers": args.outliers, "noise_px": args.noise,
+        "preset": args.preset, "frames": args.frames, "outliers": args.outliers,
+        "outlier_preset": args.outlier_preset, "noise_px": args.noise,
         "n_correspondences": args.n, "score_auc": args.auc, "method": args.method, "seed": args.seed,
         "agent": args.agent,
     }
     agent = "" if args.agent is None else f", sampler {args.agent}"
     _write_result(out, result, settings,
-                  f"vo-gym vo: {args.preset}, {args.frames} frames, outliers {args.outliers}, noise {args.noise} px, "
+                  f"vo-gym vo: {args.preset}, {args.frames} frames, outliers {args.outliers} ({args.outlier_preset}), "
+                  f"noise {args.noise} px, "
                   f"N {args.n}, AUC {args.auc}, seed {args.seed}{agent}")
     return 0
 

@@ -7,7 +7,7 @@ import json
 import pytest
 
 from stereovo import benchmark as bm
-from stereovo.benchmark.baseline_report import enhancement_pairs, enhancement_section, write_baseline_report
+from stereovo.benchmark.baseline_report import enhancement_pairs, enhancement_section, grid_flags, write_baseline_report
 
 METHODS = ["ransac", "ransac+polish", "ransac+guided", "msac"]
 
@@ -48,6 +48,15 @@ def test_the_report_is_rebuilt_from_the_runs_rows_and_settings(run, tmp_path):
     for figure in bm.PLOT_FILES:  # the run has no figures: they are drawn from trials.csv
         assert f"](img/tiny/{figure})" in text and (tmp_path / "img" / "tiny" / figure).stat().st_size > 0
     assert write_baseline_report(folder, tmp_path, name="tiny").read_text() == text  # same run, same report
+
+
+def test_the_command_line_rebuilds_the_runs_grid():
+    default = bm.DEFAULT_GRID.as_dict()
+    assert grid_flags({"grid_axes": default}) == grid_flags({}) == ""
+    assert grid_flags({"full": True, "grid_axes": bm.FULL_GRID.as_dict()}) == " --full --backend ray"
+    axes = {**default, "outlier_kinds": ["hostile"], "epsilons": [0.5, 0.85], "ns": [200], "max_iterations": 300}
+    flags = grid_flags({"grid_axes": axes})
+    assert flags == " --epsilons 0.5,0.85 --ns 200 --outlier-kinds hostile --max-iterations 300"
 
 
 def test_a_folder_without_trials_is_named(tmp_path):

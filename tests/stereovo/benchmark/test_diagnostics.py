@@ -34,6 +34,17 @@ def test_claim_diagnostics_measure_the_runs_frames():
     assert bm.claim_diagnostics([], seed=0) == {}
 
 
+def test_the_clique_diagnosis_on_frames_without_a_moving_object_counts_outliers_not_object_points():
+    rows = [{"trial": i, "cell": 0, "repeat": i, "epsilon": 0.8, "noise_sigma": 0.5, "score_auc": 0.9,
+             "n": 200, "outlier_kind": "hostile"} for i in range(2)]
+    text = bm.claim_diagnostics(rows, seed=0, samples_per_frame=10)["clique-robust"]
+    assert text.startswith("on 2 frames of the run at epsilon 0.8 (no moving object in them), in ")
+    assert "most of inlier-detection's inliers are outliers (median share " in text
+    assert "moving-object points" not in text
+    mix = bm.claim_diagnostics([{**r, "outlier_kind": "mix"} for r in rows], seed=0, samples_per_frame=10)
+    assert "moving-object points" in mix["clique-robust"]
+
+
 def test_constant_time_diagnosis_reads_the_point_checks():
     by_eps = {"preemptive": {0.2: summary_stats(median_time_ms=70.0, median_point_checks=8e4),
                              0.8: summary_stats(median_time_ms=40.0, median_point_checks=8e4)}}

@@ -8,6 +8,7 @@ import pytest
 
 from stereovo import benchmark as bm
 from stereovo.benchmark import GridCell, Trial
+from stereovo.simulation import OutlierKind, SimulationConfig
 from tests.support.benchmark import TINY
 
 
@@ -22,7 +23,7 @@ def test_full_grid_has_every_epsilon_noise_auc_n_and_outlier_kind():
     g = bm.FULL_GRID
     assert g.epsilons == pytest.approx(tuple(np.round(np.arange(0.1, 0.95, 0.1), 1)))
     assert g.noise_sigmas == (0.25, 0.5, 1.0, 2.0) and g.score_aucs == (0.5, 0.75, 0.9)
-    assert g.ns == (100, 500, 1000) and set(g.outlier_kinds) == set(bm.OUTLIER_MIXES)
+    assert g.ns == (100, 500, 1000) and set(g.outlier_kinds) == set(bm.OUTLIER_MIXES) - {"hostile"}
     assert g.n_cells == 9 * 4 * 3 * 3 * 4 == len(g.cells())
 
 
@@ -53,9 +54,20 @@ def test_grid_validation(change, needle):
 
 def test_outlier_kinds_reach_the_simulator():
     for kind, mix in bm.OUTLIER_MIXES.items():
-        assert GridCell(0.5, 0.5, 0.75, 100, kind).config().outlier_mix == mix
+        config = GridCell(0.5, 0.5, 0.75, 100, kind).config()
+        if mix is None:  # the hostile preset: its mix and its Student-t noise
+            hostile = SimulationConfig(outliers="hostile")
+            assert config.outliers == "hostile"
+            assert (config.outlier_mix, config.noise_dof) == (hostile.outlier_mix, hostile.noise_dof) != (
+                SimulationConfig().outlier_mix, None)
+        else:
+            assert (config.outlier_mix, config.outliers, config.noise_dof) == (mix, "default", None)
     frame = bm.simulate_trial(Trial(0, 0, GridCell(0.5, 0.5, 0.75, 100, "stereo"), 0), seed=0)
     assert set(np.unique(frame.truth.outlier_kind)) == {0, 2}
+    frame = bm.simulate_trial(Trial(0, 0, GridCell(0.5, 0.5, 0.75, 200, "hostile"), 0), seed=0)
+    assert {OutlierKind.INDEPENDENT_MISMATCH, OutlierKind.DUPLICATE_MATCH, OutlierKind.FAR_CLUTTER,
+            OutlierKind.REPETITIVE_TEXTURE} <= set(np.unique(frame.truth.outlier_kind))
+    assert OutlierKind.MOVING_OBJECT not in frame.truth.outlier_kind
 
 
 def test_frames_depend_on_seed_cell_and_repeat_only():
