@@ -143,7 +143,9 @@ def evaluation_markdown(summary: Mapping[str, Any], wall_s: float | None = None)
     lines = [
         "# Agents vs classical methods on the same frames",
         "",
-        f"Environment `{cfg['env_id']}`, N = {cfg['n']}, {cfg['episodes']} episodes x {cfg['frames_per_episode']}"
+        f"Environment `{cfg['env_id']}`"
+        + "".join(f", {k}={v!r}" for k, v in sorted((cfg.get("env_kwargs") or {}).items()))
+        + f", N = {cfg['n']}, {cfg['episodes']} episodes x {cfg['frames_per_episode']}"
         f" frames = {frames} frames per setting, episode seeds {cfg['seed']}..{cfg['seed'] + cfg['episodes'] - 1}"
         f" (identical frames for every agent and method of a setting). Success = {summary['success_definition']}.",
         f"Agents and `(fixed)` methods draw exactly the budget's hypotheses with the environment's estimator"

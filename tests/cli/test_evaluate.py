@@ -59,3 +59,37 @@ def test_evaluate_source_errors_are_one_line(tmp_path, capsys, source, needle):
     assert main(["evaluate", "--source", source, "--out", str(tmp_path / "e")]) == 2
     assert needle in one_line_error(capsys, "evaluate")
     assert not (tmp_path / "e").exists()
+
+
+SWEEP = ["--episodes", "1", "--frames-per-episode", "2", "--n", "120", "--epsilons", "0.5", "--budget", "8",
+         "--budgets", "8", "--sweep-epsilon", "0.5", "--methods", "msac", "--no-plots", "--no-progress",
+         "--workers", "1", "--agent", "uniform", "--seed", "7"]
+
+
+def test_the_outlier_preset_reaches_the_environment_and_the_record(tmp_path, capsys):
+    assert main(["evaluate", *SWEEP, "--out", str(tmp_path / "default")]) == 0
+    assert main(["evaluate", *SWEEP, "--outlier-preset", "hostile", "--out", str(tmp_path / "hostile")]) == 0
+    summary = json.loads((tmp_path / "hostile" / "summary.json").read_text())
+    assert summary["config"]["env_kwargs"] == {"outliers": "hostile"}
+    assert json.loads((tmp_path / "default" / "summary.json").read_text())["config"]["env_kwargs"] == {}
+    assert "Environment `vo_gym/StereoVO-v0`, outliers='hostile', N = 120" in (tmp_path / "hostile" / "summary.md").read_text()
+    assert "Environment `vo_gym/StereoVO-v0`, N = 120" in (tmp_path / "default" / "summary.md").read_text()
+    # the same seeds, other match errors: other rows
+    assert (tmp_path / "default" / "frames.csv").read_text() != (tmp_path / "hostile" / "frames.csv").read_text()
+    # the flag is the env keyword: given both ways, the same run
+    argv = ["evaluate", *SWEEP, "--env-kwargs", '{"outliers": "hostile"}', "--outlier-preset", "hostile"]
+    assert main([*argv, "--out", str(tmp_path / "both")]) == 0
+    rows = lambda name: [line.rsplit(",", 3)[0] for line in (tmp_path / name / "frames.csv").read_text().splitlines()]  # noqa: E731
+    assert rows("both") == rows("hostile")
+
+
+@pytest.mark.parametrize("more, needle", [
+    (["--env-kwargs", '{"outliers": "default"}', "--outlier-preset", "hostile"],
+     "--outlier-preset hostile contradicts --env-kwargs' outliers='default'"),
+    (["--adaptive", "--outlier-preset", "hostile"], "--outlier-preset applies to the sweeps on simulated matches"),
+    (["--source", "rendered", "--outlier-preset", "hostile"], "not with --source"),
+])
+def test_an_outlier_preset_that_cannot_apply_is_one_line(tmp_path, capsys, more, needle):
+    assert main(["evaluate", *SWEEP, *more, "--out", str(tmp_path / "e")]) == 2
+    assert needle in one_line_error(capsys, "evaluate")
+    assert not (tmp_path / "e").exists()

@@ -28,7 +28,7 @@ from pathlib import Path
 
 from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
 from vo_gym_cli.commands.baselines import PLOT_FORMATS, add_backend_options, backend_from_args
-from vo_gym_cli.commands.common import open_run_folder
+from vo_gym_cli.commands.common import OUTLIER_PRESETS, open_run_folder
 from vo_gym_cli.commands.common import RunStart, UsageError, flag_error, interrupted_run, stoppable
 from vo_gym_cli.commands.common import csv_list as _csv_list
 from vo_gym_cli.commands.common import positive_int as _positive_int
@@ -80,6 +80,11 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                              " 'guided' = ransac with the match scores as sampling priors; 'none' for none)")
     parser.add_argument("--max-iterations", type=_positive_int("--max-iterations"), default=2000,
                         help="hypothesis cap of the adaptive classical runs (default: 2000)")
+    parser.add_argument("--outlier-preset", default=None, choices=list(OUTLIER_PRESETS),
+                        help="the environment's match errors (its 'outliers' keyword): default, or hostile"
+                             " (independent left/right mismatches, duplicates, far clutter, repetitive texture,"
+                             " Student-t pixel noise), which no shipped sampler was trained on (default: the env"
+                             " id's own)")
     parser.add_argument("--env-kwargs", default=None, metavar="JSON",
                         help="further environment keyword arguments as a JSON object, e.g. '{\"noise_sigma\": 1.0}'")
     parser.add_argument("--out", type=Path, default=Path("runs/evaluate"),
@@ -167,6 +172,9 @@ def _run_adaptive(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    if args.outlier_preset is not None and (args.adaptive or args.source is not None):
+        raise UsageError(f"--outlier-preset applies to the sweeps on simulated matches, not with "
+                         f"{'--adaptive' if args.adaptive else '--source'}")
     if args.adaptive:
         return _run_adaptive(args)
     if args.source is not None:
@@ -185,6 +193,11 @@ def _run(args: argparse.Namespace) -> int:
             raise UsageError(f"--env-kwargs is not valid JSON: {err}") from None
         if not isinstance(env_kwargs, dict):
             raise UsageError("--env-kwargs must be a JSON object") from None
+    if args.outlier_preset is not None:
+        if env_kwargs.get("outliers", args.outlier_preset) != args.outlier_preset:
+            raise UsageError(f"--outlier-preset {args.outlier_preset} contradicts --env-kwargs' "
+                             f"outliers={env_kwargs['outliers']!r}")
+        env_kwargs["outliers"] = args.outlier_preset
     methods = DEFAULT_METHODS if args.methods is None else tuple(m for m in args.methods if m.lower() != "none")
     try:
         agents = resolve_agents(args.agent or DEFAULT_AGENTS)
