@@ -27,6 +27,7 @@ from stereovo.estimation import available_methods
 from stereovo.simulation import Sequence, SimulationConfig
 from tests.support.fuzz import FUZZ, WEIRD_NUMBERS
 from vo_gym import FEATURE_NAMES, N_FEATURES, StereoVOEnv
+from vo_gym.features import usable_rows
 from vo_gym.registration import ENV_IDS
 from tests.support.processes import run_python
 
@@ -537,6 +538,62 @@ def test_environment_steps_through_frames_with_unusable_rows():
     action[:4] = -np.inf  # masked logits on the unusable rows are accepted
     obs, reward, terminated, truncated, info = env.step(action)
     assert np.isfinite(reward) and info["status"] == "ok"
+
+
+
+def test_image_frames_read_the_action_slots_of_their_own_matches_only():
+    # An image frame has as many matches as the front end found, fewer than the observation's rows (here a
+    # replayed source of 40-match frames in 64 rows): the slots past the frame's matches are padding, whatever
+    # they hold (NaN included), and a NaN in one of the frame's own slots is refused by its slot number.
+    from vo_gym.images_env import ReplayedFrames, StereoVOImagesEnv
+
+    sequence = Sequence(SimulationConfig(n_frames=3, n_correspondences=40), seed=5)
+    frames = list(sequence)
+    source = ReplayedFrames(frames, frames[0].camera, sequence.true_poses, frames[0].noise_sigma)
+    env = StereoVOImagesEnv(source=source, n_frames=2, max_correspondences=64)
+    logits = np.linspace(-2.0, 2.0, 40)
+    steps = []
+    for padding in (0.0, 10.0, np.nan):
+        obs, _ = env.reset(seed=0)
+        assert env.current_frame.n == 40 and obs["mask"].tolist() == [1] * 40 + [0] * 24
+        _, reward, _, _, info = env.step(np.concatenate([logits, np.full(24, padding)]))
+        steps.append((reward, info))
+    assert math.isfinite(steps[0][0]) and _same(steps[0], steps[1]) and _same(steps[0], steps[2])
+    env.reset(seed=0)
+    own = np.zeros(64)
+    own[39] = np.nan
+    with pytest.raises(ValueError, match=r"^StereoVOEnv: the action has NaN or inf in 1 valid slot\(s\) "
+                                         r"\(first: slot 39\)$"):
+        env.step(own)
+
+
+def test_min_disparity_sigmas_decides_which_rows_of_the_observation_have_depth():
+    # A row has a depth when its disparity at k-1 and at k exceeds min_disparity_sigmas standard deviations of a
+    # disparity, sqrt(2) sigma: at 20 (14.1 px for sigma 0.5 px) the far rows of this frame lose it, in the mask
+    # and in the features' depth flag; the default, 2 (1.4 px), keeps every row of the same frame.
+    env = StereoVOEnv(n_frames=2, n_correspondences=100, min_disparity_sigmas=20.0)
+    obs, _ = env.reset(seed=3)
+    frame = env.current_frame
+    threshold = 20.0 * math.sqrt(2.0) * env.estimator_noise_sigma
+    resolvable = (frame.prev[:, 0] - frame.prev[:, 2] > threshold) & (frame.curr[:, 0] - frame.curr[:, 2] > threshold)
+    assert env.estimator_noise_sigma == 0.5 and 10 < resolvable.sum() < 90
+    assert obs["mask"].dtype == np.int8
+    np.testing.assert_array_equal(obs["mask"], resolvable.astype(np.int8))
+    np.testing.assert_array_equal(usable_rows(obs["features"]), resolvable)
+    default, _ = StereoVOEnv(n_frames=2, n_correspondences=100).reset(seed=3)
+    assert default["mask"].all() and usable_rows(default["features"]).all()
+    _, reward, *_ = env.step(np.zeros(100, np.float32))
+    assert math.isfinite(reward)
+
+
+def test_rendered_prosac_weights_run_from_one_for_the_best_to_zero_for_the_worst():
+    # A rendering colours PROSAC's matches by rank: the first of the order weighs 1, the last 0, evenly between;
+    # with two matches the two ends, with one match 1 (no division by zero). Guided priors are scaled to mean 1.
+    weights = env_module._display_weights
+    assert weights(1, None, np.array([0])).tolist() == [1.0]
+    assert weights(2, None, np.array([1, 0])).tolist() == [0.0, 1.0]
+    assert weights(5, None, np.array([3, 0, 4, 1, 2])).tolist() == [0.75, 0.25, 0.0, 1.0, 0.5]
+    assert weights(4, np.array([1.0, 3.0, 0.0, 4.0]), None).tolist() == [0.5, 1.5, 0.0, 2.0]
 
 
 @FUZZ

@@ -497,6 +497,39 @@ def test_degree_compares_float32_points_in_double_precision():
     assert rigid_consistency_degree(near.astype(np.float32), near.astype(np.float32), spread).tolist() == [1.0, 1.0]
 
 
+
+def test_degree_squares_float32_spreads_in_double_precision():
+    # Two matches 1 m apart at k-1 and 1 + c m apart at k, both spreads s = float32(0.3), gate 1: the pair is
+    # consistent when c^2 < s^2 + s^2. s's square is 0.0900000071...; rounded to float32 it is 0.0900000035...
+    # (rounded down). c^2 is placed between twice the rounded square and twice the exact one: consistent (degree
+    # 1 each) with s squared in double precision, not (degree 0) with s squared in float32.
+    s = np.float32(0.3)
+    exact, rounded = float(s) ** 2, float(np.float32(float(s) ** 2))
+    c = np.sqrt(exact + rounded)
+    P = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    Q = np.array([[0.0, 0.0, 0.0], [1.0 + c, 0.0, 0.0]])
+    assert 2 * rounded < ((1.0 + c) - 1.0) ** 2 < 2 * exact
+    for spread in (np.full(2, s), np.full(2, float(s)), [float(s)] * 2):
+        degree = rigid_consistency_degree(P, Q, spread, gate=1.0)
+        assert degree.dtype == np.float32 and degree.tolist() == [1.0, 1.0], type(spread)
+
+
+def test_pixel_columns_run_from_minus_one_to_one_across_a_two_pixel_image():
+    # u * 2 / (width - 1) - 1 and v * 2 / (height - 1) - 1: the first pixel column or row at -1, the last at +1,
+    # on a 2 x 2 image as on any other; the divisor's floor of 1 is for a side of one pixel, whose column or
+    # row 0 maps to -1. (Disparities of 0.5 to 1 px have a depth at sigma 0.01 px.)
+    columns = [feature_index(name) for name in ("u_prev", "v_prev", "u_curr", "v_curr")]
+    two = StereoCamera(fx=100.0, fy=100.0, cx=0.5, cy=0.5, width=2, height=2)
+    prev = np.array([[1.0, 0.0, 0.0, 0.0], [1.0, 1.0, 0.5, 1.0], [0.5, 0.5, 0.0, 0.5]])
+    curr = np.array([[1.0, 1.0, 0.0, 1.0], [0.5, 0.0, 0.0, 0.0], [1.0, 0.5, 0.5, 0.5]])
+    out = compute_features(prev, curr, np.array([0.9, 0.5, 0.1]), two, 0.01)
+    assert usable_rows(out).all()
+    assert out[:, columns].tolist() == [[1.0, -1.0, 1.0, 1.0], [1.0, 1.0, 0.0, -1.0], [0.0, 0.0, 1.0, 0.0]]
+    one = StereoCamera(fx=100.0, fy=100.0, cx=0.0, cy=0.0, width=1, height=1)
+    single = np.array([[0.0, 0.0, -1.0, 0.0], [0.0, 0.0, -0.5, 0.0]])
+    assert compute_features(single, single, np.array([0.9, 0.5]), one, 0.01)[:, columns].tolist() == [[-1.0] * 4] * 2
+
+
 def test_usable_rows_are_those_under_the_depth_flag():
     # a row without a depth carries log_depth_prev = +FEATURE_BOUND exactly (the module doc); every other column
     # is ignored, and a nested list is read as an array
