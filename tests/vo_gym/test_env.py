@@ -540,7 +540,6 @@ def test_environment_steps_through_frames_with_unusable_rows():
     assert np.isfinite(reward) and info["status"] == "ok"
 
 
-
 def test_image_frames_read_the_action_slots_of_their_own_matches_only():
     # An image frame has as many matches as the front end found, fewer than the observation's rows (here a
     # replayed source of 40-match frames in 64 rows): the slots past the frame's matches are padding, whatever

@@ -497,7 +497,6 @@ def test_degree_compares_float32_points_in_double_precision():
     assert rigid_consistency_degree(near.astype(np.float32), near.astype(np.float32), spread).tolist() == [1.0, 1.0]
 
 
-
 def test_degree_squares_float32_spreads_in_double_precision():
     # Two matches 1 m apart at k-1 and 1 + c m apart at k, both spreads s = float32(0.3), gate 1: the pair is
     # consistent when c^2 < s^2 + s^2. s's square is 0.0900000071...; rounded to float32 it is 0.0900000035...
