@@ -9,8 +9,11 @@ has no cache entry yet; it says nothing otherwise, and at most once per process.
 
 A kernel counts as cached when numba's index file for it (``<module>.<qualname>-<line>.pyXY.nbi``
 in the dispatcher's ``stats.cache_path``, beside the source or in numba's user-wide cache
-folder) exists and is not older than its source file. numba itself checks the source's stamp
-stored inside the index; the modification times are the same test without unpickling it.
+folder) exists and numba would load it: not older than its source file (the quick test, without
+unpickling the index), or else holding the stamp numba computes for the source now. Recent numba
+(0.68 here; numba/numba#10659) stamps a hash of the source's bytes, earlier ones its time and size,
+so with the former a file that was only touched (a checkout, a merge) keeps its cache, and numba
+never rewrites that index: a test of the times alone would announce a compilation on every run.
 Kernels inlined into others (``inline="always"``) and helpers that only compiled code calls never
 get an index of their own, so a source file counts as compiled when any of its kernels has one:
 the first run compiles every file's kernels, a later edit recompiles that file's.
@@ -20,6 +23,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import pickle  # numba's own cache index format, written by numba beside the source or in its cache folder
 import sys
 from pathlib import Path
 from typing import Iterable, TextIO
@@ -57,8 +61,26 @@ def is_cached(kernel: Dispatcher) -> bool:
     if index is None:
         return False
     try:
-        return index.stat().st_mtime >= os.stat(kernel.py_func.__code__.co_filename).st_mtime
+        if index.stat().st_mtime >= os.stat(kernel.py_func.__code__.co_filename).st_mtime:
+            return True
     except OSError:
+        return False
+    return _index_is_fresh(kernel, index)
+
+
+def _index_is_fresh(kernel: Dispatcher, index: Path) -> bool:
+    """Whether numba would load ``kernel``'s ``index``: its format version is this numba's, its stored
+    source stamp is the one numba computes for the source now, and it lists a compiled signature.
+    numba has no public call for this (its own reader compares with the stamp taken at import), so a
+    numba without these attributes counts the kernel as uncached (the line is then printed)."""
+    try:
+        with index.open("rb") as fh:
+            version = pickle.load(fh)
+            if version != kernel._cache._cache_file._version:
+                return False
+            stamp, overloads = pickle.loads(fh.read())
+        return stamp == kernel._cache._impl.locator.get_source_stamp() and bool(overloads)
+    except Exception:  # noqa: BLE001 - any failure of numba's private parts means "not known to be cached"
         return False
 
 

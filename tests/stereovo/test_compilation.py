@@ -11,6 +11,7 @@ import time
 import pytest
 
 from stereovo import compilation
+from tests.support.processes import run_python
 
 
 @pytest.fixture
@@ -62,13 +63,36 @@ def test_a_file_counts_as_compiled_once_any_of_its_kernels_is(fresh_kernel):
     assert compilation.uncached_kernels([helper, outer, inlined]) == []
 
 
-def test_an_edited_source_counts_as_uncached(fresh_kernel):
+def test_an_edited_source_counts_as_uncached_and_a_touched_one_as_cached(fresh_kernel):
     kernel = fresh_kernel.twice
     kernel(1.0)
     assert compilation.is_cached(kernel)
+    source = kernel.py_func.__code__.co_filename
     later = time.time() + 10
-    os.utime(kernel.py_func.__code__.co_filename, (later, later))  # what saving an edit does
-    assert not compilation.is_cached(kernel)
+    os.utime(source, (later, later))  # a checkout or a merge: newer, the same bytes
+    assert compilation.is_cached(kernel)  # numba loads it (its stamp hashes the bytes)
+    with open(source, "a") as fh:
+        fh.write("# an edit\n")
+    os.utime(source, (later + 10, later + 10))
+    assert not compilation.is_cached(kernel)  # numba recompiles it
+
+
+def test_a_touched_source_keeps_quiet_in_a_new_process(fresh_kernel, tmp_path):
+    # What a user saw after a checkout: numba loaded every kernel, yet each run announced a compilation.
+    kernel = fresh_kernel.twice
+    kernel(1.0)
+    source = kernel.py_func.__code__.co_filename
+    later = time.time() + 10
+    os.utime(source, (later, later))
+    probe = (
+        "import importlib.util, sys\n"
+        "from stereovo import compilation\n"
+        f"spec = importlib.util.spec_from_file_location('vo_gym_compilation_probe', {source!r})\n"
+        "m = sys.modules[spec.name] = importlib.util.module_from_spec(spec); spec.loader.exec_module(m)\n"
+        "print(compilation.uncached_kernels([m.twice]), m.twice(2.0), m.twice.stats.cache_hits)\n"
+    )
+    out = run_python(probe)
+    assert out.strip() == "[] 4.0 Counter({(float64,): 1})", out
 
 
 def test_the_line_is_printed_once_and_only_when_compiling(fresh_kernel):
