@@ -70,7 +70,9 @@ def test_an_edited_source_counts_as_uncached_and_a_touched_one_as_cached(fresh_k
     source = kernel.py_func.__code__.co_filename
     later = time.time() + 10
     os.utime(source, (later, later))  # a checkout or a merge: newer, the same bytes
-    assert compilation.is_cached(kernel)  # numba loads it (its stamp hashes the bytes)
+    # recent numba stamps a hash of the bytes and loads it; an older one stamped the time, and recompiles
+    hashes_bytes = isinstance(kernel._cache._impl.locator.get_source_stamp(), bytes)
+    assert compilation.is_cached(kernel) == hashes_bytes
     with open(source, "a") as fh:
         fh.write("# an edit\n")
     os.utime(source, (later + 10, later + 10))
@@ -89,10 +91,12 @@ def test_a_touched_source_keeps_quiet_in_a_new_process(fresh_kernel, tmp_path):
         "from stereovo import compilation\n"
         f"spec = importlib.util.spec_from_file_location('vo_gym_compilation_probe', {source!r})\n"
         "m = sys.modules[spec.name] = importlib.util.module_from_spec(spec); spec.loader.exec_module(m)\n"
-        "print(compilation.uncached_kernels([m.twice]), m.twice(2.0), m.twice.stats.cache_hits)\n"
+        "uncached = compilation.uncached_kernels([m.twice])\n"
+        "print(uncached, m.twice(2.0), sum(m.twice.stats.cache_hits.values()))\n"
     )
-    out = run_python(probe)
-    assert out.strip() == "[] 4.0 Counter({(float64,): 1})", out
+    uncached, value, hits = run_python(probe).strip().rsplit(" ", 2)
+    assert value == "4.0" and hits in ("0", "1")
+    assert (uncached == "[]") == (hits == "1")  # the notice says what numba then does
 
 
 def test_the_line_is_printed_once_and_only_when_compiling(fresh_kernel):
