@@ -231,3 +231,41 @@ def test_estimation_floors_only_look_down():
         if _estimation_floor(target) is not None and _estimation_floor(target) > _estimation_floor(module)
     ]
     assert upward == []
+
+
+def _architecture_rooms(package: str) -> list[list[str]]:
+    """The rows of docs/architecture.md's table for ``package``: each row's rooms as module prefixes
+    (``options.py`` -> ``stereovo.options``, ``simulation/`` -> ``stereovo.simulation``)."""
+    text = (ROOT / "docs" / "architecture.md").read_text()
+    section = text.split(f"\n## {package}\n", 1)[1].split("\n## ", 1)[0].split("\n### ", 1)[0]
+    rows = []
+    for line in section.splitlines():
+        if not line.startswith("| `"):
+            continue
+        first = line.split("|")[1]
+        rooms = [name.strip().strip("`").removesuffix(".py").removesuffix("/") for name in first.split(",")]
+        rows.append([f"{package}.{room}" for room in rooms])
+    return rows
+
+
+@pytest.mark.parametrize("package", ["stereovo", "vo_gym", "agents"])
+def test_the_architecture_lists_every_room_in_import_order(package):
+    # docs/architecture.md: "a room imports only rooms above it in its list, or packages below it"
+    rows = _architecture_rooms(package)
+    row_of = {room: i for i, row in enumerate(rows) for room in row}
+
+    def room_of(module: str) -> str | None:
+        parts = module.split(".")
+        return ".".join(parts[:2]) if len(parts) > 1 and parts[0] == package else None
+
+    rooms = {room_of(m) for m in MODULES if room_of(m) is not None}
+    assert sorted(rooms - set(row_of)) == [], "rooms missing from docs/architecture.md"
+    assert sorted(set(row_of) - rooms) == [], "rooms in docs/architecture.md that do not exist"
+    upward = sorted(
+        f"{module} imports {target}"
+        for module, targets in _graph(module_level=False).items() if room_of(module) is not None
+        for target in targets
+        if room_of(target) is not None and room_of(target) != room_of(module)
+        and row_of[room_of(target)] > row_of[room_of(module)]
+    )
+    assert upward == []

@@ -23,7 +23,7 @@ from vo_gym.registration import register_envs, registered_ids
 register_envs()
 
 ENV_IDS: tuple[str, ...] = registered_ids()
-"""Every registered ``vo_gym/`` id, sorted (the step, hard, PROSAC and in-frame adaptive ids)."""
+"""Every registered ``vo_gym/`` id, sorted (the step, hard, PROSAC, in-frame adaptive and image ids)."""
 
 _LAZY = {
     "StereoVOEnv": "vo_gym.env",

@@ -35,7 +35,8 @@ _RULES: dict[str, Option] = {
     "cached_episodes": Integer(low=0, high=64),
 }
 # StereoVOEnv's simulator knobs that images decide for themselves
-_SIMULATOR_ONLY = ("n_correspondences", "outlier_ratio", "outlier_mix", "score_auc", "z_min", "z_max", "noise_sigma")
+_SIMULATOR_ONLY = ("n_correspondences", "outlier_ratio", "outlier_mix", "outliers", "noise_dof", "score_auc", "z_min",
+                   "z_max", "noise_sigma")
 
 
 def top_rows(frame: Frame, index: int, limit: int) -> Frame:
@@ -129,7 +130,8 @@ class StereoVOImagesEnv(StereoVOEnv):
             source's ``noise_sigma``.
         **kwargs: any other :class:`vo_gym.env.StereoVOEnv` argument (``sampling``, ``reward_mode``,
             ``method``, ``budget``, estimator options, ...). Its simulator-only arguments
-            (``n_correspondences``, ``outlier_ratio``, ``score_auc``, ...) are refused: images decide them.
+            (``n_correspondences``, ``outlier_ratio``, ``outliers``, ``noise_dof``, ``score_auc``, ...) are
+            refused: images decide them.
 
     Raises:
         ValueError: a bad argument, named; TypeError: an unknown or simulator-only keyword.

@@ -3,7 +3,8 @@
 ``gymnasium.make("vo_gym/StereoVO-v0")`` after ``import vo_gym``, or
 ``gymnasium.make("vo_gym:vo_gym/StereoVO-v0")`` without it (Gymnasium imports
 the module first). Keyword arguments of ``make`` override the registered ones;
-every one is an argument of :class:`vo_gym.env.StereoVOEnv`.
+every one is an argument of the id's class (:class:`vo_gym.env.StereoVOEnv`,
+:class:`vo_gym.adaptive_env.StereoVOAdaptiveEnv` or :class:`vo_gym.images_env.StereoVOImagesEnv`).
 
 Worker processes that start afresh (stable-baselines3's ``SubprocVecEnv`` uses
 ``forkserver`` on Linux, ``spawn`` elsewhere) have not imported ``vo_gym``: give

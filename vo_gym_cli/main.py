@@ -17,9 +17,9 @@ import sys
 from vo_gym_cli.commands.common import ArgumentParser, HelpFormatter, guarded
 
 COMMANDS = {
-    "vo": "Run stereo visual odometry over a simulated sequence and write its trajectory.",
+    "vo": "Run stereo visual odometry over a simulated sequence or stereo images and write its trajectory.",
     "baselines": "Compare the classical RANSAC family on a grid of simulated frames.",
-    "bench": "Time the estimator (and OpenCV / PoseLib, if installed) on identical frames.",
+    "bench": "Time the estimator (and OpenCV / PoseLib / SupeRANSAC, if installed) on identical frames.",
     "train": "Train a learned sampler (NG-RANSAC-style, PPO, or the in-frame sampler).",
     "evaluate": "Compare learned samplers, heuristics and classical methods on held-out frames.",
     "sweep": "Sweep the NG-RANSAC or PPO trainer's hyperparameters on Ray Tune (a YAML search space).",

@@ -125,6 +125,8 @@ def test_a_recorded_source_gives_windows_placed_by_the_seed(tmp_path):
 
 @pytest.mark.parametrize("kwargs, error, message", [
     ({"n_correspondences": 100}, TypeError, "are simulator settings"),
+    ({"outliers": "hostile"}, TypeError, "['outliers'] are simulator settings"),
+    ({"noise_dof": 3.0}, TypeError, "['noise_dof'] are simulator settings"),
     ({"max_correspondences": 2}, ValueError, "StereoVOImagesEnv: max_correspondences must be an integer >= 3"),
     ({"resolution": "hd"}, ValueError, "StereoVOImagesEnv: resolution must be one of 'kitti', 'vga', got 'hd'"),
     ({"frontend_options": {"detector": "surf"}}, ValueError, "FrontendOptions.detector must be one of"),

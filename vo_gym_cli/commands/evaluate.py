@@ -2,7 +2,10 @@
 
 ``--agent`` (repeatable) takes a heuristic (uniform, match-score, consistency,
 constant-velocity), ``oracle`` (reads the labels: an upper bound, labelled as
-such) or a checkpoint (``.pt`` from ``vo-gym train``, or a PPO ``.zip``).
+such), a shipped learned sampler by name (one-shot or in-frame: :mod:`agents.catalog`)
+or a checkpoint of either kind (``.pt`` from ``vo-gym train``, or a PPO ``.zip``).
+``--outlier-preset hostile`` runs the sweeps on match errors no shipped sampler was
+trained on.
 The protocol is :mod:`agents.evaluation`'s: every agent and every classical
 method of a setting sees the identical frames (the environment seeded with
 ``--seed + episode``), (a) over contamination at ``--budget`` hypotheses and
@@ -109,7 +112,8 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--source", default=None, metavar="rendered[:PRESET]",
                         help="evaluate on rendered images (vo_gym/StereoVOImages-v0, the image front end) instead of"
                              " simulated matches: each episode rendered once and replayed to every agent at every"
-                             " --budgets value; uses --agent, --episodes, --frames-per-episode, --seed, --budgets, --out"
+                             " --budgets value; uses --agent, --methods, --episodes, --frames-per-episode, --seed,"
+                             " --budgets, --resolution, --out"
                              " (needs the images and render extras; default: simulated matches)")
     parser.add_argument("--resolution", default="kitti", choices=["kitti", "vga"],
                         help="with --source: the rendered image size, kitti (1241x376) or vga (640x480)"

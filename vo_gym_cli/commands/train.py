@@ -36,7 +36,8 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="runs/train", help="directory for checkpoints and TensorBoard logs")
     parser.add_argument("--seed", type=seed, default=0, help="seed of the simulation, the sampler and the network")
     parser.add_argument("--resume", default=None, metavar="CHECKPOINT",
-                        help="checkpoint to continue from (.pt for ngransac, the SB3 .zip for ppo; default: start afresh)")
+                        help="checkpoint to continue from (.pt for ngransac, the SB3 .zip for ppo, an in-frame .pt for "
+                             "adaptive; default: start afresh)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ng = parser.add_argument_group("ngransac")
     ng.add_argument("--loss", choices=("supervised", "self-supervised", "self-supervised-smooth"), default="supervised",
