@@ -14,6 +14,12 @@ from stereovo.estimation.kernels.base import inline_jit, jit
 from stereovo.estimation.kernels.beliefs import numpy_sum
 from stereovo.estimation.kernels.rigidity import distance_change_sq_jit, rigid_distance_consistent_jit
 
+# A mass left after one or two picks that is below this share of the whole has lost most of its
+# digits to cancellation (one or two weights hold nearly all of it): a draw inverting the cumulative
+# sums there cannot tell the remaining points apart, and the probability of an all-inlier draw
+# cannot take the difference either. Ordinary weights never come near it.
+CANCELLATION = 1e-6
+
 
 @jit
 def distinct_triplets(u, m):
@@ -60,8 +66,9 @@ def weighted_triplets(u, w, cdf, before):
     ``cdf`` and ``before`` are the inclusive and exclusive cumulative sums of ``w``. Each draw
     inverts the cumulative weights with the indices already drawn cut out of them (a position in
     the remaining mass is shifted past each drawn interval it reaches). Rounding at an interval's
-    edge can return a drawn or zero-weight index: those rows are flagged in ``suspect (B,)``
-    for the caller to redraw exactly. Returns ``(samples (B, 3), suspect (B,))``.
+    edge can return a drawn or zero-weight index, and a mass left under :data:`CANCELLATION` of the
+    whole (weights of 1e200 beside ones) cannot be resolved by the cumulative sums: those rows are
+    flagged in ``suspect (B,)`` for the caller to redraw exactly. Returns ``(samples (B, 3), suspect (B,))``.
     """
     B = u.shape[0]
     total = cdf[cdf.shape[0] - 1]
@@ -69,15 +76,18 @@ def weighted_triplets(u, w, cdf, before):
     suspect = np.zeros(B, dtype=np.bool_)
     for k in range(B):
         a = _first_above(cdf, u[k, 0] * total)
-        x = u[k, 1] * (total - w[a])
+        left_a = total - w[a]
+        x = u[k, 1] * left_a
         b = _first_above(cdf, x if x < before[a] else x + w[a])
         lo, hi = min(a, b), max(a, b)
-        x = u[k, 2] * (total - w[a] - w[b])
+        left_ab = total - w[a] - w[b]
+        x = u[k, 2] * left_ab
         if not x < before[lo]:
             x = x + w[lo]
         c = _first_above(cdf, x if x < before[hi] else x + w[hi])
         out[k, 0], out[k, 1], out[k, 2] = a, b, c
-        suspect[k] = b == a or c == a or c == b or w[a] == 0 or w[b] == 0 or w[c] == 0
+        suspect[k] = (b == a or c == a or c == b or w[a] == 0 or w[b] == 0 or w[c] == 0
+                      or left_a < CANCELLATION * total or left_ab < CANCELLATION * total)
     return out, suspect
 
 

@@ -24,6 +24,7 @@ import numpy as np
 from stereovo.estimation.kernels.base import inline_jit, jit
 from stereovo.estimation.kernels.mahalanobis import point_mahalanobis_sq
 from stereovo.estimation.kernels.residuals import point_reprojection_sq
+from stereovo.estimation.kernels.sampling import CANCELLATION
 
 
 
@@ -257,24 +258,71 @@ def sprt_verify_mahalanobis(R, t, X, Y, cam, sigma_sq, cap, threshold_sq, sample
                  log_inconsistent, log_A)
 
 
+@inline_jit
+def _top_two(w):
+    """Indices of the largest and second largest entries of ``w (m,)`` (-1 where ``m`` is smaller)."""
+    t1, t2 = -1, -1
+    for i in range(w.shape[0]):
+        if t1 < 0 or w[i] > w[t1]:
+            t2, t1 = t1, i
+        elif t2 < 0 or w[i] > w[t2]:
+            t2 = i
+    return t1, t2
+
+
+@inline_jit
+def _sum_without(w, skip1, skip2):
+    """``sum(w)`` without the entries at ``skip1`` and ``skip2`` (-1: none), summed directly."""
+    s = 0.0
+    for i in range(w.shape[0]):
+        if i != skip1 and i != skip2:
+            s += w[i]
+    return s
+
+
+@inline_jit
+def _inlier_mass_without(w, s, a, b, t1, t2, s1, s12):
+    """The inliers' weight without ``a`` and ``b`` (``b`` -1: only ``a``), free of cancellation: what
+    is left always holds a weight at least as large as each one taken away, except when the two
+    largest (``t1``, ``t2``) are both taken, whose remainder ``s12`` was summed directly (``s1``:
+    without ``t1`` alone)."""
+    if a == t1 or b == t1:
+        other = b if a == t1 else a
+        if other == t2:
+            return s12
+        return s1 if other < 0 else s1 - w[other]
+    return s - w[a] if b < 0 else s - w[a] - w[b]
+
+
 @jit
-def weighted_all_inlier_probability(w, total):
+def weighted_all_inlier_probability(w, outside, total):
     """Chance that three sequential draws without replacement, P(i) proportional to the weights, all
-    fall in a set I whose weights are ``w (m,)``; ``total`` is the sum of all N weights (W).
+    fall in a set I whose weights are ``w (m,)``; ``outside (k,)`` are the other weights and ``total``
+    their sum with ``w``'s (W).
 
     ``q = sum_{a != b in I} w_a/W * w_b/(W - w_a) * (W_I - w_a - w_b)/(W - w_a - w_b)``: the sum over
-    the third index c is done in closed form, so the cost is O(m^2), every term non-negative.
+    the third index c is done in closed form, so the cost is O(m^2), every term non-negative. The
+    masses left, ``W - w_a``, ``W - w_a - w_b`` and ``W_I - w_a - w_b``, are taken as differences; one
+    that cancels to under :data:`~stereovo.estimation.kernels.sampling.CANCELLATION` of its whole (a
+    weight of 1e300 beside ones: the first draw is that point, and what is left is 1e-300-sized) is
+    summed again from the weights that are left, so such priors get their true q instead of 0.
     """
     m = w.shape[0]
     s = 0.0
     for i in range(m):
         s += w[i]
+    t1, t2 = _top_two(w)
+    s1 = _sum_without(w, t1, -1)
+    s12 = _sum_without(w, t1, t2)
+    out = _sum_without(outside, -1, -1)
     q = 0.0
     for i in range(m):
         wa = w[i]
         if wa <= 0.0:
             continue
         rest_a = total - wa
+        if rest_a < CANCELLATION * total:
+            rest_a = out + _inlier_mass_without(w, s, i, -1, t1, t2, s1, s12)
         if rest_a <= 0.0:
             continue
         inner = 0.0
@@ -283,9 +331,13 @@ def weighted_all_inlier_probability(w, total):
             if j == i or wb <= 0.0:
                 continue
             rest_ab = rest_a - wb
+            left_in = s - wa - wb
+            if rest_ab < CANCELLATION * rest_a or left_in < CANCELLATION * s:
+                left_in = _inlier_mass_without(w, s, i, j, t1, t2, s1, s12)
+                rest_ab = out + left_in
             if rest_ab <= 0.0:
                 continue
-            third = (s - wa - wb) / rest_ab
+            third = left_in / rest_ab
             if third > 1.0:
                 third = 1.0
             elif third < 0.0:

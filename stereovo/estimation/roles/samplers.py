@@ -182,7 +182,8 @@ class WeightedSampler:
         if self._equal_weights:
             count = int(np.count_nonzero(mask & (self._w > 0)))
             return float(uniform_all_inlier_probability(count, self._n_positive))
-        return float(weighted_all_inlier_probability(np.ascontiguousarray(self._w[mask]), 1.0))
+        return float(weighted_all_inlier_probability(np.ascontiguousarray(self._w[mask]),
+                                                     np.ascontiguousarray(self._w[~mask]), 1.0))
 
     def log_probability(self, samples: np.ndarray) -> np.ndarray:
         """Log-probability ``(B,)`` of drawing each ordered triplet sequentially without replacement."""
@@ -191,7 +192,7 @@ class WeightedSampler:
         # The mass left before a pick holds at least the picked point's weight. When 1 - taken rounds
         # below it (0.5 + 0.5 == 1.0 with a third weight of 5e-18), that point is all that is left:
         # its factor is 1 (a floor on the mass left instead made it 5e-18 / 1e-12).
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore", divide="ignore"):  # the branch np.where discards
             left = np.where(1.0 - taken > picked, np.log1p(-taken), np.log(picked))
         return np.sum(np.log(picked) - left, axis=1)
 
