@@ -44,8 +44,19 @@ import numpy as np
 import torch
 from torch import nn
 
-from agents.checkpoint import IN_FRAME, IN_FRAME_FORMAT, CheckpointError, read_payload, shipped_checkpoint
-from agents.network import PAD_LOGIT, CorrespondenceNet
+from agents.checkpoint import (
+    IN_FRAME,
+    IN_FRAME_FORMAT,
+    CheckpointError,
+    check_names,
+    check_network_sizes,
+    check_parameter_count,
+    check_state_dict,
+    read_payload,
+    shipped_checkpoint,
+    shown,
+)
+from agents.network import PAD_LOGIT, CorrespondenceNet, correspondence_net_parameters, correspondence_net_shapes
 from agents.ngransac import ordered_triplet_log_prob, randomised_settings
 from stereovo.options import Choice, Integer, Number, Option, check_options
 from vo_gym.adaptive_env import ADAPTIVE_FEATURE_NAMES, GLOBAL_FEATURE_NAMES, StereoVOAdaptiveEnv
@@ -95,6 +106,28 @@ class AdaptiveSamplerNet(nn.Module):
     def config(self) -> dict[str, Any]:
         return {"n_features": self.n_features, "n_globals": self.n_globals, "width": self.width, "blocks": self.blocks,
                 "prior": None if self.prior is None else self.prior.config()}
+
+    @staticmethod
+    def parameter_shapes(n_features: int, n_globals: int, width: int, blocks: int,
+                         prior: dict[str, int] | None = None) -> dict[str, tuple[int, ...]]:
+        """The state dict's parameter shapes of ``AdaptiveSamplerNet(...)`` by name, from the sizes
+        alone (nothing is allocated); :func:`parameter_count` is their total."""
+        shapes = correspondence_net_shapes(n_features + n_globals, width, blocks, prefix="body.")
+        shapes.update({"stop.0.weight": (width, 2 * width + n_globals), "stop.0.bias": (width,),
+                       "stop.2.weight": (1, width), "stop.2.bias": (1,)})
+        if prior is not None:
+            shapes.update(correspondence_net_shapes(prior["n_features"], prior["width"], prior["blocks"], prefix="prior."))
+        return shapes
+
+    @staticmethod
+    def parameter_count(n_features: int, n_globals: int, width: int, blocks: int,
+                        prior: dict[str, int] | None = None) -> int:
+        """The number of parameters of ``AdaptiveSamplerNet(...)``, by arithmetic (nothing is allocated)."""
+        count = correspondence_net_parameters(n_features + n_globals, width, blocks)
+        count += width * (2 * width + n_globals) + width + width + 1
+        if prior is not None:
+            count += correspondence_net_parameters(prior["n_features"], prior["width"], prior["blocks"])
+        return count
 
     def forward(self, features: torch.Tensor, mask: torch.Tensor, globals_: torch.Tensor):
         mask = mask.bool()
@@ -189,15 +222,66 @@ def shipped_adaptive_path(name: str) -> Path:
     return Path(str(resources.files("agents").joinpath("checkpoints", f"{name}.pt")))
 
 
+_NETWORK_SIZES = {"n_features": len(ADAPTIVE_FEATURE_NAMES), "n_globals": len(GLOBAL_FEATURE_NAMES), "width": 48, "blocks": 3}
+"""The sizes of :class:`AdaptiveSamplerNet` a checkpoint declares in ``network``, with the defaults of
+a checkpoint that leaves one out (as the constructor's)."""
+_PRIOR_SIZES = {"n_features": None, "width": 64, "blocks": 3}
+
+
+def check_adaptive_payload(path: Path, payload: Any) -> dict[str, Any]:
+    """An in-frame checkpoint's schema (what :func:`save_adaptive` writes), checked before any network
+    is built: the format, every entry's type, the feature layout, the network's sizes (each in
+    [1, :data:`agents.checkpoint.MAX_NETWORK_SIZE`], all together within
+    :data:`agents.checkpoint.MAX_NETWORK_PARAMETERS`, the prior's included) and every weight's shape
+    and finiteness. Returns the keywords of :class:`AdaptiveSamplerNet`.
+
+    Raises:
+        CheckpointError: one line naming the file, the entry and its value.
+    """
+    if not isinstance(payload, dict) or payload.get("format") != FORMAT:
+        hint = " (a one-shot sampler: agents.checkpoint.load_sampler)" if isinstance(payload, dict) and "format_version" in payload else ""
+        raise CheckpointError(f"checkpoint {path}: is not an adaptive-sampler checkpoint{hint}")
+    for key in ("network", "feature_names", "global_names", "state_dict"):
+        if key not in payload:
+            raise CheckpointError(f"checkpoint {path}: is not an adaptive-sampler checkpoint (missing key {key})")
+    names = check_names(path, "feature_names", payload["feature_names"])
+    globals_ = check_names(path, "global_names", payload["global_names"])
+    if names != ADAPTIVE_FEATURE_NAMES or globals_ != GLOBAL_FEATURE_NAMES:
+        raise CheckpointError(f"checkpoint {path} was trained on another adaptive feature layout "
+                              f"(feature_names {shown(list(names))}, global_names {shown(list(globals_))})")
+    for key, kind in (("config", dict), ("log", list)):
+        if key in payload and not isinstance(payload[key], kind):
+            raise CheckpointError(f"checkpoint {path}: its {key!r} entry must be a {kind.__name__}, got {shown(payload[key])}")
+    declared = payload["network"]
+    sizes = check_network_sizes(path, declared, _NETWORK_SIZES, extra=("prior",))
+    prior = declared.get("prior")
+    if prior is not None:
+        from vo_gym.features import N_FEATURES
+
+        prior = check_network_sizes(path, prior, _PRIOR_SIZES, required=("n_features",), where="network prior")
+        if prior["n_features"] != N_FEATURES:
+            raise CheckpointError(f"checkpoint {path}: its network prior n_features must be {N_FEATURES} "
+                                  f"(the one-shot samplers' features), got {prior['n_features']}")
+    for key, names_key, count in (("n_features", "feature_names", len(names)), ("n_globals", "global_names", len(globals_))):
+        if sizes[key] != count:
+            raise CheckpointError(f"checkpoint {path}: its network {key} is {sizes[key]}, but its {names_key!r} lists {count}")
+    network = {**sizes, "prior": prior}
+    check_parameter_count(path, AdaptiveSamplerNet.parameter_count(**network), declared)
+    check_state_dict(path, payload["state_dict"], AdaptiveSamplerNet.parameter_shapes(**network), declared)
+    return network
+
+
 def load_adaptive(name_or_path: str | Path) -> tuple[AdaptiveSamplerNet, dict[str, Any]]:
     """Load by shipped name (``"adaptive-pg"``) or by path; returns the network (eval mode) and payload.
 
-    Nothing in the file runs (``weights_only``). Every error is one line naming the file.
+    Nothing in the file runs (``weights_only``), and the network is built only once the file passed
+    :func:`check_adaptive_payload`. Every error is one line naming the file.
 
     Raises:
         FileNotFoundError: no such file or shipped name.
         ValueError (:class:`agents.checkpoint.CheckpointError` for an unusable file): not an
-            adaptive-sampler checkpoint, another feature layout, weights that do not fit.
+            adaptive-sampler checkpoint, an entry of the wrong type, another feature layout, a
+            network too large, weights that do not fit or are not finite.
     """
     path = Path(name_or_path)
     if not path.is_file() and str(name_or_path).startswith("adaptive-"):
@@ -205,16 +289,9 @@ def load_adaptive(name_or_path: str | Path) -> tuple[AdaptiveSamplerNet, dict[st
     if not path.is_file():
         raise FileNotFoundError(f"no adaptive-sampler checkpoint {str(name_or_path)!r} (neither a file nor a shipped name)")
     payload = read_payload(path)
-    if not isinstance(payload, dict) or payload.get("format") != FORMAT:
-        hint = " (a one-shot sampler: agents.checkpoint.load_sampler)" if isinstance(payload, dict) and "format_version" in payload else ""
-        raise CheckpointError(f"checkpoint {path}: is not an adaptive-sampler checkpoint{hint}")
-    for key in ("network", "feature_names", "global_names", "state_dict"):
-        if key not in payload:
-            raise CheckpointError(f"checkpoint {path}: is not an adaptive-sampler checkpoint (missing key {key})")
-    if tuple(payload["feature_names"]) != ADAPTIVE_FEATURE_NAMES or tuple(payload["global_names"]) != GLOBAL_FEATURE_NAMES:
-        raise CheckpointError(f"checkpoint {path} was trained on another adaptive feature layout")
+    network = check_adaptive_payload(path, payload)
     try:
-        net = AdaptiveSamplerNet(**payload["network"])  # a checkpoint from before ``prior`` has no such key
+        net = AdaptiveSamplerNet(**network)
         net.load_state_dict(payload["state_dict"])
     except (TypeError, ValueError, RuntimeError) as err:
         first = (str(err).strip().splitlines() or [type(err).__name__])[0]

@@ -3,10 +3,18 @@
 Loading never runs code from the file: ``torch.load(..., weights_only=True)`` unpickles only
 tensors and plain data (dicts, lists, strings, numbers), and refuses anything else before it
 is built. Every way a file can be unusable (unreadable, empty, truncated, not a torch file, a
-foreign payload, missing keys, weights that do not fit the network it declares, another
-feature layout) raises :class:`CheckpointError`, one line naming the file and what is wrong;
-a checkpoint from another feature layout is refused because a network fed columns in a
-different meaning would still run and silently sample nonsense.
+foreign payload, missing keys, an entry of the wrong type, a network larger than
+:data:`MAX_NETWORK_PARAMETERS`, weights that do not fit the network it declares, weights that
+are not finite, another feature layout) raises :class:`CheckpointError`, one line naming the file,
+the entry and its value; a checkpoint from another feature layout is refused because a network
+fed columns in a different meaning would still run and silently sample nonsense.
+
+Everything is checked before a network is built (:func:`check_network_sizes`,
+:func:`check_parameter_count`, :func:`check_state_dict`): the parameter count comes from the
+declared sizes by arithmetic and every weight's shape from those sizes, so a file that declares
+a huge network is refused without allocating it, and one whose tensors contradict its sizes or
+hold NaN or infinite values never reaches a caller (where it would fail far from the file, or
+sample nonsense). :mod:`agents.adaptive` checks in-frame checkpoints with the same functions.
 
 The samplers shipped with the package are found by name through ``importlib.resources``, from
 any directory and any kind of install: :func:`load_sampler`, :func:`shipped_checkpoint`. Two kinds
@@ -25,6 +33,7 @@ import importlib.resources
 import numbers
 import os
 import pickle
+import struct
 import zipfile
 from pathlib import Path
 from typing import Any, Iterator
@@ -33,7 +42,7 @@ import numpy as np
 import torch
 
 from agents.catalog import IN_FRAME, IN_FRAME_SAMPLERS, ONE_SHOT, SHIPPED_FOLDER, SHIPPED_PACKAGE, SHIPPED_SAMPLERS
-from agents.network import CorrespondenceNet
+from agents.network import CorrespondenceNet, correspondence_net_parameters, correspondence_net_shapes
 from vo_gym.features import FEATURE_LAYOUT_VERSION, FEATURE_NAMES, check_feature_layout
 
 FORMAT_VERSION = 1
@@ -93,6 +102,8 @@ def _torch_load(path: Path) -> Any:
             raise _fail(path, "refused: it holds Python objects other than tensors and plain data, "
                               "which could run code when unpickled (nothing was run)") from None
         raise _fail(path, "is not a torch checkpoint (not a pickle or zip archive torch can read)") from None
+    except struct.error:  # a pickle opcode whose argument the file lacks (e.g. a short text file)
+        raise _fail(path, "is not a torch checkpoint (not a pickle or zip archive torch can read)") from None
     except (EOFError, zipfile.BadZipFile):
         raise _fail(path, "is truncated or corrupt (it ends before the data does)") from None
     except (RuntimeError, OSError, ValueError, KeyError, IndexError, TypeError, AttributeError,
@@ -120,54 +131,144 @@ def read_payload(path: str | os.PathLike) -> Any:
     return _torch_load(path)
 
 
-def _check_payload(path: Path, payload: Any) -> None:
-    """The payload's schema: what :func:`save_checkpoint` writes."""
+MAX_NETWORK_SIZE = 4096
+"""The largest size (features, width, blocks) a checkpoint's network may declare, each on its own."""
+MAX_NETWORK_PARAMETERS = 2 ** 24
+"""The most parameters a checkpoint's networks may declare, all together: 16,777,216 (64 MiB of
+float32). The shipped samplers hold 6,849 (``ppo``) to 33,411 (``adaptive-pg-prior``), about 500
+times fewer, and the cap still admits e.g. width 1024 with 7 blocks; a file declaring more is refused
+before any network is built (its sizes alone would otherwise allocate up to hundreds of GB)."""
+
+
+def shown(value: Any, limit: int = 80) -> str:
+    """``repr(value)`` cut to ``limit`` characters, for a one-line message about a file's entry."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def check_names(path: Path, key: str, names: Any) -> tuple[str, ...]:
+    """A checkpoint's list of feature names (``key``): a list or tuple of strings."""
+    if not isinstance(names, (list, tuple)) or not all(isinstance(n, str) for n in names):
+        raise _fail(path, f"its {key!r} must be a list of strings, got {shown(names)}")
+    return tuple(names)
+
+
+def check_network_sizes(path: Path, network: Any, defaults: dict[str, Any], required: tuple[str, ...] = (),
+                        where: str = "network", extra: tuple[str, ...] = ()) -> dict[str, Any]:
+    """The declared sizes ``network`` of a network with keywords ``defaults`` (their defaults), each
+    an integer in [1, :data:`MAX_NETWORK_SIZE`]; returns them with the defaults filled in.
+
+    ``required`` keys must be present; ``extra`` keys are allowed and left to the caller (not sizes).
+    ``where`` names the entry in messages (``"network"``, ``"network prior"``).
+    """
+    known = tuple(defaults) + tuple(extra)
+    if not isinstance(network, dict):
+        raise _fail(path, f"its {where!r} entry must be a dict of {', '.join(known)}, got {type(network).__name__}")
+    unknown = sorted(shown(k, 40).strip("'") for k in network if k not in known)
+    if unknown:
+        raise _fail(path, f"unknown {where} keyword(s) {', '.join(unknown)} (known: {', '.join(known)})")
+    missing = [k for k in required if k not in network]
+    if missing:
+        raise _fail(path, f"its {where!r} entry lacks {', '.join(missing)}")
+    sizes = {**defaults, **{k: v for k, v in network.items() if k not in extra}}
+    for key, value in sizes.items():
+        if not isinstance(value, numbers.Integral) or isinstance(value, bool) or not 1 <= value <= MAX_NETWORK_SIZE:
+            raise _fail(path, f"{where} {key} must be an integer in [1, {MAX_NETWORK_SIZE}], got {shown(value)}")
+    return {k: int(v) for k, v in sizes.items()}
+
+
+def check_parameter_count(path: Path, count: int, network: Any) -> None:
+    """Refuse networks declaring more than :data:`MAX_NETWORK_PARAMETERS` parameters (``count``,
+    computed from the declared sizes), before anything is built."""
+    if count > MAX_NETWORK_PARAMETERS:
+        raise _fail(path, f"its 'network' {network!r} declares {count:,} parameters, more than the "
+                          f"{MAX_NETWORK_PARAMETERS:,} a sampler checkpoint may hold (refused before building it)")
+
+
+def check_state_dict(path: Path, state: Any, shapes: dict[str, tuple[int, ...]], network: Any) -> None:
+    """The ``state_dict`` against the parameter ``shapes`` the declared ``network`` implies: the same
+    names, dense floating-point tensors of those shapes, every value finite (as float32, the
+    networks' type). Checked before a network is built, so nothing large is allocated."""
+    if not isinstance(state, dict):
+        raise _fail(path, f"its 'state_dict' must map parameter names to tensors, got {type(state).__name__}")
+    for key, value in state.items():
+        if not isinstance(key, str) or not isinstance(value, torch.Tensor):
+            raise _fail(path, f"its 'state_dict' must map parameter names to tensors, got {shown(key, 40)}: {type(value).__name__}")
+    missing = [k for k in shapes if k not in state]
+    unexpected = [k for k in state if k not in shapes]
+    if missing or unexpected:
+        parts = ([f"missing {', '.join(shown(k, 40) for k in missing[:3])}{' ...' if len(missing) > 3 else ''}"] if missing else []) + \
+                ([f"unexpected {', '.join(shown(k, 40) for k in unexpected[:3])}{' ...' if len(unexpected) > 3 else ''}"]
+                 if unexpected else [])
+        raise _fail(path, f"its weights do not fit the network it declares {network!r} ({'; '.join(parts)})")
+    for key, shape in shapes.items():
+        tensor = state[key]
+        if tensor.layout != torch.strided or not tensor.is_floating_point():
+            raise _fail(path, f"its weight state_dict[{key!r}] must be a dense floating-point tensor, "
+                              f"got {tensor.dtype} ({tensor.layout})")
+        if tuple(tensor.shape) != shape:
+            raise _fail(path, f"its weights do not fit the network it declares {network!r} "
+                              f"(state_dict[{key!r}] has shape {tuple(tensor.shape)}, the network needs {shape})")
+    for key in shapes:
+        finite = torch.isfinite(state[key].to(torch.float32))
+        if not bool(finite.all()):
+            bad = int((~finite).sum())
+            raise _fail(path, f"its weight state_dict[{key!r}] holds {bad} NaN or infinite value(s) "
+                              f"(of {finite.numel()}); a network with them scores nothing")
+
+
+def _check_payload(path: Path, payload: Any) -> dict[str, int]:
+    """The payload's schema: what :func:`save_checkpoint` writes; returns the network's sizes.
+
+    Every entry's type and value, the network's total size and every weight's shape and values,
+    all before a network is built.
+    """
     if not isinstance(payload, dict):
         raise _fail(path, f"is not a vo-gym sampler checkpoint (holds a {type(payload).__name__}, not a dict)")
     missing = [k for k in REQUIRED_KEYS if k not in payload]
     if missing:
         raise _fail(path, f"is not a vo-gym sampler checkpoint (missing key(s) {', '.join(missing)})")
+    version = payload["format_version"]
+    if not isinstance(version, numbers.Integral) or isinstance(version, bool) or version != FORMAT_VERSION:
+        raise _fail(path, f"its 'format_version' is {shown(version)}; this version reads format {FORMAT_VERSION}")
     network = payload["network"]
-    if not isinstance(network, dict):
-        raise _fail(path, f"its 'network' entry must be a dict of {', '.join(NETWORK_KEYS)}, got {type(network).__name__}")
-    unknown = sorted(set(map(str, network)) - set(NETWORK_KEYS))
-    if unknown:
-        raise _fail(path, f"unknown network keyword(s) {', '.join(unknown)} (known: {', '.join(NETWORK_KEYS)})")
-    for key, value in network.items():
-        if not isinstance(value, numbers.Integral) or isinstance(value, bool) or not 1 <= value <= 4096:
-            raise _fail(path, f"network {key} must be an integer in [1, 4096], got {value!r}")
-    state = payload["state_dict"]
-    if not isinstance(state, dict) or not all(isinstance(k, str) and isinstance(v, torch.Tensor) for k, v in state.items()):
-        raise _fail(path, "its 'state_dict' must map parameter names to tensors")
-    names, version = payload["feature_names"], payload["feature_layout_version"]
-    if not isinstance(names, (list, tuple)) or not all(isinstance(n, str) for n in names):
-        raise _fail(path, "its 'feature_names' must be a list of strings")
-    if not isinstance(version, numbers.Integral) or isinstance(version, bool):
-        raise _fail(path, f"its 'feature_layout_version' must be an integer, got {version!r}")
+    sizes = check_network_sizes(path, network, {"n_features": None, "width": 64, "blocks": 3}, required=("n_features",))
+    names = check_names(path, "feature_names", payload["feature_names"])
+    layout = payload["feature_layout_version"]
+    if not isinstance(layout, numbers.Integral) or isinstance(layout, bool):
+        raise _fail(path, f"its 'feature_layout_version' must be an integer, got {shown(layout)}")
+    try:
+        check_feature_layout(names, layout)
+    except ValueError as err:
+        raise CheckpointError(f"checkpoint {path} was trained on another feature layout: {err}") from None
+    if sizes["n_features"] != len(names):
+        raise _fail(path, f"its network n_features is {sizes['n_features']}, but its 'feature_names' lists {len(names)}")
     for key in ("config", "trainer_state"):
         if key in payload and not isinstance(payload[key], dict):
             raise _fail(path, f"its {key!r} entry must be a dict, got {type(payload[key]).__name__}")
+    check_parameter_count(path, correspondence_net_parameters(**sizes), network)
+    check_state_dict(path, payload["state_dict"], correspondence_net_shapes(**sizes), network)
+    return sizes
 
 
 def load_checkpoint(path: str | os.PathLike) -> tuple[CorrespondenceNet, dict[str, Any]]:
     """Load a checkpoint; returns the network (eval mode) and the whole payload.
 
-    Nothing in the file is run (``weights_only=True``).
+    Nothing in the file is run (``weights_only=True``), and the network is built only once the
+    file passed every check (:func:`_check_payload`): its size within :data:`MAX_NETWORK_PARAMETERS`,
+    every weight of the shape the declared sizes imply, and finite.
 
     Raises:
         FileNotFoundError: no such file.
-        CheckpointError: (a ``ValueError``) the file is unreadable, not a vo-gym checkpoint,
-            its weights do not fit the network it declares, or its feature layout differs from
-            this version's; one line naming the file and what is wrong.
+        CheckpointError: (a ``ValueError``) the file is unreadable, not a vo-gym checkpoint, an
+            entry has the wrong type, its network is too large, its weights do not fit the network
+            it declares or are not finite, or its feature layout differs from this version's; one
+            line naming the file and what is wrong.
     """
     path = Path(path)
     payload = read_payload(path)
-    _check_payload(path, payload)
-    try:
-        check_feature_layout(payload["feature_names"], payload["feature_layout_version"])
-    except ValueError as err:
-        raise CheckpointError(f"checkpoint {path} was trained on another feature layout: {err}") from None
-    net = CorrespondenceNet(**payload["network"])
+    sizes = _check_payload(path, payload)  # the feature layout included
+    net = CorrespondenceNet(**sizes)
     try:
         net.load_state_dict(payload["state_dict"])
     except RuntimeError as err:
@@ -213,9 +314,14 @@ def sampler_kind(payload: Any) -> str | None:
 def resolve_sampler(name_or_path: str | os.PathLike) -> tuple[str, str, Path | None]:
     """``(kind, name, path)`` of a shipped sampler name (``path`` None) or a checkpoint file of either kind.
 
+    A file is checked whole here (its format's schema, network size, weight shapes and finiteness:
+    :func:`_check_payload`, :func:`agents.adaptive.check_adaptive_payload`; no network is built), so
+    that a caller which only asks for the kind (``vo-gym train --resume``, ``--prior``) refuses an
+    unusable file before it starts anything.
+
     Raises:
-        ValueError: an unknown name; CheckpointError: a file of neither format (naming what is
-        wrong); FileNotFoundError: no such file.
+        ValueError: an unknown name; CheckpointError: an unusable file of either format, or of
+        neither (naming what is wrong); FileNotFoundError: no such file.
     """
     text = os.fspath(name_or_path)
     if text in SHIPPED_SAMPLERS:
@@ -228,8 +334,12 @@ def resolve_sampler(name_or_path: str | os.PathLike) -> tuple[str, str, Path | N
         raise ValueError(f"unknown sampler {text!r}: not a shipped one ({shipped}) and not a checkpoint file")
     payload = read_payload(path)
     kind = sampler_kind(payload)
-    if kind is None:
-        _check_payload(path, payload)  # names what is wrong with the file
+    if kind == IN_FRAME:
+        from agents.adaptive import check_adaptive_payload  # the in-frame format's module imports this one
+
+        check_adaptive_payload(path, payload)
+    else:
+        _check_payload(path, payload)  # of neither format: names what is wrong with the file
     return kind, path.stem, path
 
 

@@ -83,3 +83,21 @@ class CorrespondenceNet(nn.Module):
         mean = x.sum(dim=1) / m.sum(dim=1).clamp_min(1)
         peak = x.masked_fill(~m, float("-inf")).amax(dim=1).clamp_min(0.0)
         return torch.cat([mean, peak], dim=-1)
+
+
+def correspondence_net_shapes(n_features: int, width: int, blocks: int, prefix: str = "") -> dict[str, tuple[int, ...]]:
+    """The state dict's parameter shapes of ``CorrespondenceNet(n_features, width, blocks)``, by name
+    (each prefixed with ``prefix``), computed from the sizes alone: nothing is allocated."""
+    shapes = {f"{prefix}input.weight": (width, n_features), f"{prefix}input.bias": (width,)}
+    for i in range(blocks):
+        for layer in ("fc1", "fc2"):
+            shapes[f"{prefix}blocks.{i}.{layer}.weight"] = (width, width)
+            shapes[f"{prefix}blocks.{i}.{layer}.bias"] = (width,)
+    shapes.update({f"{prefix}head.weight": (1, width), f"{prefix}head.bias": (1,)})
+    return shapes
+
+
+def correspondence_net_parameters(n_features: int, width: int, blocks: int) -> int:
+    """The number of parameters of ``CorrespondenceNet(n_features, width, blocks)`` (the sum over
+    :func:`correspondence_net_shapes`), by arithmetic: nothing is allocated."""
+    return width * (n_features + 1) + blocks * 2 * width * (width + 1) + width + 1

@@ -321,3 +321,121 @@ def test_domain_randomised_episodes_draw_their_own_match_errors():
     tails = [k["noise_dof"] is not None for k, _ in randomised]
     assert 0 < sum(tails) < 20  # Student-t on some episodes, Gaussian on the others
     assert randomised == [episode_settings(AdaptiveTrainConfig(seed=2, domain_randomisation=True), e) for e in range(20)]
+
+
+# ----------------------------------------------------------------------------- hostile in-frame files
+# Each is refused by load_adaptive, agents.load_sampler, LearnedEstimator and the command lines
+# before any network is built, in one line naming the file, the entry and its value. The oversized
+# ones declare sizes only (their tensors stay the small network's): nothing large is allocated.
+
+
+def _small_in_frame(tmp_path, prior: bool):
+    torch.manual_seed(0)
+    net = AdaptiveSamplerNet(width=8, blocks=1, prior={"n_features": 14, "width": 8, "blocks": 1} if prior else None)
+    return save_adaptive(tmp_path / "small.pt", net, {"minutes": 1}, [{"episodes": 1}])
+
+
+def _set_first(key: str, value: float):
+    def edit(payload):
+        payload["state_dict"][key] = payload["state_dict"][key].clone()
+        payload["state_dict"][key].view(-1)[0] = value
+    return edit
+
+
+IN_FRAME_HOSTILE = {
+    # audit 3: names that are not lists of strings
+    "feature_names an int": (False, lambda p: p.update(feature_names=5), "its 'feature_names' must be a list of strings, got 5"),
+    "global_names None": (False, lambda p: p.update(global_names=None), "its 'global_names' must be a list of strings, got None"),
+    # audit 2: the sizes of an in-frame network are checked, each and all together (the prior's included)
+    "width 200000": (False, lambda p: p["network"].update(width=200000), "network width must be an integer in [1, 4096], got 200000"),
+    "a string width": (False, lambda p: p["network"].update(width="8"), "network width must be an integer in [1, 4096], got '8'"),
+    "oversized network": (False, lambda p: p["network"].update(width=4096, blocks=4096),
+                          "declares 137,506,209,794 parameters, more than the 16,777,216"),
+    "oversized prior": (True, lambda p: p["network"]["prior"].update(width=4096, blocks=4096),
+                        "declares 137,472,574,003 parameters, more than the 16,777,216"),
+    "a prior of huge width": (True, lambda p: p["network"]["prior"].update(width=10**9),
+                              "network prior width must be an integer in [1, 4096], got 1000000000"),
+    "a prior not a dict": (True, lambda p: p["network"].update(prior=[14, 8, 1]), "its 'network prior' entry must be a dict"),
+    "a prior on other features": (True, lambda p: p["network"]["prior"].update(n_features=3),
+                                  "its network prior n_features must be 14 (the one-shot samplers' features), got 3"),
+    "unknown network keyword": (False, lambda p: p["network"].update(depth=2), "unknown network keyword(s) depth"),
+    "n_globals beside the names": (False, lambda p: p["network"].update(n_globals=3),
+                                   "its network n_globals is 3, but its 'global_names' lists 7"),
+    "shapes contradict the sizes": (False, lambda p: p["state_dict"].update({"stop.0.weight": torch.zeros(2, 2)}),
+                                    "state_dict['stop.0.weight'] has shape (2, 2), the network needs (8, 23)"),
+    "a prior tensor missing": (True, lambda p: p["state_dict"].pop("prior.head.weight"), "missing 'prior.head.weight'"),
+    # audit 4: non-finite weights, the body's, the stop head's and the prior's
+    "a NaN weight": (False, _set_first("body.input.weight", float("nan")),
+                     "its weight state_dict['body.input.weight'] holds 1 NaN or infinite value(s)"),
+    "an infinite stop weight": (False, _set_first("stop.2.bias", float("inf")),
+                                "its weight state_dict['stop.2.bias'] holds 1 NaN or infinite value(s)"),
+    "a NaN prior weight": (True, _set_first("prior.blocks.0.fc2.weight", float("nan")),
+                           "its weight state_dict['prior.blocks.0.fc2.weight'] holds 1 NaN or infinite value(s)"),
+    "a state_dict string": (False, lambda p: p.update(state_dict="weights"),
+                            "its 'state_dict' must map parameter names to tensors, got str"),
+    "config a list": (False, lambda p: p.update(config=[1]), "its 'config' entry must be a dict, got [1]"),
+    "log a dict": (False, lambda p: p.update(log={}), "its 'log' entry must be a list, got {}"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(IN_FRAME_HOSTILE))
+def test_hostile_in_frame_files_are_refused_before_any_network_is_built(tmp_path, case, capsys, monkeypatch):
+    import time
+
+    from agents.checkpoint import CheckpointError
+    from vo_gym_cli.main import main
+
+    prior, edit, what = IN_FRAME_HOSTILE[case]
+    payload = torch.load(_small_in_frame(tmp_path, prior), weights_only=True)
+    edit(payload)
+    path = tmp_path / "hostile.pt"
+    torch.save(payload, path)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a network was built for a hostile file")
+    monkeypatch.setattr(AdaptiveSamplerNet, "__init__", refuse)
+    for load in (load_adaptive, agents.load_sampler):
+        start = time.perf_counter()
+        with pytest.raises(CheckpointError) as err:
+            load(path)
+        assert time.perf_counter() - start < 5.0, case  # checked from the sizes: milliseconds
+        message = str(err.value)
+        assert message.startswith(f"checkpoint {path}") and what in message and "\n" not in message, message
+    with pytest.raises(ValueError) as err:
+        LearnedEstimator(str(path))
+    assert str(path) in str(err.value) and what in str(err.value) and "\n" not in str(err.value)
+    capsys.readouterr()
+    commands = {
+        "vo": ["vo", "--agent", str(path), "--method", "msac", "--frames", "2", "--no-progress"],
+        "evaluate": ["evaluate", "--agent", str(path)],
+        "evaluate --adaptive": ["evaluate", "--adaptive", "--adaptive-sampler", str(path)],
+        "train": ["train", "--algo", "adaptive", "--resume", str(path), "--minutes", "0.01", "--no-progress"],
+    }
+    for command, argv in commands.items():
+        out = tmp_path / f"out-{command.replace(' ', '')}"
+        assert main([*argv, "--out", str(out)]) == 2, command
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and str(path) in lines[0] and what in lines[0] and "Traceback" not in lines[0], (command, lines)
+        assert not out.exists() or not any(out.iterdir()), command
+
+
+@pytest.mark.parametrize("prior", [None, {"n_features": 14, "width": 8, "blocks": 2}])
+def test_declared_sizes_give_the_shapes_and_count_of_the_in_frame_network(prior):
+    import inspect
+
+    from agents.adaptive import _NETWORK_SIZES
+
+    sizes = {"n_features": 18, "n_globals": 7, "width": 12, "blocks": 2, "prior": prior}
+    state = AdaptiveSamplerNet(**sizes).state_dict()
+    assert {k: tuple(v.shape) for k, v in state.items()} == AdaptiveSamplerNet.parameter_shapes(**sizes)
+    assert AdaptiveSamplerNet.parameter_count(**sizes) == sum(v.numel() for v in state.values())
+    defaults = {k: p.default for k, p in inspect.signature(AdaptiveSamplerNet).parameters.items() if k != "prior"}
+    assert defaults == _NETWORK_SIZES  # a checkpoint that leaves a size out is checked as the constructor builds it
+
+
+@pytest.mark.parametrize("name", SHIPPED_IN_FRAME_SAMPLERS)
+def test_the_shipped_in_frame_networks_are_far_below_the_size_cap(name):
+    net, payload = load_adaptive(name)
+    count = AdaptiveSamplerNet.parameter_count(**{"prior": None, **payload["network"]})
+    assert count == sum(v.numel() for v in net.state_dict().values())
+    assert 100 * count < checkpoint.MAX_NETWORK_PARAMETERS

@@ -95,6 +95,7 @@ MALFORMED = {
     "json renamed": (lambda d: _write(d / "json.pt", json.dumps({"network": {}}).encode()), "not a torch checkpoint"),
     "zip renamed": (lambda d: _zip(d / "zip.pt"), "zip archive"),
     "pickled list": (lambda d: _write(d / "list.pt", pickle.dumps([1, 2])), "not a torch checkpoint"),
+    "short text": (lambda d: _write(d / "text.pt", b"junk"), "not a torch checkpoint"),  # struct.error inside torch
     "missing layout": (lambda d: _variant(d, "nolayout", lambda p: p.pop("feature_layout_version")),
                        "missing key(s) feature_layout_version"),
     "missing weights": (lambda d: _variant(d, "noweights", lambda p: p.pop("state_dict")), "missing key(s) state_dict"),
@@ -168,3 +169,111 @@ def test_shipped_samplers_are_found_from_another_directory(tmp_path):
     )
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     assert run_python(code, timeout=300, cwd=tmp_path, env=env).split() == list(SHIPPED_SAMPLERS)
+
+
+# ----------------------------------------------------------------------------- hostile files
+# Each is refused at load time, before any network is built (CorrespondenceNet is replaced by a
+# function that fails the test if called), with one line naming the file, the entry and its value.
+# The oversized ones declare sizes only: their state dicts stay the small network's (the count is
+# checked from the sizes, before any tensor is read), so nothing large is ever allocated here.
+
+
+def _nan_at(key: str, value: float):
+    def edit(payload):
+        payload["state_dict"][key] = payload["state_dict"][key].clone()
+        payload["state_dict"][key].view(-1)[0] = value
+    return edit
+
+
+HOSTILE = {
+    # audit 1: every size within [1, 4096], the total ~137 billion parameters (~550 GB of float32)
+    "oversized network": (lambda p: p["network"].update(width=4096, blocks=4096),
+                          "its 'network' {'n_features': 14, 'width': 4096, 'blocks': 4096} declares 137,472,573,441 parameters"),
+    "just over the cap": (lambda p: p["network"].update(width=2048, blocks=2), "more than the 16,777,216"),
+    "shapes contradict the sizes": (lambda p: p["state_dict"].update({"input.weight": torch.zeros(2, 2)}),
+                                    "state_dict['input.weight'] has shape (2, 2), the network needs (8, 14)"),
+    "an extra tensor": (lambda p: p["state_dict"].update({"extra": torch.zeros(3)}), "unexpected 'extra'"),
+    "a missing tensor": (lambda p: p["state_dict"].pop("head.bias"), "missing 'head.bias'"),
+    "integer weights": (lambda p: p["state_dict"].update({"head.bias": torch.zeros(1, dtype=torch.int64)}),
+                        "state_dict['head.bias'] must be a dense floating-point tensor, got torch.int64"),
+    # audit 4: non-finite weights
+    "a NaN weight": (_nan_at("input.weight", float("nan")), "state_dict['input.weight'] holds 1 NaN or infinite value(s)"),
+    "an infinite weight": (_nan_at("head.bias", float("-inf")), "state_dict['head.bias'] holds 1 NaN or infinite value(s)"),
+    "a float64 weight beyond float32": (
+        lambda p: p["state_dict"].update({"head.bias": torch.full((1,), 1e300, dtype=torch.float64)}),
+        "state_dict['head.bias'] holds 1 NaN or infinite value(s)"),
+    # audit 3's one-shot side: every schema field's type
+    "feature_names an int": (lambda p: p.update(feature_names=5), "its 'feature_names' must be a list of strings, got 5"),
+    "feature_names not strings": (lambda p: p.update(feature_names=[1, 2]), "its 'feature_names' must be a list of strings, got [1, 2]"),
+    "format_version a string": (lambda p: p.update(format_version="1"), "its 'format_version' is '1'"),
+    "format_version from the future": (lambda p: p.update(format_version=2), "its 'format_version' is 2; this version reads format 1"),
+    "layout version a string": (lambda p: p.update(feature_layout_version="1"), "its 'feature_layout_version' must be an integer, got '1'"),
+    "n_features beside the names": (lambda p: p["network"].update(n_features=5), "its network n_features is 5, but its 'feature_names' lists 14"),
+    "n_features missing": (lambda p: p["network"].pop("n_features"), "its 'network' entry lacks n_features"),
+    "a float width": (lambda p: p["network"].update(width=8.0), "network width must be an integer in [1, 4096], got 8.0"),
+    "a bool width": (lambda p: p["network"].update(width=True), "network width must be an integer in [1, 4096], got True"),
+    "a state_dict list": (lambda p: p.update(state_dict=[1]), "its 'state_dict' must map parameter names to tensors, got list"),
+    "a state_dict key an int": (lambda p: p["state_dict"].update({1: torch.zeros(1)}),
+                                "its 'state_dict' must map parameter names to tensors, got 1: Tensor"),
+    "config a list": (lambda p: p.update(config=[1]), "its 'config' entry must be a dict, got list"),
+}
+
+
+@pytest.fixture
+def no_network_built(monkeypatch):
+    def refuse(*args, **kwargs):
+        raise AssertionError(f"a network was built for a hostile file: CorrespondenceNet{args}")
+    monkeypatch.setattr(ckpt, "CorrespondenceNet", refuse)
+
+
+@pytest.mark.parametrize("case", sorted(HOSTILE))
+def test_hostile_one_shot_files_are_refused_before_any_network_is_built(tmp_path, case, capsys, no_network_built):
+    import time
+
+    import agents
+
+    edit, what = HOSTILE[case]
+    path = _variant(tmp_path, "hostile", edit)
+    for load in (load_checkpoint, load_sampler, agents.load_sampler):
+        start = time.perf_counter()
+        with pytest.raises(CheckpointError) as err:
+            load(path)
+        assert time.perf_counter() - start < 5.0, case  # checked from the sizes: milliseconds
+        message = str(err.value)
+        assert message.startswith(f"checkpoint {path}") and what in message and "\n" not in message, message
+    with pytest.raises(ValueError) as err:
+        agents.LearnedEstimator(str(path))
+    assert str(path) in str(err.value) and what in str(err.value) and "\n" not in str(err.value)
+    # the command lines: one line naming the file and what is wrong, exit 2, nothing written
+    capsys.readouterr()
+    commands = {
+        "vo": ["vo", "--agent", str(path), "--method", "msac", "--frames", "2", "--no-progress"],
+        "evaluate": ["evaluate", "--agent", str(path)],
+        "train": ["train", "--resume", str(path), "--no-progress"],
+    }
+    for command, argv in commands.items():
+        out = tmp_path / f"out-{command}"
+        assert main([*argv, "--out", str(out)]) == 2, command
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and str(path) in lines[0] and what in lines[0] and "Traceback" not in lines[0], lines
+        assert not out.exists() or not any(out.iterdir()), command
+
+
+def test_network_sizes_give_the_shapes_and_count_of_the_network_they_build():
+    from agents.network import correspondence_net_parameters, correspondence_net_shapes
+
+    for sizes in [(N_FEATURES, 8, 1), (N_FEATURES, 64, 3), (3, 5, 0), (25, 32, 2)]:
+        state = CorrespondenceNet(*sizes).state_dict()
+        assert {k: tuple(v.shape) for k, v in state.items()} == correspondence_net_shapes(*sizes)
+        assert correspondence_net_parameters(*sizes) == sum(v.numel() for v in state.values())
+
+
+@pytest.mark.parametrize("name", SHIPPED_SAMPLERS)
+def test_the_shipped_networks_are_far_below_the_size_cap(name):
+    from agents.network import correspondence_net_parameters
+
+    with ckpt.shipped_checkpoint(name) as path:
+        payload = torch.load(path, weights_only=True)
+    count = correspondence_net_parameters(**payload["network"])
+    assert count == sum(v.numel() for v in payload["state_dict"].values())
+    assert 100 * count < ckpt.MAX_NETWORK_PARAMETERS
