@@ -123,7 +123,23 @@ def test_train_adaptive_errors_are_one_line(tmp_path, capsys, argv, needle):
     pytest.importorskip("torch")
     assert main(["train", "--algo", "adaptive", "--minutes", "0.01", *argv, "--out", str(tmp_path / "t")]) == 2
     assert needle in one_line_error(capsys, "train")
-    assert not (tmp_path / "t" / "adaptive.pt").exists()
+    assert not (tmp_path / "t").exists()  # refused before --out was made
+
+
+@pytest.mark.parametrize("algo, make, needle", [
+    ("ngransac", lambda p: p.write_text("junk"), "--resume: checkpoint "),
+    ("adaptive", lambda p: p.write_bytes(b"PK\x03\x04 truncated"), "--resume: checkpoint "),
+    ("ngransac", lambda p: p.write_bytes((ROOT / "agents" / "checkpoints" / "adaptive-pg.pt").read_bytes()),
+     "an in-frame checkpoint; --algo ngransac continues a one-shot one"),
+])
+def test_a_checkpoint_to_resume_is_read_before_out_is_made(tmp_path, capsys, algo, make, needle):
+    pytest.importorskip("torch")
+    path = tmp_path / "given.pt"
+    make(path)
+    budget = ["--frames", "2"] if algo == "ngransac" else ["--minutes", "0.01"]
+    assert main(["train", "--algo", algo, "--resume", str(path), *budget, "--out", str(tmp_path / "t")]) == 2
+    assert needle in one_line_error(capsys, "train")
+    assert not (tmp_path / "t").exists()
 
 
 def test_train_adaptive_minutes_must_be_positive(tmp_path, capsys):

@@ -241,21 +241,7 @@ def _train_ppo(args: argparse.Namespace, out: Path) -> int:
 
 def _train_adaptive(args: argparse.Namespace, out: Path) -> int:
     from agents.adaptive import AdaptiveTrainConfig, train_in_frame
-    from agents.catalog import ONE_SHOT_SAMPLERS
 
-    if args.prior is not None and args.prior not in ONE_SHOT_SAMPLERS:
-        from agents.checkpoint import ONE_SHOT, resolve_sampler
-
-        try:
-            kind = resolve_sampler(args.prior)[0]
-        except (ValueError, FileNotFoundError) as err:
-            raise UsageError(f"--prior {args.prior!r} is not a shipped one-shot sampler (shipped: "
-                             f"{', '.join(ONE_SHOT_SAMPLERS)}) nor a usable checkpoint: {err}") from None
-        if kind != ONE_SHOT:
-            raise UsageError(f"--prior {args.prior!r} is an {kind} sampler; a prior is a one-shot one")
-    if args.prior is not None and args.resume is not None:
-        raise UsageError("--prior starts a fresh network, --resume continues a checkpoint (which keeps its own "
-                         "prior): give one of them")
     given = {"minutes": args.minutes, "clock": args.clock, "prior": args.prior, "max_episodes": args.max_episodes,
              "frames_per_episode": args.frames_per_episode, "n": args.n_correspondences, "init": args.resume,
              "domain_randomisation": args.domain_randomisation or None}
@@ -266,15 +252,6 @@ def _train_adaptive(args: argparse.Namespace, out: Path) -> int:
     except ValueError as err:
         field = next((f for f in flags if str(err).startswith(f"{f} ")), None)
         raise UsageError(f"{flags[field]}{str(err)[len(field):]}" if field else str(err)) from None
-    if args.resume is not None:
-        from agents.checkpoint import IN_FRAME, resolve_sampler
-
-        try:
-            kind, _, _ = resolve_sampler(args.resume)
-        except (ValueError, FileNotFoundError) as err:
-            raise UsageError(f"--resume: {err}") from None
-        if kind != IN_FRAME:
-            raise UsageError(f"--resume {args.resume}: a {kind} checkpoint; --algo adaptive continues an in-frame one")
     clock = "CPU" if config.clock == "cpu" else "wall"
     print(f"vo-gym train: in-frame sampler, {config.minutes:g} min of {clock} time, seed {config.seed}"
           + (f", prior {config.prior}" if config.prior else "") + (f", from {config.init}" if config.init else "")
@@ -340,17 +317,49 @@ def _check_env_id(env_id: str) -> None:
         raise UsageError(f"--env-id {env_id!r} is not a registered environment ({err}); vo_gym's: {', '.join(ids)}") from None
 
 
+def _check_checkpoints(args: argparse.Namespace) -> None:
+    """Read the checkpoints that ``--resume`` and ``--prior`` name (without running code) and check their
+    kind, so that a bad one is refused before ``--out`` is created."""
+    from agents.catalog import ONE_SHOT_SAMPLERS
+    from agents.checkpoint import IN_FRAME, ONE_SHOT, resolve_sampler
+
+    if args.algo == "adaptive" and args.prior is not None:
+        if args.resume is not None:
+            raise UsageError("--prior starts a fresh network, --resume continues a checkpoint (which keeps its own "
+                             "prior): give one of them")
+        if args.prior not in ONE_SHOT_SAMPLERS:
+            try:
+                kind = resolve_sampler(args.prior)[0]
+            except (ValueError, FileNotFoundError) as err:
+                raise UsageError(f"--prior {args.prior!r} is not a shipped one-shot sampler (shipped: "
+                                 f"{', '.join(ONE_SHOT_SAMPLERS)}) nor a usable checkpoint: {err}") from None
+            if kind != ONE_SHOT:
+                raise UsageError(f"--prior {args.prior!r} is an {kind} sampler; a prior is a one-shot one")
+    if args.resume is None or args.algo == "ppo":
+        return
+    try:
+        kind, _, _ = resolve_sampler(args.resume)
+    except (ValueError, FileNotFoundError) as err:
+        raise UsageError(f"--resume: {err}") from None
+    want = IN_FRAME if args.algo == "adaptive" else ONE_SHOT
+    if kind != want:
+        article = {IN_FRAME: "an", ONE_SHOT: "a"}
+        raise UsageError(f"--resume {args.resume}: {article.get(kind, 'a')} {kind} checkpoint; --algo {args.algo} "
+                         f"continues {article[want]} {want} one")
+
+
 def run(args: argparse.Namespace) -> int:
     check_options_apply(args)
     require_extras("torch", *(("tensorboard",) if args.algo != "adaptive" else ()),
                    *(("stable_baselines3",) if args.algo == "ppo" else ()))
-    out = check_output_dir(args.out, "--out")  # before any computing: a bad --out loses no training
     if args.resume is not None and not Path(args.resume).is_file():
         raise UsageError(f"--resume: no checkpoint at {args.resume}")
     if args.algo == "ppo":
         _check_env_id(args.env_id)
     elif args.resume is not None and Path(args.resume).suffix == ".zip":
         raise UsageError(f"--resume {args.resume}: a .zip is a stable-baselines3 PPO model; resume it with --algo ppo")
+    _check_checkpoints(args)
+    out = check_output_dir(args.out, "--out")  # before any computing: a bad --out loses no training
     if args.algo == "adaptive":
         return _train_adaptive(args, out)
     if args.algo == "ngransac":
