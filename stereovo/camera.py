@@ -26,6 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from stereovo.options import Integer, Number
+
 
 @njit(cache=True, nogil=True)
 def _project_rows(X, fx, fy, cx, cy, minus_fx_baseline, out):
@@ -101,6 +103,22 @@ def _triangulate_rows(meas, fx, fy, cx, cy, baseline, min_disparity, sigma, v_va
 V_MEASUREMENTS: tuple[str, ...] = ("shared", "independent")
 """How a match measures its rows (:attr:`StereoCamera.v_measurement`)."""
 
+MAX_IMAGE_SIZE_PX = 2**53
+"""The largest image width or height (px): pixel coordinates are float64, which hold every integer
+only up to 2**53 (a larger size would not even convert to a float beyond ~1e308)."""
+
+_CAMERA_RULES = {
+    "fx": Number(low=0.0, low_open=True, unit="px"),
+    "fy": Number(low=0.0, low_open=True, unit="px"),
+    "cx": Number(unit="px"),
+    "cy": Number(unit="px"),
+    "baseline": Number(low=0.0, low_open=True, unit="m"),
+    "width": Integer(low=1, high=MAX_IMAGE_SIZE_PX),
+    "height": Integer(low=1, high=MAX_IMAGE_SIZE_PX),
+    "min_disparity": Number(low=0.0, low_open=True, unit="px"),
+}
+"""Declarations (:mod:`stereovo.options`) of :class:`StereoCamera`'s numeric fields."""
+
 
 @dataclass(frozen=True)
 class StereoCamera:
@@ -110,11 +128,16 @@ class StereoCamera:
         fx, fy: focal lengths in pixels.
         cx, cy: principal point in pixels.
         baseline: distance between the two optical centres in metres.
-        width, height: image size in pixels.
+        width, height: image size in pixels (integers >= 1, not bools).
         min_disparity: disparities at or below this (pixels) carry no usable depth.
         v_measurement: ``"shared"`` (one ``v`` per rectified match, ``vL = vR``; default) or
             ``"independent"`` (``vL`` and ``vR`` measured apart, each with the pixel noise): the
             noise model of triangulation covariances and of the pixel Mahalanobis residual.
+
+    Raises:
+        ValueError: naming the field and the value: fx, fy, baseline and min_disparity must be
+            finite real numbers > 0, cx and cy finite real numbers, width and height integers in
+            ``[1, 2**53]`` (``1.5``, ``True``, ``"700"``, ``[700]`` and ``10**400`` are refused).
     """
 
     fx: float = 718.856
@@ -128,17 +151,14 @@ class StereoCamera:
     v_measurement: str = "shared"
 
     def __post_init__(self) -> None:
-        if self.v_measurement not in V_MEASUREMENTS:
+        if not (isinstance(self.v_measurement, str) and self.v_measurement in V_MEASUREMENTS):
             raise ValueError(
                 f"StereoCamera.v_measurement must be one of {list(V_MEASUREMENTS)}, got {self.v_measurement!r}"
             )
-        for name in ("fx", "fy", "baseline", "width", "height", "min_disparity"):
-            value = getattr(self, name)
-            if not np.isfinite(value) or value <= 0:
-                raise ValueError(f"StereoCamera.{name} must be a positive finite number, got {value!r}")
-        for name in ("cx", "cy"):
-            if not np.isfinite(getattr(self, name)):
-                raise ValueError(f"StereoCamera.{name} must be finite, got {getattr(self, name)!r}")
+        # By the one options contract (stereovo.options), naming the field and the value; the values
+        # are checked, not converted (a camera keeps what it was given).
+        for name, rule in _CAMERA_RULES.items():
+            rule.check(name, getattr(self, name), prefix="StereoCamera.")
 
     @property
     def v_per_match(self) -> int:

@@ -11,7 +11,8 @@ refused, with the same message, wherever it enters:
 - :class:`Boolean`: ``True``/``False`` (or numpy bools) only; ``"no"`` or ``0`` is refused
   (``"no"`` is truthy and would silently act as True).
 - :class:`Number`: a real, finite number in a range; ``"0.9"``, ``nan``, ``inf`` and complex
-  numbers are refused.
+  numbers are refused, and so is an integer too large for a float (``10**400``: no float64 holds
+  it, so every computation with it would overflow).
 - :class:`Choice`: one of a fixed set of strings; the message lists them.
 
 Arrays have one contract too: :func:`real_array` (a real numeric array of a given shape).
@@ -19,7 +20,8 @@ Arrays have one contract too: :func:`real_array` (a real numeric array of a give
 Each declaration may allow ``None``. :meth:`Option.check` returns the value normalised to a
 plain Python ``int``/``float``/``bool``/``str`` (never changing it numerically), or raises
 :class:`OptionError` (a ``ValueError``) of the form
-``option NAME must be RULE, got VALUE``.
+``option NAME must be RULE, got VALUE``; VALUE is :func:`value_repr`'s (the ``repr``, abbreviated
+when it would be enormous: a 400-digit integer is written ``~1e+400 (an integer of 401 digits)``).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ import numpy as np
 
 __all__ = [
     "OptionError", "Option", "Integer", "Boolean", "Number", "Choice", "check_options", "is_integer", "is_real",
-    "real_array",
+    "is_finite_real", "real_array", "value_repr",
 ]
 
 
@@ -49,6 +51,51 @@ def is_integer(value: Any) -> bool:
 def is_real(value: Any) -> bool:
     """A real Python or numpy number (int or float), not a bool, not complex, not a string."""
     return isinstance(value, (numbers.Real, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+def is_finite_real(value: Any) -> bool:
+    """A real number (:func:`is_real`) that is a finite float64: not NaN, not infinite, and no integer
+    too large for a float (``math.isfinite`` and ``float()`` raise OverflowError on ``10**400``)."""
+    if not is_real(value):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False
+
+
+_REPR_LIMIT = 200  # characters of a value's repr in a message; a longer one is abbreviated
+_BIG_INT_BITS = 200  # integers of more bits (some 60 digits) are written by magnitude, not digit by digit
+
+
+def value_repr(value: Any) -> str:
+    """``repr(value)`` for an error message, abbreviated where it would be enormous.
+
+    An integer of more than some 60 digits is written by its magnitude and number of digits
+    (``~1e+400 (an integer of 401 digits)``; Python refuses ``repr`` of an int beyond 4300 digits),
+    also inside a short tuple, list or dict; any other repr longer than 200 characters is cut
+    (``...``). Never raises.
+    """
+    if is_integer(value):
+        v = int(value)
+        if v.bit_length() > _BIG_INT_BITS:
+            log = math.log10(abs(v))  # exact enough for a message; the digit count is made exact below
+            digits = math.floor(log) + 1
+            if abs(v) < 10 ** (digits - 1):
+                digits -= 1
+            return f"~{'-' if v < 0 else ''}{10 ** (log % 1):.3g}e+{math.floor(log)} (an integer of {digits} digits)"
+    elif type(value) in (tuple, list) and len(value) <= 16:
+        items = [value_repr(x) for x in value]
+        if type(value) is tuple:
+            return "(" + ", ".join(items) + ("," if len(items) == 1 else "") + ")"
+        return "[" + ", ".join(items) + "]"
+    elif type(value) is dict and len(value) <= 16:
+        return "{" + ", ".join(f"{value_repr(k)}: {value_repr(v)}" for k, v in value.items()) + "}"
+    try:
+        text = repr(value)
+    except Exception:  # a repr that fails (an int past Python's digit limit inside a container, ...)
+        return f"<{type(value).__name__} object>"
+    return text if len(text) <= _REPR_LIMIT else text[: _REPR_LIMIT - 3] + "..."
 
 
 def _fmt(x: float) -> str:
@@ -84,7 +131,7 @@ class Option:
             return None
         ok, normalised = self._accepts(value)
         if not ok:
-            raise OptionError(f"{prefix}{name} must be {self.describe()}, got {value!r}")
+            raise OptionError(f"{prefix}{name} must be {self.describe()}, got {value_repr(value)}")
         return normalised
 
     def _accepts(self, value: Any) -> tuple[bool, Any]:  # pragma: no cover - overridden
@@ -150,11 +197,9 @@ class Number(Option):
         return rule + (f" ({self.unit})" if self.unit else "")
 
     def _accepts(self, value: Any) -> tuple[bool, Any]:
-        if not is_real(value):
+        if not is_finite_real(value):  # not a number, NaN, inf, or an integer too large for a float
             return False, None
         v = float(value)
-        if not math.isfinite(v):
-            return False, None
         if self.low is not None and (v < self.low or (self.low_open and v == self.low)):
             return False, None
         if self.high is not None and (v > self.high or (self.high_open and v == self.high)):

@@ -42,7 +42,8 @@ Where each part lives (this package re-exports the public names):
 
 - :mod:`~stereovo.simulation.frame`: :class:`Frame`, :class:`FrameTruth`, :class:`OutlierKind`;
 - :mod:`~stereovo.simulation.motion`: the velocity process, :class:`MotionPreset`, :data:`PRESETS`;
-- :mod:`~stereovo.simulation.config`: :class:`SimulationConfig`, :data:`WORLDS`, :data:`OUTLIER_KINDS`, :data:`OUTLIER_PRESETS`;
+- :mod:`~stereovo.simulation.config`: :class:`SimulationConfig`, :data:`WORLDS`, :data:`OUTLIER_KINDS`, :data:`OUTLIER_PRESETS`,
+  :class:`InfeasibleSettingsError` (valid settings the simulator could not draw a frame for);
 - :mod:`~stereovo.simulation.world`: the landmarks (step 2);
 - :mod:`~stereovo.simulation.outliers`: the three default kinds of outliers (step 3);
 - :mod:`~stereovo.simulation.hostile`: the hostile kinds (``outliers="hostile"``): independent
@@ -54,7 +55,15 @@ Where each part lives (this package re-exports the public names):
 
 from __future__ import annotations
 
-from stereovo.simulation.config import MAX_NOISE_SIGMA_PX, OUTLIER_KINDS, OUTLIER_PRESETS, WORLDS, SimulationConfig
+from stereovo.simulation.config import (
+    MAX_FRAMES,
+    MAX_NOISE_SIGMA_PX,
+    OUTLIER_KINDS,
+    OUTLIER_PRESETS,
+    WORLDS,
+    InfeasibleSettingsError,
+    SimulationConfig,
+)
 from stereovo.simulation.frame import Frame, FrameTruth, OutlierKind
 from stereovo.simulation.motion import PRESETS, MotionPreset
 from stereovo.simulation.scores import score_inlier_probability
@@ -68,6 +77,7 @@ __all__ = [
     "OUTLIER_KINDS",
     "OUTLIER_PRESETS",
     "SimulationConfig",
+    "InfeasibleSettingsError",
     "FrameTruth",
     "Frame",
     "simulate_frame",

@@ -14,19 +14,18 @@ import numpy as np
 from numba import njit
 
 from stereovo.geometry import random_rotation
-from stereovo.simulation.config import SimulationConfig
+from stereovo.simulation.config import _MIN_OUTLIER_PX, _OUTLIER_SIGMAS, InfeasibleSettingsError, SimulationConfig
 from stereovo.simulation.world import CAMERA_HEIGHT, camera_vector, loguniform, see_point
 
 MAX_REDRAWS = 30  # redraws of a row that misses its condition (an outlier too near, a noisy row off the image)
 _MAX_OBJECT_ATTEMPTS = 30
-_MIN_OUTLIER_PX = 4.0
 _STEREO_FACTOR = (1.25, 2.5)
 _MAX_SPIN = float(np.radians(3.0))  # rad/frame, the object's largest turn  # range of the disparity ratio of a stereo mismatch (>= 20 % depth error)
 
 
 def outlier_threshold(sigma: float) -> float:
     """Minimum pixel distance (px) between an outlier and where the true motion puts it."""
-    return max(_MIN_OUTLIER_PX, 8.0 * sigma)
+    return max(_MIN_OUTLIER_PX, _OUTLIER_SIGMAS * sigma)
 
 
 def _rotation_about_y(angle: float) -> np.ndarray:
@@ -201,6 +200,11 @@ def moving_object(
     5-25 m ahead. Only faces turned towards camera k-1 carry points, and only
     points whose frame-k image lies at least the outlier threshold away from
     where a static point would be are kept: the object's motion must show.
+
+    Raises:
+        InfeasibleSettingsError: no such object was found in ``_MAX_OBJECT_ATTEMPTS`` tries (an
+            outlier threshold of some hundred pixels, ``noise_sigma`` >= 50 at the default rig, or
+            a depth range or image that holds no such object); the message names the settings.
     """
     if n == 0:
         return np.empty((0, 3)), np.empty((0, 3))
@@ -274,7 +278,10 @@ def moving_object(
         if len(kept_prev) == 1:
             return X_prev[:n], X_curr[:n]
         return np.concatenate(kept_prev)[:n], np.concatenate(kept_curr)[:n]
-    raise RuntimeError(
-        f"could not place a visibly moving object with {n} points in {_MAX_OBJECT_ATTEMPTS} attempts; "
-        f"the camera or depth range [{config.z_min}, {config.z_max}] m is too restrictive"
+    raise InfeasibleSettingsError(
+        f"noise_sigma={config.noise_sigma!r} px, z_min={config.z_min!r} m, z_max={config.z_max!r} m, camera "
+        f"{cam.width}x{cam.height} px: could not place a visibly moving object with {n} points in "
+        f"{_MAX_OBJECT_ATTEMPTS} attempts (its motion must show by the outlier threshold max(4, 8*noise_sigma) = "
+        f"{tau:g} px); lower noise_sigma, widen the depth range or the image, or give the moving-object kind no "
+        f"weight in outlier_mix"
     )

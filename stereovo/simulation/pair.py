@@ -131,7 +131,12 @@ def _add_noise(
     ``v`` draw is shared by both images (rectified pair). Rows that leave the
     image or lose their disparity are redrawn (a truncated Gaussian), so every
     measurement stays usable, except the last ``free`` rows (the hostile kinds), which keep
-    their first draw: losing the depth is what they are for.
+    their first draw: losing the depth is what they are for. A row still outside after
+    ``MAX_REDRAWS`` redraws (noise of tens of pixels) keeps its noise-free measurement; a stereo
+    mismatch whose noise-free right point lies left of the image (its disparity floor beyond the
+    image) has that point moved to the image's left edge, and any other noise-free row the image
+    cannot hold takes the widest disparity (``uL = width - 1``, ``uR = 0``). Rows that a draw
+    brought into the image keep that draw (frames as they always were).
     """
     sigma, cam = float(config.noise_sigma), config.camera
     limits = (float(cam.width - 1), float(cam.height - 1), float(cam.min_disparity))
@@ -158,9 +163,23 @@ def _add_noise(
     if bad.size == 0:
         return out
     bad = ~_valid(out, cam)
-    if not _valid(meas[bad], cam).all():
-        raise RuntimeError("simulator bug: a noise-free measurement left the image or lost its disparity")
-    out[bad] = meas[bad]  # vanishingly rare: keep the valid noise-free row
+    clean = meas[bad]
+    lost = ~_valid(clean, cam)
+    if lost.any():
+        # A stereo mismatch whose disparity floor (min_disparity + 3 sigma) exceeds its uL, with no
+        # room to move up either (outliers._move_right_points' last resort): its noise-free right
+        # point lies left of the image. Noise often brings it back in (those frames keep that draw);
+        # when no draw did, the row takes the largest disparity the image holds (uR = 0, disparity
+        # uL > min_disparity, as the true match's) instead of leaving the image.
+        clean[lost, 2] = np.maximum(clean[lost, 2], 0.0)
+        # Any other row the image cannot hold (none is known: a random stereo point of a camera whose
+        # min_disparity is near its width could be one) takes the widest disparity of the image,
+        # width - 1 px (above min_disparity: SimulationConfig refuses a camera where it is not).
+        other = ~_valid(clean, cam)
+        if other.any():
+            clean[other, 0], clean[other, 2] = float(cam.width - 1), 0.0
+            clean[other, 1] = clean[other, 3] = np.clip(clean[other, 1], 0.0, float(cam.height - 1))
+    out[bad] = clean  # vanishingly rare: keep the valid noise-free row
     return out
 
 

@@ -12,13 +12,23 @@ from collections.abc import Iterator
 import numpy as np
 
 from stereovo.geometry import make_transform, pose_update, random_rotation, se3_exp, so3_exp
-from stereovo.options import is_integer
+from stereovo.options import is_integer, value_repr
 from stereovo.seeding import generator_from_seed_words, seed_words, seeded_generators
 from stereovo.simulation.config import SimulationConfig
 from stereovo.simulation.frame import Frame
 from stereovo.simulation.pair import simulate_pair
 
 _SEQUENCE_NAMESPACE = 0x566F  # keeps Sequence's child seeds apart from a user's own spawn() children
+
+
+def _check_config(config: object) -> None:
+    if not isinstance(config, SimulationConfig):
+        raise TypeError(f"config must be a SimulationConfig, got {type(config).__name__}")
+
+
+def _is_seed(value: object) -> bool:
+    """An integer seed >= 0 (not a bool: ``True`` is no seed, as for the estimator)."""
+    return is_integer(value) and value >= 0
 
 
 def simulate_frame(config: SimulationConfig, rng: np.random.Generator | int | None = None) -> Frame:
@@ -30,11 +40,22 @@ def simulate_frame(config: SimulationConfig, rng: np.random.Generator | int | No
 
     Args:
         config: the simulation settings.
-        rng: a numpy Generator, an int seed, or None for fresh entropy.
+        rng: a numpy Generator, an int seed >= 0 (not a bool), a SeedSequence, or None for fresh
+            entropy (as :func:`numpy.random.default_rng` takes them).
 
     Returns:
         A :class:`Frame` with ``index == 1``.
+
+    Raises:
+        TypeError: ``config`` is no :class:`SimulationConfig`.
+        ValueError: ``rng`` is none of the above, naming it and the value.
+        InfeasibleSettingsError: the settings leave this draw without a frame (see
+            :class:`SimulationConfig`).
     """
+    _check_config(config)
+    if not (rng is None or _is_seed(rng) or isinstance(rng, (np.random.Generator, np.random.SeedSequence))):
+        raise ValueError(f"rng must be a numpy.random.Generator, a SeedSequence, an integer seed >= 0 or None, "
+                         f"got {value_repr(rng)}")
     rng = np.random.default_rng(rng)
     if config.preset == "car":
         orientation = so3_exp(np.array([0.0, rng.uniform(-np.pi, np.pi), 0.0]))
@@ -55,16 +76,21 @@ class Sequence:
     demand from its own seed, so ``frame(k)`` gives the same result in any
     order of access, and the same seed gives bit-identical frames.
 
+    Frames whose settings leave the draw without a frame raise
+    :class:`~stereovo.simulation.config.InfeasibleSettingsError` from :meth:`frame`.
+
     Attributes:
         config: the simulation settings.
-        seed: the seed as given (int, SeedSequence or None).
+        seed: the seed as given (an int >= 0, not a bool; a SeedSequence; or None). Anything else
+            is a ValueError naming ``seed`` and the value.
         true_poses: ``(n_frames + 1, 4, 4)`` read-only camera-to-world poses,
             ``true_poses[0]`` the identity.
     """
 
     def __init__(self, config: SimulationConfig, seed: int | np.random.SeedSequence | None = None) -> None:
-        if not isinstance(config, SimulationConfig):
-            raise TypeError(f"config must be a SimulationConfig, got {type(config).__name__}")
+        _check_config(config)
+        if not (seed is None or _is_seed(seed) or isinstance(seed, np.random.SeedSequence)):
+            raise ValueError(f"seed must be an integer >= 0, a numpy.random.SeedSequence or None, got {value_repr(seed)}")
         self.config = config
         self.seed = seed
         self._root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)

@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 from stereovo.camera import StereoCamera
-from stereovo.simulation.config import SimulationConfig
+from stereovo.simulation.config import InfeasibleSettingsError, SimulationConfig
 
 CAMERA_HEIGHT = 1.65  # m above the ground (KITTI rig)
 _FRUSTUM_SLACK = 1.15  # landmarks are drawn in a frustum this much wider, so frame k's view is covered
@@ -196,6 +196,11 @@ def visible_landmarks(
 
     Landmarks live in world coordinates, drawn in camera k-1's frame; the 4x4 ``to_prev``,
     ``to_curr`` (world-to-camera @ camera-k-1-to-world) take them to the two cameras.
+
+    Raises:
+        InfeasibleSettingsError: fewer than ``n`` were found in ``_MAX_BATCHES`` batches (a very
+            thin depth range, a step longer than the depth range, a small or off-centre image);
+            the message names the settings.
     """
     cam, world = config.camera, config.resolved_world
     layout = _StreetLayout(rng) if world == "street" else None
@@ -221,9 +226,12 @@ def visible_landmarks(
         count += len(X_prev)
         acceptance = max(len(X_prev) / batch, 1e-3)
     if count < n:
-        raise RuntimeError(
-            f"found only {count} of {n} landmarks visible in both frames; the camera and depth range "
-            f"[{config.z_min}, {config.z_max}] m see too little of the {world!r} world"
+        motion = config.motion
+        raise InfeasibleSettingsError(
+            f"z_min={config.z_min!r} m, z_max={config.z_max!r} m, speed={motion.speed!r} m/frame "
+            f"(preset {config.preset!r}), camera {cam.width}x{cam.height} px (cx={float(cam.cx)!r}, cy={float(cam.cy)!r}, "
+            f"min_disparity={float(cam.min_disparity)!r} px): found only {count} of {n} landmarks visible in both frames "
+            f"of the {world!r} world; widen the depth range, lower the speed, or use a camera that sees more"
         )
     if len(kept_prev) == 1:  # the common case: the first batch held them all
         return kept_prev[0][:n], kept_curr[0][:n]

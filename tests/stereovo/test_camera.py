@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import math
+import re
+
 import numpy as np
 import pytest
 from hypothesis import given, strategies as st
@@ -160,3 +163,22 @@ def test_covariance_is_sigma_squared_j_j_transpose_of_the_measured_quantities(mo
     np.testing.assert_allclose(diff[:, 1, 1], expected, rtol=1e-9)
     diff[:, 1, 1] = 0.0
     np.testing.assert_allclose(diff, 0.0, atol=1e-15)
+
+
+@pytest.mark.parametrize("field,value,text", [
+    ("fx", 10**400, "~1e+400 (an integer of 401 digits)"), ("fx", "700", "'700'"), ("fx", [700], "[700]"),
+    ("fx", True, "True"), ("min_disparity", None, "None"), ("baseline", math.inf, "inf"), ("cy", 10**400, "~1e+400 (an integer of 401 digits)"),
+    ("width", 1.5, "1.5"), ("width", True, "True"), ("height", np.bool_(True), "np.True_"), ("height", 640.0, "640.0"),
+    ("width", 2**53 + 1, "9007199254740993"), ("width", "640", "'640'"),
+])
+def test_invalid_camera_values_are_a_value_error_naming_field_and_value(field, value, text):
+    """Never numpy's 'ufunc isfinite not supported' or a comparison's TypeError: the options contract's message."""
+    with pytest.raises(ValueError, match=rf"^StereoCamera\.{field} must be .*, got {re.escape(text)}$"):
+        StereoCamera(**{field: value})
+
+
+def test_valid_edge_cameras_are_kept_as_given():
+    cam = StereoCamera(fx=700, cx=-5.0, cy=0, width=1, height=np.int64(1), min_disparity=1e-12, fy=np.float32(650.0))
+    assert cam.fx == 700 and type(cam.fx) is int and type(cam.height) is np.int64 and type(cam.fy) is np.float32
+    assert StereoCamera(width=2**53, height=2).width == 2**53
+    assert StereoCamera(fx=1e300, baseline=1e-300).fx == 1e300

@@ -4,6 +4,8 @@ naming it, and worker counts and seeds follow one rule in every layer."""
 from __future__ import annotations
 
 import math
+import re
+import sys
 
 import numpy as np
 import pytest
@@ -82,3 +84,46 @@ def test_real_array_gives_numpys_float64_conversion(value):
     assert (out is value) == (expected is value)
     with pytest.raises(ValueError, match=r"^x must have shape \(N, 3\), one row, got \(3, 2\)$"):
         real_array("x", value, ("N", 3), per="one row")
+
+
+@pytest.mark.parametrize("rule,rule_text", [(Number(low=0.0), ">= 0"), (Number(), ""), (Number(low=0.0, high=1.0), "in \\[0, 1\\]")],
+                         ids=["low", "unbounded", "range"])
+@pytest.mark.parametrize("exponent,text", [(400, "~1e+400 (an integer of 401 digits)"),
+                                           (-400, "~-1e+400 (an integer of 401 digits)"),
+                                           (5000, "~1e+5000 (an integer of 5001 digits)")])
+def test_number_refuses_integers_too_large_for_a_float_naming_them_briefly(rule, rule_text, exponent, text):
+    """float(10**400) raises OverflowError: such an integer is refused as a number out of range,
+    and written by its magnitude (its repr would be 401 digits; past 4300 Python refuses it)."""
+    value = 10 ** abs(exponent) * (1 if exponent > 0 else -1)
+    expected = rf"^option confidence must be a finite number{' ' + rule_text if rule_text else ''}, got {re.escape(text)}$"
+    with pytest.raises(OptionError, match=expected):
+        rule.check("confidence", value)
+
+
+def test_number_keeps_large_integers_that_a_float_holds():
+    big = int(sys.float_info.max)  # the largest integer that converts to a finite float
+    assert Number().check("x", big) == big and type(Number().check("x", big)) is int
+    assert Number(low=0.0).check("x", 10**300) == 10**300
+    with pytest.raises(OptionError, match=r"got ~1\.8e\+309 \(an integer of 310 digits\)$"):
+        Number().check("x", big * 10)
+
+
+def test_is_finite_real():
+    from stereovo.options import is_finite_real
+
+    assert is_finite_real(1) and is_finite_real(np.float32(0.5)) and is_finite_real(10**300)
+    for bad in (10**400, math.nan, math.inf, np.float64("inf"), True, "1", None, complex(1, 0), [1]):
+        assert not is_finite_real(bad)
+
+
+def test_value_repr_abbreviates_only_enormous_values():
+    from stereovo.options import value_repr
+
+    for ordinary in (0.5, -1, 10**59, "abc", None, (0.2, 0.4), [1, 2], {"random": 0.5}, (1,), np.float64(0.25)):
+        assert value_repr(ordinary) == repr(ordinary)
+    assert value_repr((0, 10**400)) == "(0, ~1e+400 (an integer of 401 digits))"
+    assert value_repr({"random": 10**400}) == "{'random': ~1e+400 (an integer of 401 digits)}"
+    assert value_repr(10**400 - 1) == "~1e+400 (an integer of 400 digits)"
+    long = value_repr("x" * 1000)
+    assert len(long) == 200 and long.endswith("...")
+    assert value_repr(tuple(range(20)) + (10**5000,)) == "<tuple object>"  # a repr that raises: the type, no error
