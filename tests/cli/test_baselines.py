@@ -99,6 +99,15 @@ def test_the_reports_command_line_parses_back_to_the_runs_grid():
             args.max_iterations, args.preset) == ([0.5, 0.85], [200], [0.9], [1.0], ["mix", "hostile"], 3, 300, "free")
 
 
+def test_settings_the_simulator_cannot_draw_from_are_one_line_and_leave_out_as_it_was(tmp_path, capsys):
+    argv = ["baselines", "--sigmas", "100", "--ns", "60", "--epsilons", "0.3", "--aucs", "0.9", "--frames-per-cell", "1",
+            "--methods", "ransac", "--workers", "1", "--no-plots", "--no-progress", "--out", str(tmp_path / "x")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "noise_sigma=100.0 px" in err[0] and "Traceback" not in err[0], err
+    assert not (tmp_path / "x").exists()
+
+
 def test_an_unknown_outlier_kind_is_one_line_naming_the_known_ones(tmp_path, capsys):
     code = main(["baselines", "--outlier-kinds", "mix,sky", "--out", str(tmp_path / "x"), "--no-progress"])
     assert code == 2

@@ -101,6 +101,15 @@ def test_the_hostile_preset_reaches_the_simulated_sequence(tmp_path, capsys):
     assert "--outlier-preset" in capsys.readouterr().err and not (tmp_path / "x").exists()
 
 
+def test_settings_the_simulator_cannot_draw_from_are_one_line_and_write_nothing(tmp_path, capsys):
+    # --noise 200 passes its range, but no moving object can clear the outlier threshold of 1600 px
+    code = main(["vo", "--noise", "200", "--frames", "2", "--n", "60", "--out", str(tmp_path / "x"), "--no-progress"])
+    assert code == 2
+    line = one_line_error(capsys, "vo")
+    assert "noise_sigma=200.0 px" in line and "lower noise_sigma" in line
+    assert not (tmp_path / "x").exists()
+
+
 def test_parse_outliers():
     assert parse_outliers("0.5") == 0.5
     assert parse_outliers("0") == 0.0

@@ -371,6 +371,13 @@ def guarded(command: str, run: Callable[[], int]) -> int:
     except UsageError as err:
         print(f"vo-gym {command}: error: {err}", file=sys.stderr)
         return EXIT_USAGE
+    except ValueError as err:
+        if not _infeasible_settings(err):
+            raise
+        # settings that passed their checks but the simulator cannot draw a frame from (its message
+        # names them and what to change), raised once frames are drawn
+        print(f"vo-gym {command}: error: {err}", file=sys.stderr)
+        return EXIT_USAGE
     except ModuleNotFoundError as err:
         hint = missing_extra(err)
         if hint is None:
@@ -383,6 +390,13 @@ def guarded(command: str, run: Callable[[], int]) -> int:
     if code == EXIT_INTERRUPTED:
         sys.unraisablehook = quiet_pool_exit
     return code
+
+
+def _infeasible_settings(err: BaseException) -> bool:
+    """Whether ``err`` is the simulator's :class:`stereovo.simulation.InfeasibleSettingsError` (looked
+    up where it was raised from, so that building the parser imports no simulation code)."""
+    config = sys.modules.get("stereovo.simulation.config")
+    return config is not None and isinstance(err, config.InfeasibleSettingsError)
 
 
 def stoppable(command: str, run: Callable[[], int]) -> int:

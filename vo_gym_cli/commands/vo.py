@@ -27,6 +27,7 @@ from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
 from vo_gym_cli.commands.common import (
     OUTLIER_PRESETS,
     PRESETS,
+    RunStart,
     UsageError,
     bounded_int,
     check_output_dir,
@@ -255,8 +256,13 @@ def run(args: argparse.Namespace) -> int:
         field = next((f for f in _CONFIG_FLAGS if str(err).startswith(f"SimulationConfig.{f} ")), None)
         raise (flag_error(_CONFIG_FLAGS[field], err) if field else UsageError(str(err))) from None
     sampling = _sampling(args, args.noise)
+    start = RunStart(args.out)
     out: Path = check_output_dir(args.out)  # before computing: a bad --out loses no result
-    result = run_odometry(sequence, method=args.method, seed=args.seed, progress=not args.no_progress, **sampling)
+    try:
+        result = run_odometry(sequence, method=args.method, seed=args.seed, progress=not args.no_progress, **sampling)
+    except ValueError:  # settings the simulator cannot draw a frame from: leave --out as it was
+        start.undo()
+        raise
     settings = {
         "preset": args.preset, "frames": args.frames, "outliers": args.outliers,
         "outlier_preset": args.outlier_preset, "noise_px": args.noise,
