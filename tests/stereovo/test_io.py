@@ -56,9 +56,9 @@ def test_tum_default_timestamps_and_bad_shapes(tmp_path):
     write_tum(tmp_path / "a.tum", poses)
     _, ts = read_tum(tmp_path / "a.tum")
     np.testing.assert_array_equal(ts, np.arange(5.0))
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"timestamps must have shape \(5,\), got \(2,\)"):
         write_tum(tmp_path / "b.tum", poses, timestamps=[0.0, 1.0])
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"poses must have shape \(F, 4, 4\), got \(5, 3, 4\)"):
         write_tum(tmp_path / "c.tum", poses[:, :3, :])
 
 

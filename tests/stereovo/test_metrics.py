@@ -64,7 +64,7 @@ def test_precision_recall_hand_built_masks():
     assert inlier_precision_recall(np.zeros(4, bool), np.ones(4, bool)) == (0.0, 0.0)
     assert inlier_precision_recall(np.ones(4, bool), np.zeros(4, bool)) == (0.0, 0.0)
     assert inlier_precision_recall(true, true) == (1.0, 1.0)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"inlier masks differ in shape: \(3,\) vs \(4,\)"):
         inlier_precision_recall(np.ones(3, bool), np.ones(4, bool))
 
 
@@ -190,9 +190,10 @@ def test_kitti_drift_short_trajectory_and_custom_lengths():
     assert n == 0 and np.isnan(t_pct) and np.isnan(r_deg_m)
     t_pct, _, n = kitti_drift(est, true, lengths=(5, 10, 20), step=5)
     assert n > 0 and t_pct == pytest.approx(2.0, rel=1e-9)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"segment lengths must be positive metres, got \(0\.0,\)"):
         kitti_drift(est, true, lengths=(0.0,))
-    with pytest.raises(ValueError):
+    unequal = r"two \(F, 4, 4\) pose arrays of equal length, got \(31, 4, 4\) and \(30, 4, 4\)"
+    with pytest.raises(ValueError, match=unequal):
         kitti_drift(est, true[:-1])
 
 

@@ -595,31 +595,73 @@ def test_rendered_prosac_weights_run_from_one_for_the_best_to_zero_for_the_worst
     assert weights(4, np.array([1.0, 3.0, 0.0, 4.0]), None).tolist() == [0.5, 1.5, 0.0, 2.0]
 
 
-@FUZZ
-@given(keyword=st.sampled_from(ENV_KEYWORDS), value=WEIRD_NUMBERS | st.sampled_from(["msac", "prosac", "guided", "car"]),
-       seed=st.integers(0, 2**31), action=st.sampled_from(["zeros", "random", "nan", "inf-pad", "shape", "complex",
-                                                            "huge", "text"]))
-def test_env_make_reset_step_fuzz(keyword, value, seed, action):
-    try:
-        env = gym.make("vo_gym/StereoVO-v0", n_frames=2, n_correspondences=40, budget=4, **{keyword: value})
-    except (ValueError, TypeError) as err:
-        assert keyword in str(err), repr(err)
-        return
-    obs, _ = env.reset(seed=seed)
-    space = env.observation_space
-    assert space.contains(obs)
-    m = env.action_space.shape[0]
-    rng = np.random.default_rng(seed)
-    candidate = {
-        "zeros": np.zeros(m, np.float32), "random": rng.normal(size=m).astype(np.float32),
-        "nan": np.full(m, np.nan), "inf-pad": np.concatenate([np.zeros(40), np.full(m - 40, -np.inf)]),
-        "shape": np.zeros(m + 1), "complex": np.zeros(m, complex), "huge": np.full(m, 1e300), "text": "logits",
-    }[action]
-    for _ in range(2):
+# Two valid values for each keyword of ENV_KEYWORDS (bogus_keyword has none); n_frames and budget replace the
+# fuzz test's base settings.
+ENV_VALID = {
+    "sampling": ("guided", "prosac"), "reward_mode": ("supervised", "msac"), "max_correspondences": (None, 64),
+    "action_bound": (10.0, 5), "logit_scale": (1.0, 0.5), "success_bonus": (0.5, 0.0), "hypothesis_cost": (0.001, 0),
+    "failure_reward": (-1.0, -0.5), "n_frames": (2, 3), "noise_sigma": (0.5, 1.0), "outlier_ratio": (0.5, (0.2, 0.6)),
+    "score_auc": (0.75, 0.9), "z_min": (3.0, 5.0), "speed": (None, 8.0), "method": ("msac", "ransac"),
+    "budget": (4, 8), "batch_size": (None, 2), "estimator_noise_sigma": (None, 0.7), "refine": (False, True),
+    "confidence": (0.99, 0.9), "min_inliers": (6, 8), "local_refit": (False, True), "preset": ("car", "free"),
+    "world": (None, "open"), "outlier_mix": (None, (0.8, 0.2, 0.0)),
+}
+VALID_ACTIONS = ("zeros", "random", "inf-pad", "huge")
+
+
+def test_env_make_reset_step_fuzz():
+    # Most examples give their keyword a valid value (ENV_VALID) and a valid action, and play the whole episode
+    # to its truncation; the rest give a WEIRD_NUMBERS (or a name) value, refused by gym.make naming the keyword,
+    # or an invalid action, refused by the first step naming the action. A valid value is never refused, a valid
+    # action never, an invalid one always. The outcomes are counted.
+    outcomes = []
+
+    @FUZZ
+    @given(keyword=st.sampled_from(ENV_KEYWORDS), valid=st.sampled_from([True, True, True, False]),
+           pick=st.integers(0, 1), weird=WEIRD_NUMBERS | st.sampled_from(["msac", "prosac", "guided", "car"]),
+           seed=st.integers(0, 2**31),
+           action=st.sampled_from([*VALID_ACTIONS, *VALID_ACTIONS, "nan", "shape", "complex", "text"]))
+    def run(keyword, valid, pick, weird, seed, action):
+        valid = valid and keyword in ENV_VALID
+        settings = {"n_frames": 2, "n_correspondences": 40, "budget": 4,
+                    keyword: ENV_VALID[keyword][pick] if valid else weird}
         try:
-            obs, reward, terminated, truncated, info = env.step(candidate)
-        except ValueError as err:
-            assert "action" in str(err), repr(err)
+            env = gym.make("vo_gym/StereoVO-v0", **settings)
+        except (ValueError, TypeError) as err:
+            assert keyword in str(err), repr(err)
+            assert not valid, repr(err)
+            outcomes.append("make refused")
             return
-        assert space.contains(obs) and -1.0 <= reward <= 1.0 and math.isfinite(reward) and not terminated
-    assert truncated and "trajectory" in info
+        obs, _ = env.reset(seed=seed)
+        space = env.observation_space
+        assert space.contains(obs)
+        m = env.action_space.shape[0]
+        assert m == max(40, settings.get("max_correspondences") or 0)
+        rng = np.random.default_rng(seed)
+        candidate = {
+            "zeros": np.zeros(m, np.float32), "random": rng.normal(size=m).astype(np.float32),
+            "nan": np.full(m, np.nan), "inf-pad": np.concatenate([np.zeros(40), np.full(m - 40, -np.inf)]),
+            "shape": np.zeros(m + 1), "complex": np.zeros(m, complex), "huge": np.full(m, 1e300), "text": "logits",
+        }[action]
+        n_frames = env.unwrapped.sim_config.n_frames
+        assert n_frames == settings["n_frames"]
+        for step in range(n_frames):
+            try:
+                obs, reward, terminated, truncated, info = env.step(candidate)
+            except ValueError as err:
+                assert "action" in str(err), repr(err)
+                assert step == 0 and action not in VALID_ACTIONS, repr(err)
+                outcomes.append("action refused")
+                return
+            assert action in VALID_ACTIONS
+            assert space.contains(obs) and -1.0 <= reward <= 1.0 and math.isfinite(reward) and not terminated
+            assert truncated == (step == n_frames - 1)
+            assert info["status"] == "ok" or info["status"].startswith("failed")
+        assert truncated and "trajectory" in info
+        outcomes.append("episode")
+
+    run()
+    tally = {outcome: outcomes.count(outcome) for outcome in set(outcomes)}
+    assert len(outcomes) == 30
+    assert tally.get("episode", 0) >= 10 and tally.get("make refused", 0) >= 3, tally
+    assert tally.get("action refused", 0) >= 3, tally

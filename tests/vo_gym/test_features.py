@@ -21,7 +21,7 @@ from stereovo.estimation.kernels.rigidity import distance_change_sq, rigid_dista
 from stereovo.geometry import relative_motion
 from stereovo.simulation import Sequence, SimulationConfig, simulate_frame
 from tests.support.frames import CAMERA
-from tests.support.fuzz import FUZZ, WEIRD_NUMBERS, measurements, names_an_argument
+from tests.support.fuzz import FUZZ, WEIRD_NUMBERS, fuzz_frame, measurements, names_an_argument
 from tests.support.rows import spoil_rows
 from vo_gym import features as F
 from vo_gym.features import (
@@ -62,8 +62,8 @@ def _full_counts(P, Q, s2, anchors, gate_sq):
 
 
 def test_layout_constants():
-    assert len(FEATURE_NAMES) == N_FEATURES == len(set(FEATURE_NAMES))
-    assert isinstance(FEATURE_LAYOUT_VERSION, int)
+    assert N_FEATURES == 14 and len(FEATURE_NAMES) == 14 == len(set(FEATURE_NAMES))
+    assert FEATURE_LAYOUT_VERSION == 1
     assert [feature_index(name) for name in FEATURE_NAMES] == list(range(N_FEATURES))
     with pytest.raises(ValueError, match="unknown feature"):
         feature_index("inlier")
@@ -237,23 +237,86 @@ def test_features_flag_unusable_rows_with_finite_values(frame):
                                   alone[:, feature_index("rigid_consistency")])
 
 
-@FUZZ
-@given(data=measurements(), noise=WEIRD_NUMBERS,
-       motion=st.sampled_from(["none", "identity", "nan", "shape", "bad"]))
-def test_compute_features_fuzz(data, noise, motion):
-    prev, curr, scores, _ = data
-    previous = {"none": None, "identity": (np.eye(3), np.zeros(3)), "nan": (np.full((3, 3), np.nan), np.zeros(3)),
-                "shape": (np.eye(2), np.zeros(3)), "bad": "fast"}[motion]
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error", np.exceptions.ComplexWarning)
-            feats = compute_features(prev, curr, scores, CAMERA, noise, previous)
-    except (ValueError, TypeError) as err:
-        assert names_an_argument(err), repr(err)
-        return
-    n = np.shape(prev)[0]
-    assert feats.shape == (n, N_FEATURES) and feats.dtype == np.float32
-    assert np.all(np.isfinite(feats)) and np.all(np.abs(feats) <= FEATURE_BOUND)
+VALID_NOISE = (0.5, 1.0, np.float32(0.3), 2.0, 1, np.int64(3))
+UNUSUAL_VALID_KINDS = ("fortran", "strided", "float32", "int", "list", "duplicate", "constant")
+
+
+def test_compute_features_fuzz():
+    # Most examples draw a valid noise_sigma (and the measurements strategy a usable frame), so the success
+    # path's assertions run; the rest are refused with an error naming the argument. Both are counted.
+    outcomes = []
+
+    @FUZZ
+    @given(data=measurements(), valid_noise=st.sampled_from([True, True, True, False]),
+           noise=st.sampled_from(VALID_NOISE), weird=WEIRD_NUMBERS,
+           motion=st.sampled_from(["none", "none", "identity", "identity", "nan", "shape", "bad"]))
+    def run(data, valid_noise, noise, weird, motion):
+        prev, curr, scores, _ = data
+        noise = noise if valid_noise else weird
+        previous = {"none": None, "identity": (np.eye(3), np.zeros(3)),
+                    "nan": (np.full((3, 3), np.nan), np.zeros(3)), "shape": (np.eye(2), np.zeros(3)),
+                    "bad": "fast"}[motion]
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error", np.exceptions.ComplexWarning)
+                feats = compute_features(prev, curr, scores, CAMERA, noise, previous)
+        except (ValueError, TypeError) as err:
+            assert names_an_argument(err), repr(err)
+            outcomes.append("refused")
+            return
+        n = np.shape(prev)[0]
+        assert feats.shape == (n, N_FEATURES) and feats.dtype == np.float32
+        assert np.all(np.isfinite(feats)) and np.all(np.abs(feats) <= FEATURE_BOUND)
+        outcomes.append("computed")
+
+    run()
+    tally = {outcome: outcomes.count(outcome) for outcome in set(outcomes)}
+    assert len(outcomes) == 30
+    assert tally.get("computed", 0) >= 12 and tally.get("refused", 0) >= 5, tally
+
+
+def _unusual(frame, kind):
+    """The measurements strategy's valid-but-unusual input kinds (tests/support/fuzz.py), applied to frame."""
+    prev, curr = frame.prev.copy(), frame.curr.copy()
+    if kind == "fortran":
+        prev, curr = np.asfortranarray(prev), np.asfortranarray(curr)
+    elif kind == "strided":
+        prev = np.repeat(prev, 2, axis=0)[::2]
+    elif kind == "float32":
+        prev, curr = prev.astype(np.float32), curr.astype(np.float32)
+    elif kind == "int":
+        prev, curr = np.round(prev).astype(int), np.round(curr).astype(int)
+    elif kind == "list":
+        prev, curr = prev.tolist(), curr.tolist()
+    elif kind == "duplicate":
+        prev[:] = prev[0]
+        curr[:] = curr[0]
+    elif kind == "constant":
+        curr = prev.copy()
+    return prev, curr
+
+
+@pytest.mark.parametrize("kind", UNUSUAL_VALID_KINDS)
+def test_compute_features_takes_the_fuzzers_unusual_valid_inputs(kind):
+    frame = fuzz_frame(3, 20, 0.3)
+    for noise in VALID_NOISE:
+        for previous in (None, (np.eye(3), np.zeros(3))):
+            reference = compute_features(frame.prev, frame.curr, frame.scores, CAMERA, noise, previous)
+            prev, curr = _unusual(frame, kind)
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                feats = compute_features(prev, curr, frame.scores, CAMERA, noise, previous)
+            assert feats.shape == (20, N_FEATURES) and feats.dtype == np.float32
+            assert np.all(np.isfinite(feats)) and np.all(np.abs(feats) <= FEATURE_BOUND)
+            np.testing.assert_array_equal(compute_features(prev, curr, frame.scores, CAMERA, noise, previous), feats)
+            if kind in ("fortran", "strided", "list"):  # the same values in another layout: the same features
+                np.testing.assert_array_equal(feats, reference)
+            elif kind == "float32":
+                np.testing.assert_allclose(feats, reference, rtol=1e-4, atol=1e-4)
+            elif kind == "constant":  # no motion: every row with a depth keeps its distances to every other
+                usable = usable_rows(feats)
+                assert usable.sum() >= 15
+                np.testing.assert_array_equal(feats[usable, feature_index("rigid_consistency")], 1.0)
 
 
 # --- Cases found by mutation testing (docs/mutation-testing.md) ---

@@ -8,6 +8,7 @@ import pytest
 
 from stereovo.benchmark import peers
 from stereovo.benchmark import speed_accuracy as sa
+from stereovo.simulation import OUTLIER_KINDS
 
 
 def test_sweep_gives_a_point_per_estimator_and_setting_and_draws_the_figure(tmp_path):
@@ -29,12 +30,16 @@ def test_cells_are_the_same_frames_for_every_estimator_and_presets_are_checked()
     assert random.outlier_mix == sa.RANDOM_MIX
     with pytest.raises(ValueError, match="preset must be one of .* got 'nasty'"):
         sa.simulation_config(80, 0.5, "nasty")
-    try:
-        hostile = sa.simulation_config(80, 0.5, "hostile")
-    except ValueError as exc:  # a simulator without the preset says so by name
-        assert "preset 'hostile'" in str(exc)
-    else:
-        assert hostile.n_correspondences == 80
+    hostile = sa.simulation_config(80, 0.5, "hostile")
+    assert hostile.outliers == "hostile" and hostile.outlier_ratio == 0.5
+    assert hostile.n_correspondences == 80 and hostile.noise_sigma == 0.5
+    # the simulator's hostile preset: its mix over the outlier kinds and its heavy-tailed noise
+    kinds = dict(zip(OUTLIER_KINDS, hostile.outlier_mix))
+    assert kinds == {"random": 0.3, "stereo": 0.05, "moving": 0.0, "independent": 0.3, "duplicate": 0.1, "far": 0.15,
+                     "repetitive": 0.1}
+    assert hostile.noise_dof == 3.0
+    default = sa.simulation_config(80, 0.5, "default")
+    assert default.outliers == "default" and default.outlier_mix == (0.6, 0.2, 0.2) and default.noise_dof is None
 
 
 def test_prior_table_rows_and_markdown():

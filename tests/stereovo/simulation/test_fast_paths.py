@@ -8,6 +8,7 @@ replaced (kept here as the reference). The fused noise-and-check kernel equals t
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -210,7 +211,9 @@ def test_frames_refuse_wrong_shapes_on_both_paths():
     Frame(**{**good, "prev": frame.prev.tolist()})  # lists: numpy's shape reading
     for bad in ({"prev": frame.prev[:, :3]}, {"curr": frame.curr[1:]}, {"scores": frame.scores[1:]},
                 {"prev": frame.prev[0]}, {"scores": frame.scores[:, None]}):
-        with pytest.raises(ValueError):
+        [(name, value)] = bad.items()  # the message names the field and the shape it got
+        message = rf"Frame\.{name} .*must .*got .*{re.escape(str(np.shape(value)))}"
+        with pytest.raises(ValueError, match=message):
             Frame(**{**good, **bad})
-        with pytest.raises(ValueError):
+        with pytest.raises(ValueError, match=message):
             Frame(**{**good, **{k: np.asarray(v).tolist() for k, v in bad.items()}})

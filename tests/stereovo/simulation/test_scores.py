@@ -129,7 +129,7 @@ def test_draw_scores_is_the_clipped_probit_formulation(auc):
         reference_rng = np.random.default_rng(seed)
         expected = np.clip(ndtr(reference_rng.standard_normal(800) + latent_shift(auc) * inlier), lowest, highest)
         assert ours.tobytes() == expected.tobytes()
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"auc must be a finite number in \[0\.5, 1\), got 1\.0"):
         draw_scores(inlier, 1.0, np.random.default_rng(0))  # an AUC of 1 is refused, also after valid ones
 
 

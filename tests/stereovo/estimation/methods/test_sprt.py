@@ -207,25 +207,41 @@ def test_sprt_never_overflows(method, case):
         camera = frame_camera()
     with np.errstate(over="raise"):
         est = estimate_motion(prev, curr, camera, method=method, rng=0, noise_sigma=0.5)
-    assert est.status == "ok" or est.status.startswith("failed:")
-    if case in ("outlier-free", "identical", "coplanar"):
-        assert est.ok, est.status
-        assert est.n_inliers >= 0.5 * prev.shape[0]
+    counters = est.report.counters
+    assert np.isfinite(counters["sprt_epsilon"]) and np.isfinite(counters["sprt_delta"])
+    if case == "near-collinear":  # every minimal sample degenerate: no hypothesis ever reaches the test
+        assert est.status == "failed: all samples degenerate" and not est.ok and est.n_inliers == 0
+        assert counters["sprt_tested"] == 0 and counters["sprt_designs"] == 1
+        assert counters["sprt_epsilon"] == 0.1 and counters["sprt_delta"] == 0.01  # the defaults, untouched
+        return
+    assert est.status == "ok" and est.ok
+    assert est.n_inliers >= 0.5 * prev.shape[0]
+    # every hypothesis goes through the (active) test and ends rejected or accepted
+    assert counters["sprt_tested"] == est.n_hypotheses > 0 and counters["sprt_full"] == 0
+    assert counters["sprt_rejected"] + counters["sprt_accepted"] == counters["sprt_tested"]
     if case == "outlier-free":
         assert np.degrees(rotation_error(est.rotation, frame.truth.rotation)) < 1.0
+        # the noisy minimal-sample models: some rejected, and each new best re-designs the test (epsilon = I / N)
+        assert counters["sprt_rejected"] > 0 and counters["sprt_accepted"] > 0
+        assert counters["sprt_designs"] > 1 and 0.1 < counters["sprt_epsilon"] < 1.0
+    else:
+        # noise-free pairs: every model is exact, every one accepted; its consensus is every row (epsilon 1,
+        # not a test to design), so the first test stays
+        assert est.n_inliers == prev.shape[0]
+        assert counters["sprt_rejected"] == 0 and counters["sprt_accepted"] == counters["sprt_tested"]
+        assert counters["sprt_designs"] == 1 and counters["sprt_epsilon"] == 0.1
     if case == "identical":
         assert np.degrees(rotation_error(est.rotation, np.eye(3))) < 0.05 and np.linalg.norm(est.translation) < 0.01
-    counters = est.report.counters
-    assert counters["sprt_designs"] >= 1 and np.isfinite(counters["sprt_epsilon"])
 
 
 def test_good_model_exponent_is_finite_for_clean_frames():
     for epsilon, epsilon_i, delta_i in ((0.999999, 0.1, 0.01), (1 - 1e-12, 0.3, 0.001), (0.999, 0.9999, 0.3)):
         h = good_model_exponent(epsilon, epsilon_i, delta_i)
-        assert np.isfinite(h) or h == np.inf
+        assert np.isfinite(h) and h > 0, h
         a, b = delta_i / epsilon_i, (1 - delta_i) / (1 - epsilon_i)
-        if 0 < h < np.inf:
-            assert np.logaddexp(np.log(epsilon) + h * np.log(a), np.log1p(-epsilon) + h * np.log(b)) == pytest.approx(0, abs=1e-9)
+        # h solves epsilon a^h + (1 - epsilon) b^h = 1
+        assert np.logaddexp(np.log(epsilon) + h * np.log(a), np.log1p(-epsilon) + h * np.log(b)) == pytest.approx(
+            0, abs=1e-9)
 
 
 def test_waldsac_through_the_environment_on_an_outlier_free_episode():
@@ -233,10 +249,20 @@ def test_waldsac_through_the_environment_on_an_outlier_free_episode():
 
     import vo_gym  # noqa: F401
 
-    env = gymnasium.make("vo_gym/StereoVO-v0", max_episode_steps=3, method="waldsac", outlier_ratio=0.0)
+    # a three-frame episode (n_frames=3, no time limit): the third step is the env's own end
+    env = gymnasium.make("vo_gym/StereoVO-v0", n_frames=3, method="waldsac", outlier_ratio=0.0)
+    assert env.spec.max_episode_steps is None
+    assert env.unwrapped.sim_config.n_frames == 3 and env.unwrapped.method == "waldsac"
     env.reset(seed=0)
-    for _ in range(3):
-        env.step(env.action_space.sample())
+    env.action_space.seed(0)
+    for step in range(1, 4):
+        _, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        assert info["frame"] == step and info["outlier_ratio"] == 0.0
+        assert info["success"] and info["status"] == "ok" and not info["fallback"], info
+        assert info["rot_err_deg"] < 0.5 and info["trans_err_m"] < 0.05, info
+        assert info["precision"] == 1.0 and info["n_inliers"] >= 400, info
+        assert 0.0 < reward <= 1.0 and not terminated
+        assert truncated == (step == 3) and ("trajectory" in info) == (step == 3)
     env.close()
 
 
