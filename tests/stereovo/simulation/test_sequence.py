@@ -163,7 +163,7 @@ def test_sequence_poses_are_consistent_with_frame_truth() -> None:
     poses = seq.true_poses
     assert poses.shape == (7, 4, 4)
     assert np.array_equal(poses[0], np.eye(4))
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="read-only"):
         poses[1, 0, 0] = 2.0  # read-only: frames are generated from these poses
     for k, frame in enumerate(seq, start=1):
         truth = frame.truth
