@@ -16,9 +16,11 @@ from stereovo.estimation.kernels.rigidity import distance_change_sq_jit, rigid_d
 
 # A mass left after one or two picks that is below this share of the whole has lost most of its
 # digits to cancellation (one or two weights hold nearly all of it): a draw inverting the cumulative
-# sums there cannot tell the remaining points apart, and the probability of an all-inlier draw
-# cannot take the difference either. Ordinary weights never come near it.
-CANCELLATION = 1e-6
+# sums there cannot tell the remaining points apart well (its relative error grows as 1e-16 over the
+# share), and the probability of an all-inlier draw cannot take the difference either. The
+# environments' weights (exp of actions in [-10, 10], at least 1e-6 of the mass left beside the two
+# largest of 500) never come near it.
+CANCELLATION = 1e-9
 
 
 @jit
