@@ -366,10 +366,26 @@ def test_exact_draw_at_the_top_of_the_mass_takes_the_last_positive_weight_left()
     np.testing.assert_array_equal(t._draw_exactly(np.array([1.0, 0.0, 1.0])), [4, 1, 3])
 
 
+def test_the_weighted_samplers_tables_are_the_float64_quotient_and_its_running_sums_bit_for_bit():
+    rng = np.random.default_rng(0)
+    for p in (rng.random(50), rng.random(50).astype(np.float32), rng.integers(1, 100, 50),
+              np.exp(3.0 * rng.normal(size=50))):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            s = WeightedSampler(p)
+        q = np.asarray(p, dtype=float)
+        w = q / q.sum()  # numpy's pairwise sum of the float64 values, then the quotient
+        np.testing.assert_array_equal(s._w, w)
+        np.testing.assert_array_equal(s._cdf, np.cumsum(w))
+        np.testing.assert_array_equal(s._before, np.r_[0.0, np.cumsum(w)[:-1]])
+
+
 def test_log_probability_stays_a_finite_log_probability_when_the_mass_left_rounds_to_zero():
     # w = (0.5, 0.5, 5e-18): before the third pick 0.5 + 0.5 == 1.0, so the mass left rounds to 0.
     s = WeightedSampler(np.array([1.0, 1.0, 1e-17]))
-    log_p = s.log_probability(np.array([[0, 1, 2], [2, 0, 1]]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # log1p(-1) in the branch np.where discards must not warn
+        log_p = s.log_probability(np.array([[0, 1, 2], [2, 0, 1]]))
     assert np.all(np.isfinite(log_p)) and np.all(log_p <= 0.0)
     assert log_p[0] == pytest.approx(math.log(0.5), rel=1e-12)  # the third pick is all the mass left
     assert log_p[1] == pytest.approx(math.log(5e-18) + math.log(0.5) + 0.0, rel=1e-12)
