@@ -314,10 +314,10 @@ def sampler_kind(payload: Any) -> str | None:
 def resolve_sampler(name_or_path: str | os.PathLike) -> tuple[str, str, Path | None]:
     """``(kind, name, path)`` of a shipped sampler name (``path`` None) or a checkpoint file of either kind.
 
-    A file is checked whole here (its format's schema, network size, weight shapes and finiteness:
-    :func:`_check_payload`, :func:`agents.adaptive.check_adaptive_payload`; no network is built), so
-    that a caller which only asks for the kind (``vo-gym train --resume``, ``--prior``) refuses an
-    unusable file before it starts anything.
+    A one-shot file is checked whole here (its schema, network size, weight shapes and finiteness:
+    :func:`_check_payload`; no network is built); an in-frame file only by its kind, and whole by
+    :func:`agents.adaptive.check_adaptive_payload` (that module imports this one), which
+    ``vo-gym train`` calls before it starts anything.
 
     Raises:
         ValueError: an unknown name; CheckpointError: an unusable file of either format, or of
@@ -334,12 +334,8 @@ def resolve_sampler(name_or_path: str | os.PathLike) -> tuple[str, str, Path | N
         raise ValueError(f"unknown sampler {text!r}: not a shipped one ({shipped}) and not a checkpoint file")
     payload = read_payload(path)
     kind = sampler_kind(payload)
-    if kind == IN_FRAME:
-        from agents.adaptive import check_adaptive_payload  # the in-frame format's module imports this one
-
-        check_adaptive_payload(path, payload)
-    else:
-        _check_payload(path, payload)  # of neither format: names what is wrong with the file
+    if kind != IN_FRAME:  # an in-frame file is checked whole by agents.adaptive (which imports this module)
+        _check_payload(path, payload)  # a one-shot one here; of neither format: names what is wrong
     return kind, path.stem, path
 
 

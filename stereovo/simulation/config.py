@@ -60,7 +60,7 @@ MAX_FRAMES = 10**6
 drawn up front, some 600 bytes and 10 microseconds a frame (a million frames: ~10 s and ~0.6 GB;
 the 10**9 once allowed took hours and hundreds of GB). KITTI's longest sequence has 4,661 frames."""
 
-_MIN_OUTLIER_PX, _OUTLIER_SIGMAS = 4.0, 8.0  # the outlier threshold max(4 px, 8 sigma) (outliers.outlier_threshold)
+MIN_OUTLIER_PX, OUTLIER_SIGMAS = 4.0, 8.0  # the outlier threshold max(4 px, 8 sigma) (outliers.outlier_threshold)
 
 
 class InfeasibleSettingsError(ValueError):
@@ -229,10 +229,10 @@ class SimulationConfig:
         # both inside the image: a threshold beyond the image's largest such distance admits none.
         high = self.epsilon_range[1]
         if round(high * self.n_correspondences) >= 1:
-            tau = max(_MIN_OUTLIER_PX, _OUTLIER_SIGMAS * self.noise_sigma)
+            tau = max(MIN_OUTLIER_PX, OUTLIER_SIGMAS * self.noise_sigma)
             span = math.sqrt(2.0 * float(cam.width - 1) ** 2 + float(cam.height - 1) ** 2)
-            if _MIN_OUTLIER_PX > span:
-                fail("camera", f"an image that can hold an outlier ({_MIN_OUTLIER_PX:g} px from its true measurement) "
+            if MIN_OUTLIER_PX > span:
+                fail("camera", f"an image that can hold an outlier ({MIN_OUTLIER_PX:g} px from its true measurement) "
                                f"when frames have outliers (outlier_ratio={value_repr(self.outlier_ratio)})")
             if tau > span:
                 fail("noise_sigma", f"small enough that the outlier threshold max(4, 8*noise_sigma) = {tau:g} px "

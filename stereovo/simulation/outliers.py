@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 
 from stereovo.geometry import random_rotation
-from stereovo.simulation.config import _MIN_OUTLIER_PX, _OUTLIER_SIGMAS, InfeasibleSettingsError, SimulationConfig
+from stereovo.simulation.config import MIN_OUTLIER_PX, OUTLIER_SIGMAS, InfeasibleSettingsError, SimulationConfig
 from stereovo.simulation.world import CAMERA_HEIGHT, camera_vector, loguniform, see_point
 
 MAX_REDRAWS = 30  # redraws of a row that misses its condition (an outlier too near, a noisy row off the image)
@@ -25,7 +25,7 @@ _MAX_SPIN = float(np.radians(3.0))  # rad/frame, the object's largest turn  # ra
 
 def outlier_threshold(sigma: float) -> float:
     """Minimum pixel distance (px) between an outlier and where the true motion puts it."""
-    return max(_MIN_OUTLIER_PX, _OUTLIER_SIGMAS * sigma)
+    return max(MIN_OUTLIER_PX, OUTLIER_SIGMAS * sigma)
 
 
 def _rotation_about_y(angle: float) -> np.ndarray:

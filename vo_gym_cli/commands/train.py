@@ -338,7 +338,12 @@ def _check_checkpoints(args: argparse.Namespace) -> None:
     if args.resume is None or args.algo == "ppo":
         return
     try:
-        kind, _, _ = resolve_sampler(args.resume)
+        kind, _, path = resolve_sampler(args.resume)
+        if kind == IN_FRAME and path is not None:  # a file: the in-frame format's own checks, whole
+            from agents.adaptive import check_adaptive_payload
+            from agents.checkpoint import read_payload
+
+            check_adaptive_payload(path, read_payload(path))
     except (ValueError, FileNotFoundError) as err:
         raise UsageError(f"--resume: {err}") from None
     want = IN_FRAME if args.algo == "adaptive" else ONE_SHOT
