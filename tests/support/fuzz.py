@@ -32,8 +32,19 @@ def measurements(draw):
                                  "shape", "rows", "complex", "fortran", "strided", "float32", "int", "list",
                                  "duplicate", "constant", "empty"]))
     row = draw(st.integers(0, n - 1))
+    column = draw(st.integers(0, 3)) if kind == "nan" else 0
+    prev, curr, scores = corrupted(prev, curr, scores, kind, row, column)
+    return prev, curr, scores, kind
+
+
+def corrupted(prev: np.ndarray, curr: np.ndarray, scores: np.ndarray, kind: str, row: int = 0,
+              column: int = 0) -> tuple:
+    """``prev, curr, scores`` (copies the caller may change) made into one of :func:`measurements`'
+    kinds, at ``row`` (and ``column`` for "nan"): a NaN, an inf, a huge row, a disparity of zero or
+    below, a wrong shape or row count, complex values, or a valid-but-unusual layout (fortran,
+    strided, float32, int, list, duplicate rows, a constant frame) or no rows at all."""
     if kind == "nan":
-        prev[row, draw(st.integers(0, 3))] = np.nan
+        prev[row, column] = np.nan
     elif kind == "inf":
         curr[row, 0] = np.inf
     elif kind == "huge":
@@ -65,7 +76,7 @@ def measurements(draw):
         curr = prev.copy()
     elif kind == "empty":
         prev, curr, scores = prev[:0], curr[:0], scores[:0]
-    return prev, curr, scores, kind
+    return prev, curr, scores
 
 
 ARGUMENT_NAMES = ("prev", "curr", "priors", "order", "camera", "noise_sigma", "option", "method", "scores",

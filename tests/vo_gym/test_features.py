@@ -21,7 +21,7 @@ from stereovo.estimation.kernels.rigidity import distance_change_sq, rigid_dista
 from stereovo.geometry import relative_motion
 from stereovo.simulation import Sequence, SimulationConfig, simulate_frame
 from tests.support.frames import CAMERA
-from tests.support.fuzz import FUZZ, WEIRD_NUMBERS, fuzz_frame, measurements, names_an_argument
+from tests.support.fuzz import FUZZ, WEIRD_NUMBERS, corrupted, fuzz_frame, measurements, names_an_argument
 from tests.support.rows import spoil_rows
 from vo_gym import features as F
 from vo_gym.features import (
@@ -277,22 +277,7 @@ def test_compute_features_fuzz():
 
 def _unusual(frame, kind):
     """The measurements strategy's valid-but-unusual input kinds (tests/support/fuzz.py), applied to frame."""
-    prev, curr = frame.prev.copy(), frame.curr.copy()
-    if kind == "fortran":
-        prev, curr = np.asfortranarray(prev), np.asfortranarray(curr)
-    elif kind == "strided":
-        prev = np.repeat(prev, 2, axis=0)[::2]
-    elif kind == "float32":
-        prev, curr = prev.astype(np.float32), curr.astype(np.float32)
-    elif kind == "int":
-        prev, curr = np.round(prev).astype(int), np.round(curr).astype(int)
-    elif kind == "list":
-        prev, curr = prev.tolist(), curr.tolist()
-    elif kind == "duplicate":
-        prev[:] = prev[0]
-        curr[:] = curr[0]
-    elif kind == "constant":
-        curr = prev.copy()
+    prev, curr, _ = corrupted(frame.prev.copy(), frame.curr.copy(), frame.scores.copy(), kind)
     return prev, curr
 
 
