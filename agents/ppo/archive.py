@@ -19,10 +19,10 @@ from typing import Any
 
 import torch
 
-from agents.checkpoint import CheckpointError
-from agents.network import CorrespondenceNet
+from agents.checkpoint import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE, CheckpointError
+from agents.network import CorrespondenceNet, correspondence_net_parameters
 from agents.ppo.config import PPOConfig, build_model
-from vo_gym.features import check_feature_layout
+from vo_gym.features import N_FEATURES, check_feature_layout
 
 # An SB3 zip's ``data`` entry is JSON, but SB3 stores what JSON cannot hold (the policy class,
 # the spaces, the schedules, the rollout buffer class, the episode buffers) as base64 cloudpickle
@@ -37,6 +37,10 @@ ZIP_DATA = "data"
 ZIP_POLICY = "policy.pth"
 ZIP_OPTIMIZER = "policy.optimizer.pth"
 MAX_ZIP_MEMBER_BYTES = 1 << 30  # a larger member is not something this module wrote (refuse, do not inflate)
+MAX_ROLLOUT_VALUES = 1 << 28
+"""The most observation values a stored config's rollout buffer may hold (``n_steps x n_envs x
+n_correspondences x (features + mask)``, 1 GiB of float32), which rebuilding the model allocates: the
+shipped model's is 1.9 million."""
 # Plain counters of ``data`` restored on load (everything else is rebuilt from the config).
 ZIP_COUNTERS = ("num_timesteps", "_n_updates", "_episode_num")
 
@@ -105,7 +109,34 @@ def _zip_config(path: Path, data: dict[str, Any]) -> tuple[PPOConfig, dict[str, 
     except (ValueError, TypeError, KeyError) as err:
         raise zip_failure(path, f"its train_config is not a valid PPO config ({first_line(err)})") from None
     _check_stored_env_id(path, config.env_id)
+    _check_model_size(path, config)
     return config, stored
+
+
+def _check_model_size(path: Path, config: PPOConfig) -> None:
+    """Refuse a stored config whose policy or rollout buffer would be larger than anything trained here,
+    before :func:`build_model` allocates them: the sizes each within :data:`MAX_NETWORK_SIZE`, the
+    policy's parameters (actor, critic trunk, critic MLP) within :data:`MAX_NETWORK_PARAMETERS`, and
+    the rollout within :data:`MAX_ROLLOUT_VALUES`."""
+    sizes = {"width": config.width, "blocks": config.blocks, "critic_hidden": config.critic_hidden,
+             "critic_width": config.width if config.critic_width is None else config.critic_width}
+    for name, value in sizes.items():
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_NETWORK_SIZE:
+            raise zip_failure(path, f"its train_config's {name} must be an integer in [1, {MAX_NETWORK_SIZE}], "
+                                    f"got {value!r}")
+    width, hidden = sizes["critic_width"], sizes["critic_hidden"]
+    count = correspondence_net_parameters(N_FEATURES, config.width, config.blocks)
+    if not config.share_trunk:
+        count += correspondence_net_parameters(N_FEATURES, width, config.blocks)
+    count += 2 * width * hidden + hidden + hidden * hidden + hidden + hidden + 1  # the critic's MLP
+    if count > MAX_NETWORK_PARAMETERS:
+        raise zip_failure(path, f"its train_config declares a policy of {count:,} parameters, more than the "
+                                f"{MAX_NETWORK_PARAMETERS:,} any model here has")
+    values = config.n_steps * config.n_envs * config.n_correspondences * (N_FEATURES + 1)
+    if values > MAX_ROLLOUT_VALUES:
+        raise zip_failure(path, f"its train_config's rollout (n_steps {config.n_steps} x n_envs {config.n_envs} x "
+                                f"n_correspondences {config.n_correspondences}) holds {values:,} values, more than "
+                                f"{MAX_ROLLOUT_VALUES:,}")
 
 
 def _check_stored_env_id(path: Path, env_id: Any) -> None:

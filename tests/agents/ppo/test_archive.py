@@ -22,6 +22,7 @@ pytest.importorskip("stable_baselines3")
 
 from agents.checkpoint import CheckpointError, LearnedPolicy  # noqa: E402
 from agents.evaluation.setup import resolve_agent  # noqa: E402
+from agents.ppo import archive as ppo_archive  # noqa: E402
 from agents.ppo.archive import load_ppo, load_ppo_actor, read_ppo_config  # noqa: E402
 from agents.ppo.config import PPOConfig, build_model, make_training_env  # noqa: E402
 from vo_gym import StereoVOEnv  # noqa: E402
@@ -228,16 +229,31 @@ MALFORMED = {
         "not a registered environment"),
     "bad counter": (lambda g, p, t: _rewrite(g, p, _edit_data(lambda d: d.update(num_timesteps=-1))),
                     "'num_timesteps' must be an integer >= 0"),
+    # sizes each valid for PPOConfig, whose model would not fit in memory: refused before it is built
+    "oversized policy": (lambda g, p, t: _rewrite(g, p, _edit_data(
+        lambda d: d["policy_kwargs"]["train_config"].update(width=4096, blocks=4096))),
+        "declares a policy of 137,473,163,611 parameters"),
+    "a width past the cap": (lambda g, p, t: _rewrite(g, p, _edit_data(
+        lambda d: d["policy_kwargs"]["train_config"].update(critic_hidden=10**6))),
+        "critic_hidden must be an integer in [1, 4096], got 1000000"),
+    "oversized rollout": (lambda g, p, t: _rewrite(g, p, _edit_data(
+        lambda d: d["policy_kwargs"]["train_config"].update(n_steps=10**9, batch_size=64))),
+        "rollout (n_steps 1000000000 x n_envs"),
 }
 
 
 IN_WEIGHTS = {"policy not torch", "policy a tensor", "wrong shapes", "bad counter"}
+TOO_LARGE = {"oversized policy", "a width past the cap", "oversized rollout"}
 
 
 @pytest.mark.parametrize("case", sorted(MALFORMED))
-def test_every_malformed_zip_is_one_line_naming_it(genuine, tmp_path, capsys, case):
+def test_every_malformed_zip_is_one_line_naming_it(genuine, tmp_path, capsys, monkeypatch, case):
     make, what = MALFORMED[case]
     path = make(genuine, tmp_path / f"{case.replace(' ', '-')}.zip", tmp_path)
+    if case in TOO_LARGE:  # refused from the stored sizes alone: building the model would allocate it
+        def refuse(*args, **kwargs):
+            raise AssertionError("a model was built for a zip that declares one too large")
+        monkeypatch.setattr(ppo_archive, "build_model", refuse)
     if what is None:  # no optimizer state: fine for predicting, refused for continuing training
         load_ppo_actor(path)
         capsys.readouterr()
