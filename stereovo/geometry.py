@@ -112,11 +112,21 @@ def se3_log(R: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 def make_transform(R: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """4x4 homogeneous matrices ``(..., 4, 4)`` from ``R (..., 3, 3)`` and ``t (..., 3)``."""
+    """4x4 homogeneous matrices ``(..., 4, 4)`` from ``R (..., 3, 3)`` and ``t (..., 3)`` (``t`` may
+    broadcast over ``R``'s leading axes).
+
+    Raises:
+        ValueError: naming ``R`` or ``t`` and its shape, when either does not fit.
+    """
     R = np.asarray(R, dtype=float)
+    if R.shape[-2:] != (3, 3):
+        raise ValueError(f"R must have shape (..., 3, 3), got {R.shape}")
     T = np.zeros(R.shape[:-2] + (4, 4))
     T[..., :3, :3] = R
-    T[..., :3, 3] = t
+    try:
+        T[..., :3, 3] = t
+    except ValueError:
+        raise ValueError(f"t must have shape (..., 3) fitting R's {R.shape}, got {np.shape(t)}") from None
     T[..., 3, 3] = 1.0
     return T
 

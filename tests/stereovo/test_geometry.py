@@ -582,11 +582,19 @@ def test_pose_update_of_batches_lists_and_other_dtypes_is_the_formula():
     nan_pose = pose_update(pose, R, t_nan)
     np.testing.assert_allclose(nan_pose[:3, :3], one[:3, :3], rtol=0, atol=1e-15)
     assert np.all(np.isnan(nan_pose[:, 3])) and np.array_equal(nan_pose[3, :3], [0.0, 0.0, 0.0])  # 0 * NaN in row 3
-    for bad_R, bad_t in ((np.zeros((4, 3)), t), (np.zeros((3, 4)), t), (R, np.zeros(4)), (R, np.zeros((2, 3)))):
-        # numpy's message (make_transform does not check the shapes itself): it names the bad shape, not R or t
-        shape = re.escape(str(np.shape(bad_R if np.shape(bad_R) != (3, 3) else bad_t)).replace(" ", ""))
-        with pytest.raises(ValueError, match=rf"could not broadcast input array from shape {shape}"):
+    for bad_R, bad_t, message in (
+            (np.zeros((4, 3)), t, "R must have shape (..., 3, 3), got (4, 3)"),
+            (np.zeros((3, 4)), t, "R must have shape (..., 3, 3), got (3, 4)"),
+            (np.zeros(3), t, "R must have shape (..., 3, 3), got (3,)"),
+            (R, np.zeros(4), "t must have shape (..., 3) fitting R's (3, 3), got (4,)"),
+            (R, np.zeros((2, 3)), "t must have shape (..., 3) fitting R's (3, 3), got (2, 3)")):
+        with pytest.raises(ValueError, match=re.escape(message)):
             pose_update(pose, bad_R, bad_t)
+        with pytest.raises(ValueError, match=re.escape(message)):
+            make_transform(bad_R, bad_t)
+    # t broadcasts over R's leading axes: one translation for a batch of rotations
+    batch = make_transform(np.stack([R, R.T]), t)
+    assert batch.shape == (2, 4, 4) and np.array_equal(batch[1, :3, 3], t) and np.array_equal(batch[1, :3, :3], R.T)
 
 
 def test_rotation_error_of_float64_matrices_is_the_swapaxes_formulation():
