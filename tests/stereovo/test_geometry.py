@@ -608,3 +608,8 @@ def test_rotation_error_of_float64_matrices_is_the_swapaxes_formulation():
         assert rotation_error(R_est, R_true) == want
     stack = np.stack([np.eye(3), so3_exp(np.array([0.1, 0.2, 0.3]))])
     np.testing.assert_array_equal(rotation_error(stack, np.eye(3)), rotation_angle(np.swapaxes(stack, -1, -2)))
+    # nested lists and other dtypes take the general formulation, with the same values
+    R_est, R_true = so3_exp(np.array([0.3, -0.2, 0.1])), so3_exp(np.array([0.0, 0.4, 0.2]))
+    assert rotation_error(R_est.tolist(), R_true) == rotation_error(R_est, R_true)
+    assert rotation_error(R_est.astype(np.float32), R_true) == rotation_angle(
+        np.swapaxes(R_est.astype(np.float32).astype(float), -1, -2) @ R_true)
