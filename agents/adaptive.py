@@ -47,6 +47,8 @@ from torch import nn
 from agents.checkpoint import (
     IN_FRAME,
     IN_FRAME_FORMAT,
+    MAX_NETWORK_PARAMETERS,
+    MAX_NETWORK_SIZE,
     CheckpointError,
     check_names,
     check_network_sizes,
@@ -306,8 +308,10 @@ _TRAIN_RULES: dict[str, Option] = {
     "minutes": Number(low=0.0, low_open=True),
     "clock": Choice(choices=("wall", "cpu")),
     "max_episodes": Integer(low=1, allow_none=True),
-    **{name: Integer(low=1) for name in ("frames_per_episode", "batch_size", "max_hypotheses", "n", "width", "blocks",
+    **{name: Integer(low=1) for name in ("frames_per_episode", "batch_size", "max_hypotheses", "n",
                                          "frames_per_update")},
+    # a network a checkpoint can hold (agents.checkpoint refuses larger ones at load)
+    **{name: Integer(low=1, high=MAX_NETWORK_SIZE) for name in ("width", "blocks")},
     "epsilons": ContaminationRange(),
     "hard_epsilons": ContaminationRange(),
 }
@@ -375,6 +379,11 @@ class AdaptiveTrainConfig:
 
     def __post_init__(self) -> None:
         check_options(_TRAIN_RULES, vars(self), prefix="", only=_TRAIN_RULES)
+        count = AdaptiveSamplerNet.parameter_count(_NETWORK_SIZES["n_features"], _NETWORK_SIZES["n_globals"],
+                                                   self.width, self.blocks)
+        if count > MAX_NETWORK_PARAMETERS:
+            raise ValueError(f"width {self.width} and blocks {self.blocks} make a network of {count:,} parameters, "
+                             f"more than the {MAX_NETWORK_PARAMETERS:,} a checkpoint may hold")
         if self.prior is not None and self.init is not None:
             raise ValueError("prior starts a fresh network; init continues a checkpoint (which keeps its own prior)")
 

@@ -29,8 +29,8 @@ from typing import Any, Callable, Iterator
 import numpy as np
 import torch
 
-from agents.checkpoint import load_checkpoint, save_checkpoint
-from agents.network import CorrespondenceNet
+from agents.checkpoint import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE, load_checkpoint, save_checkpoint
+from agents.network import CorrespondenceNet, correspondence_net_parameters
 from stereovo.estimation import (
     EstimatorOptions,
     MotionEstimate,
@@ -108,6 +108,14 @@ class NGRansacConfig:
         for name in ("budget", "pools", "frames", "frames_per_sequence", "width", "blocks", "eval_frames"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        # a network a checkpoint can hold (agents.checkpoint refuses larger ones at load)
+        for name in ("width", "blocks"):
+            if getattr(self, name) > MAX_NETWORK_SIZE:
+                raise ValueError(f"{name} must be <= {MAX_NETWORK_SIZE}, got {getattr(self, name)}")
+        count = correspondence_net_parameters(N_FEATURES, self.width, self.blocks)
+        if count > MAX_NETWORK_PARAMETERS:
+            raise ValueError(f"width {self.width} and blocks {self.blocks} make a network of {count:,} parameters, "
+                             f"more than the {MAX_NETWORK_PARAMETERS:,} a checkpoint may hold")
         if self.max_grad_norm is not None and not self.max_grad_norm > 0:
             raise ValueError(f"max_grad_norm must be None or > 0, got {self.max_grad_norm}")
         if not self.entropy_weight >= 0:

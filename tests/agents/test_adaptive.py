@@ -252,6 +252,9 @@ def test_a_run_shorter_than_one_log_window_still_logs_it(tmp_path):
     ({"minutes": 0}, "minutes"), ({"minutes": float("nan")}, "minutes"), ({"clock": "gpu"}, "clock"),
     ({"max_episodes": 0}, "max_episodes"), ({"epsilons": (0.9, 0.5)}, "epsilons"), ({"n": 0}, "n must"),
     ({"prior": "ngransac-supervised", "init": "adaptive-pg"}, "prior starts a fresh network"),
+    # a network a checkpoint can hold: each size within 4096, the total within 2^24 parameters
+    ({"width": 5000}, "width must be an integer >= 1 and <= 4096, got 5000"),
+    ({"width": 2048, "blocks": 2}, "width 2048 and blocks 2 make a network of 25,247,746 parameters"),
 ])
 def test_bad_settings_are_named(kw, match):
     with pytest.raises(ValueError, match=match):

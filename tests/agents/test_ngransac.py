@@ -186,6 +186,11 @@ def test_entropy_bonus_keeps_the_sampling_distribution_spread_and_settings_are_v
         NGRansacConfig(entropy_weight=-1.0)
     with pytest.raises(ValueError, match="max_grad_norm"):
         NGRansacConfig(max_grad_norm=0.0)
+    # a network a checkpoint can hold: each size within 4096, the total within 2^24 parameters
+    with pytest.raises(ValueError, match="blocks must be <= 4096, got 5000"):
+        NGRansacConfig(blocks=5000)
+    with pytest.raises(ValueError, match="width 2048 and blocks 2 make a network of 16,818,177 parameters"):
+        NGRansacConfig(width=2048, blocks=2)
 
 
 def test_smoothness_loss_prefers_the_motion_that_continues_the_previous_one():
