@@ -43,6 +43,7 @@ import torch
 
 from agents.catalog import IN_FRAME, IN_FRAME_SAMPLERS, ONE_SHOT, SHIPPED_FOLDER, SHIPPED_PACKAGE, SHIPPED_SAMPLERS
 from agents.network import CorrespondenceNet, correspondence_net_parameters, correspondence_net_shapes
+from stereovo.options import value_repr
 from vo_gym.features import FEATURE_LAYOUT_VERSION, FEATURE_NAMES, check_feature_layout
 
 FORMAT_VERSION = 1
@@ -141,9 +142,9 @@ before any network is built (its sizes alone would otherwise allocate up to hund
 
 
 def shown(value: Any, limit: int = 80) -> str:
-    """``repr(value)`` cut to ``limit`` characters, for a one-line message about a file's entry."""
-    text = repr(value)
-    return text if len(text) <= limit else text[: limit - 3] + "..."
+    """A file's entry for a one-line message: :func:`stereovo.options.value_repr` cut to ``limit``
+    characters (a huge integer written by its magnitude)."""
+    return value_repr(value, limit)
 
 
 def check_names(path: Path, key: str, names: Any) -> tuple[str, ...]:

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import importlib
 import os
-import pickle  # numba's own cache index format, written by numba beside the source or in its cache folder
 import sys
 from pathlib import Path
 from typing import Iterable, TextIO
@@ -65,21 +64,20 @@ def is_cached(kernel: Dispatcher) -> bool:
             return True
     except OSError:
         return False
-    return _index_is_fresh(kernel, index)
+    return _index_is_fresh(kernel)
 
 
-def _index_is_fresh(kernel: Dispatcher, index: Path) -> bool:
-    """Whether numba would load ``kernel``'s ``index``: its format version is this numba's, its stored
-    source stamp is the one numba computes for the source now, and it lists a compiled signature.
-    numba has no public call for this (its own reader compares with the stamp taken at import), so a
-    numba without these attributes counts the kernel as uncached (the line is then printed)."""
+def _index_is_fresh(kernel: Dispatcher) -> bool:
+    """Whether numba would load ``kernel`` from its index: numba's own reader of the index (which
+    compares the stamp stored there with the source's stamp taken when the kernel was defined) finds
+    a compiled signature, and the source has not changed since it was defined. This module never
+    unpickles the index itself. numba has no public call for this, so a numba without these
+    attributes counts the kernel as uncached (the line is then printed)."""
     try:
-        with index.open("rb") as fh:
-            version = pickle.load(fh)
-            if version != kernel._cache._cache_file._version:
-                return False
-            stamp, overloads = pickle.loads(fh.read())
-        return stamp == kernel._cache._impl.locator.get_source_stamp() and bool(overloads)
+        cache_file = kernel._cache._cache_file
+        if cache_file._source_stamp != kernel._cache._impl.locator.get_source_stamp():
+            return False  # edited since it was imported: numba would compile it
+        return bool(cache_file._load_index())
     except Exception:  # noqa: BLE001 - any failure of numba's private parts means "not known to be cached"
         return False
 

@@ -68,13 +68,13 @@ _REPR_LIMIT = 200  # characters of a value's repr in a message; a longer one is 
 _BIG_INT_BITS = 200  # integers of more bits (some 60 digits) are written by magnitude, not digit by digit
 
 
-def value_repr(value: Any) -> str:
+def value_repr(value: Any, limit: int = _REPR_LIMIT) -> str:
     """``repr(value)`` for an error message, abbreviated where it would be enormous.
 
     An integer of more than some 60 digits is written by its magnitude and number of digits
     (``~1e+400 (an integer of 401 digits)``; Python refuses ``repr`` of an int beyond 4300 digits),
-    also inside a short tuple, list or dict; any other repr longer than 200 characters is cut
-    (``...``). Never raises.
+    also inside a short tuple, list or dict; any other repr longer than ``limit`` characters (200) is
+    cut (``...``). Never raises.
     """
     if is_integer(value):
         v = int(value)
@@ -85,17 +85,17 @@ def value_repr(value: Any) -> str:
                 digits -= 1
             return f"~{'-' if v < 0 else ''}{10 ** (log % 1):.3g}e+{math.floor(log)} (an integer of {digits} digits)"
     elif type(value) in (tuple, list) and len(value) <= 16:
-        items = [value_repr(x) for x in value]
+        items = [value_repr(x, limit) for x in value]
         if type(value) is tuple:
             return "(" + ", ".join(items) + ("," if len(items) == 1 else "") + ")"
         return "[" + ", ".join(items) + "]"
     elif type(value) is dict and len(value) <= 16:
-        return "{" + ", ".join(f"{value_repr(k)}: {value_repr(v)}" for k, v in value.items()) + "}"
+        return "{" + ", ".join(f"{value_repr(k, limit)}: {value_repr(v, limit)}" for k, v in value.items()) + "}"
     try:
         text = repr(value)
     except Exception:  # a repr that fails (an int past Python's digit limit inside a container, ...)
         return f"<{type(value).__name__} object>"
-    return text if len(text) <= _REPR_LIMIT else text[: _REPR_LIMIT - 3] + "..."
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _fmt(x: float) -> str:

@@ -372,7 +372,9 @@ def guarded(command: str, run: Callable[[], int]) -> int:
         print(f"vo-gym {command}: error: {err}", file=sys.stderr)
         return EXIT_USAGE
     except ValueError as err:
-        if not _infeasible_settings(err):
+        from stereovo.simulation import InfeasibleSettingsError  # only on this path: the parser stays light
+
+        if not isinstance(err, InfeasibleSettingsError):
             raise
         # settings that passed their checks but the simulator cannot draw a frame from (its message
         # names them and what to change), raised once frames are drawn
@@ -390,13 +392,6 @@ def guarded(command: str, run: Callable[[], int]) -> int:
     if code == EXIT_INTERRUPTED:
         sys.unraisablehook = quiet_pool_exit
     return code
-
-
-def _infeasible_settings(err: BaseException) -> bool:
-    """Whether ``err`` is the simulator's :class:`stereovo.simulation.InfeasibleSettingsError` (looked
-    up where it was raised from, so that building the parser imports no simulation code)."""
-    config = sys.modules.get("stereovo.simulation.config")
-    return config is not None and isinstance(err, config.InfeasibleSettingsError)
 
 
 def stoppable(command: str, run: Callable[[], int]) -> int:
