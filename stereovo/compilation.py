@@ -10,7 +10,9 @@ has no cache entry yet; it says nothing otherwise, and at most once per process.
 A kernel counts as cached when numba's index file for it (``<module>.<qualname>-<line>.pyXY.nbi``
 in the dispatcher's ``stats.cache_path``, beside the source or in numba's user-wide cache
 folder) exists and numba would load it: not older than its source file (the quick test, without
-unpickling the index), or else holding the stamp numba computes for the source now. Recent numba
+reading the index), or else accepted by numba's own reader of it (the stamp stored there is the
+source's, which has not changed since the kernel was defined; this module never unpickles the
+index itself). Recent numba
 (0.68 here; numba/numba#10659) stamps a hash of the source's bytes, earlier ones its time and size,
 so with the former a file that was only touched (a checkout, a merge) keeps its cache, and numba
 never rewrites that index: a test of the times alone would announce a compilation on every run.
