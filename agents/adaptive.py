@@ -47,8 +47,6 @@ from torch import nn
 from agents.checkpoint import (
     IN_FRAME,
     IN_FRAME_FORMAT,
-    MAX_NETWORK_PARAMETERS,
-    MAX_NETWORK_SIZE,
     CheckpointError,
     check_names,
     check_network_sizes,
@@ -58,7 +56,8 @@ from agents.checkpoint import (
     shipped_checkpoint,
     shown,
 )
-from agents.network import PAD_LOGIT, CorrespondenceNet, correspondence_net_parameters, correspondence_net_shapes
+from agents.network import PAD_LOGIT, CorrespondenceNet, correspondence_net_shapes
+from agents.network_size import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE, correspondence_net_parameters
 from agents.ngransac import ordered_triplet_log_prob, randomised_settings
 from stereovo.options import Choice, Integer, Number, Option, check_options
 from vo_gym.adaptive_env import ADAPTIVE_FEATURE_NAMES, GLOBAL_FEATURE_NAMES, StereoVOAdaptiveEnv
@@ -233,8 +232,8 @@ _PRIOR_SIZES = {"n_features": None, "width": 64, "blocks": 3}
 def check_adaptive_payload(path: Path, payload: Any) -> dict[str, Any]:
     """An in-frame checkpoint's schema (what :func:`save_adaptive` writes), checked before any network
     is built: the format, every entry's type, the feature layout, the network's sizes (each in
-    [1, :data:`agents.checkpoint.MAX_NETWORK_SIZE`], all together within
-    :data:`agents.checkpoint.MAX_NETWORK_PARAMETERS`, the prior's included) and every weight's shape
+    [1, :data:`agents.network_size.MAX_NETWORK_SIZE`], all together within
+    :data:`agents.network_size.MAX_NETWORK_PARAMETERS`, the prior's included) and every weight's shape
     and finiteness. Returns the keywords of :class:`AdaptiveSamplerNet`.
 
     Raises:

@@ -42,7 +42,8 @@ import numpy as np
 import torch
 
 from agents.catalog import IN_FRAME, IN_FRAME_SAMPLERS, ONE_SHOT, SHIPPED_FOLDER, SHIPPED_PACKAGE, SHIPPED_SAMPLERS
-from agents.network import CorrespondenceNet, correspondence_net_parameters, correspondence_net_shapes
+from agents.network import CorrespondenceNet, correspondence_net_shapes
+from agents.network_size import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE, correspondence_net_parameters
 from stereovo.options import value_repr
 from vo_gym.features import FEATURE_LAYOUT_VERSION, FEATURE_NAMES, check_feature_layout
 
@@ -130,15 +131,6 @@ def read_payload(path: str | os.PathLike) -> Any:
             raise _fail(path, "is not a file")
         raise FileNotFoundError(f"no checkpoint at {path}")
     return _torch_load(path)
-
-
-MAX_NETWORK_SIZE = 4096
-"""The largest size (features, width, blocks) a checkpoint's network may declare, each on its own."""
-MAX_NETWORK_PARAMETERS = 2 ** 24
-"""The most parameters a checkpoint's networks may declare, all together: 16,777,216 (64 MiB of
-float32). The shipped samplers hold 6,849 (``ppo``) to 33,411 (``adaptive-pg-prior``), about 500
-times fewer, and the cap still admits e.g. width 1024 with 7 blocks; a file declaring more is refused
-before any network is built (its sizes alone would otherwise allocate up to hundreds of GB)."""
 
 
 def shown(value: Any, limit: int = 80) -> str:

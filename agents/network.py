@@ -95,9 +95,3 @@ def correspondence_net_shapes(n_features: int, width: int, blocks: int, prefix: 
             shapes[f"{prefix}blocks.{i}.{layer}.bias"] = (width,)
     shapes.update({f"{prefix}head.weight": (1, width), f"{prefix}head.bias": (1,)})
     return shapes
-
-
-def correspondence_net_parameters(n_features: int, width: int, blocks: int) -> int:
-    """The number of parameters of ``CorrespondenceNet(n_features, width, blocks)`` (the sum over
-    :func:`correspondence_net_shapes`), by arithmetic: nothing is allocated."""
-    return width * (n_features + 1) + blocks * 2 * width * (width + 1) + width + 1

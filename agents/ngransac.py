@@ -29,8 +29,9 @@ from typing import Any, Callable, Iterator
 import numpy as np
 import torch
 
-from agents.checkpoint import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE, load_checkpoint, save_checkpoint
-from agents.network import CorrespondenceNet, correspondence_net_parameters
+from agents.checkpoint import load_checkpoint, save_checkpoint
+from agents.network import CorrespondenceNet
+from agents.network_size import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE, correspondence_net_parameters
 from stereovo.estimation import (
     EstimatorOptions,
     MotionEstimate,

@@ -19,8 +19,8 @@ from typing import Any
 
 import torch
 
-from agents.checkpoint import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE, CheckpointError
-from agents.network import CorrespondenceNet, correspondence_net_parameters
+from agents.checkpoint import CheckpointError
+from agents.network import CorrespondenceNet
 from agents.ppo.config import PPOConfig, build_model
 from vo_gym.features import N_FEATURES, check_feature_layout
 
@@ -114,24 +114,10 @@ def _zip_config(path: Path, data: dict[str, Any]) -> tuple[PPOConfig, dict[str, 
 
 
 def _check_model_size(path: Path, config: PPOConfig) -> None:
-    """Refuse a stored config whose policy or rollout buffer would be larger than anything trained here,
-    before :func:`build_model` allocates them: the sizes each within :data:`MAX_NETWORK_SIZE`, the
-    policy's parameters (actor, critic trunk, critic MLP) within :data:`MAX_NETWORK_PARAMETERS`, and
-    the rollout within :data:`MAX_ROLLOUT_VALUES`."""
-    sizes = {"width": config.width, "blocks": config.blocks, "critic_hidden": config.critic_hidden,
-             "critic_width": config.width if config.critic_width is None else config.critic_width}
-    for name, value in sizes.items():
-        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_NETWORK_SIZE:
-            raise zip_failure(path, f"its train_config's {name} must be an integer in [1, {MAX_NETWORK_SIZE}], "
-                                    f"got {value!r}")
-    width, hidden = sizes["critic_width"], sizes["critic_hidden"]
-    count = correspondence_net_parameters(N_FEATURES, config.width, config.blocks)
-    if not config.share_trunk:
-        count += correspondence_net_parameters(N_FEATURES, width, config.blocks)
-    count += 2 * width * hidden + hidden + hidden * hidden + hidden + hidden + 1  # the critic's MLP
-    if count > MAX_NETWORK_PARAMETERS:
-        raise zip_failure(path, f"its train_config declares a policy of {count:,} parameters, more than the "
-                                f"{MAX_NETWORK_PARAMETERS:,} any model here has")
+    """Refuse a stored config whose rollout buffer would be larger than anything trained here
+    (:data:`MAX_ROLLOUT_VALUES`), before :func:`build_model` allocates it. The policy's sizes were
+    checked when the config was built (:class:`PPOConfig` holds them within
+    :data:`agents.network_size.MAX_NETWORK_SIZE` and :data:`agents.network_size.MAX_NETWORK_PARAMETERS`)."""
     values = config.n_steps * config.n_envs * config.n_correspondences * (N_FEATURES + 1)
     if values > MAX_ROLLOUT_VALUES:
         raise zip_failure(path, f"its train_config's rollout (n_steps {config.n_steps} x n_envs {config.n_envs} x "

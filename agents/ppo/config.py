@@ -13,16 +13,19 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from agents.network_size import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE, ppo_policy_parameters
 from stereovo.options import Choice, Integer, Number, Option, check_options
-from vo_gym.features import FEATURE_LAYOUT_VERSION, FEATURE_NAMES
+from vo_gym.features import FEATURE_LAYOUT_VERSION, FEATURE_NAMES, N_FEATURES
 from vo_gym.settings import ContaminationRange
 
 VEC_ENVS = ("dummy", "subproc")
 
 _PPO_RULES: dict[str, Option] = {
     **{name: Integer(low=1) for name in ("n_envs", "timesteps", "n_frames", "n_correspondences", "budget", "n_steps",
-                                         "batch_size", "n_epochs", "width", "blocks", "critic_hidden", "eval_every",
-                                         "eval_frames", "checkpoint_every")},
+                                         "batch_size", "n_epochs", "eval_every", "eval_frames", "checkpoint_every")},
+    # a policy a checkpoint can hold (agents.checkpoint and agents.ppo.archive refuse larger ones at load)
+    **{name: Integer(low=1, high=MAX_NETWORK_SIZE) for name in ("width", "blocks", "critic_hidden")},
+    "critic_width": Integer(low=1, high=MAX_NETWORK_SIZE, allow_none=True),
     "eval_n_correspondences": Integer(low=3, allow_none=True),
     "max_wall_s": Number(low=0.0, low_open=True, allow_none=True, unit="s"),
     "vec_env": Choice(choices=VEC_ENVS),
@@ -98,12 +101,23 @@ class PPOConfig:
     def __post_init__(self) -> None:
         for name, value in check_options(_PPO_RULES, vars(self), prefix="PPO: ", only=_PPO_RULES).items():
             setattr(self, name, value)
+        count = self.policy_parameters()
+        if count > MAX_NETWORK_PARAMETERS:
+            raise ValueError(f"PPO: width {self.width}, blocks {self.blocks}, critic_width {self.critic_width} and "
+                             f"critic_hidden {self.critic_hidden} make a policy of {count:,} parameters, more than "
+                             f"the {MAX_NETWORK_PARAMETERS:,} a checkpoint may hold")
         if self.batch_size > self.n_steps * self.n_envs:
             raise ValueError(
                 f"PPO: batch_size={self.batch_size} exceeds the rollout size n_steps * n_envs = "
                 f"{self.n_steps * self.n_envs}"
             )
         self.env_kwargs = dict(self.env_kwargs)
+
+    def policy_parameters(self) -> int:
+        """The policy's parameter count (actor, critic trunk, critic MLP), from the sizes alone."""
+        critic_width = self.width if self.critic_width is None or self.share_trunk else self.critic_width
+        return ppo_policy_parameters(N_FEATURES, self.width, self.blocks, critic_width, self.critic_hidden,
+                                     bool(self.share_trunk))
 
     def train_env_kwargs(self) -> dict[str, Any]:
         return {**self.env_kwargs, "n_frames": self.n_frames, "n_correspondences": self.n_correspondences,

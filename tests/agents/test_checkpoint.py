@@ -238,7 +238,8 @@ def test_hostile_one_shot_files_are_refused_before_any_network_is_built(tmp_path
 
 
 def test_network_sizes_give_the_shapes_and_count_of_the_network_they_build():
-    from agents.network import correspondence_net_parameters, correspondence_net_shapes
+    from agents.network import correspondence_net_shapes
+    from agents.network_size import correspondence_net_parameters
 
     for sizes in [(N_FEATURES, 8, 1), (N_FEATURES, 64, 3), (3, 5, 0), (25, 32, 2)]:
         state = CorrespondenceNet(*sizes).state_dict()
@@ -248,7 +249,7 @@ def test_network_sizes_give_the_shapes_and_count_of_the_network_they_build():
 
 @pytest.mark.parametrize("name", SHIPPED_SAMPLERS)
 def test_the_shipped_networks_are_far_below_the_size_cap(name):
-    from agents.network import correspondence_net_parameters
+    from agents.network_size import correspondence_net_parameters
 
     with ckpt.shipped_checkpoint(name) as path:
         payload = torch.load(path, weights_only=True)

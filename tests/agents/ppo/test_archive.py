@@ -232,10 +232,10 @@ MALFORMED = {
     # sizes each valid for PPOConfig, whose model would not fit in memory: refused before it is built
     "oversized policy": (lambda g, p, t: _rewrite(g, p, _edit_data(
         lambda d: d["policy_kwargs"]["train_config"].update(width=4096, blocks=4096))),
-        "declares a policy of 137,473,163,611 parameters"),
+        "make a policy of 137,473,163,612 parameters"),
     "a width past the cap": (lambda g, p, t: _rewrite(g, p, _edit_data(
         lambda d: d["policy_kwargs"]["train_config"].update(critic_hidden=10**6))),
-        "critic_hidden must be an integer in [1, 4096], got 1000000"),
+        "critic_hidden must be an integer >= 1 and <= 4096, got 1000000"),
     "oversized rollout": (lambda g, p, t: _rewrite(g, p, _edit_data(
         lambda d: d["policy_kwargs"]["train_config"].update(n_steps=10**9, batch_size=64))),
         "rollout (n_steps 1000000000 x n_envs"),
