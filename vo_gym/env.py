@@ -445,16 +445,16 @@ class StereoVOEnv(gym.Env):
         clipped = clipped_finite(a, self.action_bound)  # np.clip's values, in one pass (the bounds are ordered)
         if clipped is not None:
             return clipped
+        # clipped_finite met a NaN or inf: refused in a valid slot
         finite = np.isfinite(a)
-        if not finite.all():
-            usable = self._problem.usable if self._problem is not None else None
-            bad = np.flatnonzero(~finite if usable is None else ~finite & usable)
-            if bad.size:
-                raise ValueError(
-                    f"StereoVOEnv: the action has NaN or inf in {bad.size} valid slot(s) (first: slot {int(bad[0])})"
-                )
-            # only rows without depth (never sampled): any value will do, the lowest keeps the weights finite
-            a = np.where(finite, a, -self.action_bound)
+        usable = self._problem.usable if self._problem is not None else None
+        bad = np.flatnonzero(~finite if usable is None else ~finite & usable)
+        if bad.size:
+            raise ValueError(
+                f"StereoVOEnv: the action has NaN or inf in {bad.size} valid slot(s) (first: slot {int(bad[0])})"
+            )
+        # only rows without depth (never sampled): any value will do, the lowest keeps the weights finite
+        a = np.where(finite, a, -self.action_bound)
         # np.clip's values without its Python wrapper (the bounds are ordered, the values finite)
         return np.minimum(np.maximum(a, -self.action_bound), self.action_bound)
 

@@ -273,3 +273,21 @@ def test_vo_agent_errors_are_one_line(tmp_path, capsys):
     assert main(["vo", "--agent", "ppo", "--method", "inlier-detection", "--frames", "2",
                  "--out", str(tmp_path / "v")]) == 2
     assert "does not sample" in one_line_error(capsys, "vo")
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--source", "rendered", "--outlier-preset", "hostile"],
+     "--outlier-preset applies to simulated matches only, not to --source rendered"),
+    (["--source", "rendered", "--outliers", "0.3"], "--outliers applies to simulated matches only"),
+    (["--source", "kitti:/data", "--n", "200"], "--n applies to simulated matches only, not to --source kitti:/data"),
+    (["--source", "rendered:free", "--auc", "0.9"], "--auc applies to simulated matches only"),
+    (["--resolution", "vga"], "--resolution vga applies to a rendered --source only, not to simulated matches"),
+    (["--source", "kitti:/data", "--resolution", "vga"],
+     "--resolution vga applies to a rendered or simulated sequence, not to --source kitti:/data"),
+    (["--source", "kitti:/data", "--preset", "free"], "--preset free applies to a rendered or simulated sequence"),
+    (["--source", "rendered:free", "--preset", "car"], "--preset car contradicts --source rendered:free"),
+])
+def test_an_option_the_input_would_ignore_is_refused_naming_it(tmp_path, capsys, args, needle):
+    assert main(["vo", *args, "--out", str(tmp_path / "v")]) == 2
+    assert needle in one_line_error(capsys, "vo")
+    assert not (tmp_path / "v").exists()

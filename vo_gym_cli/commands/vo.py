@@ -89,27 +89,30 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
              "(needs the 'images' and 'render' extras; PRESET car or free, else --preset) or a KITTI odometry "
              "sequence on disk (PATH a dataset folder with sequences/SEQ/, default SEQ 00, or one sequence's "
              "folder; needs the 'images' extra); --outliers, --outlier-preset, --n and --auc apply to simulated "
-             "matches only (default: simulated matches)",
+             "matches only and are refused with it (default: simulated matches)",
     )
-    parser.add_argument("--resolution", default="kitti", choices=["kitti", "vga"],
-                        help="a rendered source's image size: kitti (1241x376) or vga (640x480)")
-    parser.add_argument("--preset", default="car", choices=list(PRESETS), help="motion preset")
+    parser.add_argument("--resolution", default=None, choices=["kitti", "vga"],
+                        help="a rendered source's image size: kitti (1241x376, the default) or vga (640x480)")
+    parser.add_argument("--preset", default=None, choices=list(PRESETS),
+                        help="motion preset of simulated matches or a rendered source (default car; "
+                             "a KITTI sequence has its own motion)")
     parser.add_argument("--frames", type=positive_int("--frames"), default=300,
                         help="frame pairs to simulate or render (a KITTI sequence: at most this many, from its start)")
     parser.add_argument(
-        "--outliers", type=parse_outliers, default=0.5, metavar="EPS|LO:HI",
-        help="outlier ratio, fixed (0.5) or drawn per frame from a range (0.3:0.9)",
+        "--outliers", type=parse_outliers, default=None, metavar="EPS|LO:HI",
+        help="outlier ratio, fixed or drawn per frame from a range (0.3:0.9) (default 0.5)",
     )
     parser.add_argument(
-        "--outlier-preset", default="default", choices=list(OUTLIER_PRESETS),
-        help="the kinds of match errors: the simulator's default mix, or hostile (independent left/right "
-             "mismatches, duplicates, far clutter, repetitive texture, Student-t pixel noise)",
+        "--outlier-preset", default=None, choices=list(OUTLIER_PRESETS),
+        help="the kinds of match errors: the simulator's default mix (the default), or hostile (independent "
+             "left/right mismatches, duplicates, far clutter, repetitive texture, Student-t pixel noise)",
     )
     parser.add_argument("--noise", type=finite_float("--noise", 1e-3, 1e3), default=0.5,
                         help="pixel noise sigma (px), in [0.001, 1000]")
-    parser.add_argument("--n", type=bounded_int("--n", 3), default=500, help="correspondences per frame (>= 3)")
-    parser.add_argument("--auc", type=finite_float("--auc"), default=0.75,
-                        help="match-score ROC AUC in [0.5, 1) (0.5 = uninformative)")
+    parser.add_argument("--n", type=bounded_int("--n", 3), default=None,
+                        help="correspondences per frame (>= 3; default 500)")
+    parser.add_argument("--auc", type=finite_float("--auc"), default=None,
+                        help="match-score ROC AUC in [0.5, 1) (0.5 = uninformative; default 0.75)")
     parser.add_argument(
         "--method", default="probabilistic", choices=_LazyMethodChoices(),
         help="estimator; PROSAC-style methods sample by the match scores' order, guided MLESAC by the "
@@ -240,7 +243,47 @@ _CONFIG_FLAGS = {"preset": "--preset", "n_frames": "--frames", "n_correspondence
                  "outlier_ratio": "--outliers", "outliers": "--outlier-preset", "score_auc": "--auc"}
 
 
+# The options of simulated matches only (their flags), and their defaults: given with --source, they
+# would be ignored, so they are refused instead.
+_SIMULATED_ONLY = {"outliers": "--outliers", "outlier_preset": "--outlier-preset", "n": "--n", "auc": "--auc"}
+_SIMULATED_DEFAULTS = {"outliers": 0.5, "outlier_preset": "default", "n": 500, "auc": 0.75, "preset": "car"}
+
+
+def check_source_options(args: argparse.Namespace) -> None:
+    """Refuse options the chosen input would ignore, and fill in the defaults of those it reads.
+
+    Raises:
+        UsageError: a simulated-matches option with ``--source``; ``--resolution`` without a rendered
+            source; ``--preset`` with a KITTI source or against the preset a ``rendered:PRESET`` names.
+    """
+    from stereovo.sequences.sources import parse_source as parse
+
+    if args.source is None:
+        if args.resolution is not None:
+            raise UsageError(f"--resolution {args.resolution} applies to a rendered --source only, not to "
+                             "simulated matches")
+        for dest, default in _SIMULATED_DEFAULTS.items():
+            if getattr(args, dest) is None:
+                setattr(args, dest, default)
+        return
+    given = [flag for dest, flag in _SIMULATED_ONLY.items() if getattr(args, dest) is not None]
+    if given:
+        raise UsageError(f"{given[0]} applies to simulated matches only, not to --source {args.source}")
+    kind, named = parse(args.source)
+    if kind != "rendered":
+        for flag, value in (("--resolution", args.resolution), ("--preset", args.preset)):
+            if value is not None:
+                raise UsageError(f"{flag} {value} applies to a rendered or simulated sequence, not to "
+                                 f"--source {args.source}")
+        return
+    if args.preset is not None and named.get("preset", args.preset) != args.preset:
+        raise UsageError(f"--preset {args.preset} contradicts --source {args.source}")
+    args.resolution = args.resolution or "kitti"
+    args.preset = args.preset or "car"
+
+
 def run(args: argparse.Namespace) -> int:
+    check_source_options(args)
     if args.source is not None:
         return _run_source(args)
     from stereovo.odometry import run_odometry
