@@ -1,21 +1,27 @@
-"""Whether numba's on-disk cache holds the compiled kernels, and one line when it does not.
+"""Whether numba's on-disk cache holds the compiled kernels, and one line when they compile.
 
 Every kernel of the package compiles with ``cache=True``: the first call in the first process
 after installing (or after a source file changed) compiles it, about half a minute for all of
 them on one core, and later processes load the machine code from disk in about a second. So
-that the first ``reset()`` or estimate does not sit silent for that half minute,
-:func:`announce_compiling` prints one line to stderr when a kernel the caller is about to use
-has no cache entry yet; it says nothing otherwise, and at most once per process.
+that the first ``reset()`` or estimate does not sit silent for that half minute, it calls
+:func:`announce_compiling`, which prints one line to stderr when one of the package's kernels
+starts compiling: it listens to numba's ``"numba:compile"`` event, which numba raises only for
+a kernel it did not find in its cache (a load from the cache raises none). So the line comes
+exactly when a compilation starts, for the kernels the caller really uses, at most once per
+process, and never on a run whose kernels all load from the cache, even when kernels of
+methods it does not run were never compiled.
 
-A kernel counts as cached when numba's index file for it (``<module>.<qualname>-<line>.pyXY.nbi``
-in the dispatcher's ``stats.cache_path``, beside the source or in numba's user-wide cache
-folder) exists and numba would load it: not older than its source file (the quick test, without
-reading the index), or else accepted by numba's own reader of it (the stamp stored there is the
-source's, which has not changed since the kernel was defined; this module never unpickles the
-index itself). Recent numba
-(0.68 here; numba/numba#10659) stamps a hash of the source's bytes, earlier ones its time and size,
-so with the former a file that was only touched (a checkout, a merge) keeps its cache, and numba
-never rewrites that index: a test of the times alone would announce a compilation on every run.
+Before workers are started (the trials runner), the parent asks instead whether the package's
+kernels are cached, without calling them (:func:`uncached_kernels`), prints the line if not and
+silences the workers (:data:`QUIET_ENV`). A kernel counts as cached when numba's index file for it
+(``<module>.<qualname>-<line>.pyXY.nbi`` in the dispatcher's ``stats.cache_path``, beside the
+source or in numba's user-wide cache folder) exists and numba would load it: not older than its
+source file (the quick test, without reading the index), or else accepted by numba's own reader
+of it (the stamp stored there is the source's, which has not changed since the kernel was
+defined; this module never unpickles the index itself). Recent numba (0.68 here;
+numba/numba#10659) stamps a hash of the source's bytes, earlier ones its time and size, so with
+the former a file that was only touched (a checkout, a merge) keeps its cache, and numba never
+rewrites that index: a test of the times alone would announce a compilation on every run.
 Kernels inlined into others (``inline="always"``) and helpers that only compiled code calls never
 get an index of their own, so a source file counts as compiled when any of its kernels has one:
 the first run compiles every file's kernels, a later edit recompiles that file's.
@@ -29,6 +35,7 @@ import sys
 from pathlib import Path
 from typing import Iterable, TextIO
 
+from numba.core import event
 from numba.core.dispatcher import Dispatcher
 
 # The modules whose kernels an estimate or an environment step compiles; their submodules too.
@@ -37,7 +44,11 @@ KERNEL_MODULES = ("stereovo", "vo_gym.features")
 MESSAGE = ("vo-gym: compiling the numba kernels on this first run (about 30 s on one core); "
            "they are cached on disk, later runs start in about a second")
 
+KERNEL_PACKAGES = ("stereovo", "vo_gym")
+"""The top-level packages whose kernels' compilation the line announces."""
+
 _announced = False  # once per process: a second line would only repeat the first
+_listener: "CompileNotice | None" = None
 
 QUIET_ENV = "VO_GYM_COMPILE_NOTICE_SHOWN"
 """Set (to any value) in a worker's environment when the process that started it printed the notice."""
@@ -111,21 +122,54 @@ def uncached_kernels(kernels: Iterable[Dispatcher] | None = None) -> list[str]:
                   for group in by_file.values() if not any(is_cached(k) for k in group) for k in group)
 
 
-def announce_compiling(kernels: Iterable[Dispatcher] | None = None, stream: TextIO | None = None) -> bool:
-    """Print :data:`MESSAGE` once per process if any of ``kernels`` (default: the package's) is not cached,
-    and not in a worker whose parent printed it (:data:`QUIET_ENV`).
-
-    Returns whether it printed. Cheap (a few hundred ``stat`` calls), so the first estimate and the
-    first environment reset call it unconditionally.
-    """
+def say_compiling(stream: TextIO | None = None) -> bool:
+    """Print :data:`MESSAGE` unless this process printed it already or its parent did (:data:`QUIET_ENV`);
+    returns whether it printed."""
     global _announced
     if _announced or os.environ.get(QUIET_ENV):
         return False
     _announced = True
-    if not uncached_kernels(kernels):
-        return False
     print(MESSAGE, file=stream if stream is not None else sys.stderr, flush=True)
     return True
+
+
+def announce_compiling(kernels: Iterable[Dispatcher] | None = None, stream: TextIO | None = None) -> bool:
+    """Say :data:`MESSAGE` (:func:`say_compiling`) when the package's kernels compile.
+
+    Without ``kernels``: from now on, print it when numba starts compiling one of the package's
+    kernels (:class:`CompileNotice`, installed once); returns False, nothing is printed now. With
+    ``kernels``: print it now if any of them is not cached (:func:`uncached_kernels`), for a caller
+    about to run them elsewhere; returns whether it printed.
+    """
+    global _listener
+    if kernels is None:
+        if _listener is None:
+            _listener = CompileNotice()
+            event.register("numba:compile", _listener)
+        _listener.stream = stream
+        return False
+    if _announced or os.environ.get(QUIET_ENV) or not uncached_kernels(kernels):
+        return False
+    return say_compiling(stream)
+
+
+class CompileNotice(event.Listener):
+    """Says :data:`MESSAGE` (:func:`say_compiling`) when numba starts compiling a kernel of
+    :data:`KERNEL_PACKAGES`: numba raises ``"numba:compile"`` only on a cache miss."""
+
+    def __init__(self) -> None:
+        self.stream: TextIO | None = None
+
+    def on_start(self, ev: event.Event) -> None:
+        if _announced:
+            return
+        data = ev.data if isinstance(ev.data, dict) else {}
+        module = getattr(getattr(data.get("dispatcher"), "py_func", None), "__module__", None) or ""
+        if module.split(".")[0] in KERNEL_PACKAGES:
+            say_compiling(self.stream)
+
+    def on_end(self, ev: event.Event) -> None:
+        pass
 
 
 def reset_announcement() -> None:

@@ -93,11 +93,11 @@ def announce_once_for_workers() -> bool:
     """Print the compile notice here if kernels are not cached, and silence it in worker processes
     started from now on (they inherit :data:`stereovo.compilation.QUIET_ENV`). Returns whether the
     kernels will compile."""
-    from stereovo.compilation import QUIET_ENV, announce_compiling, uncached_kernels
+    from stereovo.compilation import QUIET_ENV, say_compiling, uncached_kernels
 
     if not uncached_kernels():
         return False
-    announce_compiling()
+    say_compiling()
     os.environ[QUIET_ENV] = "1"
     return True
 

@@ -373,10 +373,10 @@ def test_the_compile_notice_is_silent_in_workers_of_a_run_that_printed_it(monkey
     compilation.reset_announcement()
     monkeypatch.setattr(compilation, "uncached_kernels", lambda kernels=None: ["k"])
     monkeypatch.setenv(compilation.QUIET_ENV, "1")  # what a worker inherits
-    assert compilation.announce_compiling() is False
+    assert compilation.say_compiling() is False and compilation.announce_compiling([object()]) is False
     monkeypatch.delenv(compilation.QUIET_ENV)
     compilation.reset_announcement()
-    assert compilation.announce_compiling() is True and compilation.announce_compiling() is False
+    assert compilation.announce_compiling([object()]) is True and compilation.say_compiling() is False
     assert capsys.readouterr().err.count(compilation.MESSAGE) == 1
     compilation.reset_announcement()
 

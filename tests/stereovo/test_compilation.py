@@ -115,6 +115,41 @@ def test_the_line_is_printed_once_and_only_when_compiling(fresh_kernel):
     assert quiet.getvalue() == ""
 
 
+PACKAGE_PROBE = (
+    "import importlib.util, io, sys\n"
+    "from stereovo import compilation\n"
+    "spec = importlib.util.spec_from_file_location('vo_gym.compilation_probe', {source!r})\n"
+    "m = sys.modules[spec.name] = importlib.util.module_from_spec(spec); spec.loader.exec_module(m)\n"
+    "out = io.StringIO()\n"
+    "compilation.announce_compiling(stream=out)\n"
+    "m.twice(2.0)\n"
+    "m.twice(3.0)\n"
+    "print(repr(out.getvalue()), sum(m.twice.stats.cache_hits.values()))\n"
+)
+
+
+def test_the_line_comes_when_a_package_kernel_compiles_and_never_from_the_cache(tmp_path, monkeypatch):
+    # A user's run whose kernels all load from the cache used to hear "compiling" on every run,
+    # because kernels of methods it never runs were never compiled.
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.delenv(compilation.QUIET_ENV, raising=False)
+    source = tmp_path / "compilation_probe.py"
+    source.write_text("from numba import njit\n\n@njit(cache=True)\ndef twice(x):\n    return 2.0 * x\n")
+    first, hits = run_python(PACKAGE_PROBE.format(source=str(source))).strip().rsplit(" ", 1)
+    assert first == repr(compilation.MESSAGE + "\n") and hits == "0"  # compiled: said once, not per call
+    second, hits = run_python(PACKAGE_PROBE.format(source=str(source))).strip().rsplit(" ", 1)
+    assert second == "''" and hits == "1"  # loaded from numba's cache: nothing said
+
+
+def test_a_kernel_outside_the_packages_compiles_without_the_line(fresh_kernel):
+    compilation.reset_announcement()
+    out = io.StringIO()
+    assert not compilation.announce_compiling(stream=out)  # installs the listener, says nothing yet
+    assert fresh_kernel.twice(1.0) == 2.0  # compiles: a module of its own, not stereovo's or vo_gym's
+    assert out.getvalue() == ""
+    compilation.announce_compiling()  # back to stderr for whatever runs next in this process
+
+
 def test_the_packages_kernels_are_found():
     import stereovo.estimation  # noqa: F401  (imports the kernels)
     import stereovo.simulation  # noqa: F401
