@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import stat
+
 import pytest
 
 from stereovo.trials import RunFolderError, prepare_run_folder
@@ -56,3 +59,16 @@ def test_a_non_empty_folder_is_refused_unless_resume_or_overwrite(tmp_path):
     assert not (tmp_path / JOURNAL).exists()
     with pytest.raises(RunFolderError, match="exclude"):
         prepare_run_folder(tmp_path, resume=True, overwrite=True)
+
+
+def test_a_result_file_gets_the_mode_the_umask_gives_a_new_file(tmp_path):
+    from stereovo.trials.store import atomic_write_text
+
+    previous = os.umask(0o022)
+    try:
+        path = atomic_write_text(tmp_path / "summary.md", "x\n")
+        assert stat.S_IMODE(path.stat().st_mode) == 0o644  # mkstemp's 0600 made results unreadable to others
+        os.umask(0o077)
+        assert stat.S_IMODE(atomic_write_text(tmp_path / "other.md", "y\n").stat().st_mode) == 0o600
+    finally:
+        os.umask(previous)
