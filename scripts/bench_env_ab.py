@@ -3,7 +3,8 @@
 
 Each round starts one child process per checkout (their order alternating between rounds), with
 ``PYTHONPATH`` set to the checkout; a child (the checkout's own ``scripts/bench_env_gym.cpu_rate``,
-present since 241cfdd) warms up (numba's cache, the first frames), then measures
+present since 241cfdd) warms up (300 steps with their frame ends and resets, which compiles what a
+checkout without numba's cache lacks), then measures
 for each environment Gymnasium's ``benchmark_step`` (wall clock, random actions from the action space,
 resets included) and the process CPU rate of the same loop (steps and frames per CPU-second). The
 table gives the medians over rounds and the median of the per-round ratios (after / before), with the
@@ -41,7 +42,14 @@ out = {}
 for env_id in ids:
     env = gym.make(env_id)
     env.action_space.seed(0)
-    benchmark_step(env, target_duration=0.5, seed=0)  # warm-up
+    # Warm-up by steps, not time: a checkout without numba's cache compiles kernels on their first use,
+    # some only at a frame's end or an episode's reset, and a timed warm-up ends after the first one.
+    env.reset(seed=0)
+    for _ in range(300):
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated:
+            env.reset()
+    benchmark_step(env, target_duration=0.5, seed=0)
     wall = benchmark_step(env, target_duration=seconds, seed=0)
     steps, frames = cpu_rate(env, seconds)
     out[env_id] = {"steps_per_s": wall, "steps_per_cpu_s": steps, "frames_per_cpu_minute": 60 * frames}

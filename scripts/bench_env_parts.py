@@ -73,7 +73,7 @@ def _compiled_padded(samples: np.ndarray, masks: np.ndarray, rows: int, columns:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(description=__doc__.split(" Usage::")[0])
     parser.add_argument("--n", type=int, default=500)
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--loops", type=int, default=200)

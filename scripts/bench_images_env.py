@@ -2,8 +2,9 @@
 """Steps per second of ``vo_gym/StereoVOImages-v0`` against ``vo_gym/StereoVO-v0``, in one run.
 
 A step of the images environment renders the next stereo pair, detects and matches it (the
-front end, streaming), builds the observation and runs the estimator; ``--replay`` also times a
-second pass over the same seed, whose frames are kept (what the seed determines is cached).
+front end, streaming), builds the observation and runs the estimator; a second pass over the same
+seed, whose frames are kept (what the seed determines is cached), is timed too ("replaying a cached
+seed").
 One process, single-threaded OpenCV, numba and BLAS; llvmpipe's threads follow
 ``LP_NUM_THREADS``. The action is uniform (zeros).
 

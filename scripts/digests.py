@@ -79,6 +79,9 @@ def env_digest() -> str:
 
 
 def main() -> None:
+    import argparse
+
+    argparse.ArgumentParser(description=__doc__.split("\n\n")[0]).parse_args()  # --help, and no stray arguments
     frames_hex, frames = frame_digest()
     print("frames   ", frames_hex)
     print("estimates", estimate_digest(frames))

@@ -26,7 +26,7 @@ import vo_gym  # noqa: F401
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--frames", type=int, default=120)
     parser.add_argument("--seeds", default="0,1")
     parser.add_argument("--moving-objects", type=int, default=3)

@@ -3,7 +3,7 @@
 
     .venv/bin/python scripts/mutation_test.py                      # every module, in priority order
     .venv/bin/python scripts/mutation_test.py --only rewards prosac  # some of them
-    .venv/bin/python scripts/mutation_test.py --report-only          # rewrite the report from the last run
+    .venv/bin/python scripts/mutation_test.py --report-only          # rewrite the report from the last run's results file
 
 mutmut changes one thing in the code (an operator, a constant, a comparison, an argument) and runs
 the tests that call the changed function; a mutant they let pass ("survived") is a change of
@@ -360,6 +360,12 @@ def main(argv: list[str] | None = None) -> int:
                      f"{', '.join(m.name for m in verdicts.modules)}")
     if not args.report_only and shutil.which("mutmut", path=str(Path(sys.executable).parent)) is None:
         print("mutmut is not installed in this environment: pip install -e '.[dev]'", file=sys.stderr)
+        return 2
+    if args.report_only and not args.results.is_file():
+        # The report alone keeps each module's counts but not its survivors' diffs: rewriting it from
+        # itself would drop them (and the notes under its totals).
+        print(f"--report-only needs the results file of a run, and {args.results} does not exist "
+              "(--results names another); the report is left as it is", file=sys.stderr)
         return 2
     modules = [m for m in verdicts.modules if args.only is None or m.name in args.only]
     carried = carry_from_report(args.report, args.results, verdicts.modules)

@@ -48,3 +48,13 @@ def test_the_report_is_written_from_stored_results(tmp_path):
     assert f"- `{equivalent}` (equivalent): rot_err_deg / SUCCESS_ROT_DEG" in text
     assert "- `vo_gym.rewards.x_other__mutmut_1` (survived): not yet addressed: needs a test" in text
     assert "  +a * b" in text and "| `stereovo/geometry.py` |" in text  # every module has its row ("not run")
+
+
+def test_report_only_without_a_results_file_leaves_the_report_alone(tmp_path, capsys):
+    # Rewritten from itself, the report kept each module's counts but lost its survivors' diffs.
+    runner = load_script("mutation_test")
+    report = tmp_path / "report.md"
+    report.write_text("the last run's report\n")
+    assert runner.main(["--report-only", "--report", str(report), "--results", str(tmp_path / "none.json")]) == 2
+    assert report.read_text() == "the last run's report\n"
+    assert "--report-only needs the results file of a run" in capsys.readouterr().err
