@@ -11,8 +11,9 @@ The target (issue 31, item 3) for a sampler trained on a randomised mix of match
   mean of <= 16 hypotheses, on every domain.
 
 Inputs are ``transfer.csv`` files of :mod:`agents.transfer` (rates in [0, 1]; ``point`` is a
-budget such as ``"16"`` or ``"own stop"``); both must hold the same domains and epsilons. Run:
-``python -m agents.transfer_target CANDIDATES.csv [--reference docs/data/transfer.csv]``.
+budget such as ``"16"`` or ``"own stop"``); every domain and in-domain epsilon of either must be in both
+(a candidate matrix that leaves one out is refused, naming the missing cell). Run:
+``python -m agents.transfer_target CANDIDATES.csv [--reference docs/data/transfer.csv] [--domains a,b]``.
 """
 
 from __future__ import annotations
@@ -62,8 +63,10 @@ def _best(reference: Sequence[dict[str, Any]], domain: str, epsilon: float, poin
     return max(cell, key=lambda r: r["success"])
 
 
-def assess(candidates: Sequence[dict[str, Any]], reference: Sequence[dict[str, Any]]) -> list[Check]:
-    """Every check of the target (module doc) for every learned sampler of ``candidates``.
+def assess(candidates: Sequence[dict[str, Any]], reference: Sequence[dict[str, Any]],
+           domains: Sequence[str] | None = None) -> list[Check]:
+    """Every check of the target (module doc) for every learned sampler of ``candidates``, on every
+    domain of either matrix, or on ``domains`` only (a partial verdict: see :func:`verdict_markdown`).
 
     Raises:
         ValueError: ``candidates`` has no learned row, or a cell it needs is missing from either matrix.
@@ -81,12 +84,17 @@ def assess(candidates: Sequence[dict[str, Any]], reference: Sequence[dict[str, A
                              f"eps {epsilon:g}, {point!r}") from None
 
     checks = []
-    domains = sorted({r["domain"] for r in rows}, key=lambda d: (d != IN_DOMAIN, d))
+    # The cells come from the reference: a candidate matrix that leaves a domain or an epsilon out is
+    # missing a check, not spared it.
+    learned = _learned(reference)
+    every = {r["domain"] for r in learned} | {r["domain"] for r in rows}
+    domains = sorted(every if domains is None else set(domains), key=lambda d: (d != IN_DOMAIN, d))
+    in_domain = sorted({r["epsilon"] for r in learned + rows if r["domain"] == IN_DOMAIN})
     for sampler, kind in dict.fromkeys((r["sampler"], r["kind"]) for r in rows):
         for domain in domains:
             cells = [("transfer", TRANSFER_EPSILON)]
             if domain == IN_DOMAIN:
-                cells += [("in-domain", e) for e in sorted({r["epsilon"] for r in rows if r["domain"] == domain})]
+                cells += [("in-domain", e) for e in in_domain]
             for requirement, epsilon in cells:
                 mine, best = row(sampler, domain, epsilon, BUDGET), _best(reference, domain, epsilon, BUDGET)
                 bound = best["success"] - TOLERANCE
@@ -100,8 +108,9 @@ def assess(candidates: Sequence[dict[str, Any]], reference: Sequence[dict[str, A
     return checks
 
 
-def verdict_markdown(checks: Sequence[Check]) -> str:
-    """A table of every check and one verdict line per sampler (``met`` only if all its checks are)."""
+def verdict_markdown(checks: Sequence[Check], unchecked: Sequence[str] = ()) -> str:
+    """A table of every check and one verdict line per sampler (``met`` only if all its checks are);
+    with ``unchecked`` domains, a met verdict says it holds on the checked domains only."""
     lines = ["| sampler | requirement | domain | eps | success % | needs % | met |", "|---|---|---|---|---|---|---|"]
     for c in checks:
         if c.requirement == "in-frame":
@@ -114,12 +123,14 @@ def verdict_markdown(checks: Sequence[Check]) -> str:
     for sampler in dict.fromkeys(c.sampler for c in checks):
         missed = [c for c in checks if c.sampler == sampler and not c.met]
         verdict = "target met" if not missed else f"target not met ({len(missed)} check(s) missed)"
+        if unchecked and not missed:
+            verdict = f"target met on the domains checked ({', '.join(unchecked)} not checked)"
         lines.append(f"- `{sampler}`: {verdict}")
     return "\n".join(lines) + "\n"
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m agents.transfer_target CANDIDATES.csv [--reference CSV] [--out MD]``: exit 0 if
+    """``python -m agents.transfer_target CANDIDATES.csv [--reference CSV] [--out MD] [--domains a,b]``: exit 0 if
     every candidate meets the target, 1 if not, 2 on bad input."""
     import argparse
     from pathlib import Path
@@ -130,12 +141,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("candidates", help="transfer.csv of the candidates (python -m agents.transfer --samplers ...)")
     parser.add_argument("--reference", default="docs/data/transfer.csv", help="transfer.csv of the shipped samplers")
     parser.add_argument("--out", default=None, help="also write the table here (markdown)")
+    parser.add_argument("--domains", default=None,
+                        help="comma-separated domains to check (default: every domain of the reference); a verdict "
+                             "on fewer says which it did not check")
     args = parser.parse_args(argv)
+    domains = None if args.domains is None else [d for d in args.domains.split(",") if d]
     try:
-        checks = assess(read_results(args.candidates), read_results(args.reference))
+        reference = read_results(args.reference)
+        known = {r["domain"] for r in _learned(reference)}
+        if domains is not None and (not domains or set(domains) - known):
+            parser.error(f"--domains must name domains of the reference ({', '.join(sorted(known))}), "
+                         f"got {args.domains!r}")
+        checks = assess(read_results(args.candidates), reference, domains)
     except (OSError, ValueError, KeyError) as err:
         parser.error(f"{type(err).__name__}: {err}" if isinstance(err, KeyError) else str(err))
-    text = verdict_markdown(checks)
+    text = verdict_markdown(checks, sorted(known - set(domains)) if domains is not None else ())
     print(text, end="")
     if args.out:
         Path(args.out).write_text(text)

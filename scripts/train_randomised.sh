@@ -50,4 +50,4 @@ PY
     --domains "$DOMAINS" --out "$OUT/transfer" --no-progress
 
 # exit 1 means "target not met", a result, not a failure of the script
-"$PY" -m agents.transfer_target "$OUT/transfer/transfer.csv" --out "$OUT/target.md" || [ $? -eq 1 ]
+"$PY" -m agents.transfer_target "$OUT/transfer/transfer.csv" --domains "$DOMAINS" --out "$OUT/target.md" || [ $? -eq 1 ]

@@ -79,6 +79,12 @@ def test_missing_cells_and_empty_matrices_are_named():
         assess(rows("uniform (MSAC)", "classical", 1.0), REFERENCE)
     with pytest.raises(ValueError, match="reference matrix has no learned row at domain 'rendered'"):
         assess(rows("cand", "one-shot", 0.99), [r for r in REFERENCE if r["domain"] != "rendered"])
+    # a candidate matrix without a domain, or an in-domain epsilon, of the reference used to be spared its checks
+    with pytest.raises(ValueError, match="no row for 'cand' at domain 'rendered', eps 0.8, '16'"):
+        assess([r for r in rows("cand", "one-shot", 0.99) if r["domain"] != "rendered"], REFERENCE)
+    with pytest.raises(ValueError, match="no row for 'cand' at domain 'default', eps 0.9, '16'"):
+        assess([r for r in rows("cand", "one-shot", 0.99) if not (r["domain"] == "default" and r["epsilon"] == 0.9)],
+               REFERENCE)
 
 
 def test_the_shipped_samplers_measured_as_candidates_meet_the_bar_they_set():
@@ -108,6 +114,14 @@ def test_the_command_writes_its_table_and_exits_by_the_verdict(tmp_path, capsys)
     with pytest.raises(SystemExit) as exc:
         main([str(tmp_path / "missing.csv")])
     assert exc.value.code == 2
+    # a verdict on some domains says which it left out; an unknown domain is refused
+    reference = str(ROOT / "docs" / "data" / "transfer.csv")
+    assert main([str(candidate), "--reference", reference, "--domains", "default", "--out", str(out)]) == 0
+    assert "`cand`: target met on the domains checked (hostile, rendered not checked)" in out.read_text()
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exc:
+        main([str(candidate), "--reference", reference, "--domains", "default,sky"])
+    assert exc.value.code == 2 and "--domains must name domains of the reference" in capsys.readouterr().err
 
 
 def test_one_command_retrains_and_remeasures_the_randomised_samplers(tmp_path):
@@ -124,4 +138,4 @@ def test_one_command_retrains_and_remeasures_the_randomised_samplers(tmp_path):
     assert {r["domain"] for r in measured} == {"default"} and all(r["frames"] == 10 for r in measured)
     verdict = (tmp_path / "target.md").read_text()
     reference = read_results(ROOT / "docs" / "data" / "transfer.csv")
-    assert verdict == verdict_markdown(assess(measured, reference))
+    assert verdict == verdict_markdown(assess(measured, reference, ["default"]), ["hostile", "rendered"])
