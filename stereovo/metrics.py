@@ -162,7 +162,27 @@ def frame_metrics(estimate: Any, truth: Any) -> FrameMetrics:
     ``estimate`` needs ``rotation (3,3)``, ``translation (3,)``, ``inliers (N,)``,
     ``status`` and the effort counters; ``truth`` needs ``rotation``,
     ``translation`` and ``inlier (N,)``.
+
+    Raises:
+        ValueError: ``estimate`` or ``truth`` lacks one of those attributes (naming the argument).
     """
+    try:
+        return _frame_metrics(estimate, truth)
+    except AttributeError:
+        for name, value, fields in (("estimate", estimate, _ESTIMATE_FIELDS), ("truth", truth, _TRUTH_FIELDS)):
+            missing = [f for f in fields if not hasattr(value, f)]
+            if missing:
+                raise ValueError(f"frame_metrics: {name} must have {', '.join(fields)}; "
+                                 f"{type(value).__name__} lacks {', '.join(missing)}") from None
+        raise
+
+
+_ESTIMATE_FIELDS = ("rotation", "translation", "inliers", "status", "n_hypotheses", "n_scored", "n_point_checks",
+                    "time_s")
+_TRUTH_FIELDS = ("rotation", "translation", "inlier")
+
+
+def _frame_metrics(estimate: Any, truth: Any) -> FrameMetrics:
     rot_err = float(rotation_error(estimate.rotation, truth.rotation))
     trans_err = float(translation_error(estimate.translation, truth.translation))
     t_norm = _norm(truth.translation)

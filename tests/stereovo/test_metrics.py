@@ -259,3 +259,18 @@ def test_the_truths_norm_is_numpys():
         with np.errstate(over="ignore"):  # 1e200 squared: both warn alike
             ours, want = _norm(t), float(np.linalg.norm(t))
         assert ours == want or (math.isnan(ours) and math.isnan(want))
+
+
+def test_frame_metrics_names_the_argument_that_is_not_an_estimate_or_a_truth():
+    from stereovo.metrics import frame_metrics
+    from stereovo.simulation import SimulationConfig, simulate_frame
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=50), 1)
+    from stereovo import estimate_motion
+
+    est = estimate_motion(frame.prev, frame.curr, frame.camera, rng=0)
+    with pytest.raises(ValueError, match=r"frame_metrics: truth must have rotation, translation, inlier; "
+                                         r"NoneType lacks rotation, translation, inlier"):
+        frame_metrics(est, None)
+    with pytest.raises(ValueError, match=r"frame_metrics: estimate must have .*; FrameTruth lacks inliers, status"):
+        frame_metrics(frame.truth, frame.truth)
