@@ -428,11 +428,12 @@ def main(argv: list[str] | None = None) -> int:
     import argparse
 
     parser = argparse.ArgumentParser(description="in-frame adaptive sampling comparison")
-    parser.add_argument("--out", default="runs/adaptive")
-    parser.add_argument("--learned", default="adaptive-pg-prior")
-    parser.add_argument("--episodes", type=int, default=10)
-    parser.add_argument("--frames", type=int, default=10)
-    parser.add_argument("--seed", type=int, default=5000)
+    parser.add_argument("--out", default="runs/adaptive", help="folder of adaptive.json, the table and the plots")
+    parser.add_argument("--learned", default="adaptive-pg-prior",
+                        help="the in-frame sampler: a shipped name or an in-frame .pt checkpoint")
+    parser.add_argument("--episodes", type=int, default=10, help="episodes a setting")
+    parser.add_argument("--frames", type=int, default=10, help="frames an episode")
+    parser.add_argument("--seed", type=int, default=5000, help="seed of the first episode (the next ones count up)")
     parser.add_argument("--learned-only", action="store_true", help="run the learned sampler's rows alone")
     parser.add_argument("--part", default="0/1", metavar="I/K", help="run the rows whose index is I mod K")
     parser.add_argument("--setting", action="append", choices=("standard", "hard"),
