@@ -183,8 +183,8 @@ def estimator_noise(owner: str, estimator_noise_sigma: float | None, noise_sigma
 
 
 def estimator_settings(owner: str, cls: type, method: str, options: Mapping[str, Any], fixed: Mapping[str, Any],
-                       sampling: str | None = None, also_known: Iterable[str] = ()) -> tuple[
-                           MethodSpec, EstimatorOptions, dict[str, Any]]:
+                       sampling: str | None = None, also_known: Iterable[str] = (),
+                       refused: Mapping[str, str] | None = None) -> tuple[MethodSpec, EstimatorOptions, dict[str, Any]]:
     """The method, its :class:`EstimatorOptions` and its own options, validated by their declarations
     (never by running the method).
 
@@ -197,16 +197,25 @@ def estimator_settings(owner: str, cls: type, method: str, options: Mapping[str,
             passes through the environment's own keywords, not here.
         sampling: ``"guided"`` (priors) or ``"prosac"`` (an order): checks that the method takes it.
         also_known: further keywords the environment accepts (for the hints).
+        refused: shared options the environment has no use for, each with why (it would ignore them):
+            refused when given and left out of the options an error lists.
 
     Raises:
-        TypeError: a keyword that is no option of the method. ValueError: a bad value, named.
+        TypeError: a keyword that is no option of the method, or a refused one (naming it, its value
+            and why). ValueError: a bad value, named.
     """
+    refused = dict(refused or {})
+    given_refused = [name for name in options if name in refused]
+    if given_refused:
+        raise TypeError(f"{owner}: " + "; ".join(f"{name}={options[name]!r} does not apply: {refused[name]}"
+                                                 for name in given_refused))
     try:
         spec = method_spec(method)
     except ValueError as err:
         raise ValueError(f"{owner}: method: {err}") from None
     # the environment's own keywords never reach here (a constructor parameter takes them)
-    allowed = sorted((SHARED_OPTIONS - set(fixed) - set(constructor_keywords(cls))) | set(spec.extra_options))
+    allowed = sorted((SHARED_OPTIONS - set(fixed) - set(refused) - set(constructor_keywords(cls)))
+                     | set(spec.extra_options))
     unknown = sorted(set(options) - set(allowed))
     if unknown:
         raise TypeError(
