@@ -116,7 +116,8 @@ in :class:`~vo_gym.adaptive_env.StereoVOAdaptiveEnv`; None means all of them in 
 def check_settings(owner: str, **given: Any) -> dict[str, Any]:
     """``given`` (names of :data:`RULES`) checked and normalised, numbers as floats.
 
-    Also ``action_bound * logit_scale <= 300`` when both are given.
+    Also the rules between two of them: with ``sampling="prosac"``, ``logit_scale`` must be 1;
+    otherwise ``action_bound * logit_scale <= 300`` when both are given.
 
     Raises:
         ValueError: ``"{owner}: NAME must be RULE, got VALUE"`` for the first bad value.
@@ -125,7 +126,14 @@ def check_settings(owner: str, **given: Any) -> dict[str, Any]:
     for name, value in checked.items():
         if isinstance(RULES[name], Number) and value is not None:
             checked[name] = float(value)
-    if "action_bound" in checked and "logit_scale" in checked:
+    if checked.get("sampling") == "prosac":
+        # the order is argsort(-a): a positive scale changes no ranking and no weight is exponentiated,
+        # so a scale other than 1 would be accepted and ignored
+        if checked.get("logit_scale", 1.0) != 1.0:
+            raise ValueError(f"{owner}: logit_scale must be 1 with sampling='prosac' (its order ranks the action "
+                             "values, which no positive scale changes; the scale applies to sampling='guided'), "
+                             f"got {given['logit_scale']!r}")
+    elif "action_bound" in checked and "logit_scale" in checked:
         product = checked["action_bound"] * checked["logit_scale"]
         if product > MAX_LOGIT:
             raise ValueError(f"{owner}: action_bound * logit_scale must be <= 300 (weights exp(+-300) stay "
