@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -85,14 +85,18 @@ class LearnedEstimator:
             or a policy :func:`agents.checkpoint.load_sampler` returned (to share one loaded network).
         budget: hypotheses per frame. One-shot: exactly this many (None: the prior-aware adaptive
             stop at ``confidence``, capped by ``max_iterations``). In-frame: exactly this many batch
-            after batch, the sampler's stop unused (None: its own stop, capped at ``max_hypotheses``).
+            after batch, the sampler's stop unused (None: its own stop, under the search's cap).
+            For both kinds a budget is the stop itself: drawn in full, above ``max_iterations`` too.
         confidence: in (0, 1); the prior-aware stop's confidence (one-shot, default 0.99) or the
             stop belief at which an in-frame sampler stops (default 0.9).
         method: the core method that fits and judges hypotheses (default ``"msac"``, the
-            environments' judge, with which every shipped sampler was trained).
-        max_hypotheses: an in-frame search's cap (None: 64, its training cap); a ``budget`` above
-            it raises the cap to the budget. Not for one-shot samplers (their adaptive stop is
-            capped by ``max_iterations``).
+            environments' judge, with which every shipped sampler was trained). An in-frame sampler
+            draws from its own weights, so a method that needs ``priors=`` or ``order=`` from its
+            caller (``guided-mlesac``, ``prosac``) is refused for it.
+        max_hypotheses: an in-frame search's cap (None: 64, its training cap), which the sampler
+            reads (hypotheses spent / cap); a ``max_iterations`` below it lowers the cap to it, and a
+            ``budget`` above it raises the cap to the budget. Not for one-shot samplers (their
+            adaptive stop is capped by ``max_iterations``).
         batch_size: hypotheses per batch of an in-frame search (default 4, its training batch).
         temperature: one-shot logits are divided by it (1: as trained); applied when the sampler is
             loaded here, so neither an in-frame sampler nor an already loaded policy takes another.
@@ -100,7 +104,10 @@ class LearnedEstimator:
             own options, over the environments' defaults (:data:`vo_gym.settings.DEFAULT_ESTIMATOR_OPTIONS`);
             ``noise_sigma`` (px, default 0.5) is also the noise the features assume. A one-shot
             sampler's adaptive search starts with batches of 4 (``first_batch_size``) doubling to 8
-            (``batch_size``) unless given, so that its stop can act after a few hypotheses.
+            (``batch_size``) unless given, so that its stop can act after a few hypotheses. An
+            in-frame search has batches of ``batch_size`` from the first (``first_batch_size`` is
+            refused) and ends at its cap on its best-supported hypothesis (``fail_at_cap=False``,
+            accepted; True is refused).
         seed: an integer >= 0 seeding the estimator's own generator, used when :meth:`estimate`
             gets no ``rng`` (restarted by :meth:`reset`).
 
@@ -167,9 +174,25 @@ class LearnedEstimator:
             self._shared, _ = validate_options(method, options, priors=True)
             self._options = {k: v for k, v in options.items() if k != "noise_sigma"}
         else:
-            self.batch_size = IN_FRAME_BATCH if batch_size is None else int(batch_size)
-            self.max_hypotheses = max(int(max_hypotheses), self.budget or 0)
+            if spec.inputs in ("priors", "order"):
+                needs = "priors= (inlier probabilities)" if spec.inputs == "priors" else "order= (a PROSAC order)"
+                raise ValueError(f"method {method!r} needs {needs} from its caller; in-frame sampler {self.name!r} "
+                                 "draws from its own weights batch by batch and passes none: pick a method that "
+                                 "samples without them (e.g. 'msac', the default, 'mlesac' or 'probabilistic')")
+            # the search's own stopping rule is replaced by the sampler's stop under the cap: the options
+            # of that rule which have no counterpart here are refused rather than ignored
+            if "first_batch_size" in estimator_options:
+                raise ValueError(f"first_batch_size {estimator_options['first_batch_size']!r}: in-frame sampler "
+                                 f"{self.name!r} draws batch_size hypotheses a batch from the first (default "
+                                 f"{IN_FRAME_BATCH}, its training batch)")
             self._shared, self._extra = validate_options(method, options)
+            if "fail_at_cap" in estimator_options and self._shared.fail_at_cap:
+                raise ValueError(f"fail_at_cap {estimator_options['fail_at_cap']!r}: in-frame sampler {self.name!r} "
+                                 "ends a search that reaches its cap on the best-supported hypothesis, as it was "
+                                 "trained to; only fail_at_cap=False applies")
+            self._shared = replace(self._shared, fail_at_cap=False, confidence=self.confidence)  # what the search does
+            self.batch_size = IN_FRAME_BATCH if batch_size is None else int(batch_size)
+            self.max_hypotheses = max(min(int(max_hypotheses), self._shared.max_iterations), self.budget or 0)
         self.noise_sigma = self._shared.noise_sigma
         self.seed = seed
         self.reset()

@@ -60,6 +60,19 @@ __all__ = [
 ]
 
 _OWNER = "StereoVOAdaptiveEnv"  # the messages' prefix
+
+# Shared estimator options whose role the agent or the environment's own keywords take here: the
+# search's stopping rule is replaced by the agent's stop under max_hypotheses (InFrameSearch), so
+# these would be accepted and ignored.
+_REFUSED_OPTIONS = {
+    "budget": "the agent decides when to stop a frame's search, under the cap max_hypotheses "
+              "(a fixed count: max_hypotheses=N with an agent that never stops)",
+    "confidence": "the agent decides when to stop a frame's search; no confidence bound runs",
+    "max_iterations": "the per-frame cap is the environment's max_hypotheses",
+    "first_batch_size": "every step draws the environment's batch_size hypotheses",
+    "fail_at_cap": "a frame that reaches max_hypotheses ends on its best-supported hypothesis like any other; "
+                   "no stopping rule is there for the cap to come before",
+}
 _INFO_METRICS = tuple(f.name for f in dataclasses.fields(FrameMetrics) if f.name != "time_s")
 
 
@@ -123,11 +136,15 @@ class StereoVOAdaptiveEnv(gym.Env):
       ``logit_scale`` (default 1), ``max_correspondences``, ``estimator_noise_sigma``: as
       :class:`vo_gym.StereoVOEnv`; ``hypothesis_cost`` in [0, 1] (default 0.002).
     - ``method``: the judge (default ``"msac"``).
+    - ``render_mode``: None only (Gymnasium's tools pass it): the environment has no renderer, so
+      ``metadata["render_modes"]`` is empty and any other mode raises ``ValueError``.
     - ``**settings``: the simulator's settings, the fields of :class:`stereovo.simulation.SimulationConfig`
       with its defaults, as in :class:`vo_gym.StereoVOEnv` (``n_frames``, ``n_correspondences``,
       ``outlier_ratio``, ``outliers`` (``"default"`` / ``"hostile"``), ``outlier_mix``, ``noise_dof``,
       ``score_auc``, ...); any other keyword is an estimator option of ``method`` (defaults
-      :data:`vo_gym.settings.DEFAULT_ESTIMATOR_OPTIONS`).
+      :data:`vo_gym.settings.DEFAULT_ESTIMATOR_OPTIONS`), except those of the search's stopping rule,
+      whose role the agent and the keywords above take: ``budget``, ``confidence``,
+      ``max_iterations``, ``first_batch_size`` and ``fail_at_cap`` raise ``TypeError`` saying which.
 
     Each keyword's rule is declared once, in :mod:`vo_gym.settings`, and is the same as in
     :class:`vo_gym.StereoVOEnv`. Invalid values raise ``ValueError`` naming the argument; unknown
@@ -155,9 +172,14 @@ class StereoVOAdaptiveEnv(gym.Env):
         max_correspondences: int | None = None,
         estimator_noise_sigma: float | None = None,
         method: str = "msac",
+        render_mode: str | None = None,
         **settings: Any,
     ) -> None:
         super().__init__()
+        if render_mode is not None:
+            raise ValueError(f"{_OWNER}: render_mode must be None (the environment has no renderer: "
+                             f"metadata['render_modes'] is empty), got {render_mode!r}")
+        self.render_mode = None
         s = check_settings(
             _OWNER, batch_size=batch_size, max_hypotheses=max_hypotheses, reward_mode=reward_mode,
             hypothesis_cost=hypothesis_cost, success_bonus=success_bonus, failure_reward=failure_reward,
@@ -175,7 +197,7 @@ class StereoVOAdaptiveEnv(gym.Env):
         self.estimator_noise_sigma = estimator_noise(_OWNER, s["estimator_noise_sigma"], self.sim_config.noise_sigma)
         self._spec, self.estimator_options, self._extra = estimator_settings(
             _OWNER, StereoVOAdaptiveEnv, method, settings, fixed={"noise_sigma": self.estimator_noise_sigma},
-            also_known=SIMULATOR_KEYWORDS,
+            also_known=SIMULATOR_KEYWORDS, refused=_REFUSED_OPTIONS,
         )
         if self._spec.inputs != "any":  # the agent's weights drive the sampler: the judge must take none
             why = ("needs priors= or order= from its caller" if self._spec.inputs in ("priors", "order")

@@ -168,7 +168,9 @@ class StereoVOEnv(gym.Env):
       ``n_correspondences``; must be ``>= n_correspondences``.
     - ``action_bound``: the action Box is ``[-action_bound, action_bound]`` (default 10).
     - ``logit_scale``: guided weights are ``softmax(logit_scale * a)`` (default 1);
-      e.g. ``action_bound=1, logit_scale=10`` gives an SB3-style ``[-1, 1]`` Box.
+      e.g. ``action_bound=1, logit_scale=10`` gives an SB3-style ``[-1, 1]`` Box. With
+      ``sampling="prosac"`` it must be 1 (no scale changes a ranking), and ``action_bound *
+      logit_scale <= 300`` (the softmax's range) binds guided sampling only.
     - ``success_bonus`` in [0, 1] (default 0.5), ``hypothesis_cost`` in [0, 1] per
       hypothesis drawn (default 0.001; a constant under a fixed budget),
       ``failure_reward`` in [-1, 1] (default -1): reward shaping (see Rewards).

@@ -52,6 +52,12 @@ def top_rows(frame: Frame, index: int, limit: int) -> Frame:
                                scores=frame.scores[keep], truth=truth)
 
 
+def _check_source(source: Any) -> None:
+    if getattr(source, "true_poses", None) is None or not hasattr(source, "frame"):
+        raise ValueError(f"{_PREFIX}source must be a frame sequence with known poses (true_poses), "
+                         f"got {type(source).__name__}: the rewards and the info need the true motion")
+
+
 class ReplayedFrames:
     """Frames computed once (rendered, matched), served as a frame sequence for ``source=``, so that
     every sampler of a comparison sees the identical frames.
@@ -124,8 +130,10 @@ class StereoVOImagesEnv(StereoVOEnv):
 
     Args:
         source: see above. n_frames: steps per episode. max_correspondences: observation rows.
-        preset, resolution, moving_objects, image_noise, speed, world: the rendered world's.
-        frontend_options: :class:`~stereovo.frontend.FrontendOptions` fields as a dict.
+        preset, resolution, moving_objects, image_noise, speed, world: the rendered world's (None:
+            ``"car"``, ``"kitti"``, 0, 2.0, the preset's speed and world).
+        frontend_options: :class:`~stereovo.frontend.FrontendOptions` fields as a dict: the front
+            end of the rendered world or of a source string.
         estimator_noise_sigma: the pixel noise the estimator and the features assume; None: the
             source's ``noise_sigma``.
         **kwargs: any other :class:`vo_gym.env.StereoVOEnv` argument (``sampling``, ``reward_mode``,
@@ -133,18 +141,45 @@ class StereoVOImagesEnv(StereoVOEnv):
             (``n_correspondences``, ``outlier_ratio``, ``outliers``, ``noise_dof``, ``score_auc``, ...) are
             refused: images decide them.
 
+    With a ``source``, the frames and the camera are the source's: the rendered world's arguments
+    (``preset``, ``resolution``, ``moving_objects``, ``image_noise``, ``speed``, ``world``, a
+    ``texture_seed`` other than 0) would be ignored and are refused, even where they agree with the
+    source; so is ``frontend_options`` with a sequence object, which matched its frames with its own.
+
     Raises:
-        ValueError: a bad argument, named; TypeError: an unknown or simulator-only keyword.
+        ValueError: a bad argument, named, or one that ``source`` makes meaningless; TypeError: an
+            unknown or simulator-only keyword.
     """
 
-    def __init__(self, source: Any = None, n_frames: int = 100, max_correspondences: int = 1000, preset: str = "car",
-                 resolution: str = "kitti", moving_objects: int = 0, image_noise: float = 2.0,
-                 speed: float | None = None, world: str | None = None, frontend_options: dict | None = None,
-                 texture_seed: int | None = 0, cached_episodes: int = 2, estimator_noise_sigma: float | None = None,
-                 **kwargs: Any) -> None:
+    def __init__(self, source: Any = None, n_frames: int = 100, max_correspondences: int = 1000,
+                 preset: str | None = None, resolution: str | None = None, moving_objects: int | None = None,
+                 image_noise: float | None = None, speed: float | None = None, world: str | None = None,
+                 frontend_options: dict | None = None, texture_seed: int | None = 0, cached_episodes: int = 2,
+                 estimator_noise_sigma: float | None = None, **kwargs: Any) -> None:
         refused = sorted(set(kwargs) & set(_SIMULATOR_ONLY))
         if refused:
             raise TypeError(f"{_PREFIX}{refused} are simulator settings; on images the front end decides them")
+        if source is not None and not isinstance(source, str):
+            _check_source(source)
+            if frontend_options is not None:
+                raise ValueError(f"{_PREFIX}frontend_options={frontend_options!r} would be ignored: source="
+                                 f"{type(source).__name__} matched its frames with its own front end (they apply to "
+                                 "the rendered world or a source string)")
+        if source is not None:
+            world_given = {name: value for name, value in (
+                ("preset", preset), ("resolution", resolution), ("moving_objects", moving_objects),
+                ("image_noise", image_noise), ("speed", speed), ("world", world)) if value is not None}
+            if texture_seed != 0:
+                world_given["texture_seed"] = texture_seed
+            if world_given:
+                what = repr(source) if isinstance(source, str) else type(source).__name__
+                raise ValueError(f"{_PREFIX}{', '.join(f'{k}={v!r}' for k, v in world_given.items())} would be "
+                                 f"ignored: they set the world rendered when source is None, and source={what} "
+                                 "brings its own frames and camera; leave them out")
+        preset = "car" if preset is None else preset
+        resolution = "kitti" if resolution is None else resolution
+        moving_objects = 0 if moving_objects is None else moving_objects
+        image_noise = 2.0 if image_noise is None else image_noise
         checked = check_options(_RULES, dict(n_frames=n_frames, max_correspondences=max_correspondences,
                                              resolution=resolution, moving_objects=moving_objects,
                                              image_noise=image_noise, texture_seed=texture_seed,
@@ -164,9 +199,7 @@ class StereoVOImagesEnv(StereoVOEnv):
 
             source = open_source(source, options=self.frontend_options)
         if source is not None:
-            if getattr(source, "true_poses", None) is None or not hasattr(source, "frame"):
-                raise ValueError(f"{_PREFIX}source must be a frame sequence with known poses (true_poses), "
-                                 f"got {type(source).__name__}: the rewards and the info need the true motion")
+            _check_source(source)
             if len(source) < checked["n_frames"] + 1:
                 raise ValueError(f"{_PREFIX}source has {len(source)} frame pairs; an episode of n_frames="
                                  f"{checked['n_frames']} needs n_frames + 1")

@@ -116,7 +116,8 @@ in :class:`~vo_gym.adaptive_env.StereoVOAdaptiveEnv`; None means all of them in 
 def check_settings(owner: str, **given: Any) -> dict[str, Any]:
     """``given`` (names of :data:`RULES`) checked and normalised, numbers as floats.
 
-    Also ``action_bound * logit_scale <= 300`` when both are given.
+    Also the rules between two of them: with ``sampling="prosac"``, ``logit_scale`` must be 1;
+    otherwise ``action_bound * logit_scale <= 300`` when both are given.
 
     Raises:
         ValueError: ``"{owner}: NAME must be RULE, got VALUE"`` for the first bad value.
@@ -125,7 +126,14 @@ def check_settings(owner: str, **given: Any) -> dict[str, Any]:
     for name, value in checked.items():
         if isinstance(RULES[name], Number) and value is not None:
             checked[name] = float(value)
-    if "action_bound" in checked and "logit_scale" in checked:
+    if checked.get("sampling") == "prosac":
+        # the order is argsort(-a): a positive scale changes no ranking and no weight is exponentiated,
+        # so a scale other than 1 would be accepted and ignored
+        if checked.get("logit_scale", 1.0) != 1.0:
+            raise ValueError(f"{owner}: logit_scale must be 1 with sampling='prosac' (its order ranks the action "
+                             "values, which no positive scale changes; the scale applies to sampling='guided'), "
+                             f"got {given['logit_scale']!r}")
+    elif "action_bound" in checked and "logit_scale" in checked:
         product = checked["action_bound"] * checked["logit_scale"]
         if product > MAX_LOGIT:
             raise ValueError(f"{owner}: action_bound * logit_scale must be <= 300 (weights exp(+-300) stay "
@@ -183,8 +191,8 @@ def estimator_noise(owner: str, estimator_noise_sigma: float | None, noise_sigma
 
 
 def estimator_settings(owner: str, cls: type, method: str, options: Mapping[str, Any], fixed: Mapping[str, Any],
-                       sampling: str | None = None, also_known: Iterable[str] = ()) -> tuple[
-                           MethodSpec, EstimatorOptions, dict[str, Any]]:
+                       sampling: str | None = None, also_known: Iterable[str] = (),
+                       refused: Mapping[str, str] | None = None) -> tuple[MethodSpec, EstimatorOptions, dict[str, Any]]:
     """The method, its :class:`EstimatorOptions` and its own options, validated by their declarations
     (never by running the method).
 
@@ -197,16 +205,25 @@ def estimator_settings(owner: str, cls: type, method: str, options: Mapping[str,
             passes through the environment's own keywords, not here.
         sampling: ``"guided"`` (priors) or ``"prosac"`` (an order): checks that the method takes it.
         also_known: further keywords the environment accepts (for the hints).
+        refused: shared options the environment has no use for, each with why (it would ignore them):
+            refused when given and left out of the options an error lists.
 
     Raises:
-        TypeError: a keyword that is no option of the method. ValueError: a bad value, named.
+        TypeError: a keyword that is no option of the method, or a refused one (naming it, its value
+            and why). ValueError: a bad value, named.
     """
+    refused = dict(refused or {})
+    given_refused = [name for name in options if name in refused]
+    if given_refused:
+        raise TypeError(f"{owner}: " + "; ".join(f"{name}={options[name]!r} does not apply: {refused[name]}"
+                                                 for name in given_refused))
     try:
         spec = method_spec(method)
     except ValueError as err:
         raise ValueError(f"{owner}: method: {err}") from None
     # the environment's own keywords never reach here (a constructor parameter takes them)
-    allowed = sorted((SHARED_OPTIONS - set(fixed) - set(constructor_keywords(cls))) | set(spec.extra_options))
+    allowed = sorted((SHARED_OPTIONS - set(fixed) - set(refused) - set(constructor_keywords(cls)))
+                     | set(spec.extra_options))
     unknown = sorted(set(options) - set(allowed))
     if unknown:
         raise TypeError(

@@ -60,8 +60,9 @@ class EstimatorOptions:
         noise_sigma: pixel noise standard deviation of the measurements (px), in [1e-3, 1e3]
             (:data:`NOISE_SIGMA_RANGE_PX`).
         confidence: probability of drawing at least one all-inlier sample (adaptive stop).
-        max_iterations: hard cap on hypotheses drawn.
-        budget: if set, draw exactly this many hypotheses (fixed budget) instead of stopping adaptively.
+        max_iterations: hard cap on the hypotheses an adaptive search draws (no ``budget``).
+        budget: if set, draw exactly this many hypotheses (fixed budget) instead of stopping
+            adaptively: the budget is the stop itself, drawn in full even above ``max_iterations``.
         batch_size: hypotheses fitted and scored per vectorised batch under a fixed ``budget``; the
             largest batch of an adaptive search.
         first_batch_size: the first batch of an adaptive search (no ``budget``), after which each

@@ -154,6 +154,45 @@ def test_one_shot_stop_and_budget_follow_the_options():
     assert LearnedEstimator(IN_FRAME).estimate(prev, curr, camera, scores).n_hypotheses <= 64
 
 
+@pytest.mark.parametrize("method, needs", [("prosac", "order="), ("guided-mlesac", "priors=")])
+def test_a_method_an_in_frame_sampler_cannot_drive_is_refused_at_construction(method, needs):
+    # the in-frame search draws from the sampler's weights and passes the method neither input, so
+    # the method's recipe would fail in the first estimate instead
+    with pytest.raises(ValueError) as info:
+        LearnedEstimator(IN_FRAME, method=method)
+    assert str(info.value).startswith(f"method '{method}' needs {needs}")
+    assert f"in-frame sampler '{IN_FRAME}' draws from its own weights" in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_in_frame_stop_options_work_or_are_refused():
+    prev, curr, camera, scores, *_ = hand_built_frame(np.random.default_rng(8), outliers=0.8)
+    # max_iterations caps the sampler's own stop as it caps the one-shot adaptive stop; confidence
+    # 0.999 alone would let the search run on to the training cap of 64
+    capped = LearnedEstimator(IN_FRAME, confidence=0.999, max_iterations=2)
+    assert capped.max_hypotheses == 2
+    assert capped.estimate(prev, curr, camera, scores).n_hypotheses == 2
+    # a cap above the training cap leaves it (the transfer matrix passes one cap to every row)
+    assert LearnedEstimator(IN_FRAME, max_iterations=256, fail_at_cap=False).max_hypotheses == 64
+    # a budget is the stop itself, for both kinds: drawn in full above max_iterations (docs/algorithms.md)
+    for sampler in (ONE_SHOT, IN_FRAME):
+        est = LearnedEstimator(sampler, budget=8, max_iterations=3).estimate(prev, curr, camera, scores)
+        assert est.n_hypotheses == 8, sampler
+    # what the in-frame search does is what its options say
+    options = LearnedEstimator(IN_FRAME, confidence=0.95).options
+    assert (options.fail_at_cap, options.confidence) == (False, 0.95)
+    with pytest.raises(ValueError) as info:
+        LearnedEstimator(IN_FRAME, first_batch_size=1)
+    assert str(info.value) == (f"first_batch_size 1: in-frame sampler '{IN_FRAME}' draws batch_size hypotheses a "
+                               "batch from the first (default 4, its training batch)")
+    with pytest.raises(ValueError) as info:
+        LearnedEstimator(IN_FRAME, fail_at_cap=True)
+    assert str(info.value).startswith(f"fail_at_cap True: in-frame sampler '{IN_FRAME}' ends a search that reaches "
+                                      "its cap on the best-supported hypothesis")
+    with pytest.raises(ValueError, match="fail_at_cap must be True or False, got 0"):
+        LearnedEstimator(IN_FRAME, fail_at_cap=0)
+
+
 def test_priors_on_raw_matches_are_the_estimators_weights():
     prev, curr, camera, scores, inlier, R, t = hand_built_frame(np.random.default_rng(5), outliers=0.6)
     policy = load_sampler(ONE_SHOT)

@@ -145,6 +145,34 @@ def test_bad_actions_and_arguments_raise_naming_them():
         small().step(np.zeros(81))
 
 
+@pytest.mark.parametrize("env_id", ["vo_gym/StereoVOAdaptive-v0", "vo_gym/StereoVOAdaptiveHard-v0"])
+def test_gymnasium_tools_pass_render_mode_none_and_a_mode_without_a_renderer_is_refused(env_id):
+    env = gym.make(env_id, render_mode=None, n_frames=1, n_correspondences=60)
+    assert env.unwrapped.render_mode is None and env.metadata["render_modes"] == []
+    env.reset(seed=0)
+    with pytest.raises(ValueError) as err:
+        small(render_mode="rgb_array")
+    assert str(err.value) == ("StereoVOAdaptiveEnv: render_mode must be None (the environment has no renderer: "
+                              "metadata['render_modes'] is empty), got 'rgb_array'")
+
+
+@pytest.mark.parametrize("name, value, why", [
+    ("budget", 8, "the agent decides when to stop a frame's search, under the cap max_hypotheses"),
+    ("confidence", 0.1, "the agent decides when to stop a frame's search; no confidence bound runs"),
+    ("max_iterations", 8, "the per-frame cap is the environment's max_hypotheses"),
+    ("first_batch_size", 1, "every step draws the environment's batch_size hypotheses"),
+    ("fail_at_cap", False, "a frame that reaches max_hypotheses ends on its best-supported hypothesis"),
+])
+def test_the_stopping_rules_options_are_refused_not_ignored(name, value, why):
+    # the agent's stop under max_hypotheses replaces the search's stopping rule, which reads these
+    with pytest.raises(TypeError) as err:
+        small(**{name: value})
+    assert str(err.value).startswith(f"StereoVOAdaptiveEnv: {name}={value!r} does not apply: {why}")
+    with pytest.raises(TypeError) as err:  # nor are they listed as options of the method
+        small(zzz=1)
+    assert f"'{name}'" not in str(err.value)
+
+
 @pytest.mark.parametrize("method", ["guided-mlesac", "prosac", "inlier-detection"])
 def test_a_method_that_cannot_judge_the_search_is_refused_at_construction(method):
     with pytest.raises(ValueError, match=f"method '{method}' cannot judge the in-frame search"):

@@ -226,7 +226,8 @@ def test_observation_carries_the_match_scores_and_their_ranks():
 def test_the_estimator_receives_the_agents_weights_or_order(monkeypatch, sampling):
     calls = stub_estimator(monkeypatch)
     received = spy_estimator(monkeypatch, lambda kwargs: (kwargs.get("priors"), kwargs.get("order")))
-    env = StereoVOEnv(**{**KWARGS, "sampling": sampling, "logit_scale": 0.5, "action_bound": 10.0})
+    scale = {"logit_scale": 0.5} if sampling == "guided" else {}  # PROSAC's order takes no scale
+    env = StereoVOEnv(**{**KWARGS, "sampling": sampling, **scale, "action_bound": 10.0})
     env.reset(seed=1)
     action = np.random.default_rng(0).uniform(-6, 6, 120)
     action[[3, 4]] = 2.0  # a tie: the stable order keeps 3 before 4
@@ -283,8 +284,8 @@ def test_render_shows_the_sampling_weights_relative_to_uniform(monkeypatch, samp
     drawn = []
     monkeypatch.setattr(rendering, "render_rgb", lambda est, true, frame, weights, inliers, title: drawn.append(weights))
     received = spy_estimator(monkeypatch, lambda kwargs: kwargs.get("order"))
-    env = StereoVOEnv(**{**KWARGS, "sampling": sampling, "logit_scale": 0.5, "action_bound": 10.0,
-                         "render_mode": "rgb_array"})
+    scale = {"logit_scale": 0.5} if sampling == "guided" else {}  # PROSAC's order takes no scale
+    env = StereoVOEnv(**{**KWARGS, "sampling": sampling, **scale, "action_bound": 10.0, "render_mode": "rgb_array"})
     env.reset(seed=1)
     action = np.random.default_rng(0).integers(-3, 4, 120).astype(float)
     env.step(action)

@@ -151,3 +151,49 @@ def test_frames_beyond_the_rows_keep_their_best_scored_matches():
     assert np.array_equal(cut.prev, full.prev[best]) and np.array_equal(cut.truth.inlier, full.truth.inlier[best])
     wide.close()
     narrow.close()
+
+
+def _replayed(n_frames: int = 3):
+    """Simulated frames served as a source: a sequence object that is no rendered world."""
+    from stereovo.simulation import Sequence, SimulationConfig
+    from vo_gym.images_env import ReplayedFrames
+
+    sequence = Sequence(SimulationConfig(n_frames=n_frames, n_correspondences=100), 0)
+    frames = [sequence.frame(k) for k in range(1, n_frames + 1)]
+    return ReplayedFrames(frames, frames[0].camera, sequence.true_poses[: n_frames + 1], 0.5)
+
+
+def test_a_source_refuses_the_rendered_worlds_arguments_it_would_ignore():
+    vga = rendered(n_frames=1, resolution="vga")
+    with pytest.raises(ValueError) as err:
+        StereoVOImagesEnv(source=vga, resolution="kitti", preset="free", moving_objects=3)
+    assert str(err.value) == ("StereoVOImagesEnv: preset='free', resolution='kitti', moving_objects=3 would be "
+                              "ignored: they set the world rendered when source is None, and source=RenderedSequence "
+                              "brings its own frames and camera; leave them out")
+    vga.close()
+    # even where they agree with the source, and with a source string (refused before it is opened)
+    for source, kwargs, named in ((_replayed(), {"image_noise": 2.0}, "image_noise=2.0"),
+                                  (_replayed(), {"texture_seed": None}, "texture_seed=None"),
+                                  ("rendered", {"speed": 1.0, "world": "open"}, "speed=1.0, world='open'")):
+        with pytest.raises(ValueError, match=f"^StereoVOImagesEnv: {named} would be ignored"):
+            StereoVOImagesEnv(source=source, n_frames=2, **kwargs)
+    with pytest.raises(ValueError, match=r"^StereoVOImagesEnv: frontend_options=\{'n_features': 500\} would be "
+                                         r"ignored: source=ReplayedFrames matched its frames with its own front end"):
+        StereoVOImagesEnv(source=_replayed(), n_frames=2, frontend_options={"n_features": 500})
+    source = _replayed()
+    env = StereoVOImagesEnv(source=source, n_frames=2, max_correspondences=100)  # nothing of a world given
+    env.reset(seed=0)
+    assert env.current_frame.camera is source.camera
+
+
+def test_gymnasium_tools_render_it_or_pass_render_mode_none():
+    source = _replayed()
+    plain = gym.make("vo_gym/StereoVOImages-v0", source=source, n_frames=2, max_correspondences=100, render_mode=None)
+    assert plain.unwrapped.render_mode is None
+    env = gym.make("vo_gym/StereoVOImages-v0", source=source, n_frames=2, max_correspondences=100,
+                   render_mode="rgb_array")
+    assert env.metadata["render_modes"] == ["rgb_array"]
+    env.reset(seed=0)
+    env.step(np.zeros(100, np.float32))
+    image = env.render()
+    assert image.ndim == 3 and image.shape[2] == 3 and image.dtype == np.uint8 and image.std() > 0

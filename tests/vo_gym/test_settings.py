@@ -46,6 +46,17 @@ def test_a_keyword_both_environments_take_is_refused_by_one_rule_with_one_messag
         assert _message(cls, **kwargs).startswith(f"{cls.__name__}: {rule}")
 
 
+def test_prosac_sampling_refuses_a_logit_scale_and_is_not_bound_by_the_softmax_range():
+    # PROSAC ranks the action values: no positive scale changes the order and nothing is exponentiated
+    with pytest.raises(ValueError) as err:
+        StereoVOEnv(**SMALL, sampling="prosac", logit_scale=100)
+    assert str(err.value) == ("StereoVOEnv: logit_scale must be 1 with sampling='prosac' (its order ranks the action "
+                              "values, which no positive scale changes; the scale applies to sampling='guided'), "
+                              "got 100")
+    assert StereoVOEnv(**SMALL, sampling="prosac", action_bound=400.0, logit_scale=1).action_bound == 400.0
+    assert "action_bound * logit_scale must be <= 300" in _message(StereoVOEnv, action_bound=400.0)
+
+
 def test_the_constructors_keep_the_checked_values_as_plain_attributes():
     env = StereoVOAdaptiveEnv(**SMALL, batch_size=None, max_hypotheses=12, action_bound=np.float32(2.0),
                               estimator_noise_sigma=2, hypothesis_cost=0)
