@@ -291,3 +291,13 @@ def test_an_option_the_input_would_ignore_is_refused_naming_it(tmp_path, capsys,
     assert main(["vo", *args, "--out", str(tmp_path / "v")]) == 2
     assert needle in one_line_error(capsys, "vo")
     assert not (tmp_path / "v").exists()
+
+
+@pytest.mark.parametrize("method", ["prosac", "guided-mlesac"])
+def test_an_in_frame_agent_with_a_method_it_cannot_drive_is_one_line(tmp_path, capsys, method):
+    # was a traceback from the first estimate: these methods need priors= or order= from the caller
+    assert main(["vo", "--agent", "adaptive-pg-prior", "--method", method, "--frames", "2",
+                 "--out", str(tmp_path / "v")]) == 2
+    line = one_line_error(capsys, "vo")
+    assert f"method {method!r} needs" in line and "in-frame sampler 'adaptive-pg-prior'" in line
+    assert not (tmp_path / "v").exists()
