@@ -16,6 +16,16 @@ settings.register_profile("dev", max_examples=60, deadline=None)
 settings.load_profile("ci" if os.environ.get("CI") else "dev")
 
 
+@pytest.fixture(autouse=True)
+def quiet_compile_notice(monkeypatch):
+    """No test hears the one-line compile notice (``stereovo.compilation``): numba compiles a kernel
+    on its first call in a process without a cache, whichever test that is, and a test of one-line
+    errors would then read two lines. The notice's own tests unset it."""
+    from stereovo.compilation import QUIET_ENV
+
+    monkeypatch.setenv(QUIET_ENV, "1")
+
+
 @pytest.fixture
 def camera() -> StereoCamera:
     return StereoCamera()

@@ -142,7 +142,7 @@ def test_the_line_comes_when_a_package_kernel_compiles_and_never_from_the_cache(
 
 
 def test_a_kernel_outside_the_packages_compiles_without_the_line(fresh_kernel):
-    compilation.reset_announcement()
+    compilation.reset_announcement()  # and unsets the conftest's silence
     out = io.StringIO()
     assert not compilation.announce_compiling(stream=out)  # installs the listener, says nothing yet
     assert fresh_kernel.twice(1.0) == 2.0  # compiles: a module of its own, not stereovo's or vo_gym's
