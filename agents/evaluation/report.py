@@ -116,6 +116,8 @@ def summarize_evaluation(
         needed[m] = min(reached) if reached else None
     return {
         "config": config.as_dict(),
+        # the AUC the frames had: the config's, else env_kwargs', else the env id's own
+        "score_aucs": sorted({float(r["score_auc"]) for r in rows}),
         "success_definition": success_definition(),
         "methods": [{"name": m, "kind": kinds[m]} for m in methods],
         "epsilon_sweep": {"budget": config.budget, "epsilons": list(config.epsilons), "methods": eps_sweep},
@@ -140,12 +142,16 @@ def evaluation_markdown(summary: Mapping[str, Any], wall_s: float | None = None)
     bud = summary["budget_sweep"]
     hyp = summary["hypotheses_for_success"]
     frames = cfg["episodes"] * cfg["frames_per_episode"]
+    env_kwargs = dict(cfg.get("env_kwargs") or {})
+    stated = [a for a in (cfg.get("score_auc"), env_kwargs.pop("score_auc", None)) if a is not None][:1]
+    aucs = summary.get("score_aucs") or stated  # a summary written before the rows' AUCs were kept
     lines = [
         "# Agents vs classical methods on the same frames",
         "",
         f"Environment `{cfg['env_id']}`"
-        + "".join(f", {k}={v!r}" for k, v in sorted((cfg.get("env_kwargs") or {}).items()))
-        + f", N = {cfg['n']}, {cfg['episodes']} episodes x {cfg['frames_per_episode']}"
+        + "".join(f", {k}={v!r}" for k, v in sorted(env_kwargs.items()))
+        + f", N = {cfg['n']}" + (f", score AUC {', '.join(f'{a:g}' for a in aucs)}" if aucs else "")
+        + f", {cfg['episodes']} episodes x {cfg['frames_per_episode']}"
         f" frames = {frames} frames per setting, episode seeds {cfg['seed']}..{cfg['seed'] + cfg['episodes'] - 1}"
         f" (identical frames for every agent and method of a setting). Success = {summary['success_definition']}.",
         f"Agents and `(fixed)` methods draw exactly the budget's hypotheses with the environment's estimator"

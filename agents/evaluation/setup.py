@@ -249,6 +249,12 @@ class EvalConfig:
         reserved = {"n_frames", "n_correspondences", "outlier_ratio", "budget"} & set(self.env_kwargs)
         if reserved:
             raise ValueError(f"env_kwargs must not set {sorted(reserved)}: the evaluation's own options do")
+        # A keyword that a field also sets must agree with it: the frames would take one value and the
+        # report's header (the config) show the other.
+        for key in ("score_auc", "max_iterations"):
+            own = getattr(self, key)
+            if own is not None and key in self.env_kwargs and self.env_kwargs[key] != own:
+                raise ValueError(f"env_kwargs' {key}={self.env_kwargs[key]!r} contradicts {key}={own!r}: set it once")
         object.__setattr__(self, "env_kwargs", dict(self.env_kwargs))
 
     def env_kwargs_for(self, epsilon: float, budget: int) -> dict[str, Any]:

@@ -1,4 +1,5 @@
-"""The ``vo-gym baselines`` command end to end, and the report script."""
+"""The ``vo-gym baselines`` command end to end, the report script, and the options a run would
+ignore refused in one line."""
 
 from __future__ import annotations
 
@@ -244,6 +245,48 @@ def test_report_only_rebuilds_tables_and_plots_from_the_stored_trials(runs, tmp_
     assert main(["baselines", "--report-only", str(tmp_path / "nothing")]) == 2
 
 
+@pytest.mark.parametrize("more, needle", [
+    (["--methods", "msac"], "--methods msac applies to the simulated grid and --source rendered, not with --report-only"
+                            " (it rebuilds the report of the run in DIR, in DIR, from the trials stored there)"),
+    (["--out", "OTHER"], "--out OTHER applies to the simulated grid and --source rendered, not with --report-only"),
+    (["--seed", "3"], "--seed 3 applies to the simulated grid and --source rendered, not with --report-only"),
+])
+def test_report_only_refuses_what_it_would_ignore_and_writes_nothing(runs, tmp_path, capsys, more, needle):
+    before = {p.name: p.stat().st_mtime_ns for p in runs[0].iterdir()}
+    more = [str(tmp_path / "other") if m == "OTHER" else m for m in more]
+    assert main(["baselines", "--report-only", str(runs[0]), *more]) == 2
+    assert needle.replace("OTHER", str(tmp_path / "other")) in one_line_error(capsys, "baselines")
+    assert {p.name: p.stat().st_mtime_ns for p in runs[0].iterdir()} == before
+    assert not (tmp_path / "other").exists()
+
+
+@pytest.mark.parametrize("more, needle", [
+    (["--resolution", "vga"], "--resolution vga applies to --source rendered, not to the simulated grid"),
+    (["--frames", "5"], "--frames 5 applies to --source rendered, not to the simulated grid (the grid's frames are"
+                        " --frames-per-cell)"),
+    (["--source", "rendered", "--resume"], "--resume applies to the simulated grid, not with --source rendered (it"
+                                           " keeps no journal to resume from; --overwrite replaces the run)"),
+    (["--source", "rendered", "--epsilons", "0.5"], "--epsilons 0.5 applies to the simulated grid, not with --source"
+                                                    " rendered"),
+    (["--source", "rendered", "--workers", "2"], "--workers 2 applies to the simulated grid, not with --source rendered"
+                                                 " (it runs in this process)"),
+    (["--source", "rendered:free", "--preset", "car"], "--preset car contradicts --source rendered:free"),
+])
+def test_an_option_the_run_would_ignore_is_refused_before_computing(tmp_path, capsys, more, needle):
+    assert main(["baselines", *more, "--no-progress", "--out", str(tmp_path / "x")]) == 2
+    assert needle in one_line_error(capsys, "baselines")
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("flag, values, shown", [("--sigmas", "0", "got 0"), ("--sigmas", "1,-1.5", "got -1.5"),
+                                                 ("--epsilons", "0.2,1.5", "got 1.5"), ("--ns", "80,2", "got 2")])
+def test_an_axis_value_out_of_range_is_shown_as_given(tmp_path, capsys, flag, values, shown):
+    assert main(["baselines", flag, values, "--out", str(tmp_path / "x")]) == 2
+    line = one_line_error(capsys, "baselines")
+    assert line.startswith(f"vo-gym baselines: error: {flag} must") and line.endswith(shown), line
+    assert not (tmp_path / "x").exists()
+
+
 def _start(argv: list[str], **popen):
     """The command ``vo-gym ARGV...`` as a child process, with SIGINT's default disposition.
 
@@ -430,3 +473,15 @@ def test_baselines_on_images_refuses_what_it_cannot_run_in_one_line(tmp_path, ca
     assert exit_code(["baselines", *argv, "--no-progress", "--out", str(tmp_path / "x")]) == 2
     assert needle in one_line_error(capsys, "baselines")
     assert not (tmp_path / "x").exists()
+
+
+def test_baselines_on_images_replaces_a_non_empty_out_only_with_overwrite(tmp_path, capsys, short):
+    argv = ["baselines", "--source", "rendered", "--resolution", "vga", "--frames", "1", "--seed", "4",
+            "--no-progress", "--no-plots", "--out", str(tmp_path / "a")]
+    assert main([*argv, "--methods", "msac"]) == 0
+    capsys.readouterr()
+    assert main([*argv, "--methods", "ransac"]) == 2
+    assert "is not empty; pass --overwrite to replace the run there" in one_line_error(capsys, "baselines")
+    assert {r["method"] for r in _rows(tmp_path / "a" / "frames.csv")} == {"msac"}
+    assert main([*argv, "--methods", "ransac", "--overwrite"]) == 0
+    assert {r["method"] for r in _rows(tmp_path / "a" / "frames.csv")} == {"ransac"}

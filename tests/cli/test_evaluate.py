@@ -1,5 +1,6 @@
 """``vo-gym evaluate`` (vo_gym_cli.commands.evaluate and evaluate_images): shipped samplers found by
-name, bad samplers and sources named in one line before computing, rendered images replayed to every agent."""
+name, bad samplers and sources named in one line before computing, rendered images replayed to every agent,
+an option the chosen run would ignore refused, and the score AUC one value from the flags to the header."""
 
 from __future__ import annotations
 
@@ -83,13 +84,142 @@ def test_the_outlier_preset_reaches_the_environment_and_the_record(tmp_path, cap
     assert rows("both") == rows("hostile")
 
 
-@pytest.mark.parametrize("more, needle", [
-    (["--env-kwargs", '{"outliers": "default"}', "--outlier-preset", "hostile"],
+@pytest.mark.parametrize("argv, needle", [
+    ([*SWEEP, "--env-kwargs", '{"outliers": "default"}', "--outlier-preset", "hostile"],
      "--outlier-preset hostile contradicts --env-kwargs' outliers='default'"),
-    (["--adaptive", "--outlier-preset", "hostile"], "--outlier-preset applies to the sweeps on simulated matches"),
+    (["--adaptive", "--outlier-preset", "hostile"], "--outlier-preset hostile applies to the sweeps on simulated matches"),
     (["--source", "rendered", "--outlier-preset", "hostile"], "not with --source"),
 ])
-def test_an_outlier_preset_that_cannot_apply_is_one_line(tmp_path, capsys, more, needle):
-    assert main(["evaluate", *SWEEP, *more, "--out", str(tmp_path / "e")]) == 2
+def test_an_outlier_preset_that_cannot_apply_is_one_line(tmp_path, capsys, argv, needle):
+    assert main(["evaluate", *argv, "--out", str(tmp_path / "e")]) == 2
     assert needle in one_line_error(capsys, "evaluate")
     assert not (tmp_path / "e").exists()
+
+
+def test_an_auc_is_one_value_from_the_flags_to_the_frames_and_the_header(tmp_path, capsys):
+    assert main(["evaluate", *SWEEP, "--auc", "0.6", "--env-kwargs", '{"score_auc": 0.9}', "--out", str(tmp_path / "e")]) == 2
+    assert "--auc 0.6 contradicts --env-kwargs' score_auc=0.9; set it with --auc alone" in one_line_error(capsys, "evaluate")
+    assert not (tmp_path / "e").exists()
+    for name, more, auc in (("flag", ["--auc", "0.6"], "0.6"), ("kwarg", ["--env-kwargs", '{"score_auc": 0.9}'], "0.9"),
+                            ("both", ["--auc", "0.9", "--env-kwargs", '{"score_auc": 0.9}'], "0.9"), ("neither", [], "0.75")):
+        assert main(["evaluate", *SWEEP, *more, "--out", str(tmp_path / name)]) == 0
+        with (tmp_path / name / "frames.csv").open() as fh:
+            assert {row["score_auc"] for row in csv.DictReader(fh)} == {auc}, name
+        header = (tmp_path / name / "summary.md").read_text().splitlines()[2]
+        assert f"N = 120, score AUC {auc}, 1 episodes" in header and "score_auc=" not in header, header
+
+
+def test_an_env_keyword_that_contradicts_the_hypothesis_cap_is_refused(tmp_path, capsys):
+    argv = ["evaluate", *SWEEP, "--env-kwargs", '{"max_iterations": 50}', "--out", str(tmp_path / "e")]
+    assert main(argv) == 2
+    assert "--max-iterations 2000 contradicts --env-kwargs' max_iterations=50" in one_line_error(capsys, "evaluate")
+    assert not (tmp_path / "e").exists()
+
+
+@pytest.mark.parametrize("env_id, needle", [
+    ("vo_gym/StereoVOAdaptive-v0", "--env-id vo_gym/StereoVOAdaptive-v0 is an in-frame environment"),
+    ("vo_gym/StereoVOAdaptiveHard-v0", "in-frame samplers are compared with --adaptive"),
+    ("vo_gym/StereoVOImages-v0", "--env-id vo_gym/StereoVOImages-v0 is an image environment; evaluate on rendered"
+                                 " images with --source rendered"),
+])
+def test_an_env_id_the_sweeps_cannot_step_is_refused_before_the_header(tmp_path, capsys, env_id, needle):
+    assert main(["evaluate", *SWEEP, "--env-id", env_id, "--out", str(tmp_path / "e")]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and len(captured.err.strip().splitlines()) == 1 and needle in captured.err
+    assert not (tmp_path / "e").exists()
+
+
+ADAPTIVE = ["--adaptive", "--episodes", "1", "--frames-per-episode", "1"]
+
+
+@pytest.mark.parametrize("more, needle", [
+    (["--methods", "msac"], "--methods msac applies to the sweeps on simulated matches and --source rendered, not with"
+                            " --adaptive (its samplers and settings are fixed"),
+    (["--epsilons", "0.5"], "--epsilons 0.5 applies to the sweeps on simulated matches, not with --adaptive"),
+    (["--budgets", "4,8"], "--budgets 4,8 applies to the sweeps on simulated matches and --source rendered"),
+    (["--workers", "2"], "--workers 2 applies to the sweeps on simulated matches, not with --adaptive (it runs in this"
+                         " process)"),
+    (["--resume"], "--resume applies to the sweeps on simulated matches, not with --adaptive (it keeps no journal"),
+    (["--env-kwargs", '{"noise_sigma": 1.0}'], "--env-kwargs {\"noise_sigma\": 1.0} applies to the sweeps"),
+    (["--auc", "0.9"], "--auc 0.9 applies to the sweeps on simulated matches, not with --adaptive"),
+    (["--agent", "consistency"], "--agent consistency applies to the sweeps on simulated matches and --source rendered,"
+                                 " not with --adaptive (its learned sampler is --adaptive-sampler"),
+    (["--format", "pdf"], "--format pdf applies to the sweeps on simulated matches and --source rendered, not with"
+                          " --adaptive (its figures are PNG)"),
+    (["--env-id", "vo_gym/StereoVOHard-v0"], "--env-id vo_gym/StereoVOHard-v0 applies to the sweeps"),
+])
+def test_an_option_the_adaptive_comparison_would_ignore_is_refused(tmp_path, capsys, more, needle):
+    assert main(["evaluate", *ADAPTIVE, *more, "--out", str(tmp_path / "e")]) == 2
+    assert needle in one_line_error(capsys, "evaluate")
+    assert not (tmp_path / "e").exists()
+
+
+@pytest.mark.parametrize("more, needle", [
+    (["--adaptive-sampler", "adaptive-pg"], "--adaptive-sampler adaptive-pg applies to --adaptive, not to the sweeps on"
+                                            " simulated matches"),
+    (["--resolution", "vga"], "--resolution vga applies to --source rendered, not to the sweeps on simulated matches"),
+    (["--source", "rendered", "--resume"], "--resume applies to the sweeps on simulated matches, not with --source"
+                                           " rendered (it keeps no journal to resume from; --overwrite replaces the run)"),
+    (["--source", "rendered", "--n", "100"], "--n 100 applies to the sweeps on simulated matches and --adaptive, not with"
+                                             " --source rendered (the matches and their contamination are the image"),
+    (["--source", "rendered", "--workers", "2"], "--workers 2 applies to the sweeps on simulated matches, not with"
+                                                 " --source rendered"),
+    (["--source", "rendered", "--adaptive-agents"], "--adaptive-agents applies to the sweeps on simulated matches"),
+])
+def test_an_option_of_another_run_is_refused_not_ignored(tmp_path, capsys, more, needle):
+    assert main(["evaluate", *more, "--out", str(tmp_path / "e")]) == 2
+    assert needle in one_line_error(capsys, "evaluate")
+    assert not (tmp_path / "e").exists()
+
+
+def _tiny_comparison(config, log=print):
+    """A stand-in for agents.evaluation.in_frame.run_comparison: one row, one progress line."""
+    row = {"family": "learned (own stop)", "point": 0.9, "order": 0, "frames": 2, "success": 1.0, "successes": 2,
+           "mean_hypotheses": 4.0, "stopped": 0, "miss_rate": None, "success_ci95": [0.34, 1.0]}
+    log("standard eps 0.9: learned (own stop) 0.9: 1.000 at 4.0 (0 s)")
+    return {"config": {"learned": config.learned, "seed": config.seed}, "standard eps 0.9": [row]}
+
+
+def test_the_adaptive_comparison_honours_no_plots_no_progress_and_its_sampler(tmp_path, capsys, monkeypatch):
+    import agents.evaluation.in_frame as in_frame
+
+    monkeypatch.setattr(in_frame, "run_comparison", _tiny_comparison)
+    assert main(["evaluate", *ADAPTIVE, "--out", str(tmp_path / "plots")]) == 0
+    assert "learned (own stop) 0.9: 1.000" in capsys.readouterr().out
+    assert (tmp_path / "plots" / "adaptive-standard-eps-0.9.png").stat().st_size > 0
+    argv = ["evaluate", *ADAPTIVE, "--no-plots", "--no-progress", "--adaptive-sampler", "adaptive-pg"]
+    assert main([*argv, "--out", str(tmp_path / "bare")]) == 0
+    out = capsys.readouterr().out
+    assert "1.000 at 4.0 (0 s)" not in out and "| learned (own stop) | 0.9 | 100.0 % |" in out
+    assert sorted(p.name for p in (tmp_path / "bare").iterdir()) == ["adaptive.json", "adaptive.md"]
+    assert json.loads((tmp_path / "bare" / "adaptive.json").read_text())["config"]["learned"] == "adaptive-pg"
+    assert (tmp_path / "bare" / "adaptive.md").read_text() == (tmp_path / "plots" / "adaptive.md").read_text()
+    # a second run into the same folder: --overwrite only (the comparison keeps no journal)
+    assert main([*argv, "--out", str(tmp_path / "bare")]) == 2
+    assert "is not empty; pass --overwrite to replace the run there" in one_line_error(capsys, "evaluate")
+    assert main([*argv, "--overwrite", "--out", str(tmp_path / "bare")]) == 0
+
+
+RENDERED = ["evaluate", "--source", "rendered", "--resolution", "vga", "--episodes", "1", "--frames-per-episode", "1",
+            "--budgets", "2", "--agent", "uniform", "--seed", "4", "--no-progress", "--no-plots"]
+
+
+def test_evaluate_on_rendered_images_keeps_a_non_empty_out_unless_overwrite(tmp_path, capsys):
+    out = tmp_path / "kept"
+    out.mkdir()
+    (out / "notes.txt").write_text("an earlier run")
+    assert main([*RENDERED, "--out", str(out)]) == 2
+    assert f"--out '{out}' is not empty; pass --overwrite to replace the run there" in one_line_error(capsys, "evaluate")
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+    assert main([*RENDERED, "--overwrite", "--out", str(out)]) == 0
+    assert (out / "frames.csv").is_file()
+
+
+def test_evaluate_on_rendered_images_takes_methods_none(tmp_path, capsys, short):
+    assert main([*RENDERED, "--methods", "none", "--out", str(tmp_path / "e")]) == 0
+    assert "1 agent(s) (uniform) and 0 classical method(s) (none)" in capsys.readouterr().out
+    with (tmp_path / "e" / "frames.csv").open() as fh:
+        assert {row["agent"] for row in csv.DictReader(fh)} == {"uniform"}
+    assert main([*RENDERED, "--methods", "None,msac", "--out", str(tmp_path / "m")]) == 0
+    with (tmp_path / "m" / "frames.csv").open() as fh:
+        assert {row["agent"] for row in csv.DictReader(fh)} == {"uniform", "msac (fixed)"}

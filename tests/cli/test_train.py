@@ -1,5 +1,6 @@
 """``vo-gym train`` (vo_gym_cli.commands.train): --algo ngransac flags reach the config and resume
-works, --algo ppo options, and --algo adaptive within a time budget."""
+works, --algo ppo options, --algo adaptive within a time budget, and a non-empty --out kept unless
+--overwrite or a --resume that continues the run there."""
 
 from __future__ import annotations
 
@@ -165,6 +166,47 @@ def test_an_option_of_another_trainer_is_refused_not_ignored(tmp_path, capsys, a
 def test_every_option_belongs_to_a_trainer():
     parser = argparse.ArgumentParser()
     train.add_parser(parser)
-    common = {"algo", "out", "seed", "resume", "no_progress"}
+    common = {"algo", "out", "overwrite", "seed", "resume", "no_progress"}
     dests = set(vars(parser.parse_args([]))) - common
     assert dests == set().union(*train.USED_BY.values())
+
+
+def test_a_non_empty_out_is_refused_unless_overwrite_which_drops_the_old_curves(tmp_path, capsys):
+    out = tmp_path / "run"
+    (out / "tb").mkdir(parents=True)
+    stale = out / "tb" / "events.out.tfevents.1.old-run"
+    stale.write_bytes(b"an earlier run's curves")
+    (out / "notes.txt").write_text("mine")
+    assert main(["train", "--algo", "ngransac", *TINY, "--out", str(out)]) == 2
+    line = one_line_error(capsys, "train")
+    assert f"--out '{out}' is not empty (2 entries); pass --overwrite to replace the run there, or --resume" in line
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "tb"] and stale.exists()  # refused before training
+    assert main(["train", "--algo", "ngransac", *TINY, "--overwrite", "--out", str(out)]) == 0
+    assert not stale.exists() and len(list((out / "tb").glob("events.out.tfevents.*"))) == 1
+    assert (out / "notes.txt").read_text() == "mine" and (out / "ngransac-supervised.pt").is_file()
+    # a checkpoint from elsewhere starts another run: the folder's is kept
+    elsewhere = tmp_path / "elsewhere.pt"
+    elsewhere.write_bytes((out / "ngransac-supervised.pt").read_bytes())
+    assert main(["train", "--algo", "ngransac", "--resume", str(elsewhere), "--frames", "6", "--no-progress",
+                 "--out", str(out)]) == 2
+    assert "is not empty" in one_line_error(capsys, "train")
+
+
+def test_adaptive_resuming_inside_out_still_needs_overwrite(tmp_path, capsys):
+    out = tmp_path / "ad"
+    out.mkdir()
+    checkpoint = out / "adaptive.pt"
+    checkpoint.write_bytes((ROOT / "agents" / "checkpoints" / "adaptive-pg.pt").read_bytes())
+    # adaptive's --resume starts fresh training from the weights, rewriting training.jsonl
+    assert main(["train", "--algo", "adaptive", "--resume", str(checkpoint), "--minutes", "0.01",
+                 "--out", str(out)]) == 2
+    line = one_line_error(capsys, "train")
+    assert line.endswith("pass --overwrite to replace the run there"), line
+
+
+def test_out_help_says_which_trainers_write_tensorboard_logs(capsys):
+    with pytest.raises(SystemExit):
+        main(["train", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "ngransac and ppo also write TensorBoard logs under tb/, adaptive its log windows in training.jsonl" in text
+    assert "directory for checkpoints and TensorBoard logs" not in text

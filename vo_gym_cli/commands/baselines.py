@@ -33,6 +33,7 @@ import argparse
 import json
 import math
 import platform
+import re
 import sys
 import time
 from pathlib import Path
@@ -52,6 +53,7 @@ from vo_gym_cli.commands.common import (
     positive_int,
     seed as parse_seed,
     stoppable,
+    unread_option,
 )
 
 # stereovo.reporting.PLOT_FORMATS, spelled out so that building the parser imports no numerical code
@@ -113,15 +115,16 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                              "makes)")
     parser.add_argument("--max-iterations", type=positive_int("--max-iterations"), default=None, metavar="K",
                         help="hypothesis cap for every method (default: 2000; --full: the core's default)")
-    parser.add_argument("--preset", default="car", choices=list(PRESETS), help="motion preset (default: car)")
+    parser.add_argument("--preset", default=None, choices=list(PRESETS), help="motion preset (default: car)")
     parser.add_argument("--source", type=parse_source, default=None, metavar="rendered[:PRESET]",
                         help="run on rendered stereo images through the front end instead of the simulated grid "
                              "(needs the 'images' and 'render' extras; PRESET car or free, else --preset); "
-                             "uses --methods, --max-iterations, --frames, --resolution, --seed, --out")
-    parser.add_argument("--frames", type=positive_int("--frames"), default=40,
-                        help="with --source: rendered frame pairs (default: 40)")
-    parser.add_argument("--resolution", default="kitti", choices=["kitti", "vga"],
-                        help="with --source: image size, kitti (1241x376) or vga (640x480)")
+                             "uses --methods, --max-iterations, --frames, --resolution, --preset, --seed, --out, "
+                             "--overwrite, --no-plots, --format; no --resume (it keeps no journal) and no grid option")
+    parser.add_argument("--frames", type=positive_int("--frames"), default=None,
+                        help="with --source: rendered frame pairs (default: 40; the grid's are --frames-per-cell)")
+    parser.add_argument("--resolution", default=None, choices=["kitti", "vga"],
+                        help="with --source: image size, kitti (1241x376) or vga (640x480) (default: kitti)")
     parser.add_argument("--seed", type=parse_seed, default=0, help="base seed of frames and estimators (default: 0)")
     parser.add_argument("--out", type=Path, default=Path("runs/baselines"), help="output folder (default: runs/baselines)")
     parser.add_argument("--no-plots", action="store_true", help="skip the figures")
@@ -129,7 +132,8 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                         help="file format of the figures (default: png)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument("--report-only", type=Path, default=None, metavar="DIR",
-                        help="rebuild the tables and plots of the run in DIR from its stored trials; runs nothing")
+                        help="rebuild the tables and plots of the run in DIR from its stored trials, in DIR (not"
+                             " --out); runs nothing, so it takes --no-plots and --format only")
     parser.add_argument("--chunk", type=positive_int("--chunk"), default=1, metavar="K",
                         help="frames per backend task (default 1; larger cuts per-task overhead)")
     add_backend_options(parser, "frames")
@@ -147,6 +151,47 @@ def _json_safe(value: Any) -> Any:
 
 def run(args: argparse.Namespace) -> int:
     return stoppable("baselines", lambda: _run(args))
+
+
+GRID, IMAGES, REPORT = "grid", "images", "report"
+# The options each of baselines' three runs reads (argparse dests); --no-progress and --list-methods
+# serve all. A given option (a value other than its default) that the chosen run does not read is
+# refused rather than silently ignored: --report-only DIR --out X would rewrite DIR and never make X.
+READ_BY = {
+    GRID: frozenset({"methods", "full", "frames_per_cell", "epsilons", "sigmas", "aucs", "ns", "outlier_kinds",
+                     "max_iterations", "preset", "seed", "out", "no_plots", "plot_format", "chunk", "backend",
+                     "workers", "address", "resume", "overwrite"}),
+    IMAGES: frozenset({"source", "methods", "max_iterations", "frames", "resolution", "preset", "seed", "out",
+                       "overwrite", "no_plots", "plot_format"}),
+    REPORT: frozenset({"report_only", "no_plots", "plot_format"}),
+}
+_RUN_NAMES = {GRID: "the simulated grid", IMAGES: "--source rendered", REPORT: "--report-only"}
+
+
+def check_options_apply(args: argparse.Namespace) -> None:
+    """Raise a one-line UsageError naming the first given option that the chosen run (the grid,
+    ``--source`` or ``--report-only``) does not read, its value, the run(s) that read it and why not here."""
+    run = REPORT if args.report_only is not None else IMAGES if args.source is not None else GRID
+    unread = unread_option(args, add_parser, READ_BY, run)
+    if unread is None:
+        return
+    given, dest, owners = unread
+    here = {GRID: "to the simulated grid", IMAGES: f"with --source {args.source}",
+            REPORT: "with --report-only"}[run]
+    if run == REPORT:
+        why = "it rebuilds the report of the run in DIR, in DIR, from the trials stored there"
+    elif dest == "resume":
+        why = "it keeps no journal to resume from; --overwrite replaces the run"
+    elif dest in ("chunk", "backend", "workers", "address"):
+        why = "it runs in this process"
+    elif run == IMAGES:
+        why = "the contamination, noise and matches are the rendering's and the front end's"
+    elif dest == "frames":
+        why = "the grid's frames are --frames-per-cell"
+    else:
+        why = ""
+    raise UsageError(f"{given} applies to {' and '.join(_RUN_NAMES[r] for r in owners)}, not {here}"
+                     + (f" ({why})" if why else ""))
 
 
 def _stored_rows(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
@@ -201,6 +246,7 @@ def _run(args: argparse.Namespace) -> int:
         for name in bm.benchmark_methods():
             print(f"{name:<22} {bm.describe_method(name)}")
         return 0
+    check_options_apply(args)
     if args.report_only is not None:
         return _report_only(args)
     if args.source is not None:
@@ -209,17 +255,22 @@ def _run(args: argparse.Namespace) -> int:
         return run_on_images(args)
 
     base = bm.FULL_GRID if args.full else bm.DEFAULT_GRID
-    # Each axis alone first, so that a value out of range is named by its flag.
+    # Each axis alone first, so that a value out of range is named by its flag, and each value of a
+    # list alone, so that the message shows the one refused (the grid's own shows the whole axis).
     for flag, axis, value in (("--epsilons", "epsilons", args.epsilons), ("--sigmas", "noise_sigmas", args.sigmas),
                               ("--aucs", "score_aucs", args.aucs), ("--ns", "ns", args.ns),
                               ("--outlier-kinds", "outlier_kinds", args.outlier_kinds),
                               ("--frames-per-cell", "frames_per_cell", args.frames_per_cell),
                               ("--max-iterations", "max_iterations", args.max_iterations)):
-        if value is not None:
+        for part in ([[v] for v in value] if isinstance(value, list) else [value]) if value is not None else []:
             try:
-                base.with_axes(**{axis: value})
+                base.with_axes(**{axis: part})
             except ValueError as err:
-                raise flag_error(flag, err) from None
+                error = flag_error(flag, err)
+                if isinstance(part, list):
+                    shown = f"{part[0]:g}" if isinstance(part[0], float) else str(part[0])
+                    error = UsageError(re.sub(r", got .*$", f", got {shown}", str(error)))
+                raise error from None
     try:
         grid = base.with_axes(
             epsilons=args.epsilons, noise_sigmas=args.sigmas, score_aucs=args.aucs, ns=args.ns,

@@ -2,7 +2,8 @@
 
 A sequence is rendered (``--seed``, ``--resolution``, ``--frames`` pairs) and matched by the image
 front end once; every method then runs on every pair with its own stop
-(:mod:`stereovo.benchmark.on_images`). The contamination is the front end's, measured by the
+(:mod:`stereovo.benchmark.on_images`). The run keeps no journal: a non-empty ``--out`` is replaced
+with ``--overwrite`` only, and ``--resume`` is refused. The contamination is the front end's, measured by the
 rendering's per-match ground truth, not chosen. Success is within 1 deg / 5 cm of the true
 motion, with Wilson 95 % intervals over the pairs; precision and recall are those of the returned
 inliers against the labels. KITTI sequences have no per-match labels, so they are refused here
@@ -33,7 +34,11 @@ def run_on_images(args: argparse.Namespace) -> int:
     if kind != "rendered":
         raise UsageError(f"--source {args.source!r}: baselines needs per-match ground truth, which rendered "
                          "sequences have (rendered or rendered:PRESET); run vo-gym vo --source for a KITTI trajectory")
-    preset = named.get("preset", args.preset)
+    if args.preset is not None and named.get("preset", args.preset) != args.preset:
+        raise UsageError(f"--preset {args.preset} contradicts --source {args.source}")
+    preset = named.get("preset", args.preset or "car")
+    args.frames = args.frames or 40
+    args.resolution = args.resolution or "kitti"
     require_extra("images", "cv2", context=f"--source {args.source}")
     require_extra("render", "moderngl", "glcontext", context=f"--source {args.source}")
     options = {} if args.max_iterations is None else {"max_iterations": args.max_iterations}
@@ -41,7 +46,7 @@ def run_on_images(args: argparse.Namespace) -> int:
         estimators = bm.classical_estimators(args.methods, **options)
     except ValueError as err:
         raise UsageError(f"--methods: {err}") from None
-    out = open_run_folder(args)
+    out = open_run_folder(args, resumable=False)  # check_options_apply refused --resume
     frames = _render(args, preset)
     names = [name for name, _ in estimators]
     print(f"vo-gym baselines: {len(names)} methods on {len(frames)} rendered pairs ({preset}, {args.resolution}, "

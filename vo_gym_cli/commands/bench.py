@@ -6,6 +6,7 @@ the ``peers`` extra is installed, to OpenCV's ``solvePnPRansac`` and PoseLib's
 (3-D points triangulated at k-1, left-image pixels at k; optionally its 3-D-3-D
 rigid transform). The runners are :mod:`stereovo.benchmark.peers`. It prints per-frame median time, hypotheses per second, success rate
 and median rotation error, and the ratio of our median time to each peer's.
+Every estimator is called once on a frame of its own before anything is timed (:func:`warm_up`).
 Speed is measured here, never asserted in tests.
 """
 
@@ -18,6 +19,7 @@ from typing import Callable
 import numpy as np
 
 from vo_gym_cli.commands.common import (
+    UsageError,
     bounded_int,
     check_output_file,
     csv_list,
@@ -48,7 +50,7 @@ def _runners(args: argparse.Namespace) -> dict[str, Callable]:
     runners: dict[str, Callable] = {f"ours:{args.method}": peers.ours(args.method, sampling)}
     if args.no_peers:
         return runners
-    sampler = args.superansac_sampler
+    sampler = args.superansac_sampler or "uniform"
     factories = [("opencv", peers.opencv, "peers"), ("poselib", peers.poselib, "peers"),
                  (f"superansac:{sampler}", lambda: peers.superansac(sampler), "superansac")]
     if args.superansac_rigid:
@@ -85,20 +87,62 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                         help="pixel noise sigma (px), in [0.001, 1000]")
     parser.add_argument("--seed", type=seed_type, default=0, help="seed of the frames and of the estimators (>= 0)")
     parser.add_argument("--no-peers", action="store_true", help="skip OpenCV, PoseLib and SupeRANSAC even if installed")
-    parser.add_argument("--superansac-sampler", choices=("uniform", "prosac", "importance", "ar"), default="uniform",
+    parser.add_argument("--superansac-sampler", choices=("uniform", "prosac", "importance", "ar"), default=None,
                         help="SupeRANSAC's sampler (the 'superansac' extra, CPython 3.11 on Linux); importance and ar "
-                             "get the scores calibrated to inlier probabilities, prosac the matches by score")
+                             "get the scores calibrated to inlier probabilities, prosac the matches by score "
+                             "(default: uniform; not with --no-peers)")
     parser.add_argument("--superansac-rigid", action="store_true",
-                        help="also run SupeRANSAC's 3-D-3-D rigid transform on the points triangulated in both frames")
+                        help="also run SupeRANSAC's 3-D-3-D rigid transform on the points triangulated in both frames"
+                             " (not with --no-peers)")
     parser.add_argument("--out", default=None, metavar="CSV",
                         help="optional CSV path for the per-cell table (default: none)")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+# The warm-up frame's seed: four words, where every timed frame's is three (its cell's) plus a spawn
+# key, so the warm-up frame is never one of the timed frames.
+_WARM_UP_KEY = 1
+
+
+def _cell_config(args: argparse.Namespace, n: int, eps: float):
+    from stereovo.simulation import SimulationConfig
+
+    return SimulationConfig(
+        n_correspondences=n, outlier_ratio=eps, noise_sigma=args.noise, outlier_mix=BENCH_OUTLIER_MIXES[args.outliers],
+        outliers="hostile" if args.outliers == "hostile" else "default",
+    )
+
+
+def _cell_seed(args: argparse.Namespace, n: int, eps: float) -> list[int]:
+    return [args.seed, n, int(round(eps * 1000))]
+
+
+def warm_up(runners: dict[str, Callable], args: argparse.Namespace, n: int, eps: float) -> None:
+    """Call every runner once, untimed, on a frame of the cell ``(n, eps)`` that no cell times.
+
+    The first call of an estimator pays one-time costs (numba compiling or loading its kernels, a
+    library's first allocations): 60-90 ms a frame where later calls take 1 ms. Paid inside the
+    first cell, they would inflate its times and make every table depend on the cell order. The
+    runners are seeded per call, so the timed frames' estimates are those of a run without it.
+    """
+    from stereovo.simulation import simulate_frame
+
+    frame = simulate_frame(_cell_config(args, n, eps),
+                           np.random.default_rng(np.random.SeedSequence([*_cell_seed(args, n, eps), _WARM_UP_KEY])))
+    for runner in runners.values():
+        runner(frame, args.seed)
 
 
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from stereovo.simulation import SimulationConfig, simulate_frame
+    from stereovo.simulation import simulate_frame
 
+    if args.no_peers:
+        given = ([f"--superansac-sampler {args.superansac_sampler}"] if args.superansac_sampler else []) + (
+            ["--superansac-rigid"] if args.superansac_rigid else [])
+        if given:
+            raise UsageError(f"{given[0]} applies to the SupeRANSAC peer, which --no-peers skips")
     if args.out:
         check_output_file(args.out, "--out")  # before any computing, so no result is lost
     # Imported after the check: the benchmark package binds the simulator's functions when it loads.
@@ -110,14 +154,13 @@ def run(args: argparse.Namespace) -> int:
 
     rows = []
     cells = [(n, eps) for n in ns for eps in epsilons]
-    with tqdm(total=len(cells) * args.frames * len(runners), desc="bench", unit="est") as bar:
+    print("warming up: every estimator once on a frame of its own before timing", flush=True)
+    warm_up(runners, args, *cells[0])
+    with tqdm(total=len(cells) * args.frames * len(runners), desc="bench", unit="est",
+              disable=args.no_progress) as bar:
         for n, eps in cells:
-            mix = BENCH_OUTLIER_MIXES[args.outliers]
-            config = SimulationConfig(
-                n_correspondences=n, outlier_ratio=eps, noise_sigma=args.noise, outlier_mix=mix,
-                outliers="hostile" if args.outliers == "hostile" else "default",
-            )
-            seq = np.random.SeedSequence([args.seed, n, int(round(eps * 1000))])
+            config = _cell_config(args, n, eps)
+            seq = np.random.SeedSequence(_cell_seed(args, n, eps))
             frames = [simulate_frame(config, np.random.default_rng(s)) for s in seq.spawn(args.frames)]
             for name, runner in runners.items():
                 times, hyps, rot, ok = [], [], [], []

@@ -176,14 +176,48 @@ def render_pairs(source: str, preset: str, n_frames: int, seed: int, resolution:
     return frames, sequence
 
 
-def open_run_folder(args: argparse.Namespace) -> Path:
-    """``--out`` refused when not empty (unless --resume / --overwrite), then proved writable."""
+def unread_option(args: argparse.Namespace, add_parser: Callable[[argparse.ArgumentParser], None],
+                  read_by: dict[str, frozenset[str]], run: str) -> tuple[str, str, list[str]] | None:
+    """The first option given to a command with several kinds of run that ``run`` does not read:
+    ``(flag and value as typed, dest, the runs that read it)``, or None.
+
+    ``read_by`` maps each run to the argparse dests it reads; a dest in none of them serves every
+    run. "Given" means a value other than the parser's default (argparse keeps no other record).
+    """
+    parser = ArgumentParser()
+    add_parser(parser)
+    defaults = vars(parser.parse_args([]))
+    for action in parser._actions:
+        dest = action.dest
+        if dest in read_by[run] or not any(dest in read for read in read_by.values()):
+            continue
+        value = getattr(args, dest, defaults[dest])
+        if value == defaults[dest]:
+            continue
+        if isinstance(value, bool):
+            shown = ""
+        elif isinstance(value, (list, tuple)):
+            shown = " " + ",".join(f"{v:g}" if isinstance(v, float) else str(v) for v in value)
+        else:
+            shown = f" {value}"
+        return action.option_strings[0] + shown, dest, [r for r, read in read_by.items() if dest in read]
+    return None
+
+
+def open_run_folder(args: argparse.Namespace, resumable: bool = True) -> Path:
+    """``--out`` refused when not empty (unless --resume / --overwrite), then proved writable.
+
+    A run that keeps no journal (``resumable=False``: its caller refuses ``--resume``) is pointed to
+    ``--overwrite`` alone, since the usual hint would offer a --resume it cannot honour.
+    """
     from stereovo.trials import RunFolderError, prepare_run_folder
 
     try:
-        prepare_run_folder(args.out, resume=args.resume, overwrite=args.overwrite)
+        prepare_run_folder(args.out, resume=bool(args.resume) and resumable, overwrite=args.overwrite)
     except RunFolderError as err:
-        raise UsageError(str(err)) from None
+        if resumable:
+            raise UsageError(str(err)) from None
+        raise UsageError(f"--out {str(args.out)!r} is not empty; pass --overwrite to replace the run there") from None
     return check_output_dir(args.out)
 
 

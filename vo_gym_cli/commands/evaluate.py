@@ -21,6 +21,10 @@ appended to ``journal.csv`` at once; an interrupt keeps them and ``--resume`` ru
 missing units, ending with the files an uninterrupted run writes. ``--backend ray`` runs the
 units as Ray tasks (``--address`` for a cluster); the rows never depend on the backend or the
 worker count.
+
+An option that the chosen run (the sweeps, ``--adaptive`` or ``--source``) does not read is refused
+in one line before anything runs (:data:`READ_BY`), and so is an ``--env-kwargs`` keyword that
+contradicts the flag setting it (``--auc``, ``--outlier-preset``, ``--max-iterations``).
 """
 
 from __future__ import annotations
@@ -32,7 +36,7 @@ from pathlib import Path
 from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
 from vo_gym_cli.commands.baselines import PLOT_FORMATS, add_backend_options, backend_from_args
 from vo_gym_cli.commands.common import OUTLIER_PRESETS, open_run_folder
-from vo_gym_cli.commands.common import RunStart, UsageError, flag_error, interrupted_run, stoppable
+from vo_gym_cli.commands.common import RunStart, UsageError, flag_error, interrupted_run, stoppable, unread_option
 from vo_gym_cli.commands.common import csv_list as _csv_list
 from vo_gym_cli.commands.common import positive_int as _positive_int
 from vo_gym_cli.commands.common import seed as _seed
@@ -100,9 +104,11 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--adaptive", action="store_true",
                         help="run the in-frame adaptive comparison instead (agents.evaluation.in_frame): the learned"
                              " in-frame sampler, BANSAC, ARS, one-shot samplers, uniform and PROSAC by score on"
-                             " identical held-out frames at eps 0.9 and on the hard id at eps 0.8; uses --episodes,"
-                             " --frames-per-episode, --seed, --n and --out")
-    parser.add_argument("--adaptive-sampler", default="adaptive-pg-prior", metavar="NAME|PATH",
+                             " identical held-out frames at eps 0.9 and on the hard id at eps 0.8; uses"
+                             " --adaptive-sampler, --episodes, --frames-per-episode, --seed, --n, --out, --overwrite,"
+                             " --json, --no-plots (figures are PNG) and --no-progress (its per-row lines); refuses"
+                             " the others")
+    parser.add_argument("--adaptive-sampler", default=None, metavar="NAME|PATH",
                         help=f"with --adaptive: the learned in-frame sampler, a shipped name"
                              f" ({', '.join(IN_FRAME_SAMPLERS)}) or a checkpoint file (default: adaptive-pg-prior)")
     parser.add_argument("--adaptive-agents", action="store_true",
@@ -113,9 +119,9 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                         help="evaluate on rendered images (vo_gym/StereoVOImages-v0, the image front end) instead of"
                              " simulated matches: each episode rendered once and replayed to every agent at every"
                              " --budgets value; uses --agent, --methods, --episodes, --frames-per-episode, --seed,"
-                             " --budgets, --resolution, --out"
+                             " --budgets, --resolution, --out, --overwrite (no --resume: it keeps no journal)"
                              " (needs the images and render extras; default: simulated matches)")
-    parser.add_argument("--resolution", default="kitti", choices=["kitti", "vga"],
+    parser.add_argument("--resolution", default=None, choices=["kitti", "vga"],
                         help="with --source: the rendered image size, kitti (1241x376) or vga (640x480)"
                              " (default: kitti)")
     add_backend_options(parser, "episodes")
@@ -154,19 +160,124 @@ def _environment_error(err: ValueError, args: argparse.Namespace) -> UsageError:
     return UsageError(f"--env-id: {text}")
 
 
+SWEEPS, ADAPTIVE, IMAGES = "sweeps", "adaptive", "images"
+# The options each of evaluate's three runs reads (argparse dests); --episodes, --frames-per-episode,
+# --seed, --out, --overwrite, --json, --no-plots and --no-progress serve all three. A given option
+# (a value other than its default) that the chosen run does not read is refused rather than
+# silently ignored: --adaptive --methods msac would otherwise report rows of methods never asked for.
+READ_BY = {
+    SWEEPS: frozenset({"agent", "env_id", "budget", "epsilons", "budgets", "sweep_epsilon", "n", "auc", "methods",
+                       "max_iterations", "outlier_preset", "env_kwargs", "plot_format", "adaptive_agents", "backend",
+                       "workers", "address", "resume"}),
+    ADAPTIVE: frozenset({"adaptive_sampler", "n"}),
+    IMAGES: frozenset({"source", "resolution", "agent", "methods", "budgets", "plot_format"}),
+}
+_RUN_NAMES = {SWEEPS: "the sweeps on simulated matches", ADAPTIVE: "--adaptive", IMAGES: "--source rendered"}
+
+
+def _why_not(run: str, dest: str) -> str:
+    """Why ``run`` does without the option ``dest``, where naming the run does not say it."""
+    if dest == "resume":
+        return "it keeps no journal to resume from; --overwrite replaces the run"
+    if dest in ("backend", "workers", "address"):
+        return "it runs in this process"
+    if run == ADAPTIVE and dest == "agent":
+        return "its learned sampler is --adaptive-sampler, its other rows are fixed"
+    if run == ADAPTIVE and dest == "plot_format":
+        return "its figures are PNG"
+    if run == ADAPTIVE:
+        return "its samplers and settings are fixed: eps 0.9, and the hard id at eps 0.8"
+    if run == IMAGES and dest in ("env_id", "epsilons", "sweep_epsilon", "n", "auc", "outlier_preset", "env_kwargs"):
+        return "the matches and their contamination are the image front end's"
+    return ""
+
+
+def check_options_apply(args: argparse.Namespace) -> None:
+    """Raise a one-line UsageError naming the first given option that the chosen run (the sweeps,
+    ``--adaptive`` or ``--source``) does not read, its value, the run(s) that read it and why not here."""
+    run = ADAPTIVE if args.adaptive else IMAGES if args.source is not None else SWEEPS
+    unread = unread_option(args, add_parser, READ_BY, run)
+    if unread is None:
+        return
+    given, dest, owners = unread
+    here = {SWEEPS: "to the sweeps on simulated matches", ADAPTIVE: "with --adaptive",
+            IMAGES: f"with --source {args.source}"}[run]
+    why = _why_not(run, dest)
+    raise UsageError(f"{given} applies to {' and '.join(_RUN_NAMES[r] for r in owners)}, not {here}"
+                     + (f" ({why})" if why else ""))
+
+
+def _check_step_env(env_id: str) -> None:
+    """Refuse an in-frame or image id, which the sweeps cannot step, before any header or folder."""
+    import gymnasium as gym
+
+    import vo_gym  # noqa: F401  (registers the ids)
+    from vo_gym.registration import ADAPTIVE_ENTRY_POINT, IMAGES_ENTRY_POINT
+
+    try:
+        entry_point = gym.spec(env_id).entry_point
+    except gym.error.Error:
+        return  # an unknown id: check_environments names it, with the registered ones
+    if entry_point == ADAPTIVE_ENTRY_POINT:
+        raise UsageError(f"--env-id {env_id} is an in-frame environment (its action also stops the search); the"
+                         " sweeps step a one-shot id such as vo_gym/StereoVO-v0, and in-frame samplers are compared"
+                         " with --adaptive")
+    if entry_point == IMAGES_ENTRY_POINT:
+        raise UsageError(f"--env-id {env_id} is an image environment; evaluate on rendered images with --source rendered")
+
+
+# An environment keyword that one of evaluate's own options sets -> that option; the other keywords
+# that the options set (n_frames, n_correspondences, outlier_ratio, budget) EvalConfig refuses outright.
+_FLAG_KEYWORDS = {"outliers": ("--outlier-preset", "outlier_preset"), "score_auc": ("--auc", "auc"),
+                  "max_iterations": ("--max-iterations", "max_iterations")}
+
+
+def _environment_keywords(args: argparse.Namespace) -> dict:
+    """``--env-kwargs`` with the keywords the flags set: a keyword that contradicts its flag is refused,
+    so that the frames and the report's header agree on one value."""
+    env_kwargs = {}
+    if args.env_kwargs:
+        try:
+            env_kwargs = json.loads(args.env_kwargs)
+        except json.JSONDecodeError as err:
+            raise UsageError(f"--env-kwargs is not valid JSON: {err}") from None
+        if not isinstance(env_kwargs, dict):
+            raise UsageError("--env-kwargs must be a JSON object") from None
+    for key, (flag, dest) in _FLAG_KEYWORDS.items():
+        value = getattr(args, dest)
+        if value is not None and key in env_kwargs and env_kwargs[key] != value:
+            raise UsageError(f"{flag} {value} contradicts --env-kwargs' {key}={env_kwargs[key]!r}; set it with "
+                             f"{flag} alone")
+    if args.outlier_preset is not None:
+        env_kwargs["outliers"] = args.outlier_preset
+    return env_kwargs
+
+
+def _classical_methods(args: argparse.Namespace, default: tuple[str, ...]) -> tuple[str, ...]:
+    """``--methods``, where 'none' (any case) stands for no classical method."""
+    return default if args.methods is None else tuple(m for m in args.methods if m.lower() != "none")
+
+
 def _run_adaptive(args: argparse.Namespace) -> int:
     from agents.adaptive import load_adaptive
     from agents.evaluation.in_frame import AdaptiveComparison, comparison_markdown, run_comparison, write_comparison
 
+    sampler = args.adaptive_sampler or "adaptive-pg-prior"
     try:
-        load_adaptive(args.adaptive_sampler)  # a bad checkpoint is named before any computing
+        load_adaptive(sampler)  # a bad checkpoint is named before any computing
     except (ValueError, FileNotFoundError, KeyError) as err:
-        raise UsageError(f"--adaptive-sampler {args.adaptive_sampler!r}: {err}") from None
-    config = AdaptiveComparison(learned=args.adaptive_sampler, episodes=args.episodes,
+        raise UsageError(f"--adaptive-sampler {sampler!r}: {err}") from None
+    config = AdaptiveComparison(learned=sampler, episodes=args.episodes,
                                 frames_per_episode=args.frames_per_episode, seed=args.seed, n=args.n)
-    out = open_run_folder(args)  # before any computing
-    result = run_comparison(config, log=(lambda line: None) if args.json else print)
-    paths = write_comparison(result, out)
+    out = open_run_folder(args, resumable=False)  # before any computing
+    # its per-row lines are its progress
+    result = run_comparison(config, log=(lambda line: None) if args.json or args.no_progress else print)
+    if args.no_plots:  # write_comparison always draws; its two tables alone, as it writes them
+        paths = [out / "adaptive.json", out / "adaptive.md"]
+        paths[0].write_text(json.dumps(result, indent=1, default=float))
+        paths[1].write_text(comparison_markdown(result))
+    else:
+        paths = write_comparison(result, out)
     if args.json:
         print(json.dumps(result, indent=2, default=float))
         return 0
@@ -176,33 +287,21 @@ def _run_adaptive(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    if args.outlier_preset is not None and (args.adaptive or args.source is not None):
-        raise UsageError(f"--outlier-preset applies to the sweeps on simulated matches, not with "
-                         f"{'--adaptive' if args.adaptive else '--source'}")
+    check_options_apply(args)
     if args.adaptive:
         return _run_adaptive(args)
     if args.source is not None:
+        from agents.evaluation.setup import DEFAULT_METHODS
         from vo_gym_cli.commands.evaluate_images import run_on_images
 
-        return run_on_images(args, DEFAULT_AGENTS)
+        return run_on_images(args, DEFAULT_AGENTS, _classical_methods(args, DEFAULT_METHODS))
     from agents.evaluation.run import check_environments
     from agents.evaluation.setup import DEFAULT_METHODS, ROW_COLUMNS, EvalConfig, parse_row_value, resolve_agents
     from stereovo.trials import TrialJournal
 
-    env_kwargs = {}
-    if args.env_kwargs:
-        try:
-            env_kwargs = json.loads(args.env_kwargs)
-        except json.JSONDecodeError as err:
-            raise UsageError(f"--env-kwargs is not valid JSON: {err}") from None
-        if not isinstance(env_kwargs, dict):
-            raise UsageError("--env-kwargs must be a JSON object") from None
-    if args.outlier_preset is not None:
-        if env_kwargs.get("outliers", args.outlier_preset) != args.outlier_preset:
-            raise UsageError(f"--outlier-preset {args.outlier_preset} contradicts --env-kwargs' "
-                             f"outliers={env_kwargs['outliers']!r}")
-        env_kwargs["outliers"] = args.outlier_preset
-    methods = DEFAULT_METHODS if args.methods is None else tuple(m for m in args.methods if m.lower() != "none")
+    _check_step_env(args.env_id)
+    env_kwargs = _environment_keywords(args)
+    methods = _classical_methods(args, DEFAULT_METHODS)
     try:
         agents = resolve_agents(args.agent or DEFAULT_AGENTS)
     except (ValueError, FileNotFoundError) as err:

@@ -20,7 +20,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from vo_gym_cli.commands.common import UsageError, check_output_dir, render_pairs, require_extra
+from vo_gym_cli.commands.common import RunStart, UsageError, open_run_folder, render_pairs, require_extra
 
 
 def _render(args: argparse.Namespace, preset: str, progress: bool) -> list:
@@ -44,15 +44,18 @@ def _render(args: argparse.Namespace, preset: str, progress: bool) -> list:
     return episodes
 
 
-def run_on_images(args: argparse.Namespace, default_agents: tuple[str, ...]) -> int:
+def run_on_images(args: argparse.Namespace, default_agents: tuple[str, ...], methods: tuple[str, ...]) -> int:
     """The ``--source`` branch of ``vo-gym evaluate`` (see the module doc); ``default_agents`` when
-    no ``--agent`` is given."""
+    no ``--agent`` is given, ``methods`` the classical methods (aliases allowed; none for none).
+
+    ``--out`` is refused when not empty unless ``--overwrite``: the run keeps no journal, so the
+    caller refuses ``--resume`` (:func:`vo_gym_cli.commands.evaluate.check_options_apply`)."""
     import gymnasium as gym
     import numpy as np
 
     import vo_gym  # noqa: F401  (registers the ids)
     from agents.evaluation.run import episode_frames
-    from agents.evaluation.setup import DEFAULT_METHODS, IN_FRAME_KIND, normalize_methods, resolve_agents
+    from agents.evaluation.setup import IN_FRAME_KIND, normalize_methods, resolve_agents
     from stereovo.reporting import wilson_interval
     from stereovo.sequences.sources import parse_source
 
@@ -72,19 +75,25 @@ def run_on_images(args: argparse.Namespace, default_agents: tuple[str, ...]) -> 
     except (ValueError, FileNotFoundError) as err:
         raise UsageError(f"--agent: {err}") from None
     try:
-        methods = normalize_methods(DEFAULT_METHODS if args.methods is None else args.methods)
+        methods = normalize_methods(methods)
     except ValueError as err:
         raise UsageError(f"--methods: {err}") from None
     budgets = sorted(set(args.budgets))
     if any(b < 1 for b in budgets):
         raise UsageError(f"--budgets must be integers >= 1, got {args.budgets}")
-    out: Path = check_output_dir(args.out)
+    args.resolution = args.resolution or "kitti"
+    start = RunStart(args.out)
+    out: Path = open_run_folder(args, resumable=False)  # before any rendering
     if any(a.kind in ("checkpoint", IN_FRAME_KIND) for a in agents):
         import torch
 
         torch.set_num_threads(1)
     progress = not args.no_progress
-    episodes = _render(args, preset, progress)
+    try:
+        episodes = _render(args, preset, progress)
+    except UsageError:  # the machine cannot render: leave --out as it was
+        start.undo()
+        raise
     print(f"vo-gym evaluate: {len(agents)} agent(s) ({', '.join(a.label for a in agents)}) and "
           f"{len(methods)} classical method(s) ({', '.join(methods) or 'none'}) on {args.source} images "
           f"({args.resolution}); {args.episodes} episodes x {args.frames_per_episode} frames; budgets "

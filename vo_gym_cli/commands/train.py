@@ -10,6 +10,11 @@ sampler (:func:`agents.adaptive.train_in_frame`) within a time budget (``--minut
 into ``<out>/adaptive.pt``, ``training.jsonl`` and ``training.json``; ``--resume``
 starts from an in-frame checkpoint's weights. An option of another trainer than ``--algo``'s is
 refused in one line before anything runs (:data:`USED_BY`), never silently ignored.
+
+A non-empty ``--out`` is refused unless ``--overwrite`` (which first removes the TensorBoard event
+files and PPO's periodic zips of the run there, so that its curves and checkpoints do not mix with
+the new run's), or unless ``--resume`` names a checkpoint inside it for ngransac or ppo, which
+continue that run there (their step count and history go on).
 """
 
 from __future__ import annotations
@@ -33,7 +38,13 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--algo", choices=("ngransac", "ppo", "adaptive"), default="ngransac",
                         help="trainer: NG-RANSAC-style policy gradient, stable-baselines3 PPO, or the in-frame "
                              "sampler (adaptive: acts inside each frame's RANSAC loop and stops it)")
-    parser.add_argument("--out", default="runs/train", help="directory for checkpoints and TensorBoard logs")
+    parser.add_argument("--out", default="runs/train",
+                        help="output folder: the checkpoint and training.json; ngransac and ppo also write TensorBoard"
+                             " logs under tb/, adaptive its log windows in training.jsonl (default: runs/train)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace the run in a non-empty --out (its TensorBoard event files and PPO's periodic"
+                             " zips are removed first; a --resume checkpoint inside --out continues that run without"
+                             " this flag, for ngransac and ppo)")
     parser.add_argument("--seed", type=seed, default=0, help="seed of the simulation, the sampler and the network")
     parser.add_argument("--resume", default=None, metavar="CHECKPOINT",
                         help="checkpoint to continue from (.pt for ngransac, the SB3 .zip for ppo, an in-frame .pt for "
@@ -353,6 +364,35 @@ def _check_checkpoints(args: argparse.Namespace) -> None:
                          f"continues {article[want]} {want} one")
 
 
+def _continues_in_place(args: argparse.Namespace) -> bool:
+    """Whether ``--resume`` continues the run in ``--out`` (ngransac and ppo carry their step count and
+    history on there; adaptive's --resume only starts fresh training from the weights)."""
+    if args.resume is None or args.algo == "adaptive":
+        return False
+    return Path(args.out).resolve() in Path(args.resume).resolve().parents
+
+
+def _open_out(args: argparse.Namespace) -> Path:
+    """``--out``, refused when it holds a run that this one would overwrite and mix logs with (unless
+    ``--overwrite``, or a --resume that continues it), then proved writable; before any training."""
+    out = Path(args.out)
+    entries = [p for p in out.iterdir() if not p.name.startswith(".write-check-")] if out.is_dir() else []
+    if entries and not args.overwrite and not _continues_in_place(args):
+        hint = "" if args.algo == "adaptive" else ", or --resume one of its checkpoints to continue that run"
+        raise UsageError(f"--out {str(out)!r} is not empty ({len(entries)} entries); pass --overwrite to replace"
+                         f" the run there{hint}")
+    out = check_output_dir(out, "--out")
+    if args.overwrite and not _continues_in_place(args):
+        # Left in place, the old run's events would be drawn as the new run's curves, and a stale
+        # ppo_<steps>_steps.zip beyond the new run's last would pass for one of its checkpoints.
+        for stale in [*(out / "tb").rglob("events.out.tfevents.*"), *(out / "checkpoints").glob("ppo_*_steps.zip")]:
+            stale.unlink()
+        for folder in sorted((out / "tb").rglob("*"), reverse=True):  # SB3 numbers a run after the folders there
+            if folder.is_dir() and not any(folder.iterdir()):
+                folder.rmdir()
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
     check_options_apply(args)
     require_extras("torch", *(("tensorboard",) if args.algo != "adaptive" else ()),
@@ -364,7 +404,7 @@ def run(args: argparse.Namespace) -> int:
     elif args.resume is not None and Path(args.resume).suffix == ".zip":
         raise UsageError(f"--resume {args.resume}: a .zip is a stable-baselines3 PPO model; resume it with --algo ppo")
     _check_checkpoints(args)
-    out = check_output_dir(args.out, "--out")  # before any computing: a bad --out loses no training
+    out = _open_out(args)  # before any computing: a bad --out loses no training
     if args.algo == "adaptive":
         return _train_adaptive(args, out)
     if args.algo == "ngransac":
