@@ -383,18 +383,21 @@ def figure_panels(families: Sequence[str]) -> list[tuple[str, list[str]]]:
             ("against BANSAC, ARS, PROSAC and uniform", learned + rules + floor)]
 
 
-def write_comparison(result: dict[str, Any], out: str | Path) -> list[Path]:
-    """``adaptive.json``, ``adaptive.md`` and one ``adaptive-<setting>.png`` per setting in ``out``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def write_comparison(result: dict[str, Any], out: str | Path, plots: bool = True) -> list[Path]:
+    """``adaptive.json``, ``adaptive.md`` and, with ``plots``, one ``adaptive-<setting>.png`` per
+    setting in ``out``."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     paths = [out / "adaptive.json", out / "adaptive.md"]
     paths[0].write_text(json.dumps(result, indent=1, default=float))
     paths[1].write_text(comparison_markdown(result))
+    if not plots:
+        return paths
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     for key, table in result.items():
         if key == "config":
             continue

@@ -272,12 +272,7 @@ def _run_adaptive(args: argparse.Namespace) -> int:
     out = open_run_folder(args, resumable=False)  # before any computing
     # its per-row lines are its progress
     result = run_comparison(config, log=(lambda line: None) if args.json or args.no_progress else print)
-    if args.no_plots:  # write_comparison always draws; its two tables alone, as it writes them
-        paths = [out / "adaptive.json", out / "adaptive.md"]
-        paths[0].write_text(json.dumps(result, indent=1, default=float))
-        paths[1].write_text(comparison_markdown(result))
-    else:
-        paths = write_comparison(result, out)
+    paths = write_comparison(result, out, plots=not args.no_plots)
     if args.json:
         print(json.dumps(result, indent=2, default=float))
         return 0
