@@ -192,6 +192,19 @@ def test_a_non_empty_out_is_refused_unless_overwrite_which_drops_the_old_curves(
     assert "is not empty" in one_line_error(capsys, "train")
 
 
+@pytest.mark.parametrize("algo, bad", [("ppo", ["--batch-size", "100000"]), ("ppo", ["--width", "1024", "--blocks", "20"])])
+def test_overwrite_keeps_the_old_run_when_the_new_settings_are_refused(tmp_path, capsys, algo, bad):
+    out = tmp_path / "run"
+    (out / "tb" / "PPO_1").mkdir(parents=True)
+    (out / "checkpoints").mkdir()
+    stale = [out / "tb" / "PPO_1" / "events.out.tfevents.1.old-run", out / "checkpoints" / "ppo_256_steps.zip"]
+    for path in stale:
+        path.write_bytes(b"an earlier run's")
+    assert main(["train", "--algo", algo, *bad, "--overwrite", "--out", str(out), "--no-progress"]) == 2
+    one_line_error(capsys, "train")
+    assert all(path.exists() for path in stale)  # deleted only once the new run can start
+
+
 def test_adaptive_resuming_inside_out_still_needs_overwrite(tmp_path, capsys):
     out = tmp_path / "ad"
     out.mkdir()

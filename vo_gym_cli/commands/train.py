@@ -169,6 +169,7 @@ def _train_ngransac(args: argparse.Namespace, out: Path) -> int:
         raise UsageError(str(err)) from None
     except (TypeError, KeyError) as err:  # a checkpoint whose config this version's trainer does not take
         raise UsageError(f"--resume {args.resume}: its training config does not fit this version ({err})") from None
+    _clear_previous_run(args, out)
     writer = SummaryWriter(str(out / "tb"))
     checkpoint = out / f"ngransac-{trainer.config.loss}.pt"
 
@@ -235,6 +236,7 @@ def _train_ppo(args: argparse.Namespace, out: Path) -> int:
                 f"--resume {resume}: PPO resumes from the SB3 model zip (e.g. {Path(resume).with_suffix('.zip')}); "
                 "the .pt file is the exported actor only"
             )
+        _clear_previous_run(args, out)
         result = train_ppo(config, out, resume=resume, progress=not getattr(args, "no_progress", False))
     except (ValueError, FileNotFoundError) as err:
         raise UsageError(str(err)) from None
@@ -381,16 +383,22 @@ def _open_out(args: argparse.Namespace) -> Path:
         hint = "" if args.algo == "adaptive" else ", or --resume one of its checkpoints to continue that run"
         raise UsageError(f"--out {str(out)!r} is not empty ({len(entries)} entries); pass --overwrite to replace"
                          f" the run there{hint}")
-    out = check_output_dir(out, "--out")
-    if args.overwrite and not _continues_in_place(args):
-        # Left in place, the old run's events would be drawn as the new run's curves, and a stale
-        # ppo_<steps>_steps.zip beyond the new run's last would pass for one of its checkpoints.
-        for stale in [*(out / "tb").rglob("events.out.tfevents.*"), *(out / "checkpoints").glob("ppo_*_steps.zip")]:
-            stale.unlink()
-        for folder in sorted((out / "tb").rglob("*"), reverse=True):  # SB3 numbers a run after the folders there
-            if folder.is_dir() and not any(folder.iterdir()):
-                folder.rmdir()
-    return out
+    return check_output_dir(out, "--out")
+
+
+def _clear_previous_run(args: argparse.Namespace, out: Path) -> None:
+    """With ``--overwrite`` (and no --resume continuing the run there), remove the old run's files that
+    the new run would mix with its own; called once the new run's settings are known to be valid, so
+    a refused command leaves ``--out`` as it was."""
+    if not args.overwrite or _continues_in_place(args):
+        return
+    # Left in place, the old run's events would be drawn as the new run's curves, and a stale
+    # ppo_<steps>_steps.zip beyond the new run's last would pass for one of its checkpoints.
+    for stale in [*(out / "tb").rglob("events.out.tfevents.*"), *(out / "checkpoints").glob("ppo_*_steps.zip")]:
+        stale.unlink()
+    for folder in sorted((out / "tb").rglob("*"), reverse=True):  # SB3 numbers a run after the folders there
+        if folder.is_dir() and not any(folder.iterdir()):
+            folder.rmdir()
 
 
 def run(args: argparse.Namespace) -> int:
