@@ -192,7 +192,10 @@ class LearnedEstimator:
                                  "trained to; only fail_at_cap=False applies")
             self._shared = replace(self._shared, fail_at_cap=False, confidence=self.confidence)  # what the search does
             self.batch_size = IN_FRAME_BATCH if batch_size is None else int(batch_size)
-            self.max_hypotheses = max(min(int(max_hypotheses), self._shared.max_iterations), self.budget or 0)
+            cap = int(max_hypotheses)
+            if "max_iterations" in estimator_options:  # given: it caps the stop (its default, 10 000, would not)
+                cap = min(cap, self._shared.max_iterations)
+            self.max_hypotheses = max(cap, self.budget or 0)
         self.noise_sigma = self._shared.noise_sigma
         self.seed = seed
         self.reset()

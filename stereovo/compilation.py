@@ -146,7 +146,8 @@ def announce_compiling(kernels: Iterable[Dispatcher] | None = None, stream: Text
         if _listener is None:
             _listener = CompileNotice()
             event.register("numba:compile", _listener)
-        _listener.stream = stream
+        if stream is not None:  # the estimates' and resets' calls pass none: a caller's stream stays
+            _listener.stream = stream
         return False
     if _announced or os.environ.get(QUIET_ENV) or not uncached_kernels(kernels):
         return False
@@ -173,7 +174,9 @@ class CompileNotice(event.Listener):
 
 
 def reset_announcement() -> None:
-    """Let :func:`announce_compiling` speak again (for tests)."""
+    """Let :func:`announce_compiling` speak again, to stderr (for tests)."""
     global _announced
     _announced = False
     os.environ.pop(QUIET_ENV, None)
+    if _listener is not None:
+        _listener.stream = None

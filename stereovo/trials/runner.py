@@ -91,15 +91,16 @@ def progress_bar(total: float, initial: float, desc: str, unit: str, enabled: bo
 
 def announce_once_for_workers() -> bool:
     """Print the compile notice here if kernels are not cached, and silence it in worker processes
-    started from now on (they inherit :data:`stereovo.compilation.QUIET_ENV`). Returns whether the
+    started from now on (they inherit :data:`stereovo.compilation.QUIET_ENV`), whatever they then
+    compile: each would print its own line, after the run's first lines. Returns whether the
     kernels will compile."""
     from stereovo.compilation import QUIET_ENV, say_compiling, uncached_kernels
 
-    if not uncached_kernels():
-        return False
-    say_compiling()
+    compiling = bool(uncached_kernels())
+    if compiling:
+        say_compiling()
     os.environ[QUIET_ENV] = "1"
-    return True
+    return compiling
 
 
 def _saved(journal: TrialJournal | None, results: dict[int, Any]) -> int:

@@ -174,6 +174,8 @@ def test_in_frame_stop_options_work_or_are_refused():
     assert capped.estimate(prev, curr, camera, scores).n_hypotheses == 2
     # a cap above the training cap leaves it (the transfer matrix passes one cap to every row)
     assert LearnedEstimator(IN_FRAME, max_iterations=256, fail_at_cap=False).max_hypotheses == 64
+    # a cap above max_iterations' default (10 000) stays when max_iterations is not given
+    assert LearnedEstimator(IN_FRAME, max_hypotheses=20_000).max_hypotheses == 20_000
     # a budget is the stop itself, for both kinds: drawn in full above max_iterations (docs/algorithms.md)
     for sampler in (ONE_SHOT, IN_FRAME):
         est = LearnedEstimator(sampler, budget=8, max_iterations=3).estimate(prev, curr, camera, scores)

@@ -110,10 +110,15 @@ def test_an_auc_is_one_value_from_the_flags_to_the_frames_and_the_header(tmp_pat
 
 
 def test_an_env_keyword_that_contradicts_the_hypothesis_cap_is_refused(tmp_path, capsys):
-    argv = ["evaluate", *SWEEP, "--env-kwargs", '{"max_iterations": 50}', "--out", str(tmp_path / "e")]
+    argv = ["evaluate", *SWEEP, "--max-iterations", "2000", "--env-kwargs", '{"max_iterations": 50}',
+            "--out", str(tmp_path / "e")]
     assert main(argv) == 2
     assert "--max-iterations 2000 contradicts --env-kwargs' max_iterations=50" in one_line_error(capsys, "evaluate")
     assert not (tmp_path / "e").exists()
+    # the keyword alone is the cap (the flag's default does not contradict it)
+    argv = ["evaluate", *SWEEP, "--env-kwargs", '{"max_iterations": 50}', "--out", str(tmp_path / "k")]
+    assert main(argv) == 0
+    assert json.loads((tmp_path / "k" / "summary.json").read_text())["config"]["max_iterations"] == 50
 
 
 @pytest.mark.parametrize("env_id, needle", [

@@ -277,10 +277,11 @@ def test_vo_agent_errors_are_one_line(tmp_path, capsys):
 
 @pytest.mark.parametrize("args, needle", [
     (["--source", "rendered", "--outlier-preset", "hostile"],
-     "--outlier-preset applies to simulated matches only, not to --source rendered"),
-    (["--source", "rendered", "--outliers", "0.3"], "--outliers applies to simulated matches only"),
-    (["--source", "kitti:/data", "--n", "200"], "--n applies to simulated matches only, not to --source kitti:/data"),
-    (["--source", "rendered:free", "--auc", "0.9"], "--auc applies to simulated matches only"),
+     "--outlier-preset hostile applies to simulated matches only, not to --source rendered"),
+    (["--source", "rendered", "--outliers", "0.3"], "--outliers 0.3 applies to simulated matches only"),
+    (["--source", "rendered", "--outliers", "0.3:0.9"], "--outliers 0.3:0.9 applies to simulated matches only"),
+    (["--source", "kitti:/data", "--n", "200"], "--n 200 applies to simulated matches only, not to --source kitti:/data"),
+    (["--source", "rendered:free", "--auc", "0.9"], "--auc 0.9 applies to simulated matches only"),
     (["--resolution", "vga"], "--resolution vga applies to a rendered --source only, not to simulated matches"),
     (["--source", "kitti:/data", "--resolution", "vga"],
      "--resolution vga applies to a rendered or simulated sequence, not to --source kitti:/data"),

@@ -147,7 +147,6 @@ def test_a_kernel_outside_the_packages_compiles_without_the_line(fresh_kernel):
     assert not compilation.announce_compiling(stream=out)  # installs the listener, says nothing yet
     assert fresh_kernel.twice(1.0) == 2.0  # compiles: a module of its own, not stereovo's or vo_gym's
     assert out.getvalue() == ""
-    compilation.announce_compiling()  # back to stderr for whatever runs next in this process
 
 
 def test_the_packages_kernels_are_found():
@@ -161,3 +160,22 @@ def test_the_packages_kernels_are_found():
     assert any(name.startswith("stereovo.simulation") for name in names)
     assert any(name.startswith("vo_gym.features") for name in names)
     assert all(name.startswith(("stereovo.", "vo_gym.")) for name in names)
+
+
+def test_the_stream_a_caller_gives_stays_when_estimates_install_the_listener_again(tmp_path, monkeypatch):
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    source = tmp_path / "compilation_probe_stream.py"
+    source.write_text("from numba import njit\n\n@njit(cache=True)\ndef thrice(x):\n    return 3.0 * x\n")
+    spec = importlib.util.spec_from_file_location("vo_gym.compilation_probe_stream", source)
+    module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, module)
+    spec.loader.exec_module(module)
+    compilation.reset_announcement()
+    out = io.StringIO()
+    try:
+        compilation.announce_compiling(stream=out)
+        compilation.announce_compiling()  # what every estimate and reset calls
+        assert module.thrice(1.0) == 3.0  # a package kernel compiles: the line goes to the caller's stream
+        assert out.getvalue() == compilation.MESSAGE + "\n"
+    finally:
+        compilation.reset_announcement()  # back to stderr

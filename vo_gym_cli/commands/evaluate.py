@@ -85,8 +85,9 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--methods", type=_csv_list(str, "--methods"), default=None, metavar="A,B,...",
                         help="classical methods side by side (default: ransac,msac,prosac,guided;"
                              " 'guided' = ransac with the match scores as sampling priors; 'none' for none)")
-    parser.add_argument("--max-iterations", type=_positive_int("--max-iterations"), default=2000,
-                        help="hypothesis cap of the adaptive classical runs (default: 2000)")
+    parser.add_argument("--max-iterations", type=_positive_int("--max-iterations"), default=None,
+                        help="hypothesis cap of the adaptive classical runs (default: --env-kwargs' max_iterations,"
+                             " else 2000)")
     parser.add_argument("--outlier-preset", default=None, choices=list(OUTLIER_PRESETS),
                         help="the environment's match errors (its 'outliers' keyword): default, or hostile"
                              " (independent left/right mismatches, duplicates, far clutter, repetitive texture,"
@@ -306,7 +307,9 @@ def _run(args: argparse.Namespace) -> int:
             env_id=args.env_id, episodes=args.episodes, frames_per_episode=args.frames_per_episode, seed=args.seed,
             budget=args.budget, epsilons=tuple(args.epsilons), budgets=tuple(args.budgets),
             sweep_epsilon=args.sweep_epsilon, n=args.n, score_auc=args.auc, methods=methods,
-            max_iterations=args.max_iterations, env_kwargs=env_kwargs, adaptive_agents=args.adaptive_agents,
+            max_iterations=(args.max_iterations if args.max_iterations is not None
+                            else env_kwargs.get("max_iterations", EvalConfig.max_iterations)),
+            env_kwargs=env_kwargs, adaptive_agents=args.adaptive_agents,
         )
     except ValueError as err:
         raise _config_error(err) from None

@@ -266,9 +266,11 @@ def check_source_options(args: argparse.Namespace) -> None:
             if getattr(args, dest) is None:
                 setattr(args, dest, default)
         return
-    given = [flag for dest, flag in _SIMULATED_ONLY.items() if getattr(args, dest) is not None]
+    given = [(flag, getattr(args, dest)) for dest, flag in _SIMULATED_ONLY.items() if getattr(args, dest) is not None]
     if given:
-        raise UsageError(f"{given[0]} applies to simulated matches only, not to --source {args.source}")
+        flag, value = given[0]
+        shown = ":".join(f"{v:g}" for v in value) if isinstance(value, tuple) else value
+        raise UsageError(f"{flag} {shown} applies to simulated matches only, not to --source {args.source}")
     kind, named = parse(args.source)
     if kind != "rendered":
         for flag, value in (("--resolution", args.resolution), ("--preset", args.preset)):
