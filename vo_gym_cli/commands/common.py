@@ -66,18 +66,23 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
 
 
 def csv_list(kind: Callable[[str], Any], name: str) -> Callable[[str], list[Any]]:
-    """An argparse type for ``A,B,...`` lists of ``kind`` values; errors name ``name``."""
+    """An argparse type for ``A,B,...`` lists of distinct ``kind`` values (each list is a set of cells,
+    methods or kinds: a value given twice would run or print twice); errors name ``name``."""
 
     def parse(text: str) -> list[Any]:
         items = [t.strip() for t in text.split(",") if t.strip()]
         if not items:
             raise argparse.ArgumentTypeError(f"{name} needs at least one value")
         try:
-            return [kind(t) for t in items]
+            values = [kind(t) for t in items]
         except ValueError:
             raise argparse.ArgumentTypeError(
                 f"{name} {text!r}: expected comma-separated {kind.__name__} values"
             ) from None
+        repeated = next((items[i] for i, v in enumerate(values) if v in values[:i]), None)
+        if repeated is not None:
+            raise argparse.ArgumentTypeError(f"{name} {text!r} gives {repeated} twice")
+        return values
 
     return parse
 
