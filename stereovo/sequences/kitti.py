@@ -76,6 +76,10 @@ def read_calibration(path: Path) -> StereoCamera:
     return StereoCamera(fx=float(fx), fy=float(fy), cx=float(cx), cy=float(cy), baseline=float(baseline))
 
 
+MAX_POSITION_M = 1e7
+"""The largest coordinate a KITTI pose may hold (m): the Earth's scale, far beyond any sequence."""
+
+
 def read_poses(path: Path) -> np.ndarray:
     """``(N, 4, 4)`` camera-to-world poses from KITTI's pose file (12 numbers a line)."""
     poses = []
@@ -85,6 +89,13 @@ def read_poses(path: Path) -> np.ndarray:
                 continue
             pose = np.eye(4)
             pose[:3, :] = _three_by_four(line, f"{path}, line {number}: a pose", repr(line.strip()[:60]))
+            # A camera-to-world pose: a rotation (KITTI's, from GPS/INS, are orthonormal to about 1e-6)
+            # and a position on the Earth's scale; anything else would fail far away, in the drift's SVD.
+            R = pose[:3, :3]
+            if (not np.allclose(R @ R.T, np.eye(3), atol=1e-3) or np.linalg.det(R) <= 0
+                    or np.abs(pose[:3, 3]).max() > MAX_POSITION_M):
+                raise ValueError(f"{path}, line {number}: a pose must be a rotation and a position within "
+                                 f"{MAX_POSITION_M:g} m, got {line.strip()[:60]!r}")
             poses.append(pose)
     if not poses:
         raise ValueError(f"{path}: no poses")

@@ -210,6 +210,31 @@ def test_vo_on_a_kitti_folder_with_and_without_poses(tmp_path, capsys, short):
     assert "no ground-truth poses" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("damage, needle", [
+    ("truncated", "000001.png: not a readable image"),
+    ("right smaller", "image pair 1"),
+])
+def test_a_bad_image_later_in_a_kitti_sequence_is_one_line_and_leaves_out_as_it_was(tmp_path, capsys, short,
+                                                                                      damage, needle):
+    # only the first pair is read when the sequence opens: a later one failed with a traceback
+    import cv2
+
+    from tests.support.images import write_kitti
+
+    folder = write_kitti(tmp_path / "data", short, "05")
+    if damage == "truncated":
+        image = folder / "image_0" / "000001.png"
+        image.write_bytes(image.read_bytes()[: image.stat().st_size // 2])
+    else:
+        image = folder / "image_1" / "000001.png"
+        cv2.imwrite(str(image), cv2.imread(str(image), cv2.IMREAD_GRAYSCALE)[:-8, :-8])
+    out = tmp_path / "k"
+    assert main(["vo", "--source", f"kitti:{tmp_path / 'data'}:05", "--no-progress", "--out", str(out)]) == 2
+    line = one_line_error(capsys, "vo")
+    assert line.startswith("vo-gym vo: error: --source kitti:") and needle in line, line
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("source, needle", [
     ("bogus", "--source must be one of rendered, rendered:PRESET, kitti:PATH, kitti:PATH:SEQ, got 'bogus'"),
     ("rendered:plane", "--source 'rendered:plane': the rendered preset must be one of car, free, got 'plane'"),

@@ -413,11 +413,18 @@ def _run_source(args: argparse.Namespace) -> int:
     from stereovo.sequences.sources import run_image_odometry
 
     sequence = _open_source(args)
+    start = RunStart(args.out)
     try:
         sampling = _sampling(args, args.noise)
         out: Path = check_output_dir(args.out)
-        result = run_image_odometry(sequence, method=args.method, seed=args.seed, progress=not args.no_progress,
-                                    **sampling)
+        try:
+            result = run_image_odometry(sequence, method=args.method, seed=args.seed,
+                                        progress=not args.no_progress, **sampling)
+        except (ValueError, OSError) as err:
+            # a file read as the sequence goes on (only its first image pair is read when it opens): an
+            # unreadable or mis-sized image; --out is left as it was
+            start.undo()
+            raise UsageError(f"--source {args.source}: {' '.join(str(err).split())}") from None
     finally:
         close = getattr(sequence, "close", None)
         if close is not None:

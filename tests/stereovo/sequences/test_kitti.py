@@ -71,7 +71,12 @@ def test_kitti_pose_and_calibration_lines_need_twelve_finite_numbers(tmp_path):
     assert read_poses(poses).shape == (2, 4, 4) and read_poses(poses)[1, 2, 3] == 2.5
     for line, message in (("1 0 0 0 0 1 0 0 0 0 1 x", r"line 1: a pose must be 12 numbers, got '1 0 0 0 0 1 0 0 0 0 1 x'$"),
                           ("1 0 0 0 0 1 0 0 0 0 1", r"line 1: a pose must be 12 finite numbers, got 11$"),
-                          ("1 0 0 0 0 1 0 0 0 0 1 nan", r"line 1: a pose must be 12 finite numbers, got 12$")):
+                          ("1 0 0 0 0 1 0 0 0 0 1 nan", r"line 1: a pose must be 12 finite numbers, got 12$"),
+                          # finite, but no camera pose: the drift's SVD failed far from the file
+                          ("1e308 0 0 1e308 0 1e308 0 0 0 0 1e308 0", r"line 1: a pose must be a rotation and a position"),
+                          ("0 0 0 0 0 0 0 0 0 0 0 0", r"line 1: a pose must be a rotation"),
+                          ("-1 0 0 0 0 1 0 0 0 0 1 0", r"line 1: a pose must be a rotation"),
+                          ("1 0 0 1e300 0 1 0 0 0 0 1 0", r"within 1e\+07 m, got '1 0 0 1e300")):
         poses.write_text(line + "\n")
         with pytest.raises(ValueError, match=message):
             read_poses(poses)
