@@ -88,6 +88,117 @@ def test_the_command_reports_a_bad_file_in_one_line(tmp_path, capsys):
     assert main(["sweep", str(tmp_path / "missing.yaml")]) == 2
 
 
+_BOMB = "".join(f"{c}: &{c} [{', '.join(['*' + p] * 9) if p else 'x, x, x, x, x, x, x, x, x'}]\n"
+                for p, c in zip([None, *"abcdefgh"], "abcdefghi"))
+
+
+@pytest.mark.parametrize("where", ["top", "fixed", "budget"])
+def test_an_alias_bomb_is_refused_before_it_expands(tmp_path, where):
+    if where == "top":
+        text = NGRANSAC + _BOMB
+    elif where == "fixed":
+        text = NGRANSAC.replace("fixed: {frames: 6, n_correspondences: 60, pools: 2, eval_frames: 1}",
+                                "fixed:\n" + "".join(f"  - {line}\n" for line in _BOMB.splitlines()))
+    else:
+        text = NGRANSAC.replace("metric: {epsilon: 0.5, budget: 8,", "metric: {epsilon: 0.5, budget: *i,") + _BOMB
+    with pytest.raises(ValueError) as err:
+        load_sweep(_write(tmp_path, text))
+    message = str(err.value)
+    assert "sweep.yaml: not valid YAML (line " in message and "anchors and aliases" in message
+    assert "\n" not in message and len(message) < 300
+
+
+def test_a_single_alias_is_refused_too(tmp_path):
+    text = NGRANSAC.replace("report_every: 3", "report_every: &r 3\nsamples: *r")
+    with pytest.raises(ValueError, match=r"sweep.yaml: not valid YAML \(line 8: anchors and aliases"):
+        load_sweep(_write(tmp_path, text))
+
+
+@pytest.mark.parametrize("deep", ["[" * 50000 + "]" * 50000, "{a: " * 50000 + "1" + "}" * 50000])
+def test_deep_nesting_is_refused_in_one_line(tmp_path, deep):
+    with pytest.raises(ValueError, match=r"sweep.yaml: not valid YAML \(line 11: nested more than 32 deep\)$"):
+        load_sweep(_write(tmp_path, NGRANSAC + "extra: " + deep + "\n"))
+
+
+@pytest.mark.parametrize("name", ["../../../../tmp/x", "a/b", "a\\b", "..", ".hidden", "", "x" * 5000, "a\tb"])
+def test_the_name_is_one_folder_under_runs_sweep(tmp_path, name):
+    import yaml
+
+    with pytest.raises(ValueError) as err:
+        parse_sweep({**yaml.safe_load(NGRANSAC), "name": name}, "s.yaml")
+    message = str(err.value)
+    assert message.startswith("s.yaml: name must be a single folder name") and len(message) < 400
+    assert (repr(name) if len(name) < 100 else "'xxxx") in message
+
+
+def test_a_name_that_escapes_runs_sweep_writes_nothing(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    config = _write(tmp_path, NGRANSAC.replace("name: tiny", "name: ../../escaped"))
+    assert main(["sweep", str(config)]) == 2
+    [line] = capsys.readouterr().err.strip().splitlines()
+    assert line == (f"vo-gym sweep: error: {config}: name must be a single folder name of 1 to 100 characters"
+                    " without '/', '\\', ':' or a leading '.', got '../../escaped'")
+    assert not (tmp_path / "escaped").exists() and not (tmp_path / "runs").exists()
+
+
+@pytest.mark.parametrize(
+    "change, needle",
+    [
+        ({"fixed": {"frames": "many"}}, "s.yaml: fixed.frames must be an integer, got 'many'"),
+        ({"fixed": {"learning_rate": [1, 2]}}, "s.yaml: fixed.learning_rate must be a finite number, got [1, 2]"),
+        ({"fixed": {"frames": 6, "epsilon_range": "wide"}}, "s.yaml: fixed.epsilon_range must be a list of 2"),
+        ({"space": {"seed": {"grid": [0, "one"]}}}, "s.yaml: space.seed.grid[1] must be an integer, got 'one'"),
+        ({"space": {"seed": {"randint": [0, float("inf")]}}}, "space.seed.randint must be [low, high] finite"),
+        ({"space": {"seed": {"randint": [0, 2.5]}}}, "space.seed.randint must be [low, high] integers"),
+        ({"algo": "x" * 10000}, "s.yaml: algo must be one of ('ngransac', 'ppo'), got 'xxx"),
+        ({"fixed": ["x"] * 100000}, "s.yaml: fixed must be a mapping, got ['x', "),
+        ({"x" * 10000: 1, 3: 4}, "s.yaml: unknown key(s) ["),
+        ({"scheduler": "fifo"}, "s.yaml: scheduler must be a mapping, got 'fifo'"),
+        ({"scheduler": {"type": "asha", "reduction_factor": float("nan")}},
+         "s.yaml: scheduler.reduction_factor must be a finite number > 1, got nan"),
+        ({"samples": 0}, "s.yaml: samples must be an integer >= 1, got 0"),
+        ({"metric": {"budget": "x" * 10000}}, "s.yaml: sweep metric.budget"),
+        ({"metric": {"env_id": [1]}}, "s.yaml: metric.env_id must be a string, got [1]"),
+    ],
+)
+def test_bad_values_name_the_file_and_key_in_a_short_message(change, needle):
+    import yaml
+
+    data = {**yaml.safe_load(NGRANSAC), **change}
+    with pytest.raises(ValueError) as err:
+        parse_sweep(data, "s.yaml")
+    assert needle in str(err.value) and len(str(err.value)) < 600
+
+
+def test_a_file_that_is_not_utf8_a_directory_or_too_large_is_named(tmp_path):
+    latin = tmp_path / "latin.yaml"
+    latin.write_bytes(NGRANSAC.replace("tiny", "caf\xe9").encode("latin-1"))
+    with pytest.raises(ValueError, match=r"latin.yaml: not UTF-8 text \(byte 10: b'\\xe9'\)"):
+        load_sweep(latin)
+    folder = tmp_path / "folder.yaml"
+    folder.mkdir()
+    with pytest.raises(ValueError, match=r"folder.yaml: is a directory, not a sweep file"):
+        load_sweep(folder)
+    with pytest.raises(ValueError, match=r"big.yaml: larger than 1024 KiB"):
+        load_sweep(_write(tmp_path, NGRANSAC + "#" * (1 << 20), "big.yaml"))
+
+
+def test_the_command_refuses_each_defect_in_one_line(tmp_path, capsys):
+    cases = {
+        "bomb.yaml": NGRANSAC + _BOMB,
+        "deep.yaml": NGRANSAC + "extra: " + "[" * 50000 + "]" * 50000 + "\n",
+        "frames.yaml": NGRANSAC.replace("frames: 6", "frames: many"),
+        "tag.yaml": NGRANSAC + "extra: !!python/object/apply:os.system ['echo pwned']\n",
+    }
+    for name, text in cases.items():
+        assert main(["sweep", str(_write(tmp_path, text, name)), "--out", str(tmp_path / "o")]) == 2
+        [line] = capsys.readouterr().err.strip().splitlines()
+        assert line.startswith(f"vo-gym sweep: error: {tmp_path / name}: ") and len(line) < 400, line
+    assert not (tmp_path / "o").exists()
+    assert main(["sweep", str(tmp_path)]) == 2
+    assert capsys.readouterr().err.strip() == f"vo-gym sweep: error: {tmp_path}: is a directory, not a sweep file"
+
+
 def _results(out: Path) -> list[dict[str, str]]:
     with (out / "results.csv").open(newline="") as fh:
         return list(csv.DictReader(fh))
