@@ -10,6 +10,7 @@ types restored, so a report can be rebuilt from the stored rows alone.
 from __future__ import annotations
 
 import csv
+import io
 import math
 import os
 from dataclasses import dataclass, field
@@ -50,14 +51,64 @@ def typed_value(column: str, text: str, ints: Container[str], strs: Container[st
 
 
 def parse_trial_value(column: str, text: str) -> Any:
-    """A ``trials.csv`` cell's value with its type restored (see :data:`TRIAL_COLUMNS`)."""
-    return typed_value(column, text, _INT_COLUMNS, _STR_COLUMNS, _BOOL_COLUMNS)
+    """A ``trials.csv`` cell's value with its type restored (see :data:`TRIAL_COLUMNS`); a text that is
+    no value of its column (``success=maybe``, ``rot_err_deg=hello``) raises ValueError."""
+    return typed_value(column, text, _INT_COLUMNS, _STR_COLUMNS, _BOOL_COLUMNS, strict=True)
+
+
+class TrialsFileError(ValueError):
+    """A ``trials.csv`` that is not one :func:`write_outputs` wrote; the message names the line."""
+
+
+# Columns a trials.csv may lack (files written before they existed); the statistics default them.
+_OPTIONAL_COLUMNS = {"n_hypotheses_to_best"}
 
 
 def read_trials_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
-    """Rows of a ``trials.csv`` written by :func:`write_outputs`, with their types restored."""
-    with Path(path).open(newline="") as fh:
-        return [{k: parse_trial_value(k, v) for k, v in row.items()} for row in csv.DictReader(fh)]
+    """Rows of a ``trials.csv`` written by :func:`write_outputs`, with their types restored.
+
+    Raises:
+        TrialsFileError: not UTF-8 CSV, a header with unknown or missing columns, a row of another
+            width, or a cell that is no value of its column; the message names the line.
+    """
+    from stereovo.benchmark.runner import TRIAL_COLUMNS
+
+    name = Path(path).name
+    try:
+        text = Path(path).read_bytes().decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise TrialsFileError(f"{name}: not UTF-8 text (byte {err.start})") from None
+    except OSError as err:
+        raise TrialsFileError(f"{name}: cannot be read ({err.strerror or err})") from None
+    reader = csv.reader(io.StringIO(text, newline=""))
+    rows: list[dict[str, Any]] = []
+    try:
+        header = next(reader, None)
+        if not header:
+            raise TrialsFileError(f"{name}: no header line")
+        unknown = [c for c in header if c not in TRIAL_COLUMNS]
+        missing = [c for c in TRIAL_COLUMNS if c not in header and c not in _OPTIONAL_COLUMNS]
+        if unknown or missing or len(set(header)) != len(header):
+            what = "; ".join(p for p in (f"missing column(s) {', '.join(missing)}" if missing else "",
+                                          f"unknown column(s) {', '.join(repr(c[:40]) for c in unknown[:3])}"
+                                          if unknown else "") if p) or "a column named twice"
+            raise TrialsFileError(f"{name}: line 1: {what}")
+        for fields in reader:
+            line = reader.line_num
+            if len(fields) != len(header):
+                raise TrialsFileError(f"{name}: line {line}: {len(fields)} fields, the header has {len(header)}")
+            row = {}
+            for column, value in zip(header, fields):
+                try:
+                    row[column] = parse_trial_value(column, value)
+                except (ValueError, OverflowError):
+                    shown = value if len(value) <= 40 else value[:40] + "..."
+                    raise TrialsFileError(f"{name}: line {line}: {column} {shown!r} is no value of that column"
+                                          ) from None
+            rows.append(row)
+    except csv.Error as err:
+        raise TrialsFileError(f"{name}: line {reader.line_num}: {err}") from None
+    return rows
 
 
 STAT_LABELS: dict[str, str] = {

@@ -25,20 +25,25 @@ def write_outputs(
     from stereovo.trials.store import atomic_path, atomic_write_text
 
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
 
     def csv_file(name: str, table: Sequence[Mapping[str, Any]]) -> None:
         # Through a temporary file and a rename: a reader never sees half a table.
         with atomic_path(out / name) as tmp:
             write_frame_csv(tmp, table)
 
-    csv_file("trials.csv", rows)
+    # Everything computed first: a row the statistics cannot take fails before any file is written.
     summary = summarize(rows)
-    csv_file("summary.csv", [{"method": m, **summary.overall[m]} for m in summary.methods])
-    csv_file("cells.csv", cell_summary_rows(rows))
+    summary_rows = [{"method": m, **summary.overall[m]} for m in summary.methods]
+    cell_rows = cell_summary_rows(rows)
     claims = check_claims(summary)
-    atomic_write_text(out / "summary.md", summary_markdown(summary, settings))
-    atomic_write_text(out / "claims.md", claims_markdown(claims))
+    summary_md = summary_markdown(summary, settings)
+    claims_md = claims_markdown(claims)
+    out.mkdir(parents=True, exist_ok=True)
+    csv_file("trials.csv", rows)
+    csv_file("summary.csv", summary_rows)
+    csv_file("cells.csv", cell_rows)
+    atomic_write_text(out / "summary.md", summary_md)
+    atomic_write_text(out / "claims.md", claims_md)
     if plots:
         write_plots(rows, summary, out, plot_format)
     return summary, claims

@@ -18,6 +18,7 @@ are bit-identical to the rows computed: a resumed run's final files equal an uni
 
 from __future__ import annotations
 
+import codecs
 import contextlib
 import csv
 import io
@@ -26,13 +27,16 @@ import math
 import os
 import tempfile
 from pathlib import Path
-from typing import Any, Callable, Iterator, Mapping, Sequence
+from typing import Any, Callable, Collection, Iterator, Mapping, Sequence
 
 __all__ = [
     "JOURNAL",
     "MANIFEST",
     "TrialJournal",
     "RunFolderError",
+    "JournalError",
+    "read_journal",
+    "read_manifest",
     "prepare_run_folder",
     "atomic_path",
     "atomic_write_text",
@@ -42,10 +46,19 @@ __all__ = [
 JOURNAL = "journal.csv"
 MANIFEST = "manifest.json"
 _KEY_COLUMNS = ("task", "task_rows")
+NEWLINE = b"\n"
 
 
 class RunFolderError(ValueError):
     """A run folder that cannot be used as asked (not empty, other settings); the message says why."""
+
+
+class JournalError(RunFolderError):
+    """A journal (or manifest) file that is not one this run wrote; ``detail`` says what is wrong where."""
+
+    def __init__(self, name: str, detail: str) -> None:
+        super().__init__(f"{name} is not a {'manifest' if name == MANIFEST else 'journal'} of this run ({detail})")
+        self.name, self.detail = name, detail
 
 
 def csv_value(value: Any) -> str:
@@ -109,17 +122,22 @@ def prepare_run_folder(out: str | os.PathLike, resume: bool, overwrite: bool, op
         RunFolderError: ``out`` is not empty and neither ``resume`` nor ``overwrite`` is set,
             or both are set.
     """
-    out = Path(out)
+    shown = str(out)
+    # Lexically, as a shell would: X/missing/../Y is X/Y (Path keeps the "..", and is_dir() through a
+    # missing folder is False, so a full folder would pass as empty and then be written into).
+    out = Path(os.path.normpath(out))
     if resume and overwrite:
         raise RunFolderError("--resume and --overwrite exclude each other")
     entries = [p for p in out.iterdir() if not p.name.startswith(".write-check-")] if out.is_dir() else []
     if entries and not (resume or overwrite):
         raise RunFolderError(
-            f"{option} {str(out)!r} is not empty ({len(entries)} entries); pass --resume to complete the run"
+            f"{option} {shown!r} is not empty ({len(entries)} entries); pass --resume to complete the run"
             " there or --overwrite to replace it"
         )
     if overwrite:
         for name in (JOURNAL, MANIFEST):
+            if (out / name).is_dir() and not (out / name).is_symlink():
+                raise RunFolderError(f"{option} {shown!r}: {name} is a directory; remove it to start again")
             with contextlib.suppress(FileNotFoundError):
                 (out / name).unlink()
     return out
@@ -141,12 +159,15 @@ class TrialJournal:
     Args:
         folder: the run folder (must exist and be writable).
         columns: the trial rows' columns, in order.
-        parse: ``parse(column, text) -> value``: restores a cell's type when reading back.
+        parse: ``parse(column, text) -> value``: restores a cell's type when reading back (raises
+            ValueError on a text that is no value of its column).
+        option: the flag that named the folder, for messages.
     """
 
     def __init__(self, folder: str | os.PathLike, columns: Sequence[str],
-                 parse: Callable[[str, str], Any]) -> None:
+                 parse: Callable[[str, str], Any], option: str = "--out") -> None:
         self.folder = Path(folder)
+        self.option = option
         self.columns = tuple(columns)
         clash = set(self.columns) & set(_KEY_COLUMNS)
         if clash:
@@ -157,23 +178,38 @@ class TrialJournal:
 
     # ------------------------------------------------------------------ opening
 
-    def open(self, manifest: Mapping[str, Any], resume: bool) -> dict[int, list[dict[str, Any]]]:
+    def open(self, manifest: Mapping[str, Any], resume: bool,
+             keys: Collection[int] | None = None) -> dict[int, list[dict[str, Any]]]:
         """Start the journal (or continue it with ``resume``); returns the finished trials' rows by key.
 
+        ``keys``: the run's task keys; a stored trial with another key is refused (it was not written
+        by this run, and re-running the task it stands for while calling it resumed would be wrong).
+
         Raises:
-            RunFolderError: ``resume`` into a folder whose manifest differs from ``manifest``.
+            RunFolderError: ``resume`` into a folder whose manifest differs from ``manifest``, or
+                whose manifest or journal is not one a run wrote (naming the file and what is wrong).
         """
         manifest_path = self.folder / MANIFEST
         done: dict[int, list[dict[str, Any]]] = {}
+        where = f"{self.option} {str(self.folder)!r}"
+        for name in (MANIFEST, JOURNAL):
+            if (self.folder / name).is_dir():
+                raise RunFolderError(f"{where}: {name} is a directory, not a file of a run; remove it to start again")
         if resume and manifest_path.is_file():
-            stored = json.loads(manifest_path.read_text())
+            try:
+                stored = read_manifest(manifest_path)
+            except JournalError as err:
+                raise RunFolderError(f"{where}: {err}; pass --overwrite to start again") from None
             if _comparable(stored) != _comparable(manifest):
                 raise RunFolderError(
                     f"--resume: {str(self.folder)!r} holds a run with other settings"
                     f" ({_describe_difference(stored, _comparable(manifest))} differ); use another --out,"
                     " or --overwrite to replace it"
                 )
-            done = self.read()
+            try:
+                done = read_journal(self.path, self.parse, self.columns, keys)
+            except JournalError as err:
+                raise RunFolderError(f"{where}: {err}; pass --overwrite to start again") from None
         atomic_write_text(manifest_path, json.dumps(_comparable(manifest), indent=2) + "\n")
         # Rewrite the journal with the complete trials only, so torn blocks never mix with new ones.
         with atomic_path(self.path) as tmp:
@@ -225,36 +261,115 @@ class TrialJournal:
 
     def read(self) -> dict[int, list[dict[str, Any]]]:
         """The complete trials of the journal on disk, by key (torn or partial blocks dropped)."""
-        return read_journal(self.path, self.parse)
+        return read_journal(self.path, self.parse, self.columns)
 
 
-def read_journal(path: str | os.PathLike, parse: Callable[[str, str], Any]) -> dict[int, list[dict[str, Any]]]:
-    """Complete trials of a journal file by key; a torn last line or a short block is dropped."""
+def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
+    """A run's ``manifest.json``; raises :class:`JournalError` when it is no JSON object."""
     path = Path(path)
+    try:
+        data = json.loads(path.read_bytes().decode("utf-8"))
+    except UnicodeDecodeError as err:
+        raise JournalError(MANIFEST, f"not UTF-8 text at byte {err.start}") from None
+    except json.JSONDecodeError as err:
+        raise JournalError(MANIFEST, f"not JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
+    except RecursionError:
+        raise JournalError(MANIFEST, "not JSON of a manifest: nested too deeply") from None
+    except OSError as err:
+        raise JournalError(MANIFEST, f"cannot be read: {err.strerror or err}") from None
+    if not isinstance(data, dict):
+        raise JournalError(MANIFEST, f"a JSON {type(data).__name__ if data is not None else 'null'}, not an object")
+    return data
+
+
+def _short(text: str, limit: int = 40) -> str:
+    return repr(text if len(text) <= limit else text[:limit] + "...")
+
+
+def read_journal(path: str | os.PathLike, parse: Callable[[str, str], Any], columns: Sequence[str] | None = None,
+                 keys: Collection[int] | None = None) -> dict[int, list[dict[str, Any]]]:
+    """Complete trials of a journal file by key; a torn last line or a short last block is dropped.
+
+    Args:
+        columns: the trial columns the header must name (in this order); None: any after the keys.
+        keys: the task keys a trial may have; None: any integer.
+
+    Raises:
+        JournalError: anything else that is not a journal of this run: not UTF-8 text, a line that is
+            no CSV row of the header's width, a header with other columns, a key or row count that is
+            no integer in range, a cell ``parse`` refuses, a block cut short before the last one.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise JournalError(JOURNAL, "a directory, not a file")
     if not path.is_file():
         return {}
-    with path.open(newline="") as fh:
-        text = fh.read()
-    if not text.endswith("\n"):
-        text = text[: text.rfind("\n") + 1]  # a line cut by a crash
-    blocks: dict[int, list[dict[str, Any]]] = {}
-    expected: dict[int, int] = {}
-    for raw in csv.DictReader(io.StringIO(text, newline="")):
-        if any(v is None for v in raw.values()) or None in raw:
-            continue  # a malformed line
-        try:
-            key, n = int(raw.pop("task")), int(raw.pop("task_rows"))
-        except (TypeError, ValueError):
-            continue
-        if key in expected and expected[key] != n:
-            continue
-        expected[key] = n
-        blocks.setdefault(key, []).append({k: parse(k, v) for k, v in raw.items()})
+    try:
+        data = path.read_bytes()
+    except OSError as err:
+        raise JournalError(JOURNAL, f"cannot be read: {err.strerror or err}") from None
+    cut = data.rfind(b"\n") + 1
+    body, torn = data[:cut], data[cut:]
+    try:
+        text = body.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise JournalError(JOURNAL, f"line {body[:err.start].count(NEWLINE) + 1}: not UTF-8 text") from None
+    try:
+        # a line cut by a crash: dropped, but it must be the start of UTF-8 text (a character may be cut)
+        codecs.getincrementaldecoder("utf-8")().decode(torn, final=False)
+    except UnicodeDecodeError:
+        raise JournalError(JOURNAL, f"line {body.count(NEWLINE) + 1}: not UTF-8 text") from None
+    header = None
+    reader = csv.reader(io.StringIO(text, newline=""))
+    blocks: list[tuple[int, int, int, list[dict[str, Any]]]] = []  # (key, n, first line, rows)
+    try:
+        for fields in reader:
+            number = reader.line_num
+            if header is None:
+                header = fields
+                if header[:2] != list(_KEY_COLUMNS):
+                    raise JournalError(JOURNAL, f"line 1: the header starts {_short(','.join(header[:2]))},"
+                                                f" not {','.join(_KEY_COLUMNS)}")
+                if columns is not None and header[2:] != list(columns):
+                    missing = [c for c in columns if c not in header[2:]]
+                    unknown = [c for c in header[2:] if c not in columns]
+                    what = "; ".join(p for p in (f"missing column(s) {', '.join(missing)}" if missing else "",
+                                                  f"unknown column(s) {', '.join(map(_short, unknown[:3]))}"
+                                                  if unknown else "") if p) or "columns in another order"
+                    raise JournalError(JOURNAL, f"line 1: {what}")
+                if len(set(header)) != len(header):
+                    raise JournalError(JOURNAL, "line 1: a column is named twice")
+                continue
+            if len(fields) != len(header):
+                raise JournalError(JOURNAL, f"line {number}: {len(fields)} fields, the header has {len(header)}")
+            try:
+                key, n = int(fields[0]), int(fields[1])
+            except ValueError:
+                raise JournalError(JOURNAL, f"line {number}: task {_short(fields[0])} or task_rows"
+                                            f" {_short(fields[1])} is no integer") from None
+            if n < 1:
+                raise JournalError(JOURNAL, f"line {number}: task_rows {n} (a trial has at least one row)")
+            if keys is not None and key not in keys:
+                raise JournalError(JOURNAL, f"line {number}: task {key} is not a task of this run")
+            row = {}
+            for column, value in zip(header[2:], fields[2:]):
+                try:
+                    row[column] = parse(column, value)
+                except (ValueError, TypeError, OverflowError):
+                    raise JournalError(JOURNAL, f"line {number}: {column} {_short(value)}"
+                                                " is no value of that column") from None
+            if blocks and blocks[-1][0] == key and blocks[-1][1] == n and len(blocks[-1][3]) < n:
+                blocks[-1][3].append(row)
+            else:
+                blocks.append((key, n, number, [row]))
+    except csv.Error as err:
+        raise JournalError(JOURNAL, f"line {reader.line_num}: {err}") from None
     out: dict[int, list[dict[str, Any]]] = {}
-    for key, rows in blocks.items():
-        n = expected[key]
-        if len(rows) >= n:
-            out[key] = rows[:n] if len(rows) == n else rows[-n:]  # a trial re-run after a torn block
+    for i, (key, n, first, rows) in enumerate(blocks):
+        if len(rows) == n:
+            out[key] = rows  # a trial re-run after a torn block: the later block
+        elif i != len(blocks) - 1:
+            raise JournalError(JOURNAL, f"line {first}: task {key}'s block has {len(rows)} of its {n} rows")
     return out
 
 

@@ -194,30 +194,60 @@ def check_options_apply(args: argparse.Namespace) -> None:
                      + (f" ({why})" if why else ""))
 
 
-def _stored_rows(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
-    """Rows and settings of a run folder: ``trials.csv`` of a finished run, else its journal."""
-    from stereovo import benchmark as bm
-    from stereovo.trials.store import JOURNAL, MANIFEST, read_journal
+def _json_object(path: Path, what: str) -> dict[str, Any]:
+    """A JSON object file of a run folder; UsageError naming the file and what is wrong."""
+    from stereovo.trials.store import JournalError, read_manifest
 
+    try:
+        data = read_manifest(path)
+    except JournalError as err:
+        raise UsageError(f"--report-only {str(path.parent)!r}: {path.name} is not the {what} of a run"
+                         f" ({err.detail})") from None
+    return data
+
+
+def _stored_rows(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """Rows and settings of a run folder: ``trials.csv`` of a finished run, else its journal.
+
+    Everything is read and checked here, before anything is written (UsageError naming the file)."""
+    from stereovo import benchmark as bm
+    from stereovo.benchmark.aggregation import TrialsFileError
+    from stereovo.trials.store import JOURNAL, MANIFEST, JournalError, read_journal
+
+    where = f"--report-only {str(folder)!r}"
+    for name in ("run.json", MANIFEST, JOURNAL, "trials.csv"):
+        if (folder / name).is_dir():
+            raise UsageError(f"{where}: {name} is a directory, not a file of a run")
     settings: dict[str, Any] = {}
     if (folder / "run.json").is_file():
-        settings = json.loads((folder / "run.json").read_text())
+        settings = _json_object(folder / "run.json", "settings")
     journal = folder / JOURNAL
     if journal.is_file():
-        done = read_journal(journal, bm.parse_trial_value)
+        try:
+            done = read_journal(journal, bm.parse_trial_value, bm.TRIAL_COLUMNS)
+        except JournalError as err:
+            raise UsageError(f"{where}: {err}") from None
         rows = [row for key in sorted(done) for row in done[key]]
         if not settings and (folder / MANIFEST).is_file():
-            manifest = json.loads((folder / MANIFEST).read_text())
-            grid = bm.BenchmarkGrid(**{k: tuple(v) if isinstance(v, list) else v
-                                       for k, v in manifest["grid_axes"].items()})
-            settings = {"grid": grid.describe(), "grid_axes": manifest["grid_axes"],
-                        "max_iterations": grid.max_iterations, "methods": manifest["methods"],
-                        "seed": manifest["seed"]}
+            manifest = _json_object(folder / MANIFEST, "manifest")
+            axes = manifest.get("grid_axes")
+            try:
+                if not isinstance(axes, dict):
+                    raise ValueError(f"grid_axes is {type(axes).__name__ if axes is not None else 'missing'},"
+                                     " not an object")
+                grid = bm.BenchmarkGrid(**{str(k): tuple(v) if isinstance(v, list) else v for k, v in axes.items()})
+                settings = {"grid": grid.describe(), "grid_axes": axes, "max_iterations": grid.max_iterations,
+                            "methods": manifest.get("methods"), "seed": manifest.get("seed")}
+            except (TypeError, ValueError) as err:
+                raise UsageError(f"{where}: {MANIFEST} is not the manifest of a run ({err})") from None
             settings["n_trials_done"] = len(done)
         return rows, settings
     if (folder / "trials.csv").is_file():
-        return bm.read_trials_csv(folder / "trials.csv"), settings
-    raise UsageError(f"--report-only {str(folder)!r}: no trials.csv or {JOURNAL} there")
+        try:
+            return bm.read_trials_csv(folder / "trials.csv"), settings
+        except TrialsFileError as err:
+            raise UsageError(f"{where}: {err}") from None
+    raise UsageError(f"{where}: no trials.csv or {JOURNAL} there")
 
 
 def _report_only(args: argparse.Namespace) -> int:
@@ -311,7 +341,7 @@ def _benchmark(args, grid, estimators, options, out, journal) -> int:
     manifest = {"command": "baselines", "grid_axes": grid.as_dict(), "methods": names, "seed": args.seed,
                 "options": _json_safe(options)}
     try:
-        done = journal.open(manifest, resume=args.resume)
+        done = journal.open(manifest, resume=args.resume, keys=range(len(trials)))
     except RunFolderError as err:
         raise UsageError(str(err)) from None
     try:

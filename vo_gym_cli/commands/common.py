@@ -233,15 +233,18 @@ def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
         UsageError: naming ``option`` and the path when it is a file, cannot be created,
             or cannot be written.
     """
-    out = Path(path)
+    shown = str(path)
+    # Lexically, as a shell would (X/missing/../Y is X/Y), like prepare_run_folder's emptiness check:
+    # through a missing folder mkdir(parents=True) would create it and write into a full Y unchecked.
+    out = Path(os.path.normpath(path))
     if out.exists() and not out.is_dir():
-        raise UsageError(f"{option} {str(out)!r} exists and is not a directory")
+        raise UsageError(f"{option} {shown!r} exists and is not a directory")
     try:
         out.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=out, prefix=".write-check-"):
             pass
     except OSError as err:
-        raise UsageError(f"{option} {str(out)!r} is not writable ({err.strerror or err})") from None
+        raise UsageError(f"{option} {shown!r} is not writable ({err.strerror or err})") from None
     return out
 
 
