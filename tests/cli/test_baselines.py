@@ -485,3 +485,50 @@ def test_baselines_on_images_replaces_a_non_empty_out_only_with_overwrite(tmp_pa
     assert {r["method"] for r in _rows(tmp_path / "a" / "frames.csv")} == {"msac"}
     assert main([*argv, "--methods", "ransac", "--overwrite"]) == 0
     assert {r["method"] for r in _rows(tmp_path / "a" / "frames.csv")} == {"ransac"}
+
+
+def _folder_bytes(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+@pytest.mark.parametrize("name, content, needle", [
+    ("run.json", b"{bad", "run.json"),
+    ("run.json", b"[1]", "run.json"),
+    ("trials.csv", b"\xff\xfe\x80garbage", "trials.csv"),
+    ("trials.csv", None, "trials.csv"),  # a number column holding text
+])
+def test_report_only_on_a_corrupt_file_is_one_line_and_leaves_the_folder_byte_for_byte(runs, tmp_path, capsys,
+                                                                                       name, content, needle):
+    # they were tracebacks, after trials.csv, summary.csv and cells.csv had been rewritten
+    import shutil
+
+    copy = tmp_path / "copy"
+    shutil.copytree(runs[0], copy)
+    if name == "trials.csv":  # a folder of results alone (as a published grid's): its trials are the source
+        (copy / "journal.csv").unlink()
+        (copy / "manifest.json").unlink()
+    if content is None:
+        text = (copy / name).read_text().splitlines()
+        columns = text[0].split(",")
+        cells = text[1].split(",")
+        cells[columns.index("rot_err_deg")] = "hello"
+        content = "\n".join([text[0], ",".join(cells), *text[2:]]).encode() + b"\n"
+    (copy / name).write_bytes(content)
+    before = _folder_bytes(copy)
+    assert main(["baselines", "--report-only", str(copy)]) == 2
+    line = one_line_error(capsys, "baselines")
+    assert "--report-only" in line and needle in line, line
+    assert _folder_bytes(copy) == before
+
+
+@pytest.mark.parametrize("name, content", [("manifest.json", b"[1, 2, 3]"), ("manifest.json", b"{not json"),
+                                           ("journal.csv", b"\xff\xfe\x80")])
+def test_resume_on_a_corrupt_run_folder_is_one_line_naming_the_file(tmp_path, capsys, name, content):
+    out = tmp_path / "run"
+    assert main(["baselines", *TINY, "--out", str(out), "--no-plots"]) == 0
+    target = out / name
+    target.write_bytes(content if name == "manifest.json" else target.read_bytes() + content)
+    capsys.readouterr()
+    assert main(["baselines", *TINY, "--out", str(out), "--no-plots", "--resume"]) == 2
+    line = one_line_error(capsys, "baselines")
+    assert name in line, line
