@@ -195,6 +195,10 @@ class TrialJournal:
         for name in (MANIFEST, JOURNAL):
             if (self.folder / name).is_dir():
                 raise RunFolderError(f"{where}: {name} is a directory, not a file of a run; remove it to start again")
+        if resume and not manifest_path.is_file() and self.path.is_file() and self.path.stat().st_size > 0:
+            # without its manifest a journal cannot be told to be this run's: refused, not discarded
+            raise RunFolderError(f"{where}: {JOURNAL} has no {MANIFEST} beside it, so it cannot be resumed as this "
+                                 "run's; pass --overwrite to start again")
         if resume and manifest_path.is_file():
             try:
                 stored = read_manifest(manifest_path)

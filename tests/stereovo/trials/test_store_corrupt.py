@@ -100,3 +100,14 @@ def test_a_path_through_a_missing_folder_is_checked_as_the_folder_it_names(tmp_p
     with pytest.raises(RunFolderError, match="is not empty"):
         prepare_run_folder(tmp_path / "missing" / ".." / "full", resume=False, overwrite=False)
     assert not (tmp_path / "missing").exists()
+
+
+def test_a_journal_without_its_manifest_is_refused_not_discarded(tmp_path):
+    journal = open_journal(tmp_path)
+    journal.open({"run": 1}, resume=False)
+    journal.close()
+    (tmp_path / "manifest.json").unlink()
+    before = (tmp_path / "journal.csv").read_bytes()
+    with pytest.raises(RunFolderError, match="journal.csv has no manifest.json beside it"):
+        open_journal(tmp_path).open({"run": 1}, resume=True)
+    assert (tmp_path / "journal.csv").read_bytes() == before
