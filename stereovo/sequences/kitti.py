@@ -62,6 +62,8 @@ def read_calibration(path: Path) -> StereoCamera:
             key = key.strip()
             if key not in ("P0", "P1"):
                 continue
+            if key in rows:  # which of the two was meant cannot be told
+                raise ValueError(f"{path}, line {number}: a second {key} line")
             rows[key] = _three_by_four(values, f"{path}, line {number}: {key}", repr(values.strip()))
     missing = [key for key in ("P0", "P1") if key not in rows]
     if missing:

@@ -84,3 +84,7 @@ def test_kitti_pose_and_calibration_lines_need_twelve_finite_numbers(tmp_path):
     calib.write_text("P0: 700 0 600 0 0 700 180 0 0 0 1 0\nP1: 700 0 600 -378 0 700 180 0 0 0 1 inf\n")
     with pytest.raises(ValueError, match=r"calib.txt, line 2: P1 must be 12 finite numbers, got 12$"):
         read_calibration(calib)
+    calib.write_text("P0: 700 0 600 0 0 700 180 0 0 0 1 0\nP1: 700 0 600 -378 0 700 180 0 0 0 1 0\n"
+                     "P1: 700 0 600 -700 0 700 180 0 0 0 1 0\n")
+    with pytest.raises(ValueError, match=r"calib.txt, line 3: a second P1 line$"):
+        read_calibration(calib)
