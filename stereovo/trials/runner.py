@@ -127,8 +127,8 @@ def run_tasks(
         fn: ``payload -> result`` (picklable for process pools and Ray).
         tasks: keys must be unique.
         journal: an opened journal, or None (nothing is saved).
-        done: results already in the journal (``TrialJournal.open``'s answer); not re-run. A key
-            that is no task's raises :class:`~stereovo.trials.store.RunFolderError`.
+        done: results already in the journal (``TrialJournal.open``'s answer, which refuses a trial
+            that is no task of the run when given the run's keys); not re-run.
         warmup: run once per worker process before its first trial (see :mod:`stereovo.trials.backend`).
         chunk: tasks per backend call.
         rows_of: the rows the journal stores for a result (identity: results are row lists).
@@ -139,17 +139,7 @@ def run_tasks(
     keys = [t.key for t in tasks]
     if len(set(keys)) != len(keys):
         raise ValueError("task keys must be unique")
-    stray = sorted(set(done or {}) - set(keys))
-    if stray:
-        # A journal's trial that is no task here: not this run's (an edited or foreign journal). Taking
-        # it as done would report a resumed trial and run the task it stands for all the same.
-        from stereovo.trials.store import RunFolderError
-
-        where = f"{str(journal.folder)!r}: {journal.path.name}" if journal is not None else "done"
-        raise RunFolderError(f"{where} holds {len(stray)} trial(s) that are no task of this run (key"
-                             f" {', '.join(map(str, stray[:3]))}{', ...' if len(stray) > 3 else ''}); pass"
-                             " --overwrite to start again")
-    results: dict[int, Any] = dict(done or {})
+    results: dict[int, Any] = {k: v for k, v in (done or {}).items() if k in set(keys)}
     todo = [t for t in tasks if t.key not in results]
     weights = {t.key: t.weight for t in tasks}
     total_weight = sum(weights.values())

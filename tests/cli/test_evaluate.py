@@ -228,3 +228,16 @@ def test_evaluate_on_rendered_images_takes_methods_none(tmp_path, capsys, short)
     assert main([*RENDERED, "--methods", "None,msac", "--out", str(tmp_path / "m")]) == 0
     with (tmp_path / "m" / "frames.csv").open() as fh:
         assert {row["agent"] for row in csv.DictReader(fh)} == {"uniform", "msac (fixed)"}
+
+
+def test_resume_with_a_trial_that_is_no_unit_of_the_run_is_one_line(tmp_path, capsys):
+    # a renumbered unit used to be taken as done while its unit ran again under the "resuming" count
+    out = tmp_path / "e"
+    assert main(["evaluate", *SWEEP, "--out", str(out)]) == 0
+    journal = out / "journal.csv"
+    lines = journal.read_text().splitlines(keepends=True)
+    lines[1] = "99" + lines[1][lines[1].index(","):]
+    journal.write_text("".join(lines))
+    capsys.readouterr()
+    assert main(["evaluate", *SWEEP, "--out", str(out), "--resume"]) == 2
+    assert "line 2: task 99 is not a task of this run" in one_line_error(capsys, "evaluate")

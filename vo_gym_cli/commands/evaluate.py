@@ -351,7 +351,7 @@ def _evaluate(args, config, agents, out, journal) -> int:
     units = evaluation_units(config, agents)
     manifest = {"command": "evaluate", "config": config.as_dict(), "agents": [asdict(a) for a in agents]}
     try:
-        done = journal.open(manifest, resume=args.resume)
+        done = journal.open(manifest, resume=args.resume, keys=range(len(units)))
     except RunFolderError as err:
         raise UsageError(str(err)) from None
     try:

@@ -80,19 +80,6 @@ def test_a_corrupt_journal_is_one_error_naming_the_line(tmp_path, reference, cor
     assert (tmp_path / JOURNAL).read_bytes() == content  # left as it was
 
 
-def test_a_renumbered_trial_is_refused_by_the_runner_too(tmp_path, reference):
-    from stereovo.trials import LocalBackend, Task, run_tasks
-
-    text = _journal_text(tmp_path, reference)
-    (tmp_path / JOURNAL).write_text(text.replace("\n0,", "\n7,"))
-    journal = open_journal(tmp_path)
-    done = journal.open(MANIFEST_DATA, resume=True)  # no keys given: the runner checks them
-    assert sorted(done) == [1, 7]
-    with pytest.raises(RunFolderError, match=r"1 trial\(s\) that are no task of this run \(key 7\)"):
-        run_tasks(len, [Task(0, "a"), Task(1, "b")], LocalBackend(1), journal, done=done, progress=False)
-    journal.close()
-
-
 def test_a_path_through_a_missing_folder_is_checked_as_the_folder_it_names(tmp_path):
     full = tmp_path / "full"
     full.mkdir()
