@@ -9,8 +9,6 @@ types restored, so a report can be rebuilt from the stored rows alone.
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 import os
 from dataclasses import dataclass, field
@@ -72,6 +70,7 @@ def read_trials_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
             width, or a cell that is no value of its column; the message names the line.
     """
     from stereovo.benchmark.runner import TRIAL_COLUMNS
+    from stereovo.trials.store import csv_records, parsed_row
 
     name = Path(path).name
     try:
@@ -80,10 +79,10 @@ def read_trials_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
         raise TrialsFileError(f"{name}: not UTF-8 text (byte {err.start})") from None
     except OSError as err:
         raise TrialsFileError(f"{name}: cannot be read ({err.strerror or err})") from None
-    reader = csv.reader(io.StringIO(text, newline=""))
     rows: list[dict[str, Any]] = []
     try:
-        header = next(reader, None)
+        records = csv_records(text)
+        _, header = next(records, (1, []))
         if not header:
             raise TrialsFileError(f"{name}: no header line")
         unknown = [c for c in header if c not in TRIAL_COLUMNS]
@@ -93,21 +92,11 @@ def read_trials_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
                                           f"unknown column(s) {', '.join(repr(c[:40]) for c in unknown[:3])}"
                                           if unknown else "") if p) or "a column named twice"
             raise TrialsFileError(f"{name}: line 1: {what}")
-        for fields in reader:
-            line = reader.line_num
-            if len(fields) != len(header):
-                raise TrialsFileError(f"{name}: line {line}: {len(fields)} fields, the header has {len(header)}")
-            row = {}
-            for column, value in zip(header, fields):
-                try:
-                    row[column] = parse_trial_value(column, value)
-                except (ValueError, OverflowError):
-                    shown = value if len(value) <= 40 else value[:40] + "..."
-                    raise TrialsFileError(f"{name}: line {line}: {column} {shown!r} is no value of that column"
-                                          ) from None
-            rows.append(row)
-    except csv.Error as err:
-        raise TrialsFileError(f"{name}: line {reader.line_num}: {err}") from None
+        rows = [parsed_row(header, fields, parse_trial_value, line) for line, fields in records]
+    except TrialsFileError:
+        raise
+    except ValueError as err:  # csv_records' and parsed_row's, which name the line
+        raise TrialsFileError(f"{name}: {err}") from None
     return rows
 
 

@@ -37,6 +37,8 @@ __all__ = [
     "JournalError",
     "read_journal",
     "read_manifest",
+    "csv_records",
+    "parsed_row",
     "prepare_run_folder",
     "atomic_path",
     "atomic_write_text",
@@ -290,6 +292,31 @@ def _short(text: str, limit: int = 40) -> str:
     return repr(text if len(text) <= limit else text[:limit] + "...")
 
 
+def csv_records(text: str) -> Iterator[tuple[int, list[str]]]:
+    """``(line number, fields)`` of the CSV ``text``; ValueError ``"line N: ..."`` where it is no CSV."""
+    reader = csv.reader(io.StringIO(text, newline=""))
+    try:
+        for fields in reader:
+            yield reader.line_num, fields
+    except csv.Error as err:
+        raise ValueError(f"line {reader.line_num}: {err}") from None
+
+
+def parsed_row(columns: Sequence[str], fields: Sequence[str], parse: Callable[[str, str], Any],
+               line: int) -> dict[str, Any]:
+    """One CSV record's cells by column, each through ``parse(column, text)``; ValueError
+    ``"line N: COLUMN 'TEXT' is no value of that column"`` for a cell ``parse`` refuses."""
+    if len(fields) != len(columns):
+        raise ValueError(f"line {line}: {len(fields)} fields, the header has {len(columns)}")
+    row = {}
+    for column, value in zip(columns, fields):
+        try:
+            row[column] = parse(column, value)
+        except (ValueError, TypeError, OverflowError):
+            raise ValueError(f"line {line}: {column} {_short(value)} is no value of that column") from None
+    return row
+
+
 def read_journal(path: str | os.PathLike, parse: Callable[[str, str], Any], columns: Sequence[str] | None = None,
                  keys: Collection[int] | None = None) -> dict[int, list[dict[str, Any]]]:
     """Complete trials of a journal file by key; a torn last line or a short last block is dropped.
@@ -324,11 +351,9 @@ def read_journal(path: str | os.PathLike, parse: Callable[[str, str], Any], colu
     except UnicodeDecodeError:
         raise JournalError(JOURNAL, f"line {body.count(NEWLINE) + 1}: not UTF-8 text") from None
     header = None
-    reader = csv.reader(io.StringIO(text, newline=""))
     blocks: list[tuple[int, int, int, list[dict[str, Any]]]] = []  # (key, n, first line, rows)
     try:
-        for fields in reader:
-            number = reader.line_num
+        for number, fields in csv_records(text):
             if header is None:
                 header = fields
                 if header[:2] != list(_KEY_COLUMNS):
@@ -355,19 +380,15 @@ def read_journal(path: str | os.PathLike, parse: Callable[[str, str], Any], colu
                 raise JournalError(JOURNAL, f"line {number}: task_rows {n} (a trial has at least one row)")
             if keys is not None and key not in keys:
                 raise JournalError(JOURNAL, f"line {number}: task {key} is not a task of this run")
-            row = {}
-            for column, value in zip(header[2:], fields[2:]):
-                try:
-                    row[column] = parse(column, value)
-                except (ValueError, TypeError, OverflowError):
-                    raise JournalError(JOURNAL, f"line {number}: {column} {_short(value)}"
-                                                " is no value of that column") from None
+            row = parsed_row(header[2:], fields[2:], parse, number)
             if blocks and blocks[-1][0] == key and blocks[-1][1] == n and len(blocks[-1][3]) < n:
                 blocks[-1][3].append(row)
             else:
                 blocks.append((key, n, number, [row]))
-    except csv.Error as err:
-        raise JournalError(JOURNAL, f"line {reader.line_num}: {err}") from None
+    except JournalError:
+        raise
+    except ValueError as err:  # csv_records' and parsed_row's, which name the line
+        raise JournalError(JOURNAL, str(err)) from None
     out: dict[int, list[dict[str, Any]]] = {}
     for i, (key, n, first, rows) in enumerate(blocks):
         if len(rows) == n:
