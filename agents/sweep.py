@@ -353,7 +353,6 @@ def _short(err: BaseException, limit: int = 400) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
-
 def _safe_loader():
     """A ``yaml.SafeLoader`` that also refuses anchors and aliases (a sweep file needs none, and nine
     nested aliases expand to a billion nodes) and collections nested deeper than :data:`MAX_DEPTH`."""
