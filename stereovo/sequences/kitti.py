@@ -52,7 +52,13 @@ def _three_by_four(text: str, what: str, shown: str) -> np.ndarray:
 
 
 def read_calibration(path: Path) -> StereoCamera:
-    """A :class:`StereoCamera` (size 1x1, set later) from KITTI's ``calib.txt`` (P0 and P1)."""
+    """A :class:`StereoCamera` (size 1x1, set later) from KITTI's ``calib.txt`` (P0 and P1).
+
+    P0 and P1 must be the projections of a rectified pair: ``K [I | 0]`` and ``K [I | (-b, 0, 0)]``
+    with ``K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` (Geiger, Lenz & Urtasun, CVPR 2012). Any other
+    form (skew, a third row other than ``(0, 0, 1, 0)``, a vertical or depth offset) would be read as
+    some other camera without a word, so it is refused, naming the file and the entry.
+    """
     rows: dict[str, np.ndarray] = {}
     with open(path, encoding="utf-8", errors="replace") as handle:
         for number, line in enumerate(handle, 1):
@@ -69,13 +75,43 @@ def read_calibration(path: Path) -> StereoCamera:
     if missing:
         raise ValueError(f"{path}: no {' and no '.join(missing)} line (KITTI's 'P0: 12 numbers' projections)")
     P0, P1 = rows["P0"], rows["P1"]
+    for key, P in rows.items():
+        _check_rectified_projection(path, key, P)
     fx, fy, cx, cy = P0[0, 0], P0[1, 1], P0[0, 2], P0[1, 2]
     if not np.allclose(P1[:, :3], P0[:, :3], rtol=1e-6, atol=1e-6):
         raise ValueError(f"{path}: P0 and P1 have different intrinsics: the images are not a rectified pair")
     baseline = -(P1[0, 3] - P0[0, 3]) / P1[0, 0]
     if not baseline > 0:
         raise ValueError(f"{path}: P1 puts the right camera at baseline {baseline:g} m; expected > 0 (P1[0, 3] < 0)")
-    return StereoCamera(fx=float(fx), fy=float(fy), cx=float(cx), cy=float(cy), baseline=float(baseline))
+    try:
+        return StereoCamera(fx=float(fx), fy=float(fy), cx=float(cx), cy=float(cy), baseline=float(baseline))
+    except ValueError as err:  # the camera's own rule, said of the file it came from
+        raise ValueError(f"{path}: {err}") from None
+
+
+MIN_FOCAL_PX = 1.0
+"""The shortest focal length a calibration may give (px): below it one pixel spans more than 45 deg,
+which no camera does; a focal length of 1e-320 would otherwise pass as a positive number."""
+
+
+def _check_rectified_projection(path: Path, key: str, P: np.ndarray) -> None:
+    """Refuse a projection ``P (3, 4)`` that is not ``K [I | (tx, 0, 0)]`` with focal lengths of at
+    least :data:`MIN_FOCAL_PX`.
+
+    Zeros are zero within 1e-9 of the focal length (a written-out float's rounding), P[2, 2] is 1.
+    """
+    if not (P[0, 0] >= MIN_FOCAL_PX and P[1, 1] >= MIN_FOCAL_PX):
+        raise ValueError(f"{path}: {key} has focal lengths fx={P[0, 0]:g}, fy={P[1, 1]:g} px; both must be at least "
+                         f"{MIN_FOCAL_PX:g} px")
+    tolerance = 1e-9 * max(abs(P[0, 0]), abs(P[1, 1]))
+    expected = {(0, 1): 0.0, (1, 0): 0.0, (1, 3): 0.0, (2, 0): 0.0, (2, 1): 0.0, (2, 3): 0.0}
+    for (i, j), value in expected.items():
+        if abs(P[i, j] - value) > tolerance:
+            raise ValueError(f"{path}: {key}[{i}, {j}] is {P[i, j]:g}; a rectified pair's projection has 0 there "
+                             f"(K [I | (tx, 0, 0)], fx and fy > 0)")
+    if abs(P[2, 2] - 1.0) > 1e-9:
+        raise ValueError(f"{path}: {key}[2, 2] is {P[2, 2]:g}; a rectified pair's projection has 1 there "
+                         f"(K [I | (tx, 0, 0)])")
 
 
 MAX_POSITION_M = 1e7
@@ -94,7 +130,8 @@ def read_poses(path: Path) -> np.ndarray:
             # A camera-to-world pose: a rotation (KITTI's, from GPS/INS, are orthonormal to about 1e-6)
             # and a position on the Earth's scale; anything else would fail far away, in the drift's SVD.
             R = pose[:3, :3]
-            if (not np.allclose(R @ R.T, np.eye(3), atol=1e-3) or np.linalg.det(R) <= 0
+            # (a rotation's entries lie in [-1, 1]: checked first, so that R R' of huge ones cannot overflow)
+            if (np.abs(R).max() > 1.001 or not np.allclose(R @ R.T, np.eye(3), atol=1e-3) or np.linalg.det(R) <= 0
                     or np.abs(pose[:3, 3]).max() > MAX_POSITION_M):
                 raise ValueError(f"{path}, line {number}: a pose must be a rotation and a position within "
                                  f"{MAX_POSITION_M:g} m, got {line.strip()[:60]!r}")
@@ -179,8 +216,13 @@ class KittiOdometry(ImageSequence):
             "label_tolerance", label_tolerance, prefix="KittiOdometry: "))
         first = _read_grey(lefts[start])
         camera = read_calibration(calib)
+        width, height = int(first.shape[1]), int(first.shape[0])
+        if not (0 <= camera.cx <= width and 0 <= camera.cy <= height):
+            # a calibration of some other image size: every ray would be bent the wrong way
+            raise ValueError(f"KittiOdometry: {calib} puts the principal point at ({camera.cx:g}, {camera.cy:g}) px, "
+                             f"outside the {width}x{height} images of {folder / 'image_0'}")
         camera = StereoCamera(fx=camera.fx, fy=camera.fy, cx=camera.cx, cy=camera.cy, baseline=camera.baseline,
-                              width=int(first.shape[1]), height=int(first.shape[0]))
+                              width=width, height=height)
         super().__init__(camera, noise_sigma=noise_sigma, **frontend_options)
         self.root, self.folder, self.sequence = root, folder, name
         self._lefts, self._rights = lefts[start:stop], rights[start:stop]

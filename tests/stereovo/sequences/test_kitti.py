@@ -88,3 +88,50 @@ def test_kitti_pose_and_calibration_lines_need_twelve_finite_numbers(tmp_path):
                      "P1: 700 0 600 -700 0 700 180 0 0 0 1 0\n")
     with pytest.raises(ValueError, match=r"calib.txt, line 3: a second P1 line$"):
         read_calibration(calib)
+
+
+@pytest.mark.parametrize("p0, message", [
+    ("700 0.5 600 0 0 700 180 0 0 0 1 0", r"P0\[0, 1\] is 0.5; a rectified pair's projection has 0 there"),
+    ("700 0 600 0 0 700 180 0 0 0 2 0", r"P0\[2, 2\] is 2; a rectified pair's projection has 1 there"),
+    ("700 0 600 0 0 700 180 3 0 0 1 0", r"P0\[1, 3\] is 3;"),
+    ("700 0 600 0 0 700 180 0 0 0 1 0.1", r"P0\[2, 3\] is 0.1;"),
+    ("-700 0 600 0 0 700 180 0 0 0 1 0", r"P0 has focal lengths fx=-700, fy=700 px; both must be at least 1 px"),
+])
+def test_kitti_calibration_must_be_a_rectified_pair(tmp_path, p0, message):
+    """A projection of another form would be read as some other camera: skew, a scaled third row, a
+    vertical or depth offset and a negative focal length are refused, naming the file and the entry."""
+    from stereovo.sequences.kitti import read_calibration
+
+    calib = tmp_path / "calib.txt"
+    calib.write_text(f"P0: {p0}\nP1: 700 0 600 -378 0 700 180 0 0 0 1 0\n")
+    with pytest.raises(ValueError, match=r"calib.txt: " + message):
+        read_calibration(calib)
+    calib.write_text(f"P0: 700 0 600 0 0 700 180 0 0 0 1 0\nP1: {p0.replace(' 600 0 ', ' 600 -378 ', 1)}\n")
+    with pytest.raises(ValueError, match=r"calib.txt: " + message.replace("P0", "P1")):
+        read_calibration(calib)
+
+
+def test_kitti_calibration_absurd_numbers_are_refused_naming_the_file(tmp_path):
+    from stereovo.sequences.kitti import read_calibration
+
+    calib = tmp_path / "calib.txt"
+    calib.write_text("P0: 700 0 nan 0 0 700 180 0 0 0 1 0\n")
+    with pytest.raises(ValueError, match="12 finite numbers"):
+        read_calibration(calib)
+    calib.write_text("P0: 1e-30 0 600 0 0 1e-30 180 0 0 0 1 0\nP1: 1e-30 0 600 -1e-30 0 1e-30 180 0 0 0 1 0\n")
+    with pytest.raises(ValueError, match=r"calib.txt: P0 has focal lengths fx=1e-30, fy=1e-30 px; both must be at least 1 px"):
+        read_calibration(calib)
+
+
+def test_kitti_principal_point_outside_the_images_is_refused(tmp_path, short):
+    """A calibration written for another image size (the principal point off the images) is refused
+    by the loader, which knows the images' size; the file is named with the point and the size."""
+    folder = write_kitti(tmp_path, short, "03")
+    calib = folder / "calib.txt"
+    lines = calib.read_text().splitlines()
+    numbers = lines[0].split()[1:]
+    cx = float(numbers[2])
+    calib.write_text("\n".join(line.replace(f" {numbers[2]} ", f" {cx + 5000:g} ", 1) for line in lines) + "\n")
+    with pytest.raises(ValueError, match=r"calib.txt puts the principal point at \(\d+(\.\d+)?, [\d.]+\) px, "
+                                         r"outside the \d+x\d+ images of .*image_0"):
+        KittiOdometry(tmp_path, "03")
