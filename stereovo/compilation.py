@@ -3,9 +3,9 @@
 Every kernel of the package compiles with ``cache=True``: the first call in the first process
 after installing (or after a source file changed) compiles it, about half a minute for all of
 them on one core, and later processes load the machine code from disk in about a second. So
-that the first ``reset()`` or estimate does not sit silent for that half minute, it calls
-:func:`announce_compiling`, which prints one line to stderr when one of the package's kernels
-starts compiling: it listens to numba's ``"numba:compile"`` event, which numba raises only for
+that the first ``reset()`` or estimate does not sit silent for that half minute, importing
+``stereovo`` calls :func:`announce_compiling` once, which prints one line to stderr when one of
+the package's kernels starts compiling: it listens to numba's ``"numba:compile"`` event, which numba raises only for
 a kernel it did not find in its cache (a load from the cache raises none). So the line comes
 exactly when a compilation starts, for the kernels the caller really uses, at most once per
 process, and never on a run whose kernels all load from the cache, even when kernels of

@@ -29,7 +29,6 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from stereovo.compilation import announce_compiling
 from stereovo.estimation import StereoProblem
 from stereovo.geometry import PoseChain
 from stereovo.metrics import FrameMetrics, frame_metrics
@@ -251,7 +250,6 @@ class StereoVOAdaptiveEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        announce_compiling()  # one line on the first run after installing, else nothing
         self._sequence = Sequence(self._sequence_config, int(self.np_random.integers(0, 2**63 - 1)))
         self._rng = np.random.default_rng(int(self.np_random.integers(0, 2**63 - 1)))
         self._chain = PoseChain(self._sequence.true_poses[0])  # poses and the constant-velocity fallback

@@ -18,7 +18,6 @@ import numpy as np
 from gymnasium import spaces
 
 from stereovo.camera import StereoCamera
-from stereovo.compilation import announce_compiling
 from stereovo.estimation import EstimatorOptions, PreparedEstimator, StereoProblem
 from stereovo.geometry import PoseChain
 from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, FrameMetrics, frame_metrics, trajectory_metrics
@@ -354,7 +353,6 @@ class StereoVOEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        announce_compiling()  # one line on the first run after installing, else nothing
         sequence_seed = int(self.np_random.integers(0, 2**63 - 1))
         ransac_seed = int(self.np_random.integers(0, 2**63 - 1))
         self._sequence = self.make_sequence(sequence_seed)

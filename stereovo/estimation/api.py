@@ -15,7 +15,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from stereovo.camera import StereoCamera
-from stereovo.compilation import announce_compiling
 from stereovo.estimation.covariance import pose_covariance
 from stereovo.estimation.estimator_options import EstimatorOptions
 from stereovo.estimation.loop import RansacReport
@@ -203,7 +202,6 @@ def estimate_motion(
         ValueError: malformed input (shapes, mismatched N, complex or non-numeric values), bad
             priors/order, an unknown method or option.
     """
-    announce_compiling()  # one line on the first run after installing, else nothing
     start = time.perf_counter()
     spec = method_spec(method)
     shared, extra = split_options(spec, options)
@@ -245,7 +243,6 @@ def estimate_problem(
         ValueError: as :func:`estimate_motion`, and if a ``noise_sigma`` option differs from
             the one the problem was built with.
     """
-    announce_compiling()
     start = time.perf_counter()
     if not isinstance(problem, StereoProblem):
         raise ValueError(f"problem must be a StereoProblem, got {type(problem).__name__}")
@@ -302,7 +299,6 @@ class PreparedEstimator:
         rng: np.random.Generator | int | None = 0,
     ) -> MotionEstimate:
         """:func:`estimate_problem` of ``problem`` with this method and these options."""
-        announce_compiling()
         start = time.perf_counter()
         if not isinstance(problem, StereoProblem):
             raise ValueError(f"problem must be a StereoProblem, got {type(problem).__name__}")

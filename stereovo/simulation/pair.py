@@ -15,7 +15,6 @@ import numpy as np
 from numba import njit
 
 from stereovo.camera import StereoCamera
-from stereovo.compilation import announce_compiling
 from stereovo.geometry import invert_transform
 from stereovo.seeding import spawned_generators
 from stereovo.simulation.config import SimulationConfig
@@ -214,7 +213,6 @@ def simulate_pair(
     config: SimulationConfig, pose_prev: np.ndarray, pose_curr: np.ndarray, index: int, rng: np.random.Generator
 ) -> Frame:
     """Correspondences between two given camera-to-world poses."""
-    announce_compiling()  # a script that only simulates hears the line too when the kernels compile
     cam, N = config.camera, config.n_correspondences
     landmark_rng, outlier_rng, noise_rng, score_rng, order_rng = _stream_generators(
         rng.integers(0, 2**63, size=4), _STREAMS

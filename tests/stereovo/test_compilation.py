@@ -162,7 +162,7 @@ def test_the_packages_kernels_are_found():
     assert all(name.startswith(("stereovo.", "vo_gym.")) for name in names)
 
 
-def test_the_stream_a_caller_gives_stays_when_estimates_install_the_listener_again(tmp_path, monkeypatch):
+def test_the_stream_a_caller_gives_stays_when_the_listener_is_installed_again(tmp_path, monkeypatch):
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     source = tmp_path / "compilation_probe_stream.py"
     source.write_text("from numba import njit\n\n@njit(cache=True)\ndef thrice(x):\n    return 3.0 * x\n")
