@@ -110,23 +110,6 @@ def test_compiled_projection_of_point_rows_equals_the_array_expression():
     np.testing.assert_array_equal(cam.project(X[:1]), cam.project(X[0])[None])
 
 
-def test_validity_mask_is_in_image_and_has_depth():
-    from stereovo.simulation.pair import _valid
-
-    cam = StereoCamera()
-    rng = np.random.default_rng(0)
-    meas = np.column_stack([
-        rng.uniform(-5, cam.width + 5, 4000), rng.uniform(-5, cam.height + 5, 4000),
-        rng.uniform(-5, cam.width + 5, 4000), rng.uniform(-5, cam.height + 5, 4000),
-    ])
-    meas[:8] = [[0, 0, -1e-9, 0], [cam.width - 1, cam.height - 1, cam.width - 1 - cam.min_disparity, cam.height - 1],
-                [cam.width - 1, 0, 0, 0], [10, 5, 10 - cam.min_disparity - 1e-9, 5], [np.nan, 1, 0, 1],
-                [5, np.inf, 1, 1], [cam.width - 1 + 1e-9, 0, 3, 0], [7, 0, 3, cam.height - 1]]
-    expected = cam.in_image(meas) & cam.has_depth(meas)
-    np.testing.assert_array_equal(_valid(meas, cam), expected)
-    assert 0 < expected.sum() < len(expected)
-
-
 @pytest.mark.parametrize("row", [(900.0, 880.0, 300.0), (100.0, 97.5, 20.0), (607.19, 606.0, 185.22), (1200.0, 1000.0, 50.0)])
 def test_shared_triangulation_jacobian_matches_finite_differences(row):
     cam = StereoCamera()

@@ -1,4 +1,7 @@
-"""stereovo.geometry: SO(3)/SE(3) maps, rotations, pose composition, batched inputs."""
+"""stereovo.geometry: SO(3)/SE(3) maps, rotations, pose composition, batched inputs.
+
+Just past 600 lines: each map is checked near its singularities (angle 0 and pi) as well as in
+general position, and batched against one at a time; one file follows one module."""
 
 from __future__ import annotations
 

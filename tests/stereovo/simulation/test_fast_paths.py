@@ -2,7 +2,7 @@
 
 The candidate kernels stop at the rows the caller keeps (``limit``): their output is the first
 rows of the full pass. The moving object's setup, on Python floats, equals the numpy formulation it
-replaced (kept here as the reference). The fused noise-and-check kernel equals the two kernels.
+replaced (kept here as the reference). The fused noise-and-check kernel equals the two kernels, and the validity mask the camera's tests.
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ import re
 import numpy as np
 import pytest
 
+from stereovo.camera import StereoCamera
 from stereovo.geometry import invert_transform, random_rotation
 from stereovo.simulation import Sequence, SimulationConfig
 from stereovo.simulation import outliers as outliers_module
@@ -188,8 +189,6 @@ def test_shuffled_rows_are_numpys_fancy_indexing():
 
 
 def test_camera_arrays_are_built_once_per_camera_and_read_only():
-    from stereovo.camera import StereoCamera
-
     config = SimulationConfig()
     a, b = camera_vector(config.camera), camera_vector(config.camera)
     assert a is b and not a.flags.writeable
@@ -217,3 +216,19 @@ def test_frames_refuse_wrong_shapes_on_both_paths():
             Frame(**{**good, **bad})
         with pytest.raises(ValueError, match=message):
             Frame(**{**good, **{k: np.asarray(v).tolist() for k, v in bad.items()}})
+
+
+def test_validity_mask_is_the_cameras_in_image_and_has_depth():
+    """The pair's compiled validity mask equals the camera's two tests on edge and random rows."""
+    cam = StereoCamera()
+    rng = np.random.default_rng(0)
+    meas = np.column_stack([
+        rng.uniform(-5, cam.width + 5, 4000), rng.uniform(-5, cam.height + 5, 4000),
+        rng.uniform(-5, cam.width + 5, 4000), rng.uniform(-5, cam.height + 5, 4000),
+    ])
+    meas[:8] = [[0, 0, -1e-9, 0], [cam.width - 1, cam.height - 1, cam.width - 1 - cam.min_disparity, cam.height - 1],
+                [cam.width - 1, 0, 0, 0], [10, 5, 10 - cam.min_disparity - 1e-9, 5], [np.nan, 1, 0, 1],
+                [5, np.inf, 1, 1], [cam.width - 1 + 1e-9, 0, 3, 0], [7, 0, 3, cam.height - 1]]
+    expected = cam.in_image(meas) & cam.has_depth(meas)
+    np.testing.assert_array_equal(pair_module._valid(meas, cam), expected)
+    assert 0 < expected.sum() < len(expected)

@@ -1,5 +1,9 @@
 """SPRT / WaldSAC (Matas & Chum 2005; Chum & Matas 2008): the test's design, exact counts, the
-adaptive epsilon and delta, and the stop summed over the history of tests."""
+adaptive epsilon and delta, and the stop summed over the history of tests.
+
+Past 600 lines because one test is checked here in all its places: its design and counts against
+values derived by hand, its verifier's compiled and numpy routes deciding alike point by point, and
+the two recipes that run it (``waldsac``, ``probabilistic+sprt``)."""
 
 from __future__ import annotations
 
