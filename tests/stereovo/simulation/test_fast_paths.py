@@ -2,7 +2,8 @@
 
 The candidate kernels stop at the rows the caller keeps (``limit``): their output is the first
 rows of the full pass. The moving object's setup, on Python floats, equals the numpy formulation it
-replaced (kept here as the reference). The fused noise-and-check kernel equals the two kernels, and the validity mask the camera's tests.
+replaced (kept here as the reference). The fused noise-and-check kernel equals the two kernels,
+and the validity mask the camera's two tests.
 """
 
 from __future__ import annotations
