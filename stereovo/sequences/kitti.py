@@ -51,6 +51,10 @@ def _three_by_four(text: str, what: str, shown: str) -> np.ndarray:
     return numbers.reshape(3, 4)
 
 
+MAX_POSITION_M = 1e7
+"""The largest coordinate a KITTI pose, or the baseline, may hold (m): the Earth's scale, far beyond any sequence."""
+
+
 def read_calibration(path: Path) -> StereoCamera:
     """A :class:`StereoCamera` (size 1x1, set later) from KITTI's ``calib.txt`` (P0 and P1).
 
@@ -81,8 +85,9 @@ def read_calibration(path: Path) -> StereoCamera:
     if not np.allclose(P1[:, :3], P0[:, :3], rtol=1e-6, atol=1e-6):
         raise ValueError(f"{path}: P0 and P1 have different intrinsics: the images are not a rectified pair")
     baseline = -(P1[0, 3] - P0[0, 3]) / P1[0, 0]
-    if not baseline > 0:
-        raise ValueError(f"{path}: P1 puts the right camera at baseline {baseline:g} m; expected > 0 (P1[0, 3] < 0)")
+    if not 0 < baseline <= MAX_POSITION_M:
+        raise ValueError(f"{path}: P1 puts the right camera at baseline {baseline:g} m; expected in (0, "
+                         f"{MAX_POSITION_M:g}] (P1[0, 3] < 0)")
     try:
         return StereoCamera(fx=float(fx), fy=float(fy), cx=float(cx), cy=float(cy), baseline=float(baseline))
     except ValueError as err:  # the camera's own rule, said of the file it came from
@@ -112,10 +117,6 @@ def _check_rectified_projection(path: Path, key: str, P: np.ndarray) -> None:
     if abs(P[2, 2] - 1.0) > 1e-9:
         raise ValueError(f"{path}: {key}[2, 2] is {P[2, 2]:g}; a rectified pair's projection has 1 there "
                          f"(K [I | (tx, 0, 0)])")
-
-
-MAX_POSITION_M = 1e7
-"""The largest coordinate a KITTI pose may hold (m): the Earth's scale, far beyond any sequence."""
 
 
 def read_poses(path: Path) -> np.ndarray:

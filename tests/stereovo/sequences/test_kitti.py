@@ -121,6 +121,9 @@ def test_kitti_calibration_absurd_numbers_are_refused_naming_the_file(tmp_path):
     calib.write_text("P0: 1e-30 0 600 0 0 1e-30 180 0 0 0 1 0\nP1: 1e-30 0 600 -1e-30 0 1e-30 180 0 0 0 1 0\n")
     with pytest.raises(ValueError, match=r"calib.txt: P0 has focal lengths fx=1e-30, fy=1e-30 px; both must be at least 1 px"):
         read_calibration(calib)
+    calib.write_text("P0: 700 0 600 0 0 700 180 0 0 0 1 0\nP1: 700 0 600 -2.1e300 0 700 180 0 0 0 1 0\n")
+    with pytest.raises(ValueError, match=r"calib.txt: P1 puts the right camera at baseline 3e\+297 m; expected in \(0, 1e\+07\]"):
+        read_calibration(calib)
 
 
 def test_kitti_principal_point_outside_the_images_is_refused(tmp_path, short):
