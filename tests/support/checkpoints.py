@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
@@ -29,10 +28,8 @@ def assert_refused_everywhere(path: Path, what: str, loads: Iterable[Callable[[P
     from vo_gym_cli.main import main
 
     for load in loads:
-        start = time.perf_counter()
         with pytest.raises(CheckpointError) as err:
             load(path)
-        assert time.perf_counter() - start < 5.0, load
         message = str(err.value)
         assert message.startswith(f"checkpoint {path}") and what in message and "\n" not in message, message
     with pytest.raises(ValueError) as err:

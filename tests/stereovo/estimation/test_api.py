@@ -288,6 +288,16 @@ def test_estimate_exposes_the_methods_counters(method):
     est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=0)
     assert est.counters and est.counters == est.report.counters
     assert all(isinstance(v, (int, float)) for v in est.counters.values())
+    c = est.counters  # what each count must add up to on this frame (half its rows outliers)
+    if method == "waldsac":  # every tested hypothesis is accepted, rejected or verified in full
+        assert 0 < c["sprt_rejected"] and c["sprt_accepted"] + c["sprt_rejected"] + c["sprt_full"] == c["sprt_tested"]
+        assert c["sprt_tested"] <= est.n_hypotheses and 0 < c["sprt_epsilon"] < 1
+    elif method == "r-ransac":  # the T(d,d) pretest, where switched on, passes or fails each hypothesis
+        assert 0 < c["tdd_failed"] and c["tdd_passed"] + c["tdd_failed"] == c["tdd_tested"] == c["tdd_on"]
+        assert c["tdd_on"] + c["tdd_off"] <= est.n_hypotheses
+    else:  # the consistency graph has a node per usable row, and the clique is within it
+        assert c["clique_graph_nodes"] == int((~est.unusable).sum()) > 0
+        assert 6 <= c["clique_size"] <= c["clique_graph_nodes"]
     assert estimate_motion(frame.prev[:2], frame.curr[:2], frame.camera, method=method).counters == {}
 
 

@@ -125,7 +125,7 @@ def test_sprt_stop_keeps_answers_only_while_the_past_draws_and_tests_are_unchang
     assert stop.required(50, 100) == fresh(50, 0.5) < fresh(50)
 
 
-# --- Cases found by mutation testing (docs/mutation-testing.md) ---
+# --- The compiled T(d,d) pretest: where it stops, what it measures, the types it is handed ---
 
 
 def _kernel_points(sample, u, n):

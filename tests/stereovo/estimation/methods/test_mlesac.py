@@ -345,7 +345,7 @@ def test_mlesac_quality_settings_and_unusable_distances():
     assert default.score(np.array([[-1e-9, 0.0, 0.0]]), 9.0)[0] == zero
 
 
-# --- Cases found by mutation testing (docs/mutation-testing.md) ---
+# --- The mixture's densities on ill-conditioned rows and on rows without depth ---
 
 
 def test_inlier_normaliser_keeps_slogdet_and_floors_only_ill_conditioned_rows():

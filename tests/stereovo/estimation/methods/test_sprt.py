@@ -270,7 +270,7 @@ def test_waldsac_through_the_environment_on_an_outlier_free_episode():
     env.close()
 
 
-# --- Cases found by mutation testing (docs/mutation-testing.md) ---
+# --- The SPRT's design, its exponent and its verifier, against values derived by hand ---
 
 
 def _sprt_frame(n=200, epsilon=0.5, seed=11):

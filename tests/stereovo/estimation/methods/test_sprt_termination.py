@@ -80,7 +80,7 @@ def test_sprt_bound_uses_wald_exponent_for_a_mismatched_design():
     assert sprt_bound([SprtTest(epsilon=0.5, delta=0.1, A=3.0)], 70, 100) == 13
 
 
-# --- Cases found by mutation testing (docs/mutation-testing.md) ---
+# --- The SPRT stopping bound, summed over its tests, against values derived by hand ---
 
 def _sprt_term(history, sampler=None):
     verifier = SimpleNamespace(history=history)

@@ -170,7 +170,7 @@ def test_tdd_pretest_points_are_the_smallest_random_keys_outside_the_sample():
             assert not set(got[row]) & set(sample) and len(set(got[row])) == d
 
 
-# --- Cases found by mutation testing (docs/mutation-testing.md) ---
+# --- The T(d,d) pretest and its measuring, by hand, and its options ---
 
 
 class _OtherResidual:

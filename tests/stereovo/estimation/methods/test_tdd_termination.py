@@ -33,7 +33,7 @@ def test_tdd_bound_is_stretched_by_the_pass_probability():
     assert TddTermination(confidence=0.99, d=1, max_iterations=900).required(3, 300) == 900
 
 
-# --- Cases found by mutation testing (docs/mutation-testing.md) ---
+# --- The T(d,d) stopping bound against values derived by hand ---
 
 def _q(i, n):
     return math.comb(i, 3) / math.comb(n, 3)

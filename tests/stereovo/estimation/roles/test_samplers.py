@@ -250,7 +250,7 @@ def test_complex_priors_are_refused_naming_priors():
         WeightedSampler(np.ones(30, dtype=complex))
 
 
-# --- Cases found by mutation testing (docs/mutation-testing.md) ---
+# --- Exact draws and probabilities of the uniform, weighted and PROSAC samplers ---
 
 
 TINY = np.finfo(float).tiny

@@ -175,7 +175,7 @@ def test_v_measurement_option_is_validated_by_name():
     assert StereoCamera().v_measurement == "shared"
 
 
-# --- Cases found by mutation testing (docs/mutation-testing.md) ---
+# --- Inlier counts and residual models: strict gates, double precision, capped and exact residuals ---
 
 
 def test_inlier_count_is_strictly_under_the_gate_and_a_float_score():

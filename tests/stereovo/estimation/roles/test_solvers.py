@@ -55,6 +55,7 @@ def test_closed_form_fit_is_the_svd_kabsch_minimiser():
     for h in range(H):
         R_ref, t_ref = _svd_kabsch(X[h, :3], Y[h, :3], np.ones(3))
         np.testing.assert_allclose(R3[h], R_ref, atol=1e-9)
+        np.testing.assert_allclose(t3[h], t_ref, atol=1e-8)
 
 
 def test_closed_form_fit_of_collinear_points_still_aligns_them():
