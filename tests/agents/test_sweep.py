@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from agents.sweep import load_sweep, parse_sweep
+from agents.sweep_config import load_sweep, parse_sweep
 from vo_gym_cli.main import main
 
 ROOT = Path(__file__).resolve().parents[2]
