@@ -26,11 +26,14 @@ file can run code or exhaust memory; see :func:`load_sweep`) holds:
 
 from __future__ import annotations
 
+import collections.abc
 import math
 import os
+import types
+import typing
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 from stereovo.options import Integer, Number, Option, check_options, value_repr
 
@@ -43,6 +46,9 @@ __all__ = [
     "MAX_NAME",
     "MetricSpec",
     "SweepSpec",
+    "FieldRule",
+    "field_rule",
+    "field_rules",
     "load_sweep",
     "parse_sweep",
 ]
@@ -186,40 +192,89 @@ def _finite(value: Any) -> bool:
     return _number(value) and (isinstance(value, int) or math.isfinite(value))
 
 
-_FIELD_TYPES: dict[str, tuple[str, Any]] = {
-    "int": ("an integer", lambda v: isinstance(v, int) and not isinstance(v, bool)),
-    "float": ("a finite number", _finite),
-    "bool": ("true or false", lambda v: isinstance(v, bool)),
-    "str": ("a string", lambda v: isinstance(v, str)),
-    "tuple[float, float]": ("a list of 2 finite numbers",
-                            lambda v: isinstance(v, (list, tuple)) and len(v) == 2 and all(map(_finite, v))),
-    "tuple[float, float, float]": ("a list of 3 finite numbers",
-                                   lambda v: isinstance(v, (list, tuple)) and len(v) == 3 and all(map(_finite, v))),
-    "dict[str, Any]": ("a mapping", lambda v: isinstance(v, dict)),
+@dataclass(frozen=True)
+class FieldRule:
+    """How a sweep file's value for one trainer config field is checked, before the trainer compares it."""
+
+    rule: str
+    """The accepted values in words, as the message says them (``"an integer"``)."""
+    accepts: Callable[[Any], bool]
+    optional: bool = False
+    """null (``None``) is accepted too: the field's type is ``X | None``."""
+
+    def check(self, source: str, where: str, value: Any) -> None:
+        """Raise a ``ValueError`` naming ``source``, the key ``where`` and the value when it is not accepted."""
+        if self.optional and value is None:
+            return
+        if not self.accepts(value):
+            raise ValueError(f"{source}: {where} must be {self.rule}{' or null' if self.optional else ''},"
+                             f" got {value_repr(value)}")
+
+
+def _finite_list(length: int) -> Callable[[Any], bool]:
+    return lambda v: isinstance(v, (list, tuple)) and len(v) == length and all(map(_finite, v))
+
+
+# Keyed by the type itself, not its spelling: ``int``, ``typing.Optional[int]`` and ``int | None`` all land here.
+_SCALAR_RULES: dict[type, tuple[str, Callable[[Any], bool]]] = {
+    int: ("an integer", lambda v: isinstance(v, int) and not isinstance(v, bool)),
+    float: ("a finite number", _finite),
+    bool: ("true or false", lambda v: isinstance(v, bool)),
+    str: ("a string", lambda v: isinstance(v, str)),
 }
 
 
-def _field_types(algo: str) -> dict[str, str]:
+def field_rule(annotation: Any) -> FieldRule | None:
+    """The check for a trainer config field of type ``annotation`` (a type, as :func:`typing.get_type_hints`
+    gives it, never its text): ``int``, ``float``, ``bool``, ``str``, a fixed-length tuple of floats
+    (written as a YAML list), a dict or mapping, or any of these ``| None``. ``Any`` is not checked (None).
+
+    Raises:
+        TypeError: a type with no rule here (a string annotation included), so that a trainer field of a new
+            type fails the sweep's tests instead of going unchecked.
+    """
+    if annotation is Any:
+        return None
+    base, optional = annotation, False
+    if typing.get_origin(annotation) in (typing.Union, types.UnionType):
+        members = typing.get_args(annotation)
+        rest = [m for m in members if m is not type(None)]
+        if len(rest) == 1 and len(rest) < len(members):
+            base, optional = rest[0], True
+    origin, args = typing.get_origin(base), typing.get_args(base)
+    if isinstance(base, type) and base in _SCALAR_RULES:
+        rule, accepts = _SCALAR_RULES[base]
+    elif origin is tuple and args and all(a is float for a in args):
+        rule, accepts = f"a list of {len(args)} finite numbers", _finite_list(len(args))
+    elif base in (dict, collections.abc.Mapping) or origin in (dict, collections.abc.Mapping):
+        rule, accepts = "a mapping", lambda v: isinstance(v, dict)
+    else:
+        raise TypeError(f"sweep: no check for a trainer config field of type {annotation!r}")
+    return FieldRule(rule, accepts, optional)
+
+
+def field_rules(config_class: type) -> dict[str, FieldRule | None]:
+    """The check for every field of a trainer config dataclass, by field name (from its resolved types)."""
     import dataclasses
 
+    hints = typing.get_type_hints(config_class)
+    rules = {}
+    for f in dataclasses.fields(config_class):
+        try:
+            rules[f.name] = field_rule(hints[f.name])
+        except TypeError as err:
+            raise TypeError(f"{err} ({config_class.__name__}.{f.name})") from None
+    return rules
+
+
+def _config_class(algo: str) -> type:
     if algo == "ngransac":
-        from agents.ngransac import NGRansacConfig as cls
-    else:
-        from agents.ppo.config import PPOConfig as cls
-    return {f.name: str(f.type) for f in dataclasses.fields(cls)}
+        from agents.ngransac import NGRansacConfig
 
+        return NGRansacConfig
+    from agents.ppo.config import PPOConfig
 
-def _check_field(source: str, where: str, annotation: str | None, value: Any) -> None:
-    """Refuse a trainer config value of the wrong type before the trainer compares it (naming the key)."""
-    if annotation is None:
-        return  # an unknown field: the trainer's config class names it
-    optional = annotation.endswith(" | None")
-    base = annotation.removesuffix(" | None")
-    if base not in _FIELD_TYPES or (optional and value is None):
-        return
-    rule, ok = _FIELD_TYPES[base]
-    if not ok(value):
-        raise ValueError(f"{source}: {where} must be {rule}{' or null' if optional else ''}, got {value_repr(value)}")
+    return PPOConfig
 
 
 def _check_name(source: str, name: Any, given: bool) -> str:
@@ -253,12 +308,14 @@ def parse_sweep(data: Any, source: str = "sweep") -> SweepSpec:
         raise ValueError(f"{source}: algo must be one of {ALGOS}, got {value_repr(algo)}")
     name = _check_name(source, data["name"] if data.get("name") is not None else Path(source).stem,
                        data.get("name") is not None)
-    types = _field_types(algo)
+    rules = field_rules(_config_class(algo))
     fixed = data.get("fixed") or {}
     if not isinstance(fixed, dict):
         raise ValueError(f"{source}: fixed must be a mapping, got {value_repr(fixed)}")
     for key, value in fixed.items():
-        _check_field(source, f"fixed.{_key(key)}", types.get(key) if isinstance(key, str) else None, value)
+        rule = rules.get(key) if isinstance(key, str) else None  # an unknown field: the trainer's config names it
+        if rule is not None:
+            rule.check(source, f"fixed.{_key(key)}", value)
     space_in = data.get("space") or {}
     if not isinstance(space_in, dict) or not space_in:
         raise ValueError(f"{source}: space must be a non-empty mapping of field -> axis, got {value_repr(space_in)}")
@@ -283,9 +340,10 @@ def parse_sweep(data: Any, source: str = "sweep") -> SweepSpec:
             if kind == "randint" and not all(isinstance(v, int) for v in values):
                 raise ValueError(f"{source}: {where} must be [low, high] integers, got {value_repr(values)}")
         else:
-            annotation = types.get(key) if isinstance(key, str) else None
+            rule = rules.get(key) if isinstance(key, str) else None
             for i, value in enumerate(values):
-                _check_field(source, f"{where}[{i}]", annotation, value)
+                if rule is not None:
+                    rule.check(source, f"{where}[{i}]", value)
         space[key] = {kind: list(values)}
     clash = set(space) & set(fixed)
     if clash:
