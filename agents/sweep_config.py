@@ -10,7 +10,8 @@ file can run code or exhaust memory; see :func:`load_sweep`) holds:
 - ``space``: one search axis per config field: ``{grid: [...]}`` (every value, crossed with the
   other grid axes), ``{choice: [...]}``, ``{uniform: [lo, hi]}``, ``{loguniform: [lo, hi]}``,
   ``{randint: [lo, hi]}`` (random, drawn per sample); ``seed`` is an axis like any other;
-- ``samples``: how many times the grid is repeated (random axes get a new draw each time);
+- ``samples``: how many times the grid is repeated (random axes get a new draw each time), 1 to
+  :data:`MAX_SAMPLES` (1000; default 1);
 - ``report_every``: trainer steps (NG-RANSAC frames, PPO environment steps) between reports;
 - ``metric``: the held-out success rate at a budget: the environment ``env_id`` with ``budget``
   hypotheses per frame, contamination ``epsilon``, ``n`` correspondences, ``episodes`` episodes of
@@ -44,6 +45,7 @@ __all__ = [
     "MAX_FILE_BYTES",
     "MAX_DEPTH",
     "MAX_NAME",
+    "MAX_SAMPLES",
     "MetricSpec",
     "SweepSpec",
     "FieldRule",
@@ -64,6 +66,10 @@ MAX_DEPTH = 32
 """How deeply a sweep file's collections may nest (the deepest a valid file needs is 4)."""
 MAX_NAME = 100
 """The longest ``name`` (it is the folder under ``runs/sweep/``)."""
+MAX_SAMPLES = 1000
+"""The most repeats of the grid (``samples``). Each repeat runs every grid point again, and every trial keeps
+its folder and a checkpoint per report; the cluster-sized ``configs/sweeps/realistic.yaml`` repeats its grid
+twice, so a thousand is far past any sweep that finishes, and a larger number is a typo."""
 
 
 _METRIC_RULES: dict[str, Option] = {
@@ -382,7 +388,7 @@ def parse_sweep(data: Any, source: str = "sweep") -> SweepSpec:
             rf = scheduler.setdefault("reduction_factor", 2)
             if not _finite(rf) or rf <= 1:
                 raise ValueError(f"sweep scheduler.reduction_factor must be a finite number > 1, got {value_repr(rf)}")
-        samples = _positive("samples", data.get("samples", 1))
+        samples = Integer(low=1, high=MAX_SAMPLES).check("samples", data.get("samples", 1), prefix="sweep ")
         report_every = _positive("report_every", data.get("report_every"))
         search_seed = _nonnegative("search_seed", data.get("search_seed", 0))
     except ValueError as err:

@@ -156,7 +156,7 @@ def test_a_name_that_escapes_runs_sweep_writes_nothing(tmp_path, capsys, monkeyp
         ({"scheduler": "fifo"}, "s.yaml: scheduler must be a mapping, got 'fifo'"),
         ({"scheduler": {"type": "asha", "reduction_factor": float("nan")}},
          "s.yaml: scheduler.reduction_factor must be a finite number > 1, got nan"),
-        ({"samples": 0}, "s.yaml: samples must be an integer >= 1, got 0"),
+        ({"samples": 0}, "s.yaml: samples must be an integer >= 1 and <= 1000, got 0"),
         ({"metric": {"budget": "x" * 10000}}, "s.yaml: sweep metric.budget"),
         ({"metric": {"env_id": [1]}}, "s.yaml: metric.env_id must be a string, got [1]"),
     ],
@@ -253,6 +253,26 @@ def test_a_field_type_is_checked_by_what_it_is_not_how_it_is_spelled():
     for unknown in ("int", list[int], int | str, Path):
         with pytest.raises(TypeError, match="no check for a trainer config field of type"):
             field_rule(unknown)
+
+
+@pytest.mark.parametrize("samples", [1001, 10**12, 2.5, True])
+def test_samples_past_the_bound_are_refused_naming_the_field_and_value(samples):
+    import yaml
+
+    with pytest.raises(ValueError) as err:
+        parse_sweep({**yaml.safe_load(NGRANSAC), "samples": samples}, "s.yaml")
+    assert str(err.value) == f"s.yaml: samples must be an integer >= 1 and <= 1000, got {samples!r}"
+
+
+def test_samples_up_to_the_bound_are_accepted():
+    import yaml
+
+    from agents.sweep_config import MAX_SAMPLES
+
+    assert MAX_SAMPLES == 1000  # the bound the module doc and the messages state
+    for samples in (1, MAX_SAMPLES):
+        assert parse_sweep({**yaml.safe_load(NGRANSAC), "samples": samples}, "s.yaml").samples == samples
+    assert parse_sweep(yaml.safe_load(NGRANSAC), "s.yaml").samples == 1  # the default
 
 
 def test_a_file_that_is_not_utf8_a_directory_or_too_large_is_named(tmp_path):
