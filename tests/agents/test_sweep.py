@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from agents.sweep import load_sweep, parse_sweep
+from agents.sweep_config import load_sweep, parse_sweep
 from vo_gym_cli.main import main
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -156,7 +156,7 @@ def test_a_name_that_escapes_runs_sweep_writes_nothing(tmp_path, capsys, monkeyp
         ({"scheduler": "fifo"}, "s.yaml: scheduler must be a mapping, got 'fifo'"),
         ({"scheduler": {"type": "asha", "reduction_factor": float("nan")}},
          "s.yaml: scheduler.reduction_factor must be a finite number > 1, got nan"),
-        ({"samples": 0}, "s.yaml: samples must be an integer >= 1, got 0"),
+        ({"samples": 0}, "s.yaml: samples must be an integer >= 1 and <= 1000, got 0"),
         ({"metric": {"budget": "x" * 10000}}, "s.yaml: sweep metric.budget"),
         ({"metric": {"env_id": [1]}}, "s.yaml: metric.env_id must be a string, got [1]"),
     ],
@@ -168,6 +168,111 @@ def test_bad_values_name_the_file_and_key_in_a_short_message(change, needle):
     with pytest.raises(ValueError) as err:
         parse_sweep(data, "s.yaml")
     assert needle in str(err.value) and len(str(err.value)) < 600
+
+
+@pytest.mark.parametrize(
+    "algo, fixed, needle",
+    [
+        ("ngransac", {"keep_best": "yes"}, "s.yaml: fixed.keep_best must be true or false, got 'yes'"),
+        ("ngransac", {"keep_best": 1}, "s.yaml: fixed.keep_best must be true or false, got 1"),
+        ("ngransac", {"loss": 3}, "s.yaml: fixed.loss must be a string, got 3"),
+        ("ngransac", {"frames": True}, "s.yaml: fixed.frames must be an integer, got True"),
+        ("ngransac", {"frames": None}, "s.yaml: fixed.frames must be an integer, got None"),
+        ("ngransac", {"learning_rate": float("nan")}, "s.yaml: fixed.learning_rate must be a finite number, got nan"),
+        ("ngransac", {"max_grad_norm": "big"}, "s.yaml: fixed.max_grad_norm must be a finite number or null, got 'big'"),
+        ("ngransac", {"outlier_mix": [0.5, 0.5]},
+         "s.yaml: fixed.outlier_mix must be a list of 3 finite numbers, got [0.5, 0.5]"),
+        ("ppo", {"env_kwargs": [1]}, "s.yaml: fixed.env_kwargs must be a mapping, got [1]"),
+        ("ppo", {"critic_width": "wide"}, "s.yaml: fixed.critic_width must be an integer or null, got 'wide'"),
+        ("ppo", {"share_trunk": "no"}, "s.yaml: fixed.share_trunk must be true or false, got 'no'"),
+    ],
+)
+def test_each_kind_of_trainer_field_refuses_a_value_of_another_type(algo, fixed, needle):
+    import yaml
+
+    data = yaml.safe_load(NGRANSAC if algo == "ngransac" else PPO)
+    with pytest.raises(ValueError) as err:
+        parse_sweep({**data, "fixed": {**data["fixed"], **fixed}}, "s.yaml")
+    assert str(err.value) == needle
+
+
+def test_a_searched_optional_field_takes_null_and_names_the_bad_value_by_index():
+    import yaml
+
+    data = yaml.safe_load(NGRANSAC)
+    spec = parse_sweep({**data, "space": {**data["space"], "max_grad_norm": {"choice": [1.0, None]}}}, "s.yaml")
+    assert spec.space["max_grad_norm"] == {"choice": [1.0, None]}
+    with pytest.raises(ValueError) as err:
+        parse_sweep({**data, "space": {**data["space"], "max_grad_norm": {"choice": [1.0, None, "x"]}}}, "s.yaml")
+    assert str(err.value) == "s.yaml: space.max_grad_norm.choice[2] must be a finite number or null, got 'x'"
+
+
+def test_valid_values_of_each_kind_of_trainer_field_are_accepted():
+    import yaml
+
+    data = yaml.safe_load(NGRANSAC)
+    spec = parse_sweep({**data, "fixed": {**data["fixed"], "max_grad_norm": None, "outlier_mix": [0.5, 0.3, 0.2],
+                                          "keep_best": True, "loss": "supervised"}}, "s.yaml")
+    config = spec.trainer_config({"seed": 0, "learning_rate": 1e-4})
+    assert config.max_grad_norm is None and config.outlier_mix == (0.5, 0.3, 0.2) and config.keep_best is True
+    data = yaml.safe_load(PPO)
+    spec = parse_sweep({**data, "fixed": {**data["fixed"], "critic_width": None, "env_kwargs": {}}}, "s.yaml")
+    config = spec.trainer_config({"seed": 0})
+    assert config.critic_width is None and config.env_kwargs == {} and config.timesteps == 32
+
+
+def test_a_field_type_is_checked_by_what_it_is_not_how_it_is_spelled():
+    import typing
+    from typing import Any
+
+    from agents.sweep_config import field_rule
+
+    values = [0, 1.5, float("nan"), True, None, "x", [0.1, 0.2], {"a": 1}]
+
+    def verdict(rule):
+        """The rule in words and which of ``values`` it lets through."""
+        passed = []
+        for value in values:
+            try:
+                rule.check("s.yaml", "f", value)
+                passed.append(value)
+            except ValueError:
+                pass
+        return rule.rule, rule.optional, repr(passed)
+
+    spellings = [
+        [float | None, typing.Optional[float], typing.Union[None, float]],
+        [tuple[float, float], typing.Tuple[float, float]],
+        [dict[str, Any], typing.Dict[str, Any], typing.Mapping[str, Any], dict],
+    ]
+    for group in spellings:
+        assert len({verdict(field_rule(t)) for t in group}) == 1, group
+    assert verdict(field_rule(float | None)) == ("a finite number", True, "[0, 1.5, None]")
+    assert field_rule(int | None).optional and not field_rule(int).optional
+    assert field_rule(Any) is None  # not checked: the trainer's config class checks it
+    for unknown in ("int", list[int], int | str, Path):
+        with pytest.raises(TypeError, match="no check for a trainer config field of type"):
+            field_rule(unknown)
+
+
+@pytest.mark.parametrize("samples", [1001, 10**12, 2.5, True])
+def test_samples_past_the_bound_are_refused_naming_the_field_and_value(samples):
+    import yaml
+
+    with pytest.raises(ValueError) as err:
+        parse_sweep({**yaml.safe_load(NGRANSAC), "samples": samples}, "s.yaml")
+    assert str(err.value) == f"s.yaml: samples must be an integer >= 1 and <= 1000, got {samples!r}"
+
+
+def test_samples_up_to_the_bound_are_accepted():
+    import yaml
+
+    from agents.sweep_config import MAX_SAMPLES
+
+    assert MAX_SAMPLES == 1000  # the bound the module doc and the messages state
+    for samples in (1, MAX_SAMPLES):
+        assert parse_sweep({**yaml.safe_load(NGRANSAC), "samples": samples}, "s.yaml").samples == samples
+    assert parse_sweep(yaml.safe_load(NGRANSAC), "s.yaml").samples == 1  # the default
 
 
 def test_a_file_that_is_not_utf8_a_directory_or_too_large_is_named(tmp_path):

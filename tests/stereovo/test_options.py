@@ -47,7 +47,7 @@ def test_choice_lists_the_valid_values():
 def test_worker_counts_and_seeds_of_every_layer_follow_the_contract(value):
     """One rule for counts everywhere: the backends, the benchmark grid, the agents' evaluation and sweeps."""
     from agents.evaluation.setup import EvalConfig
-    from agents.sweep import MetricSpec
+    from agents.sweep_config import MetricSpec
     import dataclasses
 
     from stereovo.benchmark import DEFAULT_GRID, check_seed

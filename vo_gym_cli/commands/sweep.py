@@ -1,6 +1,6 @@
 """``vo-gym sweep CONFIG.yaml``: hyperparameter sweeps of the NG-RANSAC and PPO trainers on Ray Tune.
 
-The sweep file (see :mod:`agents.sweep`) holds the search space (grid and random axes, seeds
+The sweep file (see :mod:`agents.sweep_config`) holds the search space (grid and random axes, seeds
 as an axis), the metric (held-out success at a budget) and the scheduler (ASHA early stopping
 by default). Trials run side by side on a local Ray instance of ``--workers`` CPUs, or on a
 cluster with ``--address``.
@@ -47,7 +47,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     require_extras("yaml", "ray", "torch")
-    from agents.sweep import load_sweep, run_sweep, write_sweep_outputs
+    from agents.sweep import run_sweep, write_sweep_outputs
+    from agents.sweep_config import load_sweep
     from stereovo.benchmark import default_workers
     from stereovo.trials import RunFolderError, prepare_run_folder
 
