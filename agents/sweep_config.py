@@ -16,7 +16,9 @@ file can run code or exhaust memory; see :func:`load_sweep`) holds:
 - ``metric``: the held-out success rate at a budget: the environment ``env_id`` with ``budget``
   hypotheses per frame, contamination ``epsilon``, ``n`` correspondences, ``episodes`` episodes of
   ``frames_per_episode`` frames from seeds ``seed + i`` (kept away from training seeds), the
-  trained policy acting through :func:`agents.rollout.success_rate`, as ``vo-gym evaluate`` does;
+  trained policy acting through :func:`agents.rollout.success_rate`, as ``vo-gym evaluate`` does
+  (``budget`` and ``n`` within what the environment takes, ``frames_per_episode`` at most
+  :data:`~stereovo.simulation.config.MAX_FRAMES`, ``episodes`` at most :data:`MAX_METRIC_EPISODES`);
 - ``scheduler``: ``{type: asha, grace_period: G, reduction_factor: R}`` (default: ASHA early
   stopping on the metric, rungs counted in reports) or ``{type: fifo}`` (every trial to the end);
 - ``search_seed``: seeds the draws of the random axes (default 0): the same file gives the same trials.
@@ -36,7 +38,9 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+from stereovo.estimation.estimator_options import MAX_COUNT
 from stereovo.options import Integer, Number, Option, check_options, value_repr
+from stereovo.simulation.config import MAX_CORRESPONDENCES, MAX_FRAMES
 
 __all__ = [
     "ALGOS",
@@ -46,6 +50,7 @@ __all__ = [
     "MAX_DEPTH",
     "MAX_NAME",
     "MAX_SAMPLES",
+    "MAX_METRIC_EPISODES",
     "MetricSpec",
     "SweepSpec",
     "FieldRule",
@@ -72,8 +77,17 @@ its folder and a checkpoint per report; the cluster-sized ``configs/sweeps/reali
 twice, so a thousand is far past any sweep that finishes, and a larger number is a typo."""
 
 
+MAX_METRIC_EPISODES = 10_000
+"""The most held-out episodes of the metric: it is evaluated at every report of every trial, and ten
+thousand episodes at each report already outlast any training they would judge."""
+
+
 _METRIC_RULES: dict[str, Option] = {
-    **{name: Integer(low=1) for name in ("budget", "n", "episodes", "frames_per_episode")},
+    # as the environment and the simulator bound them, so a typo fails here and not inside a trial
+    "budget": Integer(low=1, high=MAX_COUNT),
+    "n": Integer(low=3, high=MAX_CORRESPONDENCES),
+    "frames_per_episode": Integer(low=1, high=MAX_FRAMES),
+    "episodes": Integer(low=1, high=MAX_METRIC_EPISODES),
     "seed": Integer(low=0),
     "epsilon": Number(low=0.0, high=1.0, high_open=True),
 }

@@ -55,6 +55,9 @@ MAX_NOISE_SIGMA_PX = 1e3
 """The largest simulated pixel noise (px): noise as large as the image; beyond it the measurements
 are no longer pixels of this camera (and at ~1e300 they overflow)."""
 
+MAX_CORRESPONDENCES = 10**8
+"""The most putative matches of a simulated frame (``n_correspondences``): far above any front end's."""
+
 MAX_FRAMES = 10**6
 """The most frame pairs of a :class:`~stereovo.simulation.Sequence`: its trajectory and seeds are
 drawn up front, some 600 bytes and 10 microseconds a frame (a million frames: ~10 s and ~0.6 GB;
@@ -77,7 +80,7 @@ _CONFIG_RULES: dict[str, Option] = {
     "preset": Choice(choices=tuple(sorted(PRESETS))),
     "world": Choice(choices=tuple(WORLDS), allow_none=True),
     "n_frames": Integer(low=1, high=MAX_FRAMES),
-    "n_correspondences": Integer(low=3, high=10**8),
+    "n_correspondences": Integer(low=3, high=MAX_CORRESPONDENCES),
     "noise_sigma": Number(low=0.0, high=MAX_NOISE_SIGMA_PX, unit="px"),
     "score_auc": SCORE_AUC,
     "z_min": Number(low=0.0, high=1e6, low_open=True, unit="m"),

@@ -275,6 +275,24 @@ def test_samples_up_to_the_bound_are_accepted():
     assert parse_sweep(yaml.safe_load(NGRANSAC), "s.yaml").samples == 1  # the default
 
 
+@pytest.mark.parametrize("key, value, rule", [
+    ("episodes", 10**12, ">= 1 and <= 10000"),
+    ("frames_per_episode", 10**7, ">= 1 and <= 1000000"),
+    ("n", 2, ">= 3 and <= 100000000"),
+    ("budget", 10**10, ">= 1 and <= 1000000000"),
+])
+def test_metric_counts_past_what_the_environment_takes_are_refused_before_any_trial(key, value, rule):
+    """A typo in the metric would otherwise start the sweep and fail, or never end, in every trial."""
+    import yaml
+
+    data = yaml.safe_load(NGRANSAC)
+    data["metric"] = {**data.get("metric", {}), key: value}
+    with pytest.raises(ValueError, match=rf"sweep metric.{key} must be an integer {rule}, got {value}$"):
+        parse_sweep(data, "s.yaml")
+    data["metric"][key] = {"episodes": 10_000, "frames_per_episode": 10**6, "n": 3, "budget": 10**9}[key]
+    assert getattr(parse_sweep(data, "s.yaml").metric, key) == data["metric"][key]
+
+
 def test_a_file_that_is_not_utf8_a_directory_or_too_large_is_named(tmp_path):
     latin = tmp_path / "latin.yaml"
     latin.write_bytes(NGRANSAC.replace("tiny", "caf\xe9").encode("latin-1"))
