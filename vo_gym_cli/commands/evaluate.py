@@ -163,9 +163,9 @@ def _environment_error(err: ValueError, args: argparse.Namespace) -> UsageError:
 
 SWEEPS, ADAPTIVE, IMAGES = "sweeps", "adaptive", "images"
 # The options each of evaluate's three runs reads (argparse dests); --episodes, --frames-per-episode,
-# --seed, --out, --overwrite, --json, --no-plots and --no-progress serve all three. A given option
-# (a value other than its default) that the chosen run does not read is refused rather than
-# silently ignored: --adaptive --methods msac would otherwise report rows of methods never asked for.
+# --seed, --out, --overwrite, --json, --no-plots and --no-progress serve all three. An option typed
+# on the command line (even at its default value) that the chosen run does not read is refused rather
+# than silently ignored: --adaptive --methods msac would otherwise report rows of methods never asked for.
 READ_BY = {
     SWEEPS: frozenset({"agent", "env_id", "budget", "epsilons", "budgets", "sweep_epsilon", "n", "auc", "methods",
                        "max_iterations", "outlier_preset", "env_kwargs", "plot_format", "adaptive_agents", "backend",
