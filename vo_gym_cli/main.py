@@ -6,6 +6,10 @@ imported lazily so that ``vo-gym --help`` stays fast and a command's heavy
 imports (torch, matplotlib) load only when it runs. Every command runs inside
 :func:`vo_gym_cli.commands.common.guarded`: a usage error is one line and exit 2,
 Ctrl-C one line and exit 130.
+
+The arguments a command's ``run`` receives also say which options were typed on the command line
+(:data:`vo_gym_cli.commands.common.GIVEN_OPTIONS`), which argparse's values alone cannot: an option
+typed at its default value looks like one left out.
 """
 
 from __future__ import annotations
@@ -14,7 +18,7 @@ import argparse
 import importlib
 import sys
 
-from vo_gym_cli.commands.common import ArgumentParser, HelpFormatter, guarded
+from vo_gym_cli.commands.common import GIVEN_OPTIONS, ArgumentParser, HelpFormatter, guarded, typed_options
 
 COMMANDS = {
     "vo": "Run stereo visual odometry over a simulated sequence or stereo images and write its trajectory.",
@@ -83,7 +87,17 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
-    return guarded(args.command, lambda: _command_module(args.command).run(args))
+    # vo-gym's own options (--help, --version) take no value, so the command's name is the first
+    # token that spells it and the command's own arguments are all that follow.
+    own = argv[argv.index(args.command) + 1:]
+    return guarded(args.command, lambda: _run_command(args, own))
+
+
+def _run_command(args: argparse.Namespace, own: list[str]) -> int:
+    """Run ``args.command`` with its arguments, recording which of them ``own`` typed."""
+    module = _command_module(args.command)
+    setattr(args, GIVEN_OPTIONS, typed_options(module.add_parser, own, prog=f"vo-gym {args.command}"))
+    return module.run(args)
 
 
 if __name__ == "__main__":

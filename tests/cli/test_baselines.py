@@ -261,6 +261,20 @@ def test_report_only_refuses_what_it_would_ignore_and_writes_nothing(runs, tmp_p
 
 
 @pytest.mark.parametrize("more, needle", [
+    (["--out", "runs/baselines"], "--out runs/baselines applies to the simulated grid and --source rendered, not with"
+                                  " --report-only"),
+    (["--seed", "0"], "--seed 0 applies to the simulated grid and --source rendered, not with --report-only"),
+])
+def test_report_only_refuses_an_option_typed_at_its_default(runs, tmp_path, capsys, monkeypatch, more, needle):
+    monkeypatch.chdir(tmp_path)  # --out's default is relative
+    before = {p.name: p.stat().st_mtime_ns for p in runs[0].iterdir()}
+    assert main(["baselines", "--report-only", str(runs[0]), *more]) == 2
+    assert needle in one_line_error(capsys, "baselines")
+    assert {p.name: p.stat().st_mtime_ns for p in runs[0].iterdir()} == before
+    assert not (tmp_path / "runs").exists()
+
+
+@pytest.mark.parametrize("more, needle", [
     (["--resolution", "vga"], "--resolution vga applies to --source rendered, not to the simulated grid"),
     (["--frames", "5"], "--frames 5 applies to --source rendered, not to the simulated grid (the grid's frames are"
                         " --frames-per-cell)"),
@@ -270,6 +284,8 @@ def test_report_only_refuses_what_it_would_ignore_and_writes_nothing(runs, tmp_p
                                                     " rendered"),
     (["--source", "rendered", "--workers", "2"], "--workers 2 applies to the simulated grid, not with --source rendered"
                                                  " (it runs in this process)"),
+    (["--source", "rendered", "--backend", "local"], "--backend local applies to the simulated grid, not with --source"
+                                                     " rendered (it runs in this process)"),  # typed at its default
     (["--source", "rendered:free", "--preset", "car"], "--preset car contradicts --source rendered:free"),
 ])
 def test_an_option_the_run_would_ignore_is_refused_before_computing(tmp_path, capsys, more, needle):

@@ -177,6 +177,25 @@ def test_an_option_of_another_run_is_refused_not_ignored(tmp_path, capsys, more,
     assert not (tmp_path / "e").exists()
 
 
+# Each value is the option's default: typing it still asks for something the run would not do.
+@pytest.mark.parametrize("more, needle", [
+    ([*ADAPTIVE, "--budget", "16"], "--budget 16 applies to the sweeps on simulated matches, not with --adaptive"),
+    ([*ADAPTIVE, "--epsilons", "0.3,0.5,0.7,0.8,0.9"], "--epsilons 0.3,0.5,0.7,0.8,0.9 applies to the sweeps on"
+                                                      " simulated matches, not with --adaptive"),
+    ([*ADAPTIVE, "--format", "png"], "--format png applies to the sweeps on simulated matches and --source rendered,"
+                                     " not with --adaptive (its figures are PNG)"),
+    ([*ADAPTIVE, "--backend", "local"], "--backend local applies to the sweeps on simulated matches, not with"
+                                        " --adaptive (it runs in this process)"),
+    ([*ADAPTIVE, "--sweep-eps=0.8"], "--sweep-eps 0.8 applies to the sweeps on simulated matches, not with --adaptive"),
+    (["--source", "rendered", "--n", "500"], "--n 500 applies to the sweeps on simulated matches and --adaptive, not"
+                                             " with --source rendered"),
+])
+def test_an_option_typed_at_its_default_is_refused_where_the_run_does_not_read_it(tmp_path, capsys, more, needle):
+    assert main(["evaluate", *more, "--out", str(tmp_path / "e")]) == 2
+    assert needle in one_line_error(capsys, "evaluate")
+    assert not (tmp_path / "e").exists()
+
+
 def _tiny_comparison(config, log=print):
     """A stand-in for agents.evaluation.in_frame.run_comparison: one row, one progress line."""
     row = {"family": "learned (own stop)", "point": 0.9, "order": 0, "frames": 2, "success": 1.0, "successes": 2,
@@ -241,3 +260,24 @@ def test_resume_with_a_trial_that_is_no_unit_of_the_run_is_one_line(tmp_path, ca
     capsys.readouterr()
     assert main(["evaluate", *SWEEP, "--out", str(out), "--resume"]) == 2
     assert "line 2: task 99 is not a task of this run" in one_line_error(capsys, "evaluate")
+
+
+def test_options_left_out_or_read_by_the_run_are_not_refused(tmp_path, capsys, monkeypatch):
+    import agents.evaluation.in_frame as in_frame
+
+    monkeypatch.setattr(in_frame, "run_comparison", _tiny_comparison)
+    # --n is read by --adaptive and --seed by every run, here at their defaults; the sweeps' options are left out
+    assert main(["evaluate", *ADAPTIVE, "--n", "500", "--seed", "1000", "--no-plots", "--out", str(tmp_path / "a")]) == 0
+    assert "| learned (own stop) | 0.9 | 100.0 % |" in capsys.readouterr().out
+
+
+def test_arguments_parsed_without_main_count_an_option_as_given_when_it_is_not_at_its_default():
+    from vo_gym_cli.commands import evaluate
+    from vo_gym_cli.commands.common import UsageError
+    from vo_gym_cli.main import build_parser
+
+    parser = build_parser(["evaluate"])
+    # no record of what was typed: an option at its default cannot be told from one left out
+    evaluate.check_options_apply(parser.parse_args(["evaluate", "--adaptive", "--budget", "16"]))
+    with pytest.raises(UsageError, match=r"^--budget 8 applies to the sweeps on simulated matches, not with --adaptive"):
+        evaluate.check_options_apply(parser.parse_args(["evaluate", "--adaptive", "--budget", "8"]))

@@ -155,8 +155,9 @@ def run(args: argparse.Namespace) -> int:
 
 GRID, IMAGES, REPORT = "grid", "images", "report"
 # The options each of baselines' three runs reads (argparse dests); --no-progress and --list-methods
-# serve all. A given option (a value other than its default) that the chosen run does not read is
-# refused rather than silently ignored: --report-only DIR --out X would rewrite DIR and never make X.
+# serve all. An option typed on the command line (even at its default value) that the chosen run does
+# not read is refused rather than silently ignored: --report-only DIR --out X would rewrite DIR and
+# never make X.
 READ_BY = {
     GRID: frozenset({"methods", "full", "frames_per_cell", "epsilons", "sigmas", "aucs", "ns", "outlier_kinds",
                      "max_iterations", "preset", "seed", "out", "no_plots", "plot_format", "chunk", "backend",

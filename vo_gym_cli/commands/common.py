@@ -181,31 +181,102 @@ def render_pairs(source: str, preset: str, n_frames: int, seed: int, resolution:
     return frames, sequence
 
 
+GIVEN_OPTIONS = "given_options"
+"""The attribute of the parsed arguments that :func:`vo_gym_cli.main.main` hands a command: a dict
+from each option typed on the command line (its argparse dest) to the option string as typed
+(``--out``, or a prefix that argparse accepts, such as ``--overw``), in the order typed. An option
+left out is absent from it, and one typed at its default value is present: "given" means typed."""
+
+
+def _actions(parser: argparse.ArgumentParser) -> list[argparse.Action]:
+    # argparse offers no public way to list a parser's arguments; this is the one place the CLI reads
+    # its private list.
+    return parser._actions
+
+
+def _command_parser(add_parser: Callable[[argparse.ArgumentParser], None], prog: str | None) -> ArgumentParser:
+    parser = ArgumentParser(prog=prog)
+    add_parser(parser)
+    return parser
+
+
+def typed_options(add_parser: Callable[[argparse.ArgumentParser], None], argv: list[str],
+                  prog: str | None = None) -> dict[str, str]:
+    """The options that a command's own arguments ``argv`` (after its name) type, as
+    :data:`GIVEN_OPTIONS` records them; ``add_parser`` declares the command's options.
+
+    ``argv`` is parsed again by argparse itself with every default suppressed, so that an option
+    left out leaves no attribute, whatever its default; the spelling comes from ``argv``'s tokens.
+    """
+    parser = _command_parser(add_parser, prog)
+    options = [action for action in _actions(parser) if action.option_strings]
+    # On each action rather than through set_defaults(), whose SUPPRESS argparse would still write
+    # into the namespace (converted by the option's type, which fails on that text).
+    for action in options:
+        action.default = argparse.SUPPRESS
+    typed = vars(parser.parse_args(argv))
+    spelled = _spellings(options, argv)
+    by_dest = {action.dest: action for action in options}
+    return {dest: spelled.get(dest, by_dest[dest].option_strings[0]) for dest in typed if dest in by_dest}
+
+
+def _spellings(options: list[argparse.Action], argv: list[str]) -> dict[str, str]:
+    """Each dest -> the option string by which ``argv`` first names it: an alias, ``--x`` of
+    ``--x=VALUE``, or the unambiguous prefix of a long option that argparse accepts for it."""
+    dest_of = {string: action.dest for action in options for string in action.option_strings}
+    spelled: dict[str, str] = {}
+    for token in argv:
+        if token == "--":  # what follows is positional, whatever it looks like
+            break
+        name = token.partition("=")[0]
+        if name in dest_of:
+            spelled.setdefault(dest_of[name], name)
+        elif name.startswith("--"):
+            dests = {dest for string, dest in dest_of.items() if string.startswith(name)}
+            if len(dests) == 1:
+                spelled.setdefault(dests.pop(), name)
+    return spelled
+
+
+def given_options(args: argparse.Namespace, add_parser: Callable[[argparse.ArgumentParser], None]) -> dict[str, str]:
+    """The options given to a command, dest -> flag: the :data:`GIVEN_OPTIONS` record of ``args``.
+
+    A Namespace that carries no record (built by hand, or by ``build_parser().parse_args`` rather
+    than ``main``) cannot say what was typed; there, and only there, an option counts as given when
+    its value differs from the parser's default, shown by its first option string.
+    """
+    recorded = getattr(args, GIVEN_OPTIONS, None)
+    if recorded is not None:
+        return dict(recorded)
+    parser = _command_parser(add_parser, None)
+    defaults = vars(parser.parse_args([]))
+    return {action.dest: action.option_strings[0] for action in _actions(parser)
+            if action.option_strings and action.dest in defaults
+            and getattr(args, action.dest, defaults[action.dest]) != defaults[action.dest]}
+
+
+def _shown_value(value: Any) -> str:
+    """An option's value as it follows the flag in a message: nothing for a flag, ``A,B`` for a list."""
+    if isinstance(value, bool):
+        return ""
+    if isinstance(value, (list, tuple)):
+        return " " + ",".join(f"{v:g}" if isinstance(v, float) else str(v) for v in value)
+    return f" {value}"
+
+
 def unread_option(args: argparse.Namespace, add_parser: Callable[[argparse.ArgumentParser], None],
                   read_by: dict[str, frozenset[str]], run: str) -> tuple[str, str, list[str]] | None:
     """The first option given to a command with several kinds of run that ``run`` does not read:
-    ``(flag and value as typed, dest, the runs that read it)``, or None.
+    ``(the flag as typed and its value, dest, the runs that read it)``, or None.
 
     ``read_by`` maps each run to the argparse dests it reads; a dest in none of them serves every
-    run. "Given" means a value other than the parser's default (argparse keeps no other record).
+    run. "Given" is :func:`given_options`': typed on the command line, even at its default value.
     """
-    parser = ArgumentParser()
-    add_parser(parser)
-    defaults = vars(parser.parse_args([]))
-    for action in parser._actions:
-        dest = action.dest
-        if dest in read_by[run] or not any(dest in read for read in read_by.values()):
+    read_anywhere = frozenset().union(*read_by.values())
+    for dest, flag in given_options(args, add_parser).items():
+        if dest in read_by[run] or dest not in read_anywhere:
             continue
-        value = getattr(args, dest, defaults[dest])
-        if value == defaults[dest]:
-            continue
-        if isinstance(value, bool):
-            shown = ""
-        elif isinstance(value, (list, tuple)):
-            shown = " " + ",".join(f"{v:g}" if isinstance(v, float) else str(v) for v in value)
-        else:
-            shown = f" {value}"
-        return action.option_strings[0] + shown, dest, [r for r, read in read_by.items() if dest in read]
+        return flag + _shown_value(getattr(args, dest)), dest, [r for r, read in read_by.items() if dest in read]
     return None
 
 

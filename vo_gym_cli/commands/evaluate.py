@@ -37,9 +37,7 @@ from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
 from vo_gym_cli.commands.baselines import PLOT_FORMATS, add_backend_options, backend_from_args
 from vo_gym_cli.commands.common import OUTLIER_PRESETS, open_run_folder
 from vo_gym_cli.commands.common import RunStart, UsageError, flag_error, interrupted_run, stoppable, unread_option
-from vo_gym_cli.commands.common import csv_list as _csv_list
-from vo_gym_cli.commands.common import positive_int as _positive_int
-from vo_gym_cli.commands.common import seed as _seed
+from vo_gym_cli.commands.common import csv_list, positive_int, seed
 
 DEFAULT_AGENTS = ("uniform", "match-score", "consistency", "constant-velocity", "oracle")
 
@@ -64,28 +62,28 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                              f" ({', '.join(ONE_SHOT_SAMPLERS + IN_FRAME_SAMPLERS)}) or a checkpoint path of either kind"
                              f" (default: {', '.join(DEFAULT_AGENTS)})")
     parser.add_argument("--env-id", default="vo_gym/StereoVO-v0", help="environment id (default: vo_gym/StereoVO-v0)")
-    parser.add_argument("--episodes", type=_positive_int("--episodes"), default=10,
+    parser.add_argument("--episodes", type=positive_int("--episodes"), default=10,
                         help="episodes per setting (default: 10)")
-    parser.add_argument("--frames-per-episode", type=_positive_int("--frames-per-episode"), default=10,
+    parser.add_argument("--frames-per-episode", type=positive_int("--frames-per-episode"), default=10,
                         help="frame pairs per episode (default: 10)")
-    parser.add_argument("--seed", type=_seed, default=1000,
+    parser.add_argument("--seed", type=seed, default=1000,
                         help="seed of the first episode; episode i uses seed+i (default: 1000, away from"
                              " training seeds)")
-    parser.add_argument("--budget", type=_positive_int("--budget"), default=16,
+    parser.add_argument("--budget", type=positive_int("--budget"), default=16,
                         help="hypotheses per frame of the contamination sweep (default: 16)")
-    parser.add_argument("--epsilons", type=_csv_list(float, "--epsilons"), default=[0.3, 0.5, 0.7, 0.8, 0.9],
+    parser.add_argument("--epsilons", type=csv_list(float, "--epsilons"), default=[0.3, 0.5, 0.7, 0.8, 0.9],
                         metavar="E,...", help="contaminations of sweep (a) (default: 0.3,0.5,0.7,0.8,0.9)")
-    parser.add_argument("--budgets", type=_csv_list(int, "--budgets"), default=[1, 2, 4, 8, 16, 32, 64],
+    parser.add_argument("--budgets", type=csv_list(int, "--budgets"), default=[1, 2, 4, 8, 16, 32, 64],
                         metavar="B,...", help="hypothesis budgets of sweep (b) (default: 1,2,4,8,16,32,64)")
     parser.add_argument("--sweep-epsilon", type=float, default=0.8,
                         help="contamination of the budget sweep (default: 0.8)")
-    parser.add_argument("--n", type=_positive_int("--n"), default=500, help="correspondences per frame (default: 500)")
+    parser.add_argument("--n", type=positive_int("--n"), default=500, help="correspondences per frame (default: 500)")
     parser.add_argument("--auc", type=float, default=None,
                         help="match-score ROC AUC (default: the env id's own, 0.75 for StereoVO-v0)")
-    parser.add_argument("--methods", type=_csv_list(str, "--methods"), default=None, metavar="A,B,...",
+    parser.add_argument("--methods", type=csv_list(str, "--methods"), default=None, metavar="A,B,...",
                         help="classical methods side by side (default: ransac,msac,prosac,guided;"
                              " 'guided' = ransac with the match scores as sampling priors; 'none' for none)")
-    parser.add_argument("--max-iterations", type=_positive_int("--max-iterations"), default=None,
+    parser.add_argument("--max-iterations", type=positive_int("--max-iterations"), default=None,
                         help="hypothesis cap of the adaptive classical runs (default: --env-kwargs' max_iterations,"
                              " else 2000)")
     parser.add_argument("--outlier-preset", default=None, choices=list(OUTLIER_PRESETS),
@@ -163,9 +161,9 @@ def _environment_error(err: ValueError, args: argparse.Namespace) -> UsageError:
 
 SWEEPS, ADAPTIVE, IMAGES = "sweeps", "adaptive", "images"
 # The options each of evaluate's three runs reads (argparse dests); --episodes, --frames-per-episode,
-# --seed, --out, --overwrite, --json, --no-plots and --no-progress serve all three. A given option
-# (a value other than its default) that the chosen run does not read is refused rather than
-# silently ignored: --adaptive --methods msac would otherwise report rows of methods never asked for.
+# --seed, --out, --overwrite, --json, --no-plots and --no-progress serve all three. An option typed
+# on the command line (even at its default value) that the chosen run does not read is refused rather
+# than silently ignored: --adaptive --methods msac would otherwise report rows of methods never asked for.
 READ_BY = {
     SWEEPS: frozenset({"agent", "env_id", "budget", "epsilons", "budgets", "sweep_epsilon", "n", "auc", "methods",
                        "max_iterations", "outlier_preset", "env_kwargs", "plot_format", "adaptive_agents", "backend",
