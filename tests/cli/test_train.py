@@ -156,6 +156,10 @@ def test_train_adaptive_minutes_must_be_positive(tmp_path, capsys):
     (["--algo", "ppo", "--minutes", "3"], "--algo ppo does not take --minutes 3.0 (an option of adaptive; here: --max-minutes)"),
     (["--algo", "ngransac", "--timesteps", "5", "--prior", "ppo"], "--algo ngransac does not take --prior ppo (an option of adaptive), --timesteps 5"),
     (["--algo", "adaptive", "--epsilon", "0.5"], "--epsilon 0.5 (an option of ngransac and ppo)"),
+    # typed at their defaults, still options another trainer reads
+    (["--algo", "adaptive", "--epsilon", "0.3:0.9"], "--algo adaptive does not take --epsilon 0.3:0.9 (an option of"),
+    (["--algo", "ngransac", "--timesteps", "20000"], "--algo ngransac does not take --timesteps 20000 (an option of ppo)"),
+    (["--algo", "ppo", "--loss=supervised"], "--algo ppo does not take --loss supervised (an option of ngransac)"),
 ])
 def test_an_option_of_another_trainer_is_refused_not_ignored(tmp_path, capsys, argv, needle):
     assert main(["train", *argv, "--out", str(tmp_path / "t")]) == 2

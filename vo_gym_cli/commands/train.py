@@ -28,6 +28,7 @@ from vo_gym_cli.commands.common import (
     bounded_int,
     check_output_dir,
     finite_float,
+    given_options,
     positive_int,
     require_extras,
     seed,
@@ -296,24 +297,19 @@ _COUNTERPART = {("adaptive", "max_minutes"): "--minutes", ("ppo", "minutes"): "-
                 ("ppo", "lr"): "--ppo-lr", ("adaptive", "frames"): "--max-episodes or --minutes"}
 
 
-def _flag(dest: str) -> str:
-    return "--" + dest.replace("_", "-")
-
-
 def check_options_apply(args: argparse.Namespace) -> None:
-    """Raise a one-line UsageError naming every given option (a value other than its default) that
-    ``--algo``'s trainer does not read, the trainer(s) that do, and a counterpart if there is one."""
-    parser = argparse.ArgumentParser()
-    add_parser(parser)
-    defaults = vars(parser.parse_args([]))
+    """Raise a one-line UsageError naming every given option (typed on the command line, even at its
+    default value: :func:`~vo_gym_cli.commands.common.given_options`) that ``--algo``'s trainer does
+    not read, the trainer(s) that do, and a counterpart if there is one."""
+    given = given_options(args, add_parser)
     refused = []
     for dest in sorted(set().union(*USED_BY.values()) - USED_BY[args.algo]):
-        value = getattr(args, dest, defaults[dest])
-        if value == defaults[dest]:
+        if dest not in given:
             continue
         owners = " and ".join(algo for algo, used in USED_BY.items() if dest in used)
         hint = _COUNTERPART.get((args.algo, dest))
-        refused.append(f"{_flag(dest)} {value}" + f" (an option of {owners}" + (f"; here: {hint})" if hint else ")"))
+        refused.append(f"{given[dest]} {getattr(args, dest)}" + f" (an option of {owners}"
+                       + (f"; here: {hint})" if hint else ")"))
     if refused:
         raise UsageError(f"--algo {args.algo} does not take " + ", ".join(refused))
 
