@@ -35,5 +35,11 @@ if [ ! -x .venv/bin/python ]; then
 fi
 .venv/bin/python -m pip install --quiet --upgrade pip
 .venv/bin/python -m pip install --quiet "torch==2.13.0"
+# OpenCV comes as the contrib build (AKAZE is there only in OpenCV 5); a .venv made before holds the
+# plain wheel, and two wheels writing one cv2 package break each other when either is removed.
+if .venv/bin/python -m pip show --quiet opencv-python-headless >/dev/null 2>&1; then
+    # both, when both are there: removing one deletes files of the cv2 package the other needs too
+    .venv/bin/python -m pip uninstall --quiet --yes opencv-python-headless opencv-contrib-python-headless 2>/dev/null || true
+fi
 .venv/bin/python -m pip install --quiet -e ".[dev,peers,superansac,train,distributed,images,render]"
 echo "vo-gym set up in .venv ($(.venv/bin/python -c 'import torch, numpy; print("torch", torch.__version__, "numpy", numpy.__version__)'))"

@@ -8,8 +8,9 @@
   128 floats, normalised here to unit length, Euclidean distance.
 - AKAZE: Alcantarilla, Nuevo & Bartoli, "Fast explicit diffusion for accelerated features in
   nonlinear scale spaces", BMVC 2013. 486-bit binary M-LDB descriptors, Hamming distance.
-  OpenCV 4 has it in its main modules; OpenCV 5 only in the contrib build (``xfeatures2d``): without
-  it ``detector="akaze"`` is refused with a message saying so.
+  OpenCV 4 has it in its main modules; OpenCV 5 only in the contrib build (``xfeatures2d``), which
+  the ``images`` extra installs; with the plain build ``detector="akaze"`` is refused with a
+  message saying so.
 
 Binary descriptors are packed into uint64 words so that the matching kernels
 (:mod:`stereovo.frontend.kernels`) compare eight bytes at a time.
@@ -31,7 +32,7 @@ def _cv2():
         import cv2
     except ImportError as err:  # the extra is optional: say how to get it
         raise ImportError(
-            "the image front end needs OpenCV: pip install 'vo-gym[images]' (opencv-python-headless)"
+            "the image front end needs OpenCV: pip install 'vo-gym[images]' (opencv-contrib-python-headless)"
         ) from err
     return cv2
 
@@ -74,7 +75,7 @@ def _detector(options: FrontendOptions):
             return owner.AKAZE_create()
     raise ValueError(
         f"FrontendOptions.detector='akaze' needs an OpenCV with AKAZE; OpenCV {cv2.__version__} has none "
-        "(OpenCV 5 moved it to the contrib modules: pip install 'opencv-python-headless<5' or "
+        "(OpenCV 5 keeps it in the contrib build: pip uninstall opencv-python-headless, then pip install "
         "opencv-contrib-python-headless)"
     )
 
