@@ -244,3 +244,27 @@ def test_gymnasium_vector_env_steps_the_adaptive_env():
     assert stacked >= 10
     assert benchmark_vector_step(envs, target_duration=0.05, seed=0) > 0
     envs.close()
+
+
+def test_all_inlier_drawn_says_whether_a_scored_sample_was_three_true_inliers():
+    # Recomputed from the frame's samples as the infos report them, batch by batch, and the frame's true inlier
+    # mask: a sample (three row indices) is all-inlier when its three rows are. Frame 1 samples the true inliers
+    # only (logits +10 against -10: every sample all-inlier), frame 2 the outliers only (none), frame 3 uniformly.
+    env = small(batch_size=4, max_hypotheses=12)
+    env.reset(seed=5)
+    found = []
+    for favour in ("inliers", "outliers", "uniform"):
+        inlier = env.current_frame.truth.inlier.copy()
+        assert 0 < inlier.sum() < inlier.size
+        logits = {"inliers": np.where(inlier, 10.0, -10.0), "outliers": np.where(inlier, -10.0, 10.0),
+                  "uniform": np.zeros(inlier.size)}[favour]
+        samples, info = [], {"frame_done": False}
+        while not info["frame_done"]:  # to the cap: three batches of four
+            _, _, _, _, info = env.step(act(env, False, logits))
+            samples.append(info["batch_samples"][: info["batch_count"]])
+        drawn = np.concatenate(samples)
+        assert drawn.shape == (12, 3) == (info["n_hypotheses"], 3)
+        every_row_an_inlier = inlier[drawn].all(axis=1)
+        assert info["all_inlier_drawn"] is bool(every_row_an_inlier.any())
+        found.append((favour, int(every_row_an_inlier.sum())))
+    assert found[0] == ("inliers", 12) and found[1] == ("outliers", 0)

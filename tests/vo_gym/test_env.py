@@ -231,6 +231,15 @@ def test_spaces_and_episode_end():
     assert env.estimated_poses.shape == env.true_poses.shape == (4, 4, 4)
 
 
+def test_the_episodes_success_rate_is_the_mean_of_its_steps_success():
+    # Contamination 0.6 under a budget of 4 hypotheses: some frames of this episode succeed and some do not.
+    env = StereoVOEnv(n_frames=4, n_correspondences=80, outlier_ratio=0.6, budget=4)
+    record = _rollout(env, seed=1)
+    successes = [info["success"] for _, _, _, info in record[1:]]
+    assert len(successes) == 4 and any(successes) and not all(successes)
+    assert record[-1][3]["trajectory"]["success_rate"] == sum(successes) / 4
+
+
 @pytest.mark.parametrize("env_id", ["vo_gym/StereoVO-v0", "vo_gym/StereoVOProsac-v0", "vo_gym/StereoVOAdaptive-v0"])
 def test_float32_actions_step_as_their_float64_cast(env_id):
     records = []

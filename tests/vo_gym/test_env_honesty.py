@@ -7,8 +7,8 @@ ground truth is permuted or withheld (every label, the true motion and the true 
 must give bit-identical observations.
 
 The last section pins the rest of the contract value by value, each against a value worked out
-independently (the exact messages, the simulator's and estimator's settings, the seeds, the action's
-validation and clipping, the rewards): what mutation testing (scripts/mutation_test.py) found untested.
+independently: the exact messages, the simulator's and estimator's settings, the seeds, the spaces,
+the action's validation and clipping, the rewards, and what close() releases.
 """
 
 from __future__ import annotations
@@ -364,7 +364,7 @@ def test_the_documented_defaults_and_the_kitti_lengths_check():
         assert str(raised.value) == f"StereoVOEnv: kitti_lengths must be positive numbers (m), got {bad!r}"
 
 
-# ---------------------------------------------------------------- the contract, value by value (mutation testing)
+# ------------------------- the contract, value by value: messages, settings, seeds, spaces, actions, rewards, close
 
 def test_every_simulator_keyword_reaches_the_simulator():
     camera = StereoCamera(fx=700.0, fy=700.0, baseline=0.6)

@@ -304,7 +304,8 @@ def test_compute_features_takes_the_fuzzers_unusual_valid_inputs(kind):
                 np.testing.assert_array_equal(feats[usable, feature_index("rigid_consistency")], 1.0)
 
 
-# --- Cases found by mutation testing (docs/mutation-testing.md) ---
+# --- The degree and every column by their definitions, the anchors' choice, the input checks' exact messages,
+#     one- and two-match frames, float32 inputs read in double precision, the depth flag ---
 
 
 def _reference(P, Q, spread, anchors, gate=3.0):

@@ -1,7 +1,10 @@
-"""vo_gym.rewards against values computed by hand: every mode, the bonus, the failure reward, the hypothesis cost.
+"""vo_gym.rewards against values computed by hand: every mode, the bonus, the failure reward, the hypothesis cost;
+and both environments' self-supervised rewards against those functions applied to the estimate the environment made.
 
-Each expected value is written out as arithmetic on literals from the formulas of the module doc;
-nothing here asks the code under test for its own expectation.
+Each expected value of the reward functions is written out as arithmetic on literals from the formulas of the
+module doc; nothing here asks the code under test for its own expectation. The environments' rewards are then
+held to those functions (checked here first) applied to a stubbed estimate known to the test and to the frame's
+own measurements, and told apart from the reward the true motion or the true inlier count would earn.
 """
 
 from __future__ import annotations
@@ -211,3 +214,110 @@ def test_env_reward_pays_the_hypothesis_cost_per_hypothesis(mode):
     for free, paid in zip(rewards[0.0], rewards[0.01]):
         assert -0.9 < paid < 1.0
         assert free - paid == pytest.approx(8 * 0.01, abs=1e-9)
+
+
+# ---------------------------------------------------------------- the self-supervised rewards score the estimate
+#
+# The estimator is stubbed to return a known estimate, wrong in a known way: the frame's true motion turned by
+# YAW_ERROR about the camera's y axis (about 1.25 px at the default focal length of 719 px, whatever the depth: an
+# error of the order of the 2.5 px gate, which the score weighs) and the first STUB_INLIERS rows as its inliers.
+# The environment's reward must be the reward function of that estimate on the frame's own measurements, under the
+# gate threshold_px^2 given to the environment; the true motion or the true inlier count would give another value.
+
+GATE_PX = 2.5
+YAW_ERROR = np.radians(0.1)
+STUB_INLIERS = 30
+REWARD_ENV = dict(n_frames=2, n_correspondences=120, outlier_ratio=0.4, threshold_px=GATE_PX, hypothesis_cost=0.002,
+                  failure_reward=-0.5)
+
+
+def _rot_y(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _stub_the_estimate(monkeypatch, owner, method_name: str, env) -> list:
+    """Make ``owner.method_name`` (the environment's estimator call) return the known wrong estimate of the
+    frame ``env`` is estimating; returns the list of the estimates handed to the environment."""
+    real = getattr(owner, method_name)
+    made = []
+
+    def known(self, *args, **kwargs):
+        est, frame = real(self, *args, **kwargs), env.current_frame
+        inliers = np.zeros(frame.n, dtype=bool)
+        inliers[:STUB_INLIERS] = True
+        made.append(dataclasses.replace(est, status="ok", rotation=_rot_y(YAW_ERROR) @ frame.truth.rotation,
+                                        translation=frame.truth.translation.copy(), inliers=inliers))
+        return made[-1]
+
+    monkeypatch.setattr(owner, method_name, known)
+    return made
+
+
+def _frame_rewards(mode: str, frame, est, n_hypotheses: int, cost: float) -> tuple[float, float]:
+    """(the reward of the estimate, the reward the truth would earn) on ``frame``, from the reward functions."""
+    fail = REWARD_ENV["failure_reward"]
+    if mode == "inliers":
+        assert np.count_nonzero(est.inliers) == STUB_INLIERS
+        return (inlier_reward(True, STUB_INLIERS, frame.n, n_hypotheses, cost, fail),
+                inlier_reward(True, int(np.count_nonzero(frame.truth.inlier)), frame.n, n_hypotheses, cost, fail))
+    gate_sq = GATE_PX**2
+    return (msac_reward(True, est.rotation, est.translation, frame.prev, frame.curr, frame.camera, gate_sq,
+                        n_hypotheses, cost, fail),
+            msac_reward(True, frame.truth.rotation, frame.truth.translation, frame.prev, frame.curr, frame.camera,
+                        gate_sq, n_hypotheses, cost, fail))
+
+
+def _check_the_msac_gate(frame, est, n_hypotheses: int, cost: float, reward: float) -> None:
+    """The reward is not the one a gate 100 times wider (10 times in pixels) would give."""
+    wide = msac_reward(True, est.rotation, est.translation, frame.prev, frame.curr, frame.camera, 100 * GATE_PX**2,
+                       n_hypotheses, cost, REWARD_ENV["failure_reward"])
+    assert abs(wide - reward) > 0.05
+
+
+@pytest.mark.parametrize("mode", ["inliers", "msac"])
+def test_the_envs_self_supervised_reward_scores_the_estimate_it_made(monkeypatch, mode):
+    import vo_gym.env as env_module
+
+    env = StereoVOEnv(**REWARD_ENV, budget=8, reward_mode=mode)
+    made = _stub_the_estimate(monkeypatch, env_module.PreparedEstimator, "estimate", env)
+    env.reset(seed=3)
+    for k in (1, 2):
+        frame = env.current_frame
+        _, reward, _, _, info = env.step(np.zeros(120))
+        assert len(made) == k and info["frame"] == k and info["n_hypotheses"] == 8
+        expected, from_truth = _frame_rewards(mode, frame, made[-1], 8, 0.002)
+        assert reward == pytest.approx(expected, abs=1e-12)
+        assert abs(from_truth - expected) > 0.05  # the truth would earn another reward
+        if mode == "msac":
+            _check_the_msac_gate(frame, made[-1], 8, 0.002, reward)
+
+
+@pytest.mark.parametrize("mode", ["inliers", "msac"])
+def test_the_adaptive_envs_self_supervised_reward_scores_the_estimate_it_made(monkeypatch, mode):
+    # Each step costs 0.002 per hypothesis drawn; the step that ends a frame adds the frame's reward without that
+    # cost. Frame 1 ends on the agent's stop (a step that draws nothing), frame 2 at the cap (a step that draws).
+    from vo_gym.adaptive_env import StereoVOAdaptiveEnv
+    from vo_gym.in_frame import InFrameSearch
+
+    env = StereoVOAdaptiveEnv(**REWARD_ENV, batch_size=4, max_hypotheses=8, reward_mode=mode)
+    made = _stub_the_estimate(monkeypatch, InFrameSearch, "finish", env)
+    env.reset(seed=3)
+    go, stop = np.zeros(121, np.float32), np.zeros(121, np.float32)
+    go[-1], stop[-1] = -1.0, 1.0
+    frame = env.current_frame
+    _, reward, _, _, info = env.step(go)
+    assert not info["frame_done"] and not made and reward == pytest.approx(-0.002 * 4, abs=1e-12)
+    _, reward, _, _, info = env.step(stop)
+    assert info["frame_done"] and info["stopped"] and info["batch_count"] == 0 and len(made) == 1
+    expected, from_truth = _frame_rewards(mode, frame, made[-1], 0, 0.0)
+    assert reward == pytest.approx(expected, abs=1e-12) and abs(from_truth - expected) > 0.05
+    if mode == "msac":
+        _check_the_msac_gate(frame, made[-1], 0, 0.0, reward)
+    frame = env.current_frame
+    assert frame.index == 2
+    env.step(go)
+    _, reward, _, truncated, info = env.step(go)
+    assert info["frame_done"] and not info["stopped"] and info["batch_count"] == 4 and truncated and len(made) == 2
+    expected, from_truth = _frame_rewards(mode, frame, made[-1], 0, 0.0)
+    assert reward == pytest.approx(-0.002 * 4 + expected, abs=1e-12) and abs(from_truth - expected) > 0.05
