@@ -233,7 +233,36 @@ def test_the_trainer_runs_on_the_randomised_stream():
     assert trainer.step == 3 and len(trainer.history) == 1
 
 
-# --- Cases found by mutation testing (docs/mutation-testing.md) ---
+@pytest.mark.parametrize("keep_best", [True, False])
+def test_training_ends_with_the_weights_of_the_best_evaluation_or_the_last_ones(keep_best):
+    # Three steps, an evaluation after each (stubbed: scores 0.2, 0.6, 0.4 and the weights it saw): keep_best
+    # (the default) ends with the second evaluation's weights, keep_best=False with the last step's.
+    config = NGRansacConfig(n_correspondences=60, epsilon_range=(0.5, 0.5), budget=3, pools=2, frames=3, eval_every=1,
+                            eval_frames=1, learning_rate=1e-2, width=8, blocks=1, entropy_weight=0.1, seed=1,
+                            keep_best=keep_best)
+    trainer = NGRansacTrainer(config)
+    scores, seen = iter([0.2, 0.6, 0.4]), []
+
+    def evaluate(n_frames):
+        seen.append({k: v.detach().clone() for k, v in trainer.net.state_dict().items()})
+        return next(scores)
+
+    trainer.evaluate = evaluate
+    net = trainer.train()
+    assert len(seen) == 3 and [h.eval_success for h in trainer.history] == [0.2, 0.6, 0.4]
+    assert trainer.best_eval == 0.6
+    # every step moved the weights, so each evaluation saw its own
+    for a, b in itertools.combinations(seen, 2):
+        assert any(not torch.equal(a[k], b[k]) for k in a)
+    expected = seen[1] if keep_best else seen[2]
+    assert net is trainer.net
+    state = net.state_dict()
+    assert state.keys() == expected.keys()
+    for k in expected:
+        assert torch.equal(state[k], expected[k]), k
+
+
+# --- The task losses by hand: inlier fraction, smoothness penalty, pose error in units of the success bounds ---
 
 
 def _estimate(R, t, n_inliers, n=50, status="ok"):
@@ -277,6 +306,9 @@ def test_pose_loss_in_units_of_the_success_bounds_capped():
     # 10 degrees off: 10, capped at 4; a failed estimate costs the cap whatever its motion.
     assert pose_loss(_estimate(_yaw(10.0), [0.0, 0.0, -2.0], 20), frame) == LOSS_CAP == 4.0
     assert pose_loss(_estimate(np.eye(3), [0.0, 0.0, -2.0], 20, status="failed: degenerate"), frame) == 4.0
+
+
+# --- One training step: its features, pools, losses, success and objective ---
 
 
 def test_frame_loss_pools_the_frames_problem_and_the_previous_motions_features(monkeypatch):
@@ -348,6 +380,9 @@ def test_frame_loss_success_is_strictly_under_the_bound(monkeypatch):
     frame = simulate_frame(config.simulation(0.5), np.random.default_rng(5))
     monkeypatch.setattr(ngransac, "pose_loss", lambda estimate, frame: 1.0)
     assert NGRansacTrainer(config)._frame_loss(frame, None)[2] == [False, False]
+
+
+# --- The draws' log-probability where float32 runs out of mass ---
 
 
 def test_triplet_log_prob_stays_finite_when_two_picks_hold_all_the_float32_mass():

@@ -7,6 +7,7 @@ import pytest
 
 from agents import transfer
 from agents.transfer import (
+    CLASSICAL_ROWS,
     DOMAINS,
     OWN_STOP,
     TransferConfig,
@@ -21,7 +22,11 @@ from agents.transfer import (
     transfer_markdown,
     write_csv,
 )
+from stereovo.estimation import estimate_motion
+from stereovo.metrics import frame_metrics
+from stereovo.reporting import wilson_interval
 from tests.support.images import rendered
+from vo_gym.settings import DEFAULT_ESTIMATOR_OPTIONS
 
 TINY = TransferConfig(budgets=(4,), sequences=1, cap=24, samplers=("ngransac-supervised", "adaptive-pg-prior"))
 
@@ -54,6 +59,47 @@ def test_a_cell_has_every_row_and_point_with_its_interval(cell):
             assert r["mean_hypotheses"] <= TINY.cap
     learned = {r["sampler"]: r for r in cell if r["point"] == "4"}
     assert learned["ngransac-supervised"]["kind"] == "one-shot" and learned["adaptive-pg-prior"]["kind"] == "in-frame"
+
+
+def test_a_cells_successes_rate_and_interval_are_those_of_its_frames_recounted(cell, monkeypatch):
+    # The uniform rows (MSAC at 4 hypotheses and under its own stop) recounted by hand on the frames the cell
+    # drew: each sequence's estimates from one generator seeded by (the cell's seed, the sequence), every
+    # estimate judged by frame_metrics, the rate with its Wilson interval.
+    drawn = []
+    hostile = DOMAINS["hostile"]
+
+    def recording(epsilon, seed, sequences):
+        for sequence in hostile(epsilon, seed, sequences):
+            drawn.append((seed, sequence))
+            yield sequence
+
+    monkeypatch.setitem(DOMAINS, "hostile", recording)
+    uniform = [row for row in build_rows(TINY) if row[0] == "uniform (MSAC)"]
+    assert [(row[0], row[2]) for row in uniform] == [("uniform (MSAC)", "4"), ("uniform (MSAC)", OWN_STOP)]
+    results = run_cell("hostile", 0.5, TINY, uniform)
+    assert len(drawn) == TINY.sequences == 1
+    (_, method, _), = [r for r in CLASSICAL_ROWS if r[0] == "uniform (MSAC)"]
+    recounts = []
+    for point, budget in (("4", 4), (OWN_STOP, None)):
+        successes, hypotheses = 0, 0
+        for k, (seed, sequence) in enumerate(drawn):
+            rng = np.random.default_rng([seed, k])
+            for frame in sequence:
+                est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=rng, budget=budget,
+                                      max_iterations=TINY.cap, fail_at_cap=False, **DEFAULT_ESTIMATOR_OPTIONS)
+                successes += bool(frame_metrics(est, frame.truth).success)
+                hypotheses += est.n_hypotheses
+        recounts.append(successes)
+        low, high = wilson_interval(successes, 10)
+        # the same frames in the module's whole cell (every row) as in this run of the uniform rows alone
+        for r in (next(r for r in results if r["point"] == point),
+                  next(r for r in cell if (r["sampler"], r["point"]) == ("uniform (MSAC)", point))):
+            assert r["frames"] == 10 and r["successes"] == successes
+            assert r["success"] == successes / 10
+            assert (r["ci_low"], r["ci_high"]) == (float(low), float(high))
+            assert r["mean_hypotheses"] == hypotheses / 10
+    # the recount tells a count from a tally of frames: at 4 hypotheses some frames fail
+    assert recounts[0] < 10
 
 
 def test_a_cells_frames_depend_on_the_seed_domain_and_contamination_alone():

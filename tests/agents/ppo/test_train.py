@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import itertools
+import json
+
 import numpy as np
 import pytest
 import torch
@@ -10,11 +13,14 @@ pytest.importorskip("stable_baselines3")
 
 from stable_baselines3.common.utils import obs_as_tensor  # noqa: E402
 
+import agents.ppo.train as ppo_train  # noqa: E402
 from agents.checkpoint import LearnedPolicy, load_checkpoint  # noqa: E402
+from agents.policies import make_heuristic  # noqa: E402
 from agents.ppo.archive import load_ppo, load_ppo_actor, read_ppo_config  # noqa: E402
 from agents.ppo.config import PPOConfig  # noqa: E402
 from agents.ppo.train import train_ppo  # noqa: E402
 from agents.ppo.policy import EquivariantActorCriticPolicy  # noqa: E402
+from agents.rollout import success_rate  # noqa: E402
 from vo_gym import FEATURE_LAYOUT_VERSION, FEATURE_NAMES, StereoVOEnv  # noqa: E402
 
 
@@ -102,7 +108,15 @@ def test_tiny_ppo_run_writes_checkpoints_that_load_and_resume(tmp_path, capsys):
     assert list((tmp_path / "checkpoints").glob("ppo_*_steps.zip"))
     assert any((tmp_path / "tb").rglob("events.out.tfevents.*"))
     assert [h["timesteps"] for h in result.history][0] <= 2 and result.history[-1]["timesteps"] == 128
-    assert 0.0 <= result.uniform_success <= 1.0
+    # The uniform baseline: the uniform policy on the evaluation's episodes, one from each seed eval_seed + i
+    # (8 frames: two 4-frame episodes) at eps 0.8 with the evaluation's 64 matches.
+    # Its mean reward, stored beside it, tells those episodes apart from others with the same few successes.
+    uniform, reward = success_rate(make_heuristic("uniform"), "vo_gym/StereoVO-v0",
+                                   {"n_frames": 4, "n_correspondences": 64, "outlier_ratio": 0.8, "budget": 8,
+                                    "reward_mode": "supervised"}, [10_000, 10_001])
+    assert result.uniform_success == uniform
+    summary = json.loads((tmp_path / "training.json").read_text())
+    assert (summary["uniform_success"], summary["uniform_mean_reward"]) == (uniform, reward)
 
     # The exported actor: config and feature layout, readable by LearnedPolicy, same action as SB3's mean.
     net, payload = load_checkpoint(tmp_path / "ppo.pt")
@@ -128,3 +142,39 @@ def test_tiny_ppo_run_writes_checkpoints_that_load_and_resume(tmp_path, capsys):
     assert load_ppo(tmp_path / "ppo.zip").num_timesteps == 192
     assert main(["train", "--algo", "ppo", "--out", str(tmp_path), "--resume", str(tmp_path / "ppo.pt")]) == 2
     assert "resumes from the SB3 model zip" in capsys.readouterr().err
+
+
+def test_ppo_best_holds_the_actor_of_the_best_evaluation(tmp_path, monkeypatch):
+    # Three evaluations (after the first step, after the first update at step 17, at the end after the second
+    # update), stubbed to score 0.2, 0.6, 0.4: ppo-best.pt holds the actor the second one saw, ppo.pt the last.
+    config = PPOConfig(
+        timesteps=32, n_envs=1, n_steps=16, batch_size=16, n_epochs=1, n_frames=4, n_correspondences=32,
+        budget=4, width=8, blocks=1, critic_width=8, critic_hidden=8, eval_every=16, eval_frames=4,
+        eval_n_correspondences=32, checkpoint_every=1000, learning_rate=1e-2,
+    )
+    scores, seen = iter([0.2, 0.6, 0.4]), []
+
+    def stub(policy, env_id, env_kwargs, seeds):
+        if policy.name == "uniform":  # the baseline, once
+            return 0.5, 0.0
+        seen.append({k: v.detach().clone() for k, v in policy.net.state_dict().items()})
+        return next(scores), 0.0
+
+    monkeypatch.setattr(ppo_train, "success_rate", stub)
+    result = train_ppo(config, tmp_path, progress=False)
+    assert [(h["timesteps"], h["success"]) for h in result.history] == [(1, 0.2), (17, 0.6), (32, 0.4)]
+    assert len(seen) == 3
+    for a, b in itertools.combinations(seen, 2):  # each update moved the actor
+        assert any(not torch.equal(a[k], b[k]) for k in a)
+
+    def assert_state(path, expected):
+        net, payload = load_checkpoint(path)
+        state = net.state_dict()
+        assert state.keys() == expected.keys()
+        for k in expected:
+            assert torch.equal(state[k], expected[k]), (path.name, k)
+        return payload
+
+    best = assert_state(tmp_path / "ppo-best.pt", seen[1])
+    assert [h["success"] for h in best["trainer_state"]["history"]] == [0.2, 0.6]
+    assert_state(tmp_path / "ppo.pt", seen[2])
