@@ -2,7 +2,7 @@
 
 Torch-free, so that the command line can list and check the names (``--help``, argument errors)
 without loading torch; loading a sampler is :func:`agents.checkpoint.load_sampler` (one-shot) or
-:func:`agents.adaptive.load_adaptive` (in-frame).
+:func:`agents.adaptive.checkpoint.load_adaptive` (in-frame).
 
 Two kinds:
 

@@ -14,14 +14,14 @@ Everything is checked before a network is built (:func:`check_network_sizes`,
 declared sizes by arithmetic and every weight's shape from those sizes, so a file that declares
 a huge network is refused without allocating it, and one whose tensors contradict its sizes or
 hold NaN or infinite values never reaches a caller (where it would fail far from the file, or
-sample nonsense). :mod:`agents.adaptive` checks in-frame checkpoints with the same functions.
+sample nonsense). :mod:`agents.adaptive.checkpoint` checks in-frame checkpoints with the same functions.
 
 The samplers shipped with the package are found by name through ``importlib.resources``, from
 any directory and any kind of install: :func:`load_sampler`, :func:`shipped_checkpoint`. Two kinds
 ship: one-shot samplers (:data:`SHIPPED_SAMPLERS`, this module's format: priors for a whole frame,
 :class:`LearnedPolicy`) and in-frame samplers (:data:`SHIPPED_IN_FRAME_SAMPLERS`,
-:mod:`agents.adaptive`'s format: priors batch by batch and a stop,
-:class:`agents.adaptive.AdaptiveSamplerPolicy`). :func:`load_sampler` loads the one-shot ones and
+:mod:`agents.adaptive.checkpoint`'s format: priors batch by batch and a stop,
+:class:`agents.adaptive.policy.AdaptiveSamplerPolicy`). :func:`load_sampler` loads the one-shot ones and
 names the loader of the others; :func:`agents.load_sampler` loads either and
 :class:`agents.LearnedEstimator` runs either on a user's own matches.
 """
@@ -72,10 +72,10 @@ def save_checkpoint(path: str | Path, net: CorrespondenceNet, config: dict[str, 
 REQUIRED_KEYS = ("format_version", "network", "state_dict", "feature_names", "feature_layout_version")
 NETWORK_KEYS = ("n_features", "width", "blocks")
 SHIPPED_IN_FRAME_SAMPLERS = IN_FRAME_SAMPLERS
-"""Names of the in-frame samplers shipped inside the package (:mod:`agents.adaptive`'s format)."""
+"""Names of the in-frame samplers shipped inside the package (:mod:`agents.adaptive.checkpoint`'s format)."""
 SAMPLER_KINDS: tuple[str, ...] = (ONE_SHOT, IN_FRAME)
 IN_FRAME_FORMAT = "vo-gym adaptive sampler v1"
-"""The ``format`` entry of an in-frame sampler's checkpoint (:func:`agents.adaptive.save_adaptive`)."""
+"""The ``format`` entry of an in-frame sampler's checkpoint (:func:`agents.adaptive.checkpoint.save_adaptive`)."""
 
 
 class CheckpointError(ValueError):
@@ -309,7 +309,7 @@ def resolve_sampler(name_or_path: str | os.PathLike) -> tuple[str, str, Path | N
 
     A one-shot file is checked whole here (its schema, network size, weight shapes and finiteness:
     :func:`_check_payload`; no network is built); an in-frame file only by its kind, and whole by
-    :func:`agents.adaptive.check_adaptive_payload` (that module imports this one), which
+    :func:`agents.adaptive.checkpoint.check_adaptive_payload` (that module imports this one), which
     ``vo-gym train`` calls before it starts anything.
 
     Raises:
@@ -327,7 +327,7 @@ def resolve_sampler(name_or_path: str | os.PathLike) -> tuple[str, str, Path | N
         raise ValueError(f"unknown sampler {text!r}: not a shipped one ({shipped}) and not a checkpoint file")
     payload = read_payload(path)
     kind = sampler_kind(payload)
-    if kind != IN_FRAME:  # an in-frame file is checked whole by agents.adaptive (which imports this module)
+    if kind != IN_FRAME:  # an in-frame file is checked whole by agents.adaptive.checkpoint (which imports this module)
         _check_payload(path, payload)  # a one-shot one here; of neither format: names what is wrong
     return kind, path.stem, path
 
@@ -338,7 +338,7 @@ def load_sampler(name_or_path: str | os.PathLike, temperature: float = 1.0) -> "
     Example: ``policy = load_sampler("ngransac-supervised"); logits = policy.act(observation)``;
     ``weights = policy.priors(prev, curr, camera, scores)`` on raw matches. In-frame samplers
     (:data:`SHIPPED_IN_FRAME_SAMPLERS`) load with :func:`agents.load_sampler` (either kind) or
-    :func:`agents.adaptive.load_adaptive`; :class:`agents.LearnedEstimator` runs either.
+    :func:`agents.adaptive.checkpoint.load_adaptive`; :class:`agents.LearnedEstimator` runs either.
 
     Raises:
         ValueError: an unknown name, or an in-frame sampler (naming the loader that takes it);
@@ -347,7 +347,7 @@ def load_sampler(name_or_path: str | os.PathLike, temperature: float = 1.0) -> "
     kind, name, path = resolve_sampler(name_or_path)
     if kind == IN_FRAME:
         raise ValueError(f"sampler {os.fspath(name_or_path)!r} is an in-frame sampler: load it with agents.load_sampler "
-                         "(either kind) or agents.adaptive.load_adaptive, or run it with agents.LearnedEstimator")
+                         "(either kind) or agents.adaptive.checkpoint.load_adaptive, or run it with agents.LearnedEstimator")
     return resolved_policy(name, path, temperature)
 
 

@@ -10,7 +10,7 @@ recipe on user-supplied arrays, for both kinds of sampler:
   which draws a fixed ``budget`` of hypotheses or stops adaptively with the prior-aware bound (the
   all-inlier chance of one draw *from these priors*, :mod:`stereovo.estimation.roles.termination`);
 - **in-frame** (``adaptive-pg-prior``, ``adaptive-pg``, or a file of
-  :func:`agents.adaptive.save_adaptive`): the sampler steers the search batch by batch
+  :func:`agents.adaptive.checkpoint.save_adaptive`): the sampler steers the search batch by batch
   (:class:`vo_gym.in_frame.InFrameSearch`, the adaptive environment's loop), reading the loop's
   evidence after each batch, and ends the frame with its own stop and its own selection of the
   hypothesis to refine.

@@ -3,7 +3,7 @@
 One-shot samplers (:data:`agents.checkpoint.SHIPPED_SAMPLERS`) set a frame's priors once:
 :class:`agents.checkpoint.LearnedPolicy`. In-frame samplers
 (:data:`agents.checkpoint.SHIPPED_IN_FRAME_SAMPLERS`) steer the search batch by batch and stop it:
-:class:`agents.adaptive.AdaptiveSamplerPolicy`. Both policies carry ``name`` and ``kind``; this
+:class:`agents.adaptive.policy.AdaptiveSamplerPolicy`. Both policies carry ``name`` and ``kind``; this
 module sits above both formats' modules so that neither imports the other.
 """
 
@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import os
 
-from agents.adaptive import AdaptiveSamplerPolicy, load_adaptive
+from agents.adaptive.checkpoint import load_adaptive
+from agents.adaptive.policy import AdaptiveSamplerPolicy
 from agents.checkpoint import (
     IN_FRAME,
     ONE_SHOT,

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Train a learned in-frame sampler (agents/adaptive.py) in the adaptive environment, one CPU thread.
+# Train a learned in-frame sampler (agents/adaptive/) in the adaptive environment, one CPU thread.
 #   scripts/train_adaptive.sh                 -> agents/checkpoints/adaptive-pg-prior.pt (the default one):
 #       over the frozen shipped ngransac-supervised sampler, 18 minutes of this process' CPU time, seed 4
 #   scripts/train_adaptive.sh pg [MINUTES]    -> agents/checkpoints/adaptive-pg.pt: no prior, MINUTES of

@@ -182,7 +182,7 @@ class ArsPolicy:
 
 
 class LearnedAdaptivePolicy:
-    """:class:`agents.adaptive.AdaptiveSamplerPolicy` in the runner's interface."""
+    """:class:`agents.adaptive.policy.AdaptiveSamplerPolicy` in the runner's interface."""
 
     def __init__(self, policy, name: str) -> None:
         self.policy, self.name = policy, name
@@ -267,7 +267,8 @@ def make_env(config: AdaptiveComparison, setting: str, epsilon: float) -> Stereo
 
 def policies(config: AdaptiveComparison) -> list[tuple[str, Any, Any]]:
     """``(family, point label, policy)`` for every curve point."""
-    from agents.adaptive import AdaptiveSamplerPolicy, load_adaptive
+    from agents.adaptive.checkpoint import load_adaptive
+    from agents.adaptive.policy import AdaptiveSamplerPolicy
     from agents.checkpoint import load_sampler
 
     out: list[tuple[str, Any, Any]] = []

@@ -125,7 +125,7 @@ def resolve_agent(text: str) -> AgentSpec:
             load_agent_checkpoint(shipped)
             return AgentSpec(name, "checkpoint", str(shipped))
     if name in IN_FRAME_SAMPLERS:
-        from agents.adaptive import load_adaptive
+        from agents.adaptive.checkpoint import load_adaptive
 
         load_adaptive(name)  # a broken installation is reported here, before anything runs
         return AgentSpec(name, IN_FRAME_KIND, name)

@@ -13,16 +13,10 @@ import torch
 
 import agents
 from agents import LearnedEstimator, checkpoint
-from agents.adaptive import (
-    AdaptiveSamplerNet,
-    AdaptiveSamplerPolicy,
-    AdaptiveTrainConfig,
-    load_adaptive,
-    right_hypothesis,
-    save_adaptive,
-    train_adaptive,
-    train_in_frame,
-)
+from agents.adaptive.checkpoint import load_adaptive, save_adaptive
+from agents.adaptive.network import AdaptiveSamplerNet
+from agents.adaptive.policy import AdaptiveSamplerPolicy
+from agents.adaptive.train import AdaptiveTrainConfig, right_hypothesis, train_adaptive, train_in_frame
 from agents.checkpoint import SHIPPED_IN_FRAME_SAMPLERS, SHIPPED_SAMPLERS, LearnedPolicy
 from agents.evaluation.in_frame import (
     ArsPolicy,
@@ -126,7 +120,7 @@ def test_training_starts_from_an_init_checkpoint_on_a_cpu_clock(tmp_path):
 
 
 def test_a_prior_network_starts_as_the_one_shot_sampler_and_travels_in_its_checkpoint(tmp_path, capsys):
-    from agents.adaptive import main as train_main
+    from agents.adaptive.train import main as train_main
     from agents.checkpoint import load_sampler
     from vo_gym.features import N_FEATURES
 
@@ -306,7 +300,7 @@ def test_policies_refuse_the_wrong_observation_with_a_clear_error():
 
 
 def test_domain_randomised_episodes_draw_their_own_match_errors():
-    from agents.adaptive import AdaptiveTrainConfig, episode_settings
+    from agents.adaptive.train import AdaptiveTrainConfig, episode_settings
     from agents.ngransac import RANDOMISED_AUC
     from stereovo.simulation import OUTLIER_KINDS
 
@@ -401,14 +395,14 @@ def test_hostile_in_frame_files_are_refused_before_any_network_is_built(tmp_path
 def test_declared_sizes_give_the_shapes_and_count_of_the_in_frame_network(prior):
     import inspect
 
-    from agents.adaptive import _NETWORK_SIZES
+    from agents.adaptive.checkpoint import NETWORK_SIZES
 
     sizes = {"n_features": 18, "n_globals": 7, "width": 12, "blocks": 2, "prior": prior}
     state = AdaptiveSamplerNet(**sizes).state_dict()
     assert {k: tuple(v.shape) for k, v in state.items()} == AdaptiveSamplerNet.parameter_shapes(**sizes)
     assert AdaptiveSamplerNet.parameter_count(**sizes) == sum(v.numel() for v in state.values())
     defaults = {k: p.default for k, p in inspect.signature(AdaptiveSamplerNet).parameters.items() if k != "prior"}
-    assert defaults == _NETWORK_SIZES  # a checkpoint that leaves a size out is checked as the constructor builds it
+    assert defaults == NETWORK_SIZES  # a checkpoint that leaves a size out is checked as the constructor builds it
 
 
 @pytest.mark.parametrize("name", SHIPPED_IN_FRAME_SAMPLERS)

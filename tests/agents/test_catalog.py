@@ -89,7 +89,7 @@ def adaptive_rate(policy) -> tuple[float, float]:
 
 
 def learned_adaptive(net, name: str):
-    from agents.adaptive import AdaptiveSamplerPolicy
+    from agents.adaptive.policy import AdaptiveSamplerPolicy
     from agents.evaluation.in_frame import LearnedAdaptivePolicy
 
     return LearnedAdaptivePolicy(AdaptiveSamplerPolicy(net, confidence=0.9), name)
@@ -154,7 +154,7 @@ def test_random_weights_of_the_shipped_architectures_miss_the_margin():
 
 @pytest.mark.parametrize("path", ADAPTIVE_CHECKPOINTS, ids=lambda p: p.stem)
 def test_adaptive_checkpoint_beats_uniform_with_its_own_stop(path):
-    from agents.adaptive import load_adaptive
+    from agents.adaptive.checkpoint import load_adaptive
 
     uniform = adaptive_uniform_rate()
     assert uniform <= 0.4  # the setting is as hard as intended
@@ -164,7 +164,8 @@ def test_adaptive_checkpoint_beats_uniform_with_its_own_stop(path):
 
 
 def test_random_weights_of_the_adaptive_architectures_miss_the_margin():
-    from agents.adaptive import AdaptiveSamplerNet, load_adaptive
+    from agents.adaptive.checkpoint import load_adaptive
+    from agents.adaptive.network import AdaptiveSamplerNet
 
     assert ADAPTIVE_CHECKPOINTS
     uniform = adaptive_uniform_rate()
@@ -194,7 +195,7 @@ def test_a_card_holds_every_section_and_its_layout(path):
     assert f"Kind: {policy.kind}" in text
     assert f"layout version {FEATURE_LAYOUT_VERSION}" in text
     if policy.kind == "in-frame":
-        from agents.adaptive import FORMAT
+        from agents.adaptive.checkpoint import FORMAT
 
         assert f"Format `{FORMAT}`" in text
     assert "in-domain" in text and "transfer" in text

@@ -87,7 +87,7 @@ def _train_tiny_adaptive(torch, tmp_path, *extra: str):
 def test_train_adaptive_within_a_time_budget_writes_a_usable_in_frame_sampler(tmp_path, capsys):
     torch = pytest.importorskip("torch")
     from agents import LearnedEstimator
-    from agents.adaptive import load_adaptive
+    from agents.adaptive.checkpoint import load_adaptive
     from stereovo.simulation import SimulationConfig, simulate_frame
 
     out = _train_tiny_adaptive(torch, tmp_path)
@@ -105,7 +105,7 @@ def test_train_adaptive_within_a_time_budget_writes_a_usable_in_frame_sampler(tm
 
 def test_train_adaptive_with_a_prior_file_and_randomised_episodes(tmp_path, capsys):
     torch = pytest.importorskip("torch")
-    from agents.adaptive import load_adaptive
+    from agents.adaptive.checkpoint import load_adaptive
 
     out = _train_tiny_adaptive(torch, tmp_path, "--prior", str(ROOT / "agents" / "checkpoints" / "ngransac-supervised.pt"),
                                "--domain-randomisation")

@@ -258,7 +258,7 @@ def _classical_methods(args: argparse.Namespace, default: tuple[str, ...]) -> tu
 
 
 def _run_adaptive(args: argparse.Namespace) -> int:
-    from agents.adaptive import load_adaptive
+    from agents.adaptive.checkpoint import load_adaptive
     from agents.evaluation.in_frame import AdaptiveComparison, comparison_markdown, run_comparison, write_comparison
 
     sampler = args.adaptive_sampler or "adaptive-pg-prior"

@@ -6,7 +6,7 @@ environment through the equivariant custom policy (:mod:`agents.ppo`). Both
 show a progress bar, log to TensorBoard under ``<out>/tb``, evaluate
 periodically and write checkpoints that carry their config and feature layout;
 ``--resume CHECKPOINT`` continues from one. ``--algo adaptive`` trains the in-frame
-sampler (:func:`agents.adaptive.train_in_frame`) within a time budget (``--minutes``)
+sampler (:func:`agents.adaptive.train.train_in_frame`) within a time budget (``--minutes``)
 into ``<out>/adaptive.pt``, ``training.jsonl`` and ``training.json``; ``--resume``
 starts from an in-frame checkpoint's weights. An option of another trainer than ``--algo``'s is
 refused in one line before anything runs (:data:`USED_BY`), never silently ignored.
@@ -111,7 +111,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     ppo.add_argument("--checkpoint-every", type=positive_int("--checkpoint-every"), default=None,
                      help="environment steps between SB3 zips (default 5000)")
     # --seed, --frames-per-episode, --n-correspondences and --resume (an in-frame checkpoint to start
-    # from) apply to the in-frame trainer too; None keeps agents.adaptive.AdaptiveTrainConfig's default.
+    # from) apply to the in-frame trainer too; None keeps agents.adaptive.train.AdaptiveTrainConfig's default.
     ad = parser.add_argument_group("adaptive")
     ad.add_argument("--minutes", type=finite_float("--minutes", 0.0, low_open=True), default=None,
                     help="training time budget in minutes, of --clock (default 25)")
@@ -254,7 +254,7 @@ def _train_ppo(args: argparse.Namespace, out: Path) -> int:
 
 
 def _train_adaptive(args: argparse.Namespace, out: Path) -> int:
-    from agents.adaptive import AdaptiveTrainConfig, train_in_frame
+    from agents.adaptive.train import AdaptiveTrainConfig, train_in_frame
 
     given = {"minutes": args.minutes, "clock": args.clock, "prior": args.prior, "max_episodes": args.max_episodes,
              "frames_per_episode": args.frames_per_episode, "n": args.n_correspondences, "init": args.resume,
@@ -349,7 +349,7 @@ def _check_checkpoints(args: argparse.Namespace) -> None:
     try:
         kind, _, path = resolve_sampler(args.resume)
         if kind == IN_FRAME and path is not None:  # a file: the in-frame format's own checks, whole
-            from agents.adaptive import check_adaptive_payload
+            from agents.adaptive.checkpoint import check_adaptive_payload
             from agents.checkpoint import read_payload
 
             check_adaptive_payload(path, read_payload(path))

@@ -1,33 +1,13 @@
-"""The learned in-frame sampler of :class:`vo_gym.adaptive_env.StereoVOAdaptiveEnv` and its trainer.
+"""The trainer of the learned in-frame sampler (:func:`train_in_frame`, :func:`train_adaptive`).
 
-Network (:class:`AdaptiveSamplerNet`): the project's permutation-equivariant correspondence network
-(:class:`agents.network.CorrespondenceNet`, shared MLP with context normalisation) over each
-correspondence's adaptive features with the global loop state appended to every row, so that the
-same weights serve any number of matches and a permutation of the rows permutes the logits. Two heads:
-
-- per-correspondence logits: the next batch's sampling logits, which are also the weights by which
-  the frame's final hypothesis is selected (belief-weighted support);
-- a stop logit from the masked mean and max of the embeddings and the globals: ``sigmoid`` of it is
-  the network's belief that the hypothesis the frame would end on now is right.
-
-With ``prior`` (a shipped one-shot sampler, e.g. ``"ngransac-supervised"``), the network carries
-a frozen copy of that sampler's network and its per-correspondence logits are the one-shot logits
-(centred on the valid rows) plus its own, whose last layer starts at zero: training begins from the
-one-shot sampler and learns what the loop's evidence adds, how to select and when to stop (ARS-MAGSAC
-likewise starts from network priors and updates them in the frame). The copy travels in the
-checkpoint, so loading never needs the shipped file.
-
-Policy (:class:`AdaptiveSamplerPolicy`): the logits as they are, stop once the stop belief reaches
-``confidence``.
-
-Trainer (:func:`train_adaptive`): policy gradient in the adaptive environment (REINFORCE over the
-minimal samples the env drew from the policy's logits, their ordered log-probabilities as in
-NG-RANSAC, and over the stop decisions, a Bernoulli of the stop belief; the return is the frame's
-reward, hypothesis costs included, minus a running-mean baseline), with two supervised auxiliary
-losses that the simulator's labels make available during training only: the logits are trained as
-inlier log-odds (binary cross-entropy against the static-inlier labels: a moving object counts as
-outliers) and the stop belief against whether the hypothesis the frame would end on is right
-(inlier precision >= ``right_precision`` and recall >= ``right_recall`` among its consensus).
+Policy gradient in the adaptive environment (REINFORCE over the minimal samples the env drew from
+the policy's logits, their ordered log-probabilities as in NG-RANSAC, and over the stop decisions,
+a Bernoulli of the stop belief; the return is the frame's reward, hypothesis costs included, minus
+a running-mean baseline), with two supervised auxiliary losses that the simulator's labels make
+available during training only: the logits are trained as inlier log-odds (binary cross-entropy
+against the static-inlier labels: a moving object counts as outliers) and the stop belief against
+whether the hypothesis the frame would end on is right (inlier precision >= ``right_precision`` and
+recall >= ``right_recall`` among its consensus). :func:`main` is ``python -m agents.adaptive``.
 """
 
 from __future__ import annotations
@@ -36,7 +16,6 @@ import json
 import math
 import time
 from dataclasses import asdict, dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -44,263 +23,14 @@ import numpy as np
 import torch
 from torch import nn
 
-from agents.checkpoint import (
-    IN_FRAME,
-    IN_FRAME_FORMAT,
-    CheckpointError,
-    check_names,
-    check_network_sizes,
-    check_parameter_count,
-    check_state_dict,
-    read_payload,
-    shipped_checkpoint,
-    shown,
-)
-from agents.network import PAD_LOGIT, CorrespondenceNet, correspondence_net_shapes
-from agents.network_size import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE, correspondence_net_parameters
+from agents.adaptive.checkpoint import NETWORK_SIZES, load_adaptive, save_adaptive
+from agents.adaptive.network import LOGIT_BOUND, AdaptiveSamplerNet, make_action, observation_tensors
+from agents.network_size import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE
 from agents.ngransac import ordered_triplet_log_prob, randomised_settings
 from stereovo.options import Choice, Integer, Number, Option, check_options
-from vo_gym.adaptive_env import ADAPTIVE_FEATURE_NAMES, GLOBAL_FEATURE_NAMES, StereoVOAdaptiveEnv
+from vo_gym.adaptive_env import StereoVOAdaptiveEnv
 from vo_gym.registration import HARD_SETTINGS
 from vo_gym.settings import ContaminationRange
-
-FORMAT = IN_FRAME_FORMAT
-LOGIT_BOUND = 10.0
-STOP_ACTION = 1.0
-
-
-class AdaptiveSamplerNet(nn.Module):
-    """Per-correspondence logits ``(B, N)`` and a stop logit ``(B,)`` from the adaptive observation.
-
-    Inputs: ``features (B, N, F)``, ``mask (B, N)`` bool, ``globals (B, G)``.
-    """
-
-    def __init__(self, n_features: int = len(ADAPTIVE_FEATURE_NAMES), n_globals: int = len(GLOBAL_FEATURE_NAMES),
-                 width: int = 48, blocks: int = 3, prior: dict[str, int] | None = None) -> None:
-        super().__init__()
-        self.n_features, self.n_globals, self.width, self.blocks = n_features, n_globals, width, blocks
-        self.body = CorrespondenceNet(n_features + n_globals, width, blocks)
-        self.stop = nn.Sequential(nn.Linear(2 * width + n_globals, width), nn.ReLU(), nn.Linear(width, 1))
-        self.prior: CorrespondenceNet | None = None
-        if prior is not None:  # the one-shot network's architecture; its weights come from a checkpoint
-            if prior["n_features"] > n_features:
-                raise ValueError(f"prior network reads {prior['n_features']} features, the observation has {n_features}")
-            self.prior = CorrespondenceNet(**prior).requires_grad_(False)
-            nn.init.zeros_(self.body.head.weight)
-            nn.init.zeros_(self.body.head.bias)
-
-    @classmethod
-    def with_prior(cls, sampler: str, width: int = 48, blocks: int = 3) -> "AdaptiveSamplerNet":
-        """A fresh network over the one-shot ``sampler``: a shipped name (``agents.checkpoint.SHIPPED_SAMPLERS``)
-        or a one-shot ``.pt`` file of :func:`agents.checkpoint.save_checkpoint`."""
-        from agents.checkpoint import SHIPPED_SAMPLERS, load_checkpoint
-
-        if sampler in SHIPPED_SAMPLERS:
-            with shipped_checkpoint(sampler) as path:
-                one_shot, _ = load_checkpoint(path)
-        else:
-            one_shot, _ = load_checkpoint(Path(sampler).expanduser())
-        net = cls(width=width, blocks=blocks, prior=one_shot.config())
-        net.prior.load_state_dict(one_shot.state_dict())
-        return net
-
-    def config(self) -> dict[str, Any]:
-        return {"n_features": self.n_features, "n_globals": self.n_globals, "width": self.width, "blocks": self.blocks,
-                "prior": None if self.prior is None else self.prior.config()}
-
-    @staticmethod
-    def parameter_shapes(n_features: int, n_globals: int, width: int, blocks: int,
-                         prior: dict[str, int] | None = None) -> dict[str, tuple[int, ...]]:
-        """The state dict's parameter shapes of ``AdaptiveSamplerNet(...)`` by name, from the sizes
-        alone (nothing is allocated); :func:`parameter_count` is their total."""
-        shapes = correspondence_net_shapes(n_features + n_globals, width, blocks, prefix="body.")
-        shapes.update({"stop.0.weight": (width, 2 * width + n_globals), "stop.0.bias": (width,),
-                       "stop.2.weight": (1, width), "stop.2.bias": (1,)})
-        if prior is not None:
-            shapes.update(correspondence_net_shapes(prior["n_features"], prior["width"], prior["blocks"], prefix="prior."))
-        return shapes
-
-    @staticmethod
-    def parameter_count(n_features: int, n_globals: int, width: int, blocks: int,
-                        prior: dict[str, int] | None = None) -> int:
-        """The number of parameters of ``AdaptiveSamplerNet(...)``, by arithmetic (nothing is allocated)."""
-        count = correspondence_net_parameters(n_features + n_globals, width, blocks)
-        count += width * (2 * width + n_globals) + width + width + 1
-        if prior is not None:
-            count += correspondence_net_parameters(prior["n_features"], prior["width"], prior["blocks"])
-        return count
-
-    def forward(self, features: torch.Tensor, mask: torch.Tensor, globals_: torch.Tensor):
-        mask = mask.bool()
-        rows = torch.cat([features, globals_.unsqueeze(1).expand(-1, features.shape[1], -1)], dim=-1)
-        embedded = self.body.embed(rows, mask)
-        logits = self.body.head(embedded).squeeze(-1)
-        if self.prior is not None:
-            with torch.no_grad():
-                one_shot = self.prior.head(self.prior.embed(features[..., :self.prior.n_features], mask)).squeeze(-1)
-                valid = mask.float()
-                one_shot = one_shot - (one_shot * valid).sum(-1, keepdim=True) / valid.sum(-1, keepdim=True).clamp_min(1)
-            logits = logits + one_shot
-        logits = logits.masked_fill(~mask, PAD_LOGIT)
-        m = mask.unsqueeze(-1)
-        mean = embedded.sum(dim=1) / m.sum(dim=1).clamp_min(1)
-        peak = embedded.masked_fill(~m, float("-inf")).amax(dim=1).clamp_min(0.0)
-        stop = self.stop(torch.cat([mean, peak, globals_], dim=-1)).squeeze(-1)
-        return logits, stop
-
-
-def _tensors(obs: dict) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    return (torch.as_tensor(obs["features"], dtype=torch.float32).unsqueeze(0),
-            torch.as_tensor(obs["mask"]).bool().unsqueeze(0),
-            torch.as_tensor(obs["globals"], dtype=torch.float32).unsqueeze(0))
-
-
-def make_action(logits: np.ndarray, mask: np.ndarray, stop: bool) -> np.ndarray:
-    """The env's action ``(M + 1,)`` float32: clipped logits on valid slots, the stop slot +-1."""
-    out = np.where(np.asarray(mask, bool), np.clip(logits, -LOGIT_BOUND, LOGIT_BOUND), -LOGIT_BOUND)
-    return np.concatenate([out, [STOP_ACTION if stop else -STOP_ACTION]]).astype(np.float32)
-
-
-class AdaptiveSamplerPolicy:
-    """The learned in-frame sampler as a policy of the adaptive env: ``act(obs, info) -> action``.
-
-    ``obs`` is the adaptive observation (:meth:`vo_gym.in_frame.InFrameSearch.observation`); the action
-    is the next batch's logits and the stop slot, stop once the stop belief reaches ``confidence``.
-    """
-
-    kind = IN_FRAME
-
-    def __init__(self, net: AdaptiveSamplerNet, confidence: float = 0.9, name: str = "adaptive") -> None:
-        if not 0 < confidence < 1:
-            raise ValueError(f"confidence must be in (0, 1), got {confidence!r}")
-        self.net, self.confidence, self.name = net.eval(), float(confidence), name
-        self.last_stop_belief = 0.0
-
-    def reset(self) -> None:
-        self.last_stop_belief = 0.0
-
-    @torch.no_grad()
-    def act(self, obs: dict, info: dict | None = None) -> np.ndarray:
-        """The action ``(M + 1,)`` float32 (:func:`make_action`) for the adaptive observation ``obs``.
-
-        Raises:
-            ValueError: ``obs`` is not the adaptive observation dict (``features``, ``mask``, ``globals``).
-        """
-        if not isinstance(obs, dict) or not {"features", "mask", "globals"} <= set(obs):
-            got = sorted(obs) if isinstance(obs, dict) else type(obs).__name__
-            raise ValueError(f"{self.name}: an in-frame sampler acts on the adaptive observation "
-                             f"{{'features', 'mask', 'globals'}} of a running search, got {got}; "
-                             "on raw matches use agents.LearnedEstimator")
-        width = np.shape(obs["features"])[-1]
-        if width != self.net.n_features:
-            raise ValueError(f"{self.name}: expected {self.net.n_features} adaptive features per correspondence, got {width}")
-        logits, stop = self.net(*_tensors(obs))
-        self.last_stop_belief = float(torch.sigmoid(stop)[0])
-        return make_action(logits[0].numpy(), obs["mask"], self.last_stop_belief >= self.confidence)
-
-
-# ----------------------------------------------------------------------------- checkpoints
-
-
-def save_adaptive(path: str | Path, net: AdaptiveSamplerNet, config: dict[str, Any], log: list | None = None) -> Path:
-    """Weights, architecture, feature layout and training config; loadable with ``weights_only``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    payload = {
-        "format": FORMAT, "network": net.config(), "feature_names": list(ADAPTIVE_FEATURE_NAMES),
-        "global_names": list(GLOBAL_FEATURE_NAMES), "config": json.loads(json.dumps(config)),
-        "log": json.loads(json.dumps(log or [])),
-        "state_dict": {k: v.detach().cpu() for k, v in net.state_dict().items()},
-    }
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    torch.save(payload, tmp)
-    tmp.replace(path)
-    return path
-
-
-def shipped_adaptive_path(name: str) -> Path:
-    """Path of a shipped checkpoint ``agents/checkpoints/NAME.pt`` (``NAME`` starts with ``adaptive-``)."""
-    return Path(str(resources.files("agents").joinpath("checkpoints", f"{name}.pt")))
-
-
-_NETWORK_SIZES = {"n_features": len(ADAPTIVE_FEATURE_NAMES), "n_globals": len(GLOBAL_FEATURE_NAMES), "width": 48, "blocks": 3}
-"""The sizes of :class:`AdaptiveSamplerNet` a checkpoint declares in ``network``, with the defaults of
-a checkpoint that leaves one out (as the constructor's)."""
-_PRIOR_SIZES = {"n_features": None, "width": 64, "blocks": 3}
-
-
-def check_adaptive_payload(path: Path, payload: Any) -> dict[str, Any]:
-    """An in-frame checkpoint's schema (what :func:`save_adaptive` writes), checked before any network
-    is built: the format, every entry's type, the feature layout, the network's sizes (each in
-    [1, :data:`agents.network_size.MAX_NETWORK_SIZE`], all together within
-    :data:`agents.network_size.MAX_NETWORK_PARAMETERS`, the prior's included) and every weight's shape
-    and finiteness. Returns the keywords of :class:`AdaptiveSamplerNet`.
-
-    Raises:
-        CheckpointError: one line naming the file, the entry and its value.
-    """
-    if not isinstance(payload, dict) or payload.get("format") != FORMAT:
-        hint = " (a one-shot sampler: agents.checkpoint.load_sampler)" if isinstance(payload, dict) and "format_version" in payload else ""
-        raise CheckpointError(f"checkpoint {path}: is not an adaptive-sampler checkpoint{hint}")
-    for key in ("network", "feature_names", "global_names", "state_dict"):
-        if key not in payload:
-            raise CheckpointError(f"checkpoint {path}: is not an adaptive-sampler checkpoint (missing key {key})")
-    names = check_names(path, "feature_names", payload["feature_names"])
-    globals_ = check_names(path, "global_names", payload["global_names"])
-    if names != ADAPTIVE_FEATURE_NAMES or globals_ != GLOBAL_FEATURE_NAMES:
-        raise CheckpointError(f"checkpoint {path} was trained on another adaptive feature layout "
-                              f"(feature_names {shown(list(names))}, global_names {shown(list(globals_))})")
-    for key, kind in (("config", dict), ("log", list)):
-        if key in payload and not isinstance(payload[key], kind):
-            raise CheckpointError(f"checkpoint {path}: its {key!r} entry must be a {kind.__name__}, got {shown(payload[key])}")
-    declared = payload["network"]
-    sizes = check_network_sizes(path, declared, _NETWORK_SIZES, extra=("prior",))
-    prior = declared.get("prior")
-    if prior is not None:
-        from vo_gym.features import N_FEATURES
-
-        prior = check_network_sizes(path, prior, _PRIOR_SIZES, required=("n_features",), where="network prior")
-        if prior["n_features"] != N_FEATURES:
-            raise CheckpointError(f"checkpoint {path}: its network prior n_features must be {N_FEATURES} "
-                                  f"(the one-shot samplers' features), got {prior['n_features']}")
-    for key, names_key, count in (("n_features", "feature_names", len(names)), ("n_globals", "global_names", len(globals_))):
-        if sizes[key] != count:
-            raise CheckpointError(f"checkpoint {path}: its network {key} is {sizes[key]}, but its {names_key!r} lists {count}")
-    network = {**sizes, "prior": prior}
-    check_parameter_count(path, AdaptiveSamplerNet.parameter_count(**network), declared)
-    check_state_dict(path, payload["state_dict"], AdaptiveSamplerNet.parameter_shapes(**network), declared)
-    return network
-
-
-def load_adaptive(name_or_path: str | Path) -> tuple[AdaptiveSamplerNet, dict[str, Any]]:
-    """Load by shipped name (``"adaptive-pg"``) or by path; returns the network (eval mode) and payload.
-
-    Nothing in the file runs (``weights_only``), and the network is built only once the file passed
-    :func:`check_adaptive_payload`. Every error is one line naming the file.
-
-    Raises:
-        FileNotFoundError: no such file or shipped name.
-        ValueError (:class:`agents.checkpoint.CheckpointError` for an unusable file): not an
-            adaptive-sampler checkpoint, an entry of the wrong type, another feature layout, a
-            network too large, weights that do not fit or are not finite.
-    """
-    path = Path(name_or_path)
-    if not path.is_file() and str(name_or_path).startswith("adaptive-"):
-        path = shipped_adaptive_path(str(name_or_path))
-    if not path.is_file():
-        raise FileNotFoundError(f"no adaptive-sampler checkpoint {str(name_or_path)!r} (neither a file nor a shipped name)")
-    payload = read_payload(path)
-    network = check_adaptive_payload(path, payload)
-    try:
-        net = AdaptiveSamplerNet(**network)
-        net.load_state_dict(payload["state_dict"])
-    except (TypeError, ValueError, RuntimeError) as err:
-        first = (str(err).strip().splitlines() or [type(err).__name__])[0]
-        raise CheckpointError(f"checkpoint {path}: its weights do not fit the network it declares ({first[:160]})") from None
-    return net.eval(), payload
-
-
-# ----------------------------------------------------------------------------- training
 
 
 _TRAIN_RULES: dict[str, Option] = {
@@ -338,7 +68,7 @@ class AdaptiveTrainConfig:
         init: checkpoint whose weights training starts from (``None``: fresh weights); its own
             training time adds to this run's in the budget of the result.
         prior: one-shot sampler (a shipped name or a ``.pt`` path) whose logits a fresh network adds
-            to its own (``None``: none; see :class:`AdaptiveSamplerNet`); that sampler's training time
+            to its own (``None``: none; see :class:`~agents.adaptive.network.AdaptiveSamplerNet`); that sampler's training time
             is its own.
         domain_randomisation: each episode draws its own match-error process
             (:func:`agents.ngransac.randomised_settings`: outlier-kind weights over every simulated
@@ -378,7 +108,7 @@ class AdaptiveTrainConfig:
 
     def __post_init__(self) -> None:
         check_options(_TRAIN_RULES, vars(self), prefix="", only=_TRAIN_RULES)
-        count = AdaptiveSamplerNet.parameter_count(_NETWORK_SIZES["n_features"], _NETWORK_SIZES["n_globals"],
+        count = AdaptiveSamplerNet.parameter_count(NETWORK_SIZES["n_features"], NETWORK_SIZES["n_globals"],
                                                    self.width, self.blocks)
         if count > MAX_NETWORK_PARAMETERS:
             raise ValueError(f"width {self.width} and blocks {self.blocks} make a network of {count:,} parameters, "
@@ -521,7 +251,7 @@ def _train(config: AdaptiveTrainConfig, out: str | Path, log_path: str | Path | 
         while not done:
             frame = env.current_frame
             inlier = frame.truth.inlier
-            features, mask, globals_ = _tensors(obs)
+            features, mask, globals_ = observation_tensors(obs)
             logits, stop_logit = net(features, mask, globals_)
             n = frame.n
             valid_logits = logits[0, :n]
@@ -639,7 +369,3 @@ def main(argv: list[str] | None = None) -> int:
                                  domain_randomisation=args.domain_randomisation, **ranges)
     train_adaptive(config, args.out, args.log)
     return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
