@@ -309,7 +309,7 @@ def main(argv: list[str] | None = None) -> int:
     """``python -m agents.adaptive --minutes 25 --out agents/checkpoints/adaptive-pg.pt``."""
     import argparse
 
-    parser = argparse.ArgumentParser(description="train the learned in-frame sampler in the adaptive env")
+    parser = argparse.ArgumentParser(prog="python -m agents.adaptive", description="train the learned in-frame sampler in the adaptive env")
     parser.add_argument("--minutes", type=float, default=25.0)
     parser.add_argument("--out", default="agents/checkpoints/adaptive-pg.pt")
     parser.add_argument("--log", default=None)

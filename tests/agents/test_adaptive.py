@@ -14,7 +14,7 @@ import torch
 import agents
 from agents import LearnedEstimator, checkpoint
 from agents.adaptive.checkpoint import load_adaptive, save_adaptive
-from agents.adaptive.network import AdaptiveSamplerNet
+from agents.adaptive.network import AdaptiveSamplerNet, observation_tensors
 from agents.adaptive.policy import AdaptiveSamplerPolicy
 from agents.adaptive.train import AdaptiveTrainConfig, right_hypothesis, train_adaptive, train_in_frame
 from agents.checkpoint import SHIPPED_IN_FRAME_SAMPLERS, SHIPPED_SAMPLERS, LearnedPolicy
@@ -29,11 +29,6 @@ from agents.evaluation.in_frame import (
 from stereovo.simulation import SimulationConfig, simulate_frame
 from tests.support.checkpoints import assert_refused_everywhere, set_first_weight
 from vo_gym.adaptive_env import StereoVOAdaptiveEnv
-
-
-def _obs_tensors(obs):
-    return (torch.as_tensor(obs["features"], dtype=torch.float32)[None], torch.as_tensor(obs["mask"]).bool()[None],
-            torch.as_tensor(obs["globals"], dtype=torch.float32)[None])
 
 
 def tiny(**kw) -> AdaptiveTrainConfig:
@@ -135,7 +130,7 @@ def test_a_prior_network_starts_as_the_one_shot_sampler_and_travels_in_its_check
     assert not any(p.requires_grad for p in net.prior.parameters())
     loaded, payload = load_adaptive(save_adaptive(tmp_path / "p.pt", net, {"prior": "ngransac-supervised"}))
     assert payload["network"]["prior"] == net.prior.config()
-    for got, want in zip(loaded(*_obs_tensors(obs)), net(*_obs_tensors(obs))):
+    for got, want in zip(loaded(*observation_tensors(obs)), net(*observation_tensors(obs))):
         torch.testing.assert_close(got, want)
     with pytest.raises(SystemExit):
         train_main(["--prior", "ngransac-nope", "--minutes", "0.01", "--out", str(tmp_path / "x.pt")])
