@@ -58,7 +58,7 @@ def test_worker_counts_and_seeds_of_every_layer_follow_the_contract(value):
         (lambda: chunked([], value), r"^chunk size must be an integer >= 1, got "),
         (lambda: dataclasses.replace(DEFAULT_GRID, frames_per_cell=value), r"^BenchmarkGrid\.frames_per_cell must be an integer >= 1"),
         (lambda: EvalConfig(episodes=value), r"^episodes must be an integer >= 1, got "),
-        (lambda: MetricSpec(budget=value), r"^sweep metric\.budget must be an integer >= 1, got "),
+        (lambda: MetricSpec(budget=value), r"^sweep metric\.budget must be an integer >= 1 and <= 1000000000, got "),
     ]
     if value != 0:  # 0 is a valid seed
         cases += [(lambda: check_seed(value), r"^seed must be an integer >= 0, got "),
