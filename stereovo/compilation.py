@@ -146,7 +146,7 @@ def announce_compiling(kernels: Iterable[Dispatcher] | None = None, stream: Text
         if _listener is None:
             _listener = CompileNotice()
             event.register("numba:compile", _listener)
-        if stream is not None:  # the estimates' and resets' calls pass none: a caller's stream stays
+        if stream is not None:  # the import's call passes none: a caller's stream stays
             _listener.stream = stream
         return False
     if _announced or os.environ.get(QUIET_ENV) or not uncached_kernels(kernels):

@@ -75,8 +75,8 @@ def _detector(options: FrontendOptions):
             return owner.AKAZE_create()
     raise ValueError(
         f"FrontendOptions.detector='akaze' needs an OpenCV with AKAZE; OpenCV {cv2.__version__} has none "
-        "(OpenCV 5 keeps it in the contrib build: pip uninstall opencv-python-headless, then pip install "
-        "opencv-contrib-python-headless)"
+        "(OpenCV 5 keeps it in the contrib build: pip uninstall opencv-python-headless "
+        "opencv-contrib-python-headless, then pip install opencv-contrib-python-headless; the two wheels share cv2)"
     )
 
 

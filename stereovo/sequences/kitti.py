@@ -56,7 +56,8 @@ MAX_POSITION_M = 1e7
 
 
 def read_calibration(path: Path) -> StereoCamera:
-    """A :class:`StereoCamera` (size 1x1, set later) from KITTI's ``calib.txt`` (P0 and P1).
+    """A :class:`StereoCamera` from KITTI's ``calib.txt`` (P0 and P1), of the default image size: the
+    loader sets the images' own.
 
     P0 and P1 must be the projections of a rectified pair: ``K [I | 0]`` and ``K [I | (-b, 0, 0)]``
     with ``K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` (Geiger, Lenz & Urtasun, CVPR 2012). Any other
