@@ -1,23 +1,11 @@
-"""stereovo.seeding: the compiled seeded generators are numpy's SeedSequence generators."""
+"""stereovo.seeding: the compiled seeded generators are numpy's SeedSequence generators (the
+simulator's use of them is tested beside it: tests/stereovo/simulation/test_fast_paths.py and
+test_sequence.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-
-
-@pytest.mark.parametrize(
-    "entropy",
-    [[2**62 + 5, 2**40, 2**33 + 7, 2**63 - 1], [3, 2**40, 2**50, 2**60], [2**40, 0, 2**50, 2**32 - 1], [2**32] * 4],
-)
-def test_frame_streams_are_the_spawned_seed_sequences_of_the_entropy(entropy):
-    """A frame's five streams are numpy's spawned children of its four entropy draws, small ints included."""
-    from stereovo.simulation.pair import _stream_generators
-
-    ours = _stream_generators(np.array(entropy, dtype=np.int64), 5)
-    reference = [np.random.default_rng(s) for s in np.random.SeedSequence(list(entropy)).spawn(5)]
-    for a, b in zip(ours, reference):
-        np.testing.assert_array_equal(a.integers(0, 2**62, 8), b.integers(0, 2**62, 8))
 
 
 @pytest.mark.parametrize(
@@ -46,24 +34,6 @@ def test_seeded_generators_leave_other_entropy_to_numpy():
     with pytest.raises(ValueError, match="non-negative"):
         seeded_generators(-1, [(0,)])  # numpy's own error for negative entropy
     assert seeded_generators(5, []) == []
-
-
-@pytest.mark.parametrize("seed", [0, 7, 2**100 + 5, None, "child", "array"])
-def test_sequence_frames_draw_from_their_spawned_seed_sequences(seed):
-    """A Sequence seeds every frame's generator ahead (seed_words) as numpy's SeedSequence would, one at a time."""
-    from stereovo.simulation import Sequence, SimulationConfig
-    from stereovo.simulation.sequence import _SEQUENCE_NAMESPACE
-
-    if seed == "child":
-        seed = np.random.SeedSequence(12345).spawn(3)[2]
-    elif seed == "array":
-        seed = np.random.SeedSequence(np.array([1, 2, 3], dtype=np.uint32))  # numpy's own path
-    sequence = Sequence(SimulationConfig(n_frames=6, n_correspondences=30), seed)
-    root = sequence.seed_sequence
-    for k in (0, 1, 6, 3):
-        expected = np.random.default_rng(np.random.SeedSequence(
-            root.entropy, spawn_key=(*root.spawn_key, _SEQUENCE_NAMESPACE, k), pool_size=root.pool_size))
-        assert sequence._child_rng(k).bit_generator.state == expected.bit_generator.state
 
 
 def test_seed_words_rows_are_the_generators_of_seeded_generators():

@@ -233,3 +233,15 @@ def test_validity_mask_is_the_cameras_in_image_and_has_depth():
     expected = cam.in_image(meas) & cam.has_depth(meas)
     np.testing.assert_array_equal(pair_module._valid(meas, cam), expected)
     assert 0 < expected.sum() < len(expected)
+
+
+@pytest.mark.parametrize(
+    "entropy",
+    [[2**62 + 5, 2**40, 2**33 + 7, 2**63 - 1], [3, 2**40, 2**50, 2**60], [2**40, 0, 2**50, 2**32 - 1], [2**32] * 4],
+)
+def test_frame_streams_are_the_spawned_seed_sequences_of_the_entropy(entropy):
+    """A frame's five streams are numpy's spawned children of its four entropy draws, small ints included."""
+    ours = pair_module._stream_generators(np.array(entropy, dtype=np.int64), 5)
+    reference = [np.random.default_rng(s) for s in np.random.SeedSequence(list(entropy)).spawn(5)]
+    for a, b in zip(ours, reference):
+        np.testing.assert_array_equal(a.integers(0, 2**62, 8), b.integers(0, 2**62, 8))

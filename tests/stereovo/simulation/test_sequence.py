@@ -203,3 +203,21 @@ def test_sequence_frames_use_the_documented_child_seed_sequence():
     child = np.random.SeedSequence(2**90 + 17, spawn_key=(_SEQUENCE_NAMESPACE, 2))
     expected = _simulate_pair(config, seq.true_poses[1], seq.true_poses[2], 2, np.random.default_rng(child))
     assert_frames_identical(seq.frame(2), expected)
+
+
+@pytest.mark.parametrize("seed", [0, 7, 2**100 + 5, None, "child", "array"])
+def test_sequence_frames_draw_from_their_spawned_seed_sequences(seed):
+    """A Sequence seeds every frame's generator ahead (seed_words) as numpy's SeedSequence would, one at a time."""
+    from stereovo.simulation import Sequence, SimulationConfig
+    from stereovo.simulation.sequence import _SEQUENCE_NAMESPACE
+
+    if seed == "child":
+        seed = np.random.SeedSequence(12345).spawn(3)[2]
+    elif seed == "array":
+        seed = np.random.SeedSequence(np.array([1, 2, 3], dtype=np.uint32))  # numpy's own path
+    sequence = Sequence(SimulationConfig(n_frames=6, n_correspondences=30), seed)
+    root = sequence.seed_sequence
+    for k in (0, 1, 6, 3):
+        expected = np.random.default_rng(np.random.SeedSequence(
+            root.entropy, spawn_key=(*root.spawn_key, _SEQUENCE_NAMESPACE, k), pool_size=root.pool_size))
+        assert sequence._child_rng(k).bit_generator.state == expected.bit_generator.state
