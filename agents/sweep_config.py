@@ -64,7 +64,6 @@ ALGOS = ("ngransac", "ppo")
 AXIS_KINDS = ("grid", "choice", "uniform", "loguniform", "randint")
 METRIC = "success"
 TOP_KEYS = {"name", "algo", "fixed", "space", "samples", "report_every", "metric", "scheduler", "search_seed"}
-_TUPLE_FIELDS = ("epsilon_range", "outlier_mix")
 MAX_FILE_BYTES = 1 << 20
 """A sweep file is a few dozen lines; a larger one is refused before it is parsed."""
 MAX_DEPTH = 32
@@ -147,9 +146,6 @@ class SweepSpec:
     def trainer_config(self, params: Mapping[str, Any]):
         """The trainer's config for one trial's parameters (validated by the trainer's config class)."""
         values = {**self.fixed, **params}
-        for key in _TUPLE_FIELDS:
-            if isinstance(values.get(key), list):
-                values[key] = tuple(values[key])
         if self.algo == "ngransac":
             from agents.ngransac import NGRansacConfig
 
@@ -179,7 +175,17 @@ def _build(cls, values: Mapping[str, Any]):
     unknown = set(values) - known
     if unknown:
         raise ValueError(f"sweep: unknown {cls.__name__} field(s) {_keys(unknown)}; known: {', '.join(sorted(known))}")
-    return cls(**values)
+    # YAML has no tuples: a list given for a field typed as a tuple becomes one, as the field's type says
+    hints = typing.get_type_hints(cls)
+    return cls(**{key: tuple(value) if isinstance(value, list) and _is_tuple_type(hints[key]) else value
+                  for key, value in values.items()})
+
+
+def _is_tuple_type(annotation: Any) -> bool:
+    """Whether ``annotation`` is ``tuple[...]``, alone or in a union (``tuple[float, float] | None``)."""
+    if typing.get_origin(annotation) in (typing.Union, types.UnionType):
+        return any(_is_tuple_type(arg) for arg in typing.get_args(annotation))
+    return annotation is tuple or typing.get_origin(annotation) is tuple
 
 
 def _positive(where: str, value: Any) -> int:
