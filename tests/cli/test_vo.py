@@ -181,6 +181,31 @@ def test_vo_on_a_rendered_source_writes_trajectory_drift_and_plot(tmp_path, caps
     assert "rendered, 3 frames" in capsys.readouterr().out
 
 
+def test_the_detector_reaches_the_front_end_and_is_refused_without_images(tmp_path, capsys):
+    from stereovo.frontend.options import DETECTORS
+    from vo_gym_cli.commands.common import DETECTORS as named
+
+    assert named == DETECTORS
+    assert main(["vo", "--detector", "sift", "--frames", "2", "--out", str(tmp_path / "s")]) == 2
+    assert one_line_error(capsys, "vo").endswith("--detector sift applies to an image --source only, not to "
+                                                 "simulated matches")
+    assert not (tmp_path / "s").exists()
+    out = tmp_path / "a"
+    assert main(["vo", "--source", "rendered", "--resolution", "vga", "--frames", "2", "--seed", "4",
+                 "--detector", "akaze", "--no-progress", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["settings"]["detector"] == "akaze" and summary["metrics"]["success_rate"] == 1.0
+    frames = (out / "frames.csv").read_text().splitlines()
+    header = frames[0].split(",")
+    inliers = [int(row.split(",")[header.index("n_inliers")]) for row in frames[1:]]
+    capsys.readouterr()
+    assert main(["vo", "--source", "rendered", "--resolution", "vga", "--frames", "2", "--seed", "4",
+                 "--no-progress", "--out", str(tmp_path / "o")]) == 0
+    assert json.loads((tmp_path / "o" / "summary.json").read_text())["settings"]["detector"] == "orb"
+    orb = (tmp_path / "o" / "frames.csv").read_text().splitlines()
+    assert inliers != [int(row.split(",")[header.index("n_inliers")]) for row in orb[1:]]  # another front end
+
+
 def test_vo_on_a_kitti_folder_with_and_without_poses(tmp_path, capsys, short):
     from tests.support.images import write_kitti
 

@@ -138,6 +138,10 @@ OUTLIER_PRESETS = ("default", "hostile")
 """The simulator's outlier presets (``stereovo.simulation.OUTLIER_PRESETS``' keys, named here so
 that building the parser imports no simulation code; a test keeps the two equal)."""
 
+DETECTORS = ("orb", "sift", "akaze")
+"""The image front end's keypoint detectors (``stereovo.frontend.options.DETECTORS``, named here so
+that building the parser imports no front-end code; a test keeps the two equal)."""
+
 
 def parse_source(text: str) -> str:
     """``--source``: ``rendered``, ``rendered:PRESET`` or ``kitti:PATH[:SEQ]`` (checked, returned as given)."""

@@ -25,6 +25,7 @@ from typing import Any, Iterator
 
 from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
 from vo_gym_cli.commands.common import (
+    DETECTORS,
     OUTLIER_PRESETS,
     PRESETS,
     RunStart,
@@ -91,6 +92,9 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
              "folder; needs the 'images' extra); --outliers, --outlier-preset, --n and --auc apply to simulated "
              "matches only and are refused with it (default: simulated matches)",
     )
+    parser.add_argument("--detector", default=None, choices=list(DETECTORS),
+                        help="the front end's keypoints and descriptors with --source: orb (the default), sift or "
+                             "akaze (OpenCV's contrib build, which the 'images' extra installs)")
     parser.add_argument("--resolution", default=None, choices=["kitti", "vga"],
                         help="a rendered source's image size: kitti (1241x376, the default) or vga (640x480)")
     parser.add_argument("--preset", default=None, choices=list(PRESETS),
@@ -262,6 +266,9 @@ def check_source_options(args: argparse.Namespace) -> None:
         if args.resolution is not None:
             raise UsageError(f"--resolution {args.resolution} applies to a rendered --source only, not to "
                              "simulated matches")
+        if args.detector is not None:
+            raise UsageError(f"--detector {args.detector} applies to an image --source only, not to simulated "
+                             "matches")
         for dest, default in _SIMULATED_DEFAULTS.items():
             if getattr(args, dest) is None:
                 setattr(args, dest, default)
@@ -396,14 +403,15 @@ def _open_source(args: argparse.Namespace) -> Any:
         require_extra("render", "moderngl", "glcontext", context=f"--source {args.source}")
     from stereovo.sequences.rendering import RenderingUnavailable
 
+    frontend = {} if args.detector is None else {"detector": args.detector}
     try:
         if kind == "rendered":
             return open_source(args.source, **({} if "preset" in named else {"preset": args.preset}),
                                n_frames=args.frames, seed=args.seed, resolution=args.resolution,
-                               noise_sigma=args.noise)
-        sequence = open_source(args.source, noise_sigma=args.noise)
+                               noise_sigma=args.noise, **frontend)
+        sequence = open_source(args.source, noise_sigma=args.noise, **frontend)
         if sequence.n_images() > args.frames + 1:  # the first --frames pairs
-            sequence = open_source(args.source, noise_sigma=args.noise, stop=args.frames + 1)
+            sequence = open_source(args.source, noise_sigma=args.noise, stop=args.frames + 1, **frontend)
         return sequence
     except (FileNotFoundError, ValueError, RenderingUnavailable) as err:
         raise UsageError(f"--source {args.source}: {' '.join(str(err).split())}") from None
@@ -430,7 +438,8 @@ def _run_source(args: argparse.Namespace) -> int:
         if close is not None:
             close()
     settings = {"source": args.source, "frames": len(result.poses) - 1, "noise_px": args.noise,
-                "method": args.method, "seed": args.seed, "agent": args.agent}
+                "method": args.method, "seed": args.seed, "agent": args.agent,
+                "detector": sequence.frontend_options.detector}
     if args.source.startswith("rendered"):
         settings["resolution"] = args.resolution
     agent = "" if args.agent is None else f", sampler {args.agent}"
