@@ -164,13 +164,22 @@ def _px_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.linalg.norm(a[:, :3] - b[:, :3], axis=1)
 
 
-def test_independent_mismatches_stay_rectified_and_detectable():
+def _independent_frame():
     frame = _frame(outlier_mix={"independent": 1.0}, outlier_ratio=0.5, noise_sigma=0.0, seed=1)
     rows = np.flatnonzero(frame.truth.outlier_kind == OutlierKind.INDEPENDENT_MISMATCH)
     assert rows.size == 200
+    return frame, rows
+
+
+def test_independent_mismatches_stay_rectified():
+    frame, rows = _independent_frame()
     # only uL and uR move independently: v moves alike in both images (a rectified pair)
     np.testing.assert_array_equal(frame.curr[rows, 1], frame.curr[rows, 3])
     assert np.any(frame.curr[rows, 1] != _true_curr(frame, rows)[:, 1])  # v did move
+
+
+def test_independent_mismatches_are_detectable():
+    frame, rows = _independent_frame()
     # every move that stayed within tau of the truth was redrawn: each row is a detectable outlier
     dist = _px_distance(frame.curr[rows], _true_curr(frame, rows))
     assert np.all(dist >= _tau(frame) - 1e-6)
