@@ -268,3 +268,22 @@ def test_all_inlier_drawn_says_whether_a_scored_sample_was_three_true_inliers():
         assert info["all_inlier_drawn"] is bool(every_row_an_inlier.any())
         found.append((favour, int(every_row_an_inlier.sum())))
     assert found[0] == ("inliers", 12) and found[1] == ("outliers", 0)
+
+
+@pytest.mark.parametrize("logit_scale", [0.3, 2.5])
+def test_sampling_weights_are_the_softmax_of_logit_scale_times_the_action(logit_scale):
+    """The docstring's sampling weights ``softmax(logit_scale * a)`` over the valid slots: the
+    sampler of the step draws from them (and the frame's selection weighs by them)."""
+    env = small(batch_size=4, logit_scale=logit_scale)
+    env.reset(seed=5)
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        n = env.current_frame.n
+        logits = rng.uniform(-3.0, 3.0, n).astype(np.float32)  # inside action_bound: no clipping
+        env.step(act(env, False, logits))
+        search = env.unwrapped._search
+        z = logit_scale * logits.astype(np.float64)
+        want = np.exp(z - z.max())
+        want /= want.sum()
+        np.testing.assert_allclose(search.sampler.weights, want, rtol=1e-12, atol=0)
+        np.testing.assert_allclose(search.weights, want, rtol=1e-12, atol=0)

@@ -194,3 +194,46 @@ def test_the_best_models_residuals_are_its_own_under_other_judges(method):
         if term or trunc:
             env.reset()
     assert checked
+
+
+def test_the_frame_ends_on_the_belief_weighted_not_the_largest_consensus():
+    """``finish`` hands the loop the hypothesis of largest support weighted by the last step's
+    ``softmax(logits)``: with logits that favour the points of a hypothesis other than the largest
+    consensus, that hypothesis is refined, not the largest one."""
+    from stereovo.estimation import EstimatorOptions, StereoProblem, method_spec
+    from stereovo.simulation import SimulationConfig, simulate_frame
+    from vo_gym.features import compute_features
+    from vo_gym.in_frame import InFrameSearch
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=120, outlier_ratio=0.5), np.random.default_rng(3))
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    features = compute_features(frame.prev, frame.curr, frame.scores, frame.camera, frame.noise_sigma, None,
+                                problem=problem)
+    search = InFrameSearch(problem, features, method_spec("msac"), EstimatorOptions(noise_sigma=frame.noise_sigma),
+                           64, None, np.random.default_rng(0))
+    n = problem.n
+    for _ in range(8):
+        search.step(np.zeros(n), False, 4)
+    masks = search.scored_inliers
+    counts = masks.sum(axis=1)
+    largest = int(np.argmax(counts))
+    assert np.count_nonzero(counts == counts[largest]) == 1
+    # the hypothesis with the most inliers outside the largest consensus becomes the favoured one
+    target = int(np.argmax((masks & ~masks[largest]).sum(axis=1)))
+    assert target != largest and (masks[target] & ~masks[largest]).any()
+    logits = np.where(masks[target] & ~masks[largest], 8.0, 0.0)
+    search.step(logits, True, 4)  # the stop: nothing drawn, the weights set
+    weights = np.exp(logits - logits.max())
+    weights /= weights.sum()
+    support = masks.astype(np.float64) @ weights
+    expected = int(np.argmax(support))
+    assert expected != largest and np.count_nonzero(support >= support[expected] - 1e-12) == 1
+    chosen = []
+    choose = search.search.choose
+    search.search.choose = lambda R, t, inliers, score: (chosen.append((R, t, inliers)), choose(R, t, inliers, score))
+    search.finish("msac")
+    (R, t, inliers), = chosen
+    np.testing.assert_array_equal(inliers, masks[expected])
+    R_h, t_h = search.sampler.hypothesis(expected)
+    np.testing.assert_array_equal(R, R_h)
+    np.testing.assert_array_equal(t, t_h)

@@ -1,6 +1,7 @@
 """The rigidity check of minimal samples (stereovo/estimation/roles/sample_check.py)."""
 
 import numpy as np
+import pytest
 
 from stereovo import estimate_motion
 from stereovo.estimation.problem import StereoProblem
@@ -63,3 +64,55 @@ def test_probabilistic_fits_only_rigid_samples_and_still_finds_the_motion():
     shuffled = frame.curr[rng.permutation(frame.n)]
     est = estimate_motion(frame.prev, shuffled, frame.camera, budget=20, **kwargs)
     assert not est.ok and est.status.startswith("failed: ")
+
+
+def _pairs_with_a_lenient_anchor(problem, pairs):
+    """``(problem', samples)``: ``problem`` with one extra point whose covariance is so large that
+    every distance to it passes any gate, and the samples ``(a, b, anchor)``; such a triplet is kept
+    exactly when its pair ``(a, b)`` passes, so ``accept`` reports the single pairwise checks."""
+    import dataclasses
+
+    huge = 1e12 * np.eye(3)[None]
+    anchor = np.array([[0.0, 0.0, 1000.0]])
+    extended = dataclasses.replace(
+        problem,
+        points_prev=np.ascontiguousarray(np.vstack([problem.points_prev, anchor])),
+        points_curr=np.ascontiguousarray(np.vstack([problem.points_curr, anchor])),
+        cov_prev=np.ascontiguousarray(np.concatenate([problem.cov_prev, huge])),
+        cov_curr=np.ascontiguousarray(np.concatenate([problem.cov_curr, huge])),
+    )
+    samples = np.column_stack([pairs, np.full(len(pairs), problem.n)])
+    return extended, samples
+
+
+def test_rigidity_gate_passes_its_probability_of_inlier_distances():
+    """The check built from ``rigidity_gate_probability`` gates each pairwise distance change at the
+    chi-square(1) quantile of that probability: on inlier-only frames (Gaussian pixel noise, the
+    true motion) the fraction of disjoint pairs passed matches the probability within a binomial
+    tolerance, and the probability moves the gate as the chi-square(1) quantiles predict."""
+    from scipy.stats import chi2
+
+    from stereovo.estimation import recipes
+    from stereovo.estimation.estimator_options import EstimatorOptions
+    from stereovo.simulation import SimulationConfig, simulate_frame
+
+    cases = []
+    for seed in range(10):
+        frame = simulate_frame(SimulationConfig(n_correspondences=400, outlier_ratio=0.0), np.random.default_rng(seed))
+        problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+        assert problem.usable is None
+        order = np.random.default_rng(100 + seed).permutation(problem.n)
+        pairs = order[: 2 * (problem.n // 2)].reshape(-1, 2)  # disjoint pairs: independent trials
+        cases.append(_pairs_with_a_lenient_anchor(problem, pairs))
+    n_pairs = sum(len(samples) for _, samples in cases)
+    assert n_pairs >= 1900
+    rates = {}
+    for p in (0.5, 0.9, 0.999):
+        check = recipes.sample_check(EstimatorOptions(rigidity_gate_probability=p))
+        rates[p] = np.mean(np.concatenate([check.accept(problem, samples) for problem, samples in cases]))
+        tolerance = 4.0 * np.sqrt(p * (1.0 - p) / n_pairs) + 0.01  # binomial, plus first-order slack
+        assert abs(rates[p] - p) <= tolerance, (p, rates[p], tolerance)
+        assert check.threshold_sq == pytest.approx(chi2.ppf(p, 1), rel=1e-9)
+    # the gate follows the probability: at 0.5 it passes about half as many as at 0.999
+    assert rates[0.5] < rates[0.9] < rates[0.999]
+    assert rates[0.999] - rates[0.5] > 0.4
