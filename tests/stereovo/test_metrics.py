@@ -274,3 +274,86 @@ def test_frame_metrics_names_the_argument_that_is_not_an_estimate_or_a_truth():
         frame_metrics(est, None)
     with pytest.raises(ValueError, match=r"frame_metrics: estimate must have .*; FrameTruth lacks inliers, status"):
         frame_metrics(frame.truth, frame.truth)
+
+
+# ----------------------------------------------------------------------------- closed-form trajectory cases
+
+
+def _straight_drive(steps, yaws=None) -> np.ndarray:
+    """Camera-to-world poses of a drive along +z with per-frame step lengths ``steps`` (m) and per-frame
+    yaw motions ``yaws`` (rad, about the camera's y axis; none by default)."""
+    yaws = np.zeros(len(steps)) if yaws is None else yaws
+    poses = [np.eye(4)]
+    for step, yaw in zip(steps, yaws):
+        poses.append(pose_update(poses[-1], so3_exp(np.array([0.0, yaw, 0.0])), np.array([0.0, 0.0, -step])))
+    return np.stack(poses)
+
+
+def test_kitti_drift_divides_by_the_nominal_segment_length():
+    # 3 m a frame: a 100 m segment ends at the first frame whose path length reaches 100 m, 34 frames
+    # (102 m) on. The devkit divides the segment's error by the nominal length L = 100 m, not by 102 m.
+    n = 60
+    true = _straight_drive(np.full(n, 3.0))
+    est = true.copy()
+    est[:, :3, 3] *= 1.01  # 1 % too long: 1.02 m of error over every 102 m segment
+    t_pct, r_deg_m, n_seg = kitti_drift(est, true, lengths=(100.0,), step=1)
+    assert n_seg == n + 1 - 34  # starts 0 .. 26 (start + 34 <= 60)
+    assert t_pct == pytest.approx(100 * 0.01 * 102 / 100, rel=1e-9)  # 1.02 %, not 1.00 %
+    assert r_deg_m == pytest.approx(0.0, abs=1e-9)
+    # A constant yaw bias b per frame: 34 b over the segment, per nominal metre: 0.34 b.
+    bias = np.deg2rad(0.01)
+    est_yaw = _straight_drive(np.full(n, 3.0), np.full(n, bias))
+    _, r_deg_m, _ = kitti_drift(est_yaw, true, lengths=(100.0,), step=1)
+    assert r_deg_m == pytest.approx(0.01 * 34 / 100, rel=1e-6)
+
+
+def test_kitti_drift_segment_ends_by_path_length_not_chord():
+    # A zigzag: every frame moves 1 m along z and alternately +-1 m along x, so each step is sqrt(2) m of path
+    # but the chord grows ~1 m a frame. A 10 m segment by path length ends ceil(10 / sqrt 2) = 8 frames on.
+    n = 20
+    true = np.tile(np.eye(4), (n + 1, 1, 1))
+    true[:, 2, 3] = np.arange(n + 1)
+    true[1::2, 0, 3] = 1.0
+    est = true.copy()
+    est[:, 2, 3] *= 1.01  # 1 % too long along z only: 0.08 m of error over an 8-frame segment
+    t_pct, _, n_seg = kitti_drift(est, true, lengths=(10.0,), step=1)
+    assert n_seg == n + 1 - 8
+    assert t_pct == pytest.approx(100 * 0.01 * 8 / 10, rel=1e-9)
+
+
+def test_rpe_rotation_is_the_rms_of_known_per_step_errors():
+    # Straight 1 m steps; the estimate adds a yaw of 1, 2, 2, 4 degrees to steps 1-4. Each pair's error
+    # pose rotates by that angle, and its translation is (I - R^T) t with t perpendicular to the axis:
+    # 2 sin(theta / 2) metres. RMS rotation sqrt((1 + 4 + 4 + 16) / 4) = 2.5 deg (the mean would be 2.25).
+    theta = np.deg2rad([1.0, 2.0, 2.0, 4.0])
+    true = _straight_drive(np.ones(4))
+    est = _straight_drive(np.ones(4), theta)
+    t_err, r_err = rpe(est, true)
+    assert r_err == pytest.approx(2.5, rel=1e-6)
+    assert t_err == pytest.approx(np.sqrt(np.mean((2 * np.sin(theta / 2)) ** 2)), rel=1e-9)
+    # delta = 2: pairs (0, 2), (1, 3), (2, 4) accumulate 3, 4 and 6 degrees: RMS sqrt(61 / 3).
+    _, r_err2 = rpe(est, true, delta=2)
+    assert r_err2 == pytest.approx(np.sqrt(61 / 3), rel=1e-6)
+
+
+def test_align_se3_never_returns_a_reflection():
+    # The estimate is the truth mirrored in x. Points on the axes at +-3, +-2, +-1 m: the best orthogonal
+    # map would be the mirror diag(-1, 1, 1) (det -1, residual 0); the best rotation (Umeyama's guard flips
+    # the weakest axis, z) is diag(-1, 1, -1), a half turn about y, leaving each z coordinate negated.
+    a, b, c = 3.0, 2.0, 1.0
+    true_p = np.array([[a, 0, 0], [-a, 0, 0], [0, b, 0], [0, -b, 0], [0, 0, c], [0, 0, -c]])
+    est_p = true_p * np.array([-1.0, 1.0, 1.0])
+    R, t = align_se3(est_p, true_p)
+    assert np.linalg.det(R) == pytest.approx(1.0)
+    np.testing.assert_allclose(R, np.diag([-1.0, 1.0, -1.0]), atol=1e-12)
+    np.testing.assert_allclose(t, np.zeros(3), atol=1e-12)
+    # Residual: the two z points land 2c from their truth: RMSE sqrt(2 (2c)^2 / 6) = 2c / sqrt(3).
+    true = np.tile(np.eye(4), (6, 1, 1))
+    true[:, :3, 3] = true_p
+    est = true.copy()
+    est[:, :3, 3] = est_p
+    assert ate(est, true, align=True) == pytest.approx(2 * c / np.sqrt(3), rel=1e-9)
+    # No rotation does better (random rotations, checked by brute force).
+    rots = so3_exp(np.random.default_rng(0).normal(size=(2000, 3)) * 2.0)
+    residuals = np.sqrt(np.mean(np.sum((est_p @ rots.transpose(0, 2, 1) - true_p) ** 2, axis=2), axis=1))
+    assert residuals.min() >= 2 * c / np.sqrt(3) - 1e-12

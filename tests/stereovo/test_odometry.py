@@ -242,3 +242,27 @@ def test_odometry_result_carries_the_covariances_nan_on_failed_frames():
     assert result.covariances.shape == (4, 6, 6) and np.all(np.isnan(result.covariances))
     good = run_odometry(sequence)
     assert np.all(np.isfinite(good.covariances))
+
+
+def test_summary_medians_of_a_skewed_set_of_frames():
+    # Hand-made frames whose errors are skewed by one bad frame: the summary's medians are medians
+    # (0.25 deg, 0.025 m), not the means the outlier drags up (2.575 deg, 0.265 m).
+    from stereovo.metrics import FrameMetrics
+
+    rot = [0.1, 0.2, 0.3, 9.7]  # median 0.25, mean 2.575
+    trans = [0.01, 0.02, 0.03, 1.0]  # median 0.025, mean 0.265
+    hyps = [10, 20, 30, 1000]  # median 25
+    frames = [FrameMetrics(rot_err_deg=r, trans_err_m=t, t_true_norm_m=1.0, success=r < 1.0, precision=1.0,
+                           recall=0.5, n_inliers=100, n_hypotheses=h, n_scored=h, n_point_checks=100 * h,
+                           time_s=1e-3 * h, status="ok")
+              for r, t, h in zip(rot, trans, hyps)]
+    poses = np.tile(np.eye(4), (5, 1, 1))
+    res = odometry.OdometryResult(method="ransac", seed=0, poses=poses, true_poses=poses, frames=frames,
+                                  fallback=np.zeros(4, bool), trajectory=trajectory_metrics(poses, poses),
+                                  frame_indices=np.arange(1, 5))
+    s = res.summary()
+    assert s["frames"] == 4 and s["failed_frames"] == 0 and s["success_rate"] == pytest.approx(0.75)
+    assert s["median_rot_err_deg"] == pytest.approx(0.25)
+    assert s["median_trans_err_m"] == pytest.approx(0.025)
+    assert s["median_hypotheses"] == pytest.approx(25.0)
+    assert s["median_time_s"] == pytest.approx(0.025)

@@ -55,3 +55,30 @@ def test_trials_csv_round_trip(tmp_path):
         assert (tmp_path / name).stat().st_size > 0
     text = (tmp_path / "summary.md").read_text()
     assert "max_iterations = 300" in text and "raised" in text
+
+
+def test_n_failed_counts_every_row_not_ok_including_raised_estimators():
+    # n_failed counts every status other than "ok": an estimator that raised ("error: ...") failed too;
+    # n_errors counts only those. Hand-made: 1 ok, 2 "failed: ...", 3 "error: ..." -> 5 failed, 3 errors.
+    statuses = ["ok", "failed: no consensus", "failed: degenerate sample",
+                "error: ValueError: x", "error: RuntimeError: y", "error: KeyError: z"]
+    rows = [_row("a", 0.2, 100, s == "ok", 0.1, 0.01, 10, 100, 0.001, status=s) for s in statuses]
+    a = bm.aggregate(rows)
+    assert a["frames"] == 6
+    assert a["n_errors"] == 3
+    assert a["n_failed"] == 5
+    assert bm.summarize(rows).overall["a"]["n_failed"] == 5
+
+
+def test_cell_summary_rows_keep_noise_levels_apart():
+    # A grid cell is (method, epsilon, noise_sigma, score_auc, n, outlier_kind): two noise levels of the
+    # same other axes are two cells, each with its own statistics.
+    rows = []
+    for sigma, rot in ((0.5, 0.1), (0.5, 0.3), (2.0, 1.0), (2.0, 3.0), (2.0, 5.0)):
+        r = _row("a", 0.2, 100, True, rot, 0.01, 10, 100, 0.001)
+        r["noise_sigma"] = sigma
+        rows.append(r)
+    cells = bm.cell_summary_rows(rows)
+    assert [(c["method"], c["noise_sigma"], c["frames"]) for c in cells] == [("a", 0.5, 2), ("a", 2.0, 3)]
+    assert cells[0]["median_rot_err_deg"] == pytest.approx(0.2)  # median of 0.1, 0.3
+    assert cells[1]["median_rot_err_deg"] == pytest.approx(3.0)  # median of 1, 3, 5

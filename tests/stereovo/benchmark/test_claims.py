@@ -140,3 +140,26 @@ def test_claims_name_their_reference_frames_and_enhanced_pair():
     # a claim that cannot be measured carries no frames and no diagnosis
     absent = judge_claims(make_summary({"ransac": summary_stats()}), )["waldsac-time"]
     assert absent.verdict == NOT_MEASURED and absent.measured_on == "" and absent.diagnosis == ""
+
+
+def test_accuracy_claim_fails_when_translation_alone_is_worse():
+    # Rotation 40 % better, success equal, but the median translation error doubled: a median error
+    # more than 1 / 0.9 of the reference's is "worse", so the claim disagrees.
+    overall = {"ransac": summary_stats(median_rot_err_deg=0.05, median_trans_err_m=0.01),
+               "lo-ransac": summary_stats(median_rot_err_deg=0.03, median_trans_err_m=0.02)}
+    c = judge_claims(make_summary(overall))["lo-ransac-accuracy"]
+    assert c.verdict == DISAGREES and "(x2.00)" in c.numbers
+    # The same translation within 1 / 0.9 (x1.10) is no worse: the rotation gain makes it agree.
+    overall["lo-ransac"] = summary_stats(median_rot_err_deg=0.03, median_trans_err_m=0.011)
+    assert judge_claims(make_summary(overall))["lo-ransac-accuracy"].verdict == AGREES
+
+
+def test_accuracy_claim_agrees_on_success_gain_alone():
+    # Equal median errors (x1.00 both), success 8 points higher (>= the 2-point margin): "gains accuracy".
+    overall = {"ransac": summary_stats(success_rate=0.9),
+               "lo-ransac": summary_stats(success_rate=0.98)}
+    c = judge_claims(make_summary(overall))["lo-ransac-accuracy"]
+    assert c.verdict == AGREES and c.numbers.count("(x1.00)") == 2
+    # One point higher is under the margin: nothing is better, so it disagrees.
+    overall["lo-ransac"] = summary_stats(success_rate=0.91)
+    assert judge_claims(make_summary(overall))["lo-ransac-accuracy"].verdict == DISAGREES
