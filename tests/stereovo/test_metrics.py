@@ -94,6 +94,10 @@ def test_frame_metrics_values_and_status():
     assert m.t_true_norm_m == pytest.approx(1.0)
     assert m.success
     assert (m.precision, m.recall, m.n_inliers) == (0.5, 0.5, 2)
+    # Asymmetric: 3 returned inliers, 2 of them true, of 4 true: precision 2/3, recall 1/2.
+    tr4 = truth(R_true, t_true, [1, 1, 1, 1, 0])
+    m = frame_metrics(estimate(R_est, t_est, [1, 1, 0, 0, 1]), tr4)
+    assert (m.precision, m.recall, m.n_inliers) == (pytest.approx(2 / 3), 0.5, 3)
     assert (m.n_hypotheses, m.n_scored, m.n_point_checks, m.status) == (7, 5, 1234, "ok")
     # A failed status is never a success, even with a perfect motion.
     failed = frame_metrics(estimate(R_true, t_true, [0, 0, 0, 0], status="no consensus"), tr)
@@ -192,6 +196,8 @@ def test_kitti_drift_short_trajectory_and_custom_lengths():
     assert n > 0 and t_pct == pytest.approx(2.0, rel=1e-9)
     with pytest.raises(ValueError, match=r"segment lengths must be positive metres, got \(0\.0,\)"):
         kitti_drift(est, true, lengths=(0.0,))
+    with pytest.raises(ValueError, match=r"^step must be a positive number of frames, got 0$"):
+        kitti_drift(est, true, step=0)
     unequal = r"two \(F, 4, 4\) pose arrays of equal length, got \(31, 4, 4\) and \(30, 4, 4\)"
     with pytest.raises(ValueError, match=unequal):
         kitti_drift(est, true[:-1])

@@ -156,7 +156,8 @@ def test_available_methods_lists_core_methods_with_descriptions():
     "prev,curr,message",
     [
         (np.zeros((5, 3)), np.zeros((5, 3)), r"shape \(N, 4\)"),
-        (np.tile([600.0, 100, 590, 100], (5, 1)), np.tile([600.0, 100, 590, 100], (4, 1)), "same number of rows"),
+        (np.tile([600.0, 100, 590, 100], (5, 1)), np.tile([600.0, 100, 590, 100], (4, 1)),
+         "same number of rows, got 5 and 4$"),
         (np.tile([600.0, 100, 590, 100], (5, 1)) + 1j, np.tile([600.0, 100, 590, 100], (5, 1)), "prev must be real"),
         (np.tile([600.0, 100, 590, 100], (5, 1)), np.tile([600.0, 100, 590, 100], (5, 1)).astype(complex),
          "curr must be real"),
