@@ -70,6 +70,16 @@ def test_n_failed_counts_every_row_not_ok_including_raised_estimators():
     assert bm.summarize(rows).overall["a"]["n_failed"] == 5
 
 
+def test_hypotheses_to_the_best_model_are_averaged_not_medianed():
+    # The column is a mean (its name says so): on 1, 2 and 30 hypotheses it is 11, where a median is 2.
+    rows = []
+    for to_best in (1, 2, 30):
+        r = _row("a", 0.2, 100, True, 0.1, 0.01, 40, 100, 0.001)
+        r["n_hypotheses_to_best"] = to_best
+        rows.append(r)
+    assert bm.aggregate(rows)["mean_hypotheses_to_best"] == pytest.approx(11.0)
+
+
 def test_cell_summary_rows_keep_noise_levels_apart():
     # A grid cell is (method, epsilon, noise_sigma, score_auc, n, outlier_kind): two noise levels of the
     # same other axes are two cells, each with its own statistics.
