@@ -173,6 +173,31 @@ def test_a_refinement_that_loses_support_or_diverges_is_rolled_back(bad):
     np.testing.assert_array_equal(kept.inliers, gate.squared(problem, kept.rotation[None], kept.translation[None])[0] < 9.0)
 
 
+class _EveryRowPasses:
+    """A residual model under which every row passes any gate: the method's own judge, where the
+    refiner's gate must decide instead."""
+
+    def squared(self, problem, R, t):
+        return np.zeros((len(R), problem.n))
+
+
+def test_a_refinement_with_its_own_gate_is_judged_by_that_gate_not_the_methods_model():
+    # probabilistic refines and re-selects its inliers under a pixel gate while it scores hypotheses in
+    # 3-D: the refined pose must win under the refiner's gate, on the same rows, to replace the best
+    frame = simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.3), 2)
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+    gate = ReprojectionResidual(9.0)
+    R, t = frame.truth.rotation, frame.truth.translation
+    good = gate.squared(problem, R[None], t[None])[0] < 9.0
+    refiner = _Refiner(so3_exp(np.array([0.0, 0.2, 0.0])) @ R, t + 2.0)  # a pose the gate rejects
+    refiner.gate = (gate, 9.0)
+    report = final_report(problem, R, t, good, float(good.sum()), refiner, _EveryRowPasses(), InlierCount(), 9.0, 6,
+                          {}, **COUNTS)
+    assert report.status == "ok" and report.counters["refine_rolled_back"] == 1
+    np.testing.assert_array_equal(report.rotation, R)
+    np.testing.assert_array_equal(report.inliers, good)
+
+
 def test_a_non_finite_best_model_fails():
     frame = simulate_frame(SimulationConfig(n_correspondences=100, outlier_ratio=0.3), 3)
     problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
