@@ -154,12 +154,6 @@ class EstimatorOptions:
     def mahalanobis_threshold_sq(self) -> float:
         return chi2_quantile(self.gate_probability, 3)
 
-    @property
-    def pixel_mahalanobis_threshold_sq(self) -> float:
-        """The pixel gate for independent vL and vR (4 dof); ``probabilistic`` takes the dof of its
-        camera's measurement model (``camera.measurement_dof``)."""
-        return chi2_quantile(self.refine_gate_probability, 4)
-
 
 @functools.lru_cache(maxsize=64)
 def chi2_quantile(probability: float, dof: int) -> float:

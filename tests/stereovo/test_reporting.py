@@ -161,3 +161,25 @@ def test_evaluate_writes_its_figures_in_the_chosen_format(tmp_path):
                  "--no-progress", "--format", "pdf", "--out", str(out)]) == 0
     assert all((out / f"{name}.pdf").read_bytes()[:5] == b"%PDF-" for name in PLOT_NAMES)
     assert not any((out / f"{name}.png").exists() for name in PLOT_NAMES)
+
+
+@pytest.mark.parametrize("confidence", [0.95, 0.68])
+def test_a_success_lines_band_is_the_wilson_interval_at_its_confidence(confidence):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from stereovo.reporting import plot_success, wilson_interval
+
+    fig, ax = plt.subplots()
+    try:
+        plot_success(ax, [0.2, 0.5], [0.5, 0.9], [20, 100], "a", {"color": "C0"}, confidence=confidence)
+        (band,) = ax.collections
+        vertices = band.get_paths()[0].vertices
+        low, high = wilson_interval(np.array([10.0, 90.0]), np.array([20.0, 100.0]), confidence)
+        for x, lo, hi in zip((0.2, 0.5), low, high):
+            ys = vertices[np.isclose(vertices[:, 0], x), 1]
+            np.testing.assert_allclose([ys.min(), ys.max()], [100 * lo, 100 * hi], rtol=1e-12)
+    finally:
+        plt.close(fig)
