@@ -98,6 +98,7 @@ def test_estimator_seeds_differ_by_name_and_reject_bad_seeds():
     a = np.random.default_rng(bm.estimator_seed(0, cell, 0, "ransac")).random()
     b = np.random.default_rng(bm.estimator_seed(0, cell, 0, "msac")).random()
     assert a != b and a == np.random.default_rng(bm.estimator_seed(0, cell, 0, "ransac")).random()
+    assert a != np.random.default_rng(bm.estimator_seed(0, cell, 1, "ransac")).random()  # each repeat its own stream
     for bad in (-1, 1.5, True):
         with pytest.raises(ValueError, match="seed"):
             bm.frame_seed(bad, cell, 0)

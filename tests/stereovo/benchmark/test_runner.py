@@ -44,6 +44,23 @@ def test_same_seed_same_rows_any_worker_count_and_different_seed_differs():
     assert list(one[0]) == list(bm.TRIAL_COLUMNS)
 
 
+def test_rows_carry_the_frames_true_inlier_count_and_the_hypothesis_that_found_the_best():
+    """``n_true_inliers`` is the frame's labelled inliers (not its N); ``n_hypotheses_to_best`` the loop
+    report's ``best_found_at`` (not the hypotheses drawn): recomputed here from the frame and the estimate."""
+    from stereovo import estimate_motion
+
+    trial = TINY.trials()[0]
+    frame = bm.simulate_trial(trial, 3)
+
+    def estimator(frame, rng):
+        return estimate_motion(frame.prev, frame.curr, frame.camera, method="ransac", rng=rng)
+
+    (row,) = bm.run_trial(trial, [("ransac", estimator)], 3)
+    est = estimator(frame, np.random.default_rng(bm.estimator_seed(3, trial.cell, trial.repeat, "ransac")))
+    assert row["n_true_inliers"] == int(frame.truth.inlier.sum()) < frame.n
+    assert row["n_hypotheses_to_best"] == est.report.best_found_at < est.n_hypotheses
+
+
 def test_raising_estimator_is_recorded_as_an_error_row():
     rows = bm.run_benchmark(TINY.trials()[:1], [("bad", Raises()), ("fine", Fingerprint())], progress=False)
     bad, fine = rows

@@ -90,3 +90,26 @@ def test_the_environment_asks_for_its_enhancements_explicitly():
 
     assert DEFAULT_ESTIMATOR_OPTIONS["polish_iterations"] == 2 and DEFAULT_ESTIMATOR_OPTIONS["refine"] is True
     assert DEFAULT_ESTIMATOR_OPTIONS["local_refit"] is False
+
+
+@pytest.mark.parametrize("v_measurement, dof", [("shared", 3), ("independent", 4)])
+@pytest.mark.parametrize("gate, refine_gate", [(0.95, 0.99), (0.9, 0.999)])
+def test_probabilistics_gates_are_the_chi_square_quantiles_of_their_probabilities(v_measurement, dof, gate,
+                                                                                    refine_gate):
+    """Hypotheses are judged in 3-D at chi-square(3) of ``gate_probability``; the final inliers in pixels at
+    chi-square(camera.measurement_dof) of ``refine_gate_probability``."""
+    import dataclasses
+
+    from scipy.stats import chi2
+
+    frame = simulate_frame(SimulationConfig(n_correspondences=120, outlier_ratio=0.3), 4)
+    camera = dataclasses.replace(frame.camera, v_measurement=v_measurement)
+    problem = StereoProblem.build(frame.prev, frame.curr, camera, frame.noise_sigma)
+    options = EstimatorOptions(**{**PROBABILISTIC_RECIPE, "gate_probability": gate,
+                                  "refine_gate_probability": refine_gate})
+    components = method_spec("probabilistic").build(problem, options, None, None, {})
+    assert components.threshold_sq == pytest.approx(chi2.ppf(gate, 3), rel=1e-12)
+    assert components.refiner.gate[1] == pytest.approx(chi2.ppf(refine_gate, dof), rel=1e-12)
+    est = estimate_motion(frame.prev, frame.curr, camera, rng=0, gate_probability=gate,
+                          refine_gate_probability=refine_gate)
+    assert est.ok and est.report.gate[1] == pytest.approx(chi2.ppf(refine_gate, dof), rel=1e-12)
