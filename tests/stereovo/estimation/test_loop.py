@@ -335,6 +335,17 @@ def test_a_search_capped_before_its_stop_fails_unless_the_returned_model_meets_i
     assert met.ok and met.n_hypotheses == 24 and errors.success
 
 
+def test_a_search_at_its_cap_is_confirmed_when_its_models_inliers_need_one_draw_fewer():
+    """The boundary of the rule above: the returned model's inliers ask for cap - 1 draws, so its
+    confidence was reached within the cap and the estimate stands."""
+    frame = simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.4), 2)
+    est = estimate_motion(frame.prev, frame.curr, frame.camera, method="ransac", rng=2, max_iterations=30)
+    problem, _ = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma).usable_subproblem()
+    termination = method_spec("ransac").build(problem, EstimatorOptions(max_iterations=30), None, None, {}).termination
+    assert est.n_hypotheses == 30 and termination.required(est.n_inliers, problem.n) == 29
+    assert est.ok
+
+
 class _ScriptedVerifier:
     """Scores each batch from a script: the runner-up refit's choices then follow by hand."""
 
