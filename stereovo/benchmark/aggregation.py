@@ -70,7 +70,7 @@ def read_trials_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
             width, or a cell that is no value of its column; the message names the line.
     """
     from stereovo.benchmark.runner import TRIAL_COLUMNS
-    from stereovo.trials.store import csv_records, parsed_row
+    from stereovo.trials.store import csv_records, header_mismatch, parsed_row
 
     name = Path(path).name
     try:
@@ -85,12 +85,8 @@ def read_trials_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
         _, header = next(records, (1, []))
         if not header:
             raise TrialsFileError(f"{name}: no header line")
-        unknown = [c for c in header if c not in TRIAL_COLUMNS]
-        missing = [c for c in TRIAL_COLUMNS if c not in header and c not in _OPTIONAL_COLUMNS]
-        if unknown or missing or len(set(header)) != len(header):
-            what = "; ".join(p for p in (f"missing column(s) {', '.join(missing)}" if missing else "",
-                                          f"unknown column(s) {', '.join(repr(c[:40]) for c in unknown[:3])}"
-                                          if unknown else "") if p) or "a column named twice"
+        what = header_mismatch(header, TRIAL_COLUMNS, _OPTIONAL_COLUMNS)
+        if what is not None:
             raise TrialsFileError(f"{name}: line 1: {what}")
         rows = [parsed_row(header, fields, parse_trial_value, line) for line, fields in records]
     except TrialsFileError:

@@ -38,6 +38,7 @@ __all__ = [
     "read_journal",
     "read_manifest",
     "csv_records",
+    "header_mismatch",
     "parsed_row",
     "prepare_run_folder",
     "atomic_path",
@@ -302,6 +303,18 @@ def csv_records(text: str) -> Iterator[tuple[int, list[str]]]:
         raise ValueError(f"line {reader.line_num}: {err}") from None
 
 
+def header_mismatch(header: Sequence[str], columns: Sequence[str], optional: Collection[str] = ()) -> str | None:
+    """What keeps a CSV ``header`` from naming ``columns`` (any order; those in ``optional`` may be
+    missing): missing or unknown columns, or one named twice; None when nothing does."""
+    missing = [c for c in columns if c not in header and c not in optional]
+    unknown = [c for c in header if c not in columns]
+    if missing or unknown:
+        return "; ".join(part for part in (f"missing column(s) {', '.join(missing)}" if missing else "",
+                                           f"unknown column(s) {', '.join(map(_short, unknown[:3]))}"
+                                           if unknown else "") if part)
+    return "a column is named twice" if len(set(header)) != len(header) else None
+
+
 def parsed_row(columns: Sequence[str], fields: Sequence[str], parse: Callable[[str, str], Any],
                line: int) -> dict[str, Any]:
     """One CSV record's cells by column, each through ``parse(column, text)``; ValueError
@@ -359,15 +372,11 @@ def read_journal(path: str | os.PathLike, parse: Callable[[str, str], Any], colu
                 if header[:2] != list(_KEY_COLUMNS):
                     raise JournalError(JOURNAL, f"line 1: the header starts {_short(','.join(header[:2]))},"
                                                 f" not {','.join(_KEY_COLUMNS)}")
-                if columns is not None and header[2:] != list(columns):
-                    missing = [c for c in columns if c not in header[2:]]
-                    unknown = [c for c in header[2:] if c not in columns]
-                    what = "; ".join(p for p in (f"missing column(s) {', '.join(missing)}" if missing else "",
-                                                  f"unknown column(s) {', '.join(map(_short, unknown[:3]))}"
-                                                  if unknown else "") if p) or "columns in another order"
-                    raise JournalError(JOURNAL, f"line 1: {what}")
-                if len(set(header)) != len(header):
-                    raise JournalError(JOURNAL, "line 1: a column is named twice")
+                what = header_mismatch(header[2:], header[2:] if columns is None else columns)
+                if what is None and columns is not None and header[2:] != list(columns):
+                    what = "columns in another order"
+                if what is not None or len(set(header)) != len(header):
+                    raise JournalError(JOURNAL, f"line 1: {what or 'a column is named twice'}")
                 continue
             if len(fields) != len(header):
                 raise JournalError(JOURNAL, f"line {number}: {len(fields)} fields, the header has {len(header)}")
