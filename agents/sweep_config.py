@@ -39,7 +39,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 from stereovo.estimation.estimator_options import MAX_COUNT
-from stereovo.options import Integer, Number, Option, check_options, value_repr
+from stereovo.options import Integer, Number, Option, check_options, is_finite_real, is_integer, value_repr
 from stereovo.simulation.config import MAX_CORRESPONDENCES, MAX_FRAMES
 
 __all__ = [
@@ -210,14 +210,6 @@ def _keys(keys: Any) -> str:
     return value_repr(sorted(keys, key=lambda k: (not isinstance(k, str), str(k)[:200])))
 
 
-def _number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def _finite(value: Any) -> bool:
-    return _number(value) and (isinstance(value, int) or math.isfinite(value))
-
-
 @dataclass(frozen=True)
 class FieldRule:
     """How a sweep file's value for one trainer config field is checked, before the trainer compares it."""
@@ -238,13 +230,13 @@ class FieldRule:
 
 
 def _finite_list(length: int) -> Callable[[Any], bool]:
-    return lambda v: isinstance(v, (list, tuple)) and len(v) == length and all(map(_finite, v))
+    return lambda v: isinstance(v, (list, tuple)) and len(v) == length and all(map(is_finite_real, v))
 
 
 # Keyed by the type itself, not its spelling: ``int``, ``typing.Optional[int]`` and ``int | None`` all land here.
 _SCALAR_RULES: dict[type, tuple[str, Callable[[Any], bool]]] = {
-    int: ("an integer", lambda v: isinstance(v, int) and not isinstance(v, bool)),
-    float: ("a finite number", _finite),
+    int: ("an integer", is_integer),
+    float: ("a finite number", is_finite_real),
     bool: ("true or false", lambda v: isinstance(v, bool)),
     str: ("a string", lambda v: isinstance(v, str)),
 }
@@ -358,7 +350,7 @@ def parse_sweep(data: Any, source: str = "sweep") -> SweepSpec:
         if not isinstance(values, list) or not values:
             raise ValueError(f"{source}: {where} must be a non-empty list, got {value_repr(values)}")
         if kind in ("uniform", "loguniform", "randint"):
-            if len(values) != 2 or not all(map(_finite, values)) or not values[0] < values[1]:
+            if len(values) != 2 or not all(map(is_finite_real, values)) or not values[0] < values[1]:
                 raise ValueError(f"{source}: {where} must be [low, high] finite numbers with low < high,"
                                  f" got {value_repr(values)}")
             if kind == "loguniform" and values[0] <= 0:
@@ -406,7 +398,7 @@ def parse_sweep(data: Any, source: str = "sweep") -> SweepSpec:
         if kind == "asha":
             _positive("scheduler.grace_period", scheduler.setdefault("grace_period", 1))
             rf = scheduler.setdefault("reduction_factor", 2)
-            if not _finite(rf) or rf <= 1:
+            if not is_finite_real(rf) or rf <= 1:
                 raise ValueError(f"sweep scheduler.reduction_factor must be a finite number > 1, got {value_repr(rf)}")
         samples = Integer(low=1, high=MAX_SAMPLES).check("samples", data.get("samples", 1), prefix="sweep ")
         report_every = _positive("report_every", data.get("report_every"))

@@ -179,6 +179,7 @@ def test_bad_values_name_the_file_and_key_in_a_short_message(change, needle):
         ("ngransac", {"frames": True}, "s.yaml: fixed.frames must be an integer, got True"),
         ("ngransac", {"frames": None}, "s.yaml: fixed.frames must be an integer, got None"),
         ("ngransac", {"learning_rate": float("nan")}, "s.yaml: fixed.learning_rate must be a finite number, got nan"),
+        ("ngransac", {"learning_rate": 10**400}, "s.yaml: fixed.learning_rate must be a finite number, got ~1e+400 (an integer of 401 digits)"),
         ("ngransac", {"max_grad_norm": "big"}, "s.yaml: fixed.max_grad_norm must be a finite number or null, got 'big'"),
         ("ngransac", {"outlier_mix": [0.5, 0.5]},
          "s.yaml: fixed.outlier_mix must be a list of 3 finite numbers, got [0.5, 0.5]"),
