@@ -147,19 +147,15 @@ class SweepSpec:
         """The trainer's config for one trial's parameters (validated by the trainer's config class)."""
         values = {**self.fixed, **params}
         if self.algo == "ngransac":
-            from agents.ngransac import NGRansacConfig
-
             # Tune keeps the best checkpoint; reloading the best weights inside the trainer would undo training
             # between reports.
             values.setdefault("keep_best", False)
             values.setdefault("eval_every", self.report_every)
             values.setdefault("eval_frames", 10)
-            return _build(NGRansacConfig, values)
-        from agents.ppo.config import PPOConfig
-
-        values.setdefault("eval_every", 10 ** 9)  # the sweep's metric is the evaluation; SB3's own is not needed
-        values.setdefault("checkpoint_every", 10 ** 9)
-        return _build(PPOConfig, values)
+        else:
+            values.setdefault("eval_every", 10 ** 9)  # the sweep's metric is the evaluation; SB3's own is not needed
+            values.setdefault("checkpoint_every", 10 ** 9)
+        return _build(_config_class(self.algo), values)
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
