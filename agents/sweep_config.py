@@ -184,18 +184,6 @@ def _is_tuple_type(annotation: Any) -> bool:
     return annotation is tuple or typing.get_origin(annotation) is tuple
 
 
-def _positive(where: str, value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise ValueError(f"sweep {where} must be an integer >= 1, got {value_repr(value)}")
-    return value
-
-
-def _nonnegative(where: str, value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-        raise ValueError(f"sweep {where} must be an integer >= 0, got {value_repr(value)}")
-    return value
-
-
 def _key(key: Any) -> str:
     """A key for a message: as written when it is a short string, else abbreviated."""
     return key if isinstance(key, str) and len(key) <= 60 and key.isprintable() else value_repr(key, 60)
@@ -392,13 +380,14 @@ def parse_sweep(data: Any, source: str = "sweep") -> SweepSpec:
                          f" known: {', '.join(sorted(allowed))}")
     try:
         if kind == "asha":
-            _positive("scheduler.grace_period", scheduler.setdefault("grace_period", 1))
+            grace = scheduler.setdefault("grace_period", 1)
+            scheduler["grace_period"] = Integer(low=1).check("scheduler.grace_period", grace, prefix="sweep ")
             rf = scheduler.setdefault("reduction_factor", 2)
             if not is_finite_real(rf) or rf <= 1:
                 raise ValueError(f"sweep scheduler.reduction_factor must be a finite number > 1, got {value_repr(rf)}")
         samples = Integer(low=1, high=MAX_SAMPLES).check("samples", data.get("samples", 1), prefix="sweep ")
-        report_every = _positive("report_every", data.get("report_every"))
-        search_seed = _nonnegative("search_seed", data.get("search_seed", 0))
+        report_every = Integer(low=1).check("report_every", data.get("report_every"), prefix="sweep ")
+        search_seed = Integer(low=0).check("search_seed", data.get("search_seed", 0), prefix="sweep ")
     except ValueError as err:
         raise ValueError(f"{source}: {str(err).removeprefix('sweep ')}") from None
     spec = SweepSpec(
