@@ -143,8 +143,8 @@ def evaluation_markdown(summary: Mapping[str, Any], wall_s: float | None = None)
     hyp = summary["hypotheses_for_success"]
     frames = cfg["episodes"] * cfg["frames_per_episode"]
     env_kwargs = dict(cfg.get("env_kwargs") or {})
-    stated = [a for a in (cfg.get("score_auc"), env_kwargs.pop("score_auc", None)) if a is not None][:1]
-    aucs = summary.get("score_aucs") or stated  # a summary written before the rows' AUCs were kept
+    env_kwargs.pop("score_auc", None)  # the header states the AUC the rows' frames had, once
+    aucs = summary["score_aucs"]
     lines = [
         "# Agents vs classical methods on the same frames",
         "",
