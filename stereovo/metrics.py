@@ -298,7 +298,10 @@ def kitti_drift(
 
     For every start frame ``0, step, 2 step, ...`` and every length ``L``, the
     segment ends at the first frame whose true path length from the start
-    reaches ``L`` (>=; the devkit's strict > differs only on exact ties); its error pose is ``inv(inv(P_s) P_e) @ inv(Q_s) Q_e``.
+    reaches ``L`` (>=; the devkit's strict > differs only on exact ties); its error pose is
+    ``inv(inv(P_s) P_e) @ inv(Q_s) Q_e`` for estimated ``P`` and true ``Q``, in the devkit's order;
+    :func:`rpe` follows evo and inverts the true segment instead. An error pose and its inverse have
+    the same translation length and angle, so the order changes neither metric.
     Segments that would run past the end are skipped. Errors are averaged
     over all segments (all lengths pooled, as the devkit does per sequence).
 

@@ -53,13 +53,13 @@ def test_a_directory_in_place_of_a_run_file_is_one_error(tmp_path, reference, na
 
 
 @pytest.mark.parametrize("corrupt, needle", [
-    (lambda t: "\x00\x01garbage\n" * 3, "line 1"),
+    (lambda t: "\x00\x01garbage\n" * 3, "line 1: the header starts '\\x00\\x01garbage', not task,task_rows"),
     (lambda t: t.encode() + b"\xff\xfe\x80", "not UTF-8 text"),
     (lambda t: t.replace("\n", "\n\xff", 1).encode("latin-1"), "line 2: not UTF-8 text"),
     (lambda t: _replace_line(t, 3, lambda l: l.rstrip("\n") + "," + "x" * 300_000 + "\n"), "line 3: field larger"),
     (lambda t: _replace_line(t, 1, lambda l: l.replace("method", "methodX")), "line 1: missing column(s) method;"
                                                                                " unknown column(s) 'methodX'"),
-    (lambda t: _replace_line(t, 1, lambda l: l.replace(",method", "")), "line 1: "),
+    (lambda t: _replace_line(t, 1, lambda l: l.replace(",method", "")), "line 1: missing column(s) method)"),
     (lambda t: _replace_line(t, 2, lambda l: "zero" + l[1:]), "line 2: task 'zero'"),
     (lambda t: _replace_line(t, 2, lambda l: l.replace(",True,", ",maybe,").replace(",False,", ",maybe,")),
      "line 2: success 'maybe' is no value of that column"),
