@@ -121,6 +121,37 @@ def test_relative_links_point_to_files(path):
         assert (path.parent / target).exists(), f"{path.name} links to {target}, which does not exist"
 
 
+def _github_anchor(heading: str) -> str:
+    """The id GitHub gives a heading: its text (code marks and link targets dropped) lower-cased,
+    characters other than letters, digits, ``_``, ``-`` and spaces removed, spaces made hyphens."""
+    text = re.sub(r"`|\*\*|\[([^\]]*)\]\([^)]*\)", lambda m: m.group(1) or "", heading.strip()).lower()
+    return re.sub(r"[^\w\- ]", "", text).replace(" ", "-")
+
+
+def _anchors(path: Path) -> set[str]:
+    """The ids of a markdown file's headings; a repeated one gets -1, -2, ... as on GitHub."""
+    seen: dict[str, int] = {}
+    anchors = set()
+    fenced = False
+    for line in path.read_text().splitlines():
+        fenced ^= line.startswith("```")
+        heading = None if fenced else re.match(r"^#{1,6} (.*)$", line)
+        if heading:
+            slug = _github_anchor(heading.group(1))
+            seen[slug] = seen.get(slug, -1) + 1
+            anchors.add(slug if seen[slug] == 0 else f"{slug}-{seen[slug]}")
+    return anchors
+
+
+@pytest.mark.parametrize("path", DOCUMENTS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_links_to_a_heading_name_one_that_exists(path):
+    for target, anchor in re.findall(r"\]\(([^)#\s]*)#([^)\s]+)\)", path.read_text()):
+        linked = path if not target else path.parent / target
+        if "://" in target or linked.suffix != ".md":
+            continue
+        assert anchor in _anchors(linked), f"{path.name} links to {target}#{anchor}, a heading {linked.name} lacks"
+
+
 def test_every_registered_method_has_its_section_in_algorithms():
     text = (ROOT / "docs" / "algorithms.md").read_text()
     sections = set(re.findall(r"^### `([^`]+)`", text, flags=re.M))
