@@ -27,6 +27,7 @@ ENV_IDS: tuple[str, ...] = registered_ids()
 
 _LAZY = {
     "StereoVOEnv": "vo_gym.env",
+    "StereoVOAdaptiveEnv": "vo_gym.adaptive_env",
     "StereoVOImagesEnv": "vo_gym.images_env",
     "SAMPLING_MODES": "vo_gym.settings",
     "DEFAULT_ESTIMATOR_OPTIONS": "vo_gym.settings",
