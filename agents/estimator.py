@@ -178,7 +178,7 @@ class LearnedEstimator:
                 needs = "priors= (inlier probabilities)" if spec.inputs == "priors" else "order= (a PROSAC order)"
                 raise ValueError(f"method {method!r} needs {needs} from its caller; in-frame sampler {self.name!r} "
                                  "draws from its own weights batch by batch and passes none: pick a method that "
-                                 "samples without them (e.g. 'msac', the default, 'mlesac' or 'probabilistic')")
+                                 "samples without them (e.g. 'msac', 'mlesac' or 'probabilistic')")
             # the search's own stopping rule is replaced by the sampler's stop under the cap: the options
             # of that rule which have no counterpart here are refused rather than ignored
             if "first_batch_size" in estimator_options:

@@ -250,6 +250,7 @@ def test_report_only_rebuilds_tables_and_plots_from_the_stored_trials(runs, tmp_
                             " (it rebuilds the report of the run in DIR, in DIR, from the trials stored there)"),
     (["--out", "OTHER"], "--out OTHER applies to the simulated grid and --source rendered, not with --report-only"),
     (["--seed", "3"], "--seed 3 applies to the simulated grid and --source rendered, not with --report-only"),
+    (["--source", "rendered"], "--report-only and --source rendered exclude each other: --report-only rebuilds"),
 ])
 def test_report_only_refuses_what_it_would_ignore_and_writes_nothing(runs, tmp_path, capsys, more, needle):
     before = {p.name: p.stat().st_mtime_ns for p in runs[0].iterdir()}

@@ -249,6 +249,20 @@ def test_evaluate_on_rendered_images_takes_methods_none(tmp_path, capsys, short)
         assert {row["agent"] for row in csv.DictReader(fh)} == {"uniform", "msac (fixed)"}
 
 
+def test_evaluate_on_rendered_images_with_json_prints_one_json_document(tmp_path, capsys, short):
+    assert main([*RENDERED, "--methods", "none", "--json", "--out", str(tmp_path / "j")]) == 0
+    document = json.loads(capsys.readouterr().out)  # the header line used to come first
+    assert document["settings"]["env_id"] == "vo_gym/StereoVOImages-v0"
+    assert [row["agent"] for row in document["rows"]] == ["uniform"]
+
+
+def test_adaptive_and_source_are_refused_together_as_two_runs(tmp_path, capsys):
+    assert main(["evaluate", *ADAPTIVE, "--source", "rendered", "--out", str(tmp_path / "e")]) == 2
+    line = one_line_error(capsys, "evaluate")
+    assert line.startswith("vo-gym evaluate: error: --adaptive and --source rendered exclude each other"), line
+    assert not (tmp_path / "e").exists()
+
+
 def test_resume_with_a_trial_that_is_no_unit_of_the_run_is_one_line(tmp_path, capsys):
     # a renumbered unit used to be taken as done while its unit ran again under the "resuming" count
     out = tmp_path / "e"

@@ -177,6 +177,9 @@ def check_options_apply(args: argparse.Namespace) -> None:
     if unread is None:
         return
     given, dest, owners = unread
+    if run == REPORT and dest == "source":  # the option selects a run of its own
+        raise UsageError(f"--report-only and {given} exclude each other: --report-only rebuilds the report of the "
+                         "run in DIR from the trials stored there; give one")
     here = {GRID: "to the simulated grid", IMAGES: f"with --source {args.source}",
             REPORT: "with --report-only"}[run]
     if run == REPORT:

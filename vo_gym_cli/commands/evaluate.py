@@ -199,6 +199,9 @@ def check_options_apply(args: argparse.Namespace) -> None:
     if unread is None:
         return
     given, dest, owners = unread
+    if run == ADAPTIVE and dest == "source":  # the option selects a run of its own
+        raise UsageError(f"--adaptive and {given} exclude each other: --adaptive compares in-frame samplers on "
+                         "simulated frames, --source runs on images; give one")
     here = {SWEEPS: "to the sweeps on simulated matches", ADAPTIVE: "with --adaptive",
             IMAGES: f"with --source {args.source}"}[run]
     why = _why_not(run, dest)

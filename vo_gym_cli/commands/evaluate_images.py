@@ -94,10 +94,11 @@ def run_on_images(args: argparse.Namespace, default_agents: tuple[str, ...], met
     except UsageError:  # the machine cannot render: leave --out as it was
         start.undo()
         raise
-    print(f"vo-gym evaluate: {len(agents)} agent(s) ({', '.join(a.label for a in agents)}) and "
-          f"{len(methods)} classical method(s) ({', '.join(methods) or 'none'}) on {args.source} images "
-          f"({args.resolution}); {args.episodes} episodes x {args.frames_per_episode} frames; budgets "
-          f"{','.join(map(str, budgets))}; seed {args.seed}", flush=True)
+    if not args.json:  # --json: the JSON document alone on stdout
+        print(f"vo-gym evaluate: {len(agents)} agent(s) ({', '.join(a.label for a in agents)}) and "
+              f"{len(methods)} classical method(s) ({', '.join(methods) or 'none'}) on {args.source} images "
+              f"({args.resolution}); {args.episodes} episodes x {args.frames_per_episode} frames; budgets "
+              f"{','.join(map(str, budgets))}; seed {args.seed}", flush=True)
     rows: list[dict[str, Any]] = []
     units = [(a, b) for b in budgets for a in agents] + [(m, b) for b in budgets for m in methods]
     if progress:
