@@ -2,7 +2,7 @@
 # Create .venv and install vo-gym with every extra: dev (tests), peers (OpenCV, PoseLib for the
 # benchmark), superansac (SupeRANSAC for the benchmark; installs only on CPython 3.11 / Linux
 # x86-64, where its wheel exists), train (torch, stable-baselines3, tensorboard, rich), distributed
-# (Ray, PyYAML), images (OpenCV, scikit-image: the image front end) and render (moderngl, glcontext:
+# (Ray, PyYAML), images (OpenCV, scikit-image, Pillow: the image front end) and render (moderngl, glcontext:
 # rendered sequences). Rendering headless on the CPU needs the system's EGL and Mesa (llvmpipe): on
 # Debian/Ubuntu this installs them with apt-get when run as root and they are missing (CI runs it as root).
 # torch is pinned first to the local CPU build: resolving a bare "torch" on a fresh

@@ -55,9 +55,9 @@ def _nan_to_none(value: Any) -> Any:
 
 def _display_weights(n: int, priors: np.ndarray | None, order: np.ndarray | None) -> np.ndarray:
     """``(n,)`` the weights a rendering colours the matches by: the guided priors scaled to mean 1,
-    or the PROSAC order's ranks mapped to 1 (best) .. 0 (worst)."""
+    or the PROSAC order's ranks mapped to 1 (best) .. 0 (worst); empty for a frame without matches."""
     if priors is not None:
-        return priors * (n / priors.sum())
+        return priors * (n / priors.sum()) if n else priors
     weights = np.empty(n)
     weights[order] = 1.0 - np.arange(n) / max(n - 1, 1)
     return weights
@@ -378,7 +378,9 @@ class StereoVOEnv(gym.Env):
         frame = self._frame
         priors = order = None
         if self.sampling == "guided":
-            priors = exp_shifted(values, self.logit_scale)  # np.exp(logits - logits.max()), logits = values * scale
+            # np.exp(logits - logits.max()), logits = values * scale; a frame without matches (a blank image)
+            # has no weights and no maximum: the estimator fails it as it fails a frame of too few matches
+            priors = exp_shifted(values, self.logit_scale) if values.shape[0] else values
         else:
             order = descending_order(values)  # np.argsort(-values, kind="stable"), by radix
 

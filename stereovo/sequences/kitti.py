@@ -10,7 +10,10 @@ benchmark suite", CVPR 2012)::
 
 ``ROOT`` may also be the sequence folder itself (holding ``image_0/``). The rig comes from P0 and
 P1 (``fx, fy, cx, cy`` of P0, ``baseline = -P1[0, 3] / P1[0, 0]``), the image size from the first
-image. Only text and PNG images are read: nothing in the folder can run code.
+image. An image pair is two files of one name in ``image_0/`` and ``image_1/``; a sequence has at least
+two. Each image's header is read before the image (Pillow), so that an image larger than
+:data:`MAX_IMAGE_PIXELS` or of another size than the first is refused before it is decoded (OpenCV).
+Only text and images are read: nothing in the folder can run code.
 
 Labels when poses are known: there are no depth maps, so a match is labelled an inlier when the
 true motion carries its k-1 triangulation onto its k measurement within ``label_tolerance`` px
@@ -21,6 +24,9 @@ these labels are approximate for distant points and near the tolerance.
 from __future__ import annotations
 
 import os
+import re
+import stat
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +34,7 @@ import numpy as np
 
 from stereovo.camera import StereoCamera
 from stereovo.frontend import Matches
+from stereovo.frontend.images import MIN_IMAGE_SIDE
 from stereovo.geometry import invert_transform, relative_motion
 from stereovo.options import Integer, Number
 from stereovo.sequences.base import ImageSequence
@@ -144,20 +151,138 @@ def read_poses(path: Path) -> np.ndarray:
 
 
 def _images(folder: Path) -> list[Path]:
+    """The image files of ``folder`` (names ending in :data:`_IMAGE_SUFFIXES`), sorted by name.
+
+    Raises:
+        FileNotFoundError: no such folder, or no image file in it.
+        ValueError: an entry named like an image that is not a regular file, named, before anything
+            reads it: a FIFO would block the reader forever, a directory or a broken link reads as nothing.
+    """
     if not folder.is_dir():
         raise FileNotFoundError(f"no image folder {folder}")
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() in _IMAGE_SUFFIXES)
     if not files:
         raise FileNotFoundError(f"no images in {folder}")
+    for path in files:
+        try:
+            mode = os.stat(path).st_mode  # through links: a link to an image file is one
+        except OSError as err:  # a broken link, a link loop
+            raise ValueError(f"{path}: not a regular file (a link that leads to no file: {err.strerror})") from None
+        if not stat.S_ISREG(mode):
+            raise ValueError(f"{path}: not a regular file ({_file_kind(mode)})")
     return files
 
 
-def _read_grey(path: Path) -> np.ndarray:
+def _file_kind(mode: int) -> str:
+    """What a file that is not a regular one is, from its ``st_mode``, for a message."""
+    if stat.S_ISDIR(mode):
+        return "a directory"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO: reading it would wait for a writer"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a file of data"
+
+
+MAX_IMAGE_PIXELS = 50_000_000
+"""The most pixels (width x height) an image file may declare; a larger one is refused from its header,
+before any decoding. A decoder allocates the declared size before it reads a pixel: a 69-byte PNG
+header claiming 32768x32768 16-bit RGBA made OpenCV ask for 8 GiB, 389 KB of zeros declaring
+20000x20000 took 830 MB. 50 MP is 100 times a KITTI image (1241x376) and 1.5 times an 8K frame; decoded
+as 16-bit RGBA, the costliest form OpenCV returns, it is 400 MB."""
+
+_JPEG_END = b"\xff\xd9"
+"""JPEG's end-of-image marker (EOI), the last two bytes of a complete file."""
+
+_JPEG_PADDING = b"\x00 \t\r\n"
+"""Bytes some writers append after the end-of-image marker (zeros, whitespace): not a truncation."""
+
+_JPEG_TAIL = 4096
+"""The bytes at a JPEG file's end searched for the end-of-image marker under the padding."""
+
+
+def _declared_size(path: Path) -> tuple[int, int]:
+    """``(width, height)`` (px) that the header of image file ``path`` declares, read without decoding
+    a pixel (Pillow's ``Image.open`` reads the header only).
+
+    Raises:
+        ValueError: naming the file: not a regular file, not a readable image (Pillow identifies no
+            image format in it), more than :data:`MAX_IMAGE_PIXELS` pixels, or a JPEG without its
+            end-of-image marker (truncated: OpenCV would decode the missing part as grey).
+    """
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        # O_NONBLOCK: a FIFO (put there after the folder was listed) opens at once instead of waiting for a writer
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except OSError as err:
+        raise ValueError(f"{path}: not a readable image ({err.strerror})") from None
+    with os.fdopen(fd, "rb") as handle:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            raise ValueError(f"{path}: not a regular file ({_file_kind(mode)})")
+        try:
+            with warnings.catch_warnings():
+                # Pillow's own guard (Image.MAX_IMAGE_PIXELS, a warning then an error) is looser than
+                # MAX_IMAGE_PIXELS; the size is checked below, with this module's message
+                warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+                with Image.open(handle) as image:
+                    (width, height), kind = image.size, image.format
+        except Image.DecompressionBombError as err:
+            # Pillow refuses before it hands over the size; its message holds the pixel count
+            count = re.search(r"\((\d+) pixels\)", str(err))
+            if count is None or int(count.group(1)) <= MAX_IMAGE_PIXELS:  # a lower limit someone set in Pillow
+                raise ValueError(f"{path}: not a readable image (Pillow: {err})") from None
+            raise ValueError(f"{path}: declares an image of {int(count.group(1)):,} pixels; images of at most "
+                             f"{MAX_IMAGE_PIXELS:,} pixels are read (MAX_IMAGE_PIXELS)") from None
+        except UnidentifiedImageError:
+            raise ValueError(f"{path}: not a readable image (no image format Pillow knows begins it: empty, text or "
+                             "damaged)") from None
+        except Exception as err:  # Pillow's format readers raise many types on a malformed header
+            raise ValueError(f"{path}: not a readable image (Pillow: {' '.join(str(err).split())})") from None
+        if width * height > MAX_IMAGE_PIXELS:
+            raise ValueError(f"{path}: declares a {width}x{height} image ({width * height:,} pixels); images of at "
+                             f"most {MAX_IMAGE_PIXELS:,} pixels are read (MAX_IMAGE_PIXELS)")
+        if kind in ("JPEG", "MPO"):  # (MPO: several JPEGs in one file, the last one's marker ends it)
+            end = handle.seek(0, os.SEEK_END)
+            handle.seek(max(end - _JPEG_TAIL, 0))
+            if not handle.read().rstrip(_JPEG_PADDING).endswith(_JPEG_END):
+                raise ValueError(f"{path}: a truncated JPEG (its {end} bytes do not end with the end-of-image "
+                                 f"marker FF D9)")
+    return width, height
+
+
+def _read_grey(path: Path, size: tuple[int, int] | None = None) -> np.ndarray:
+    """Image file ``path`` as a ``(H, W)`` uint8 grey array (a colour image converted, alpha dropped).
+
+    Its header is read first (:func:`_declared_size`): an image over :data:`MAX_IMAGE_PIXELS`, or of
+    another size than ``size`` (``(width, height)`` px, the sequence's: no frame costs more than the
+    first), is refused before a decoder allocates it.
+
+    Raises:
+        ValueError: naming the file (see :func:`_declared_size`), its size against ``size``, an image
+            OpenCV cannot decode or allocate, or one that is not 8-bit.
+    """
     import cv2
 
-    image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
+    width, height = _declared_size(path)
+    if size is not None and (width, height) != tuple(size):
+        raise ValueError(f"{path}: a {width}x{height} image; the sequence's images are {size[0]}x{size[1]}")
+    try:
+        image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
+    except (cv2.error, MemoryError) as err:  # OpenCV's own pixel limit, or an allocation that failed
+        # cv2.error's .err is the reason alone, without OpenCV's source file and function
+        detail = " ".join(str(getattr(err, "err", None) or err).split()) or "out of memory"
+        raise ValueError(f"{path}: not a readable image (OpenCV: {detail})") from None
     if image is None:
-        raise ValueError(f"{path}: not a readable image")
+        raise ValueError(f"{path}: not a readable image (OpenCV decodes no image from it: damaged or truncated)")
+    if image.shape[:2] != (height, width):  # Pillow and OpenCV read the file differently
+        raise ValueError(f"{path}: decoded as a {image.shape[1]}x{image.shape[0]} image, but its header declares "
+                         f"{width}x{height}")
+    if image.ndim == 3 and image.shape[2] not in (3, 4):  # cvtColor would fail with OpenCV's own error
+        raise ValueError(f"{path}: a {image.shape[2]}-channel image; the front end takes grey, BGR or BGRA images")
     if image.ndim == 3:
         image = cv2.cvtColor(image, cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY)
     if image.dtype != np.uint8:
@@ -184,7 +309,10 @@ class KittiOdometry(ImageSequence):
 
     Raises:
         FileNotFoundError: a missing folder, image folder or calib.txt, named.
-        ValueError: malformed calibration or poses, unequal image counts, a bad range.
+        ValueError: malformed calibration or poses, unequal image counts or names, fewer than two image
+            pairs, a bad range, a first image that is unreadable, not a regular file, over
+            :data:`MAX_IMAGE_PIXELS` or under :data:`~stereovo.frontend.images.MIN_IMAGE_SIDE` on a side
+            (a later image is read, and refused likewise, by :meth:`load_images`).
     """
 
     def __init__(self, root: str | os.PathLike, sequence: str | int | None = "00", start: int = 0,
@@ -202,7 +330,10 @@ class KittiOdometry(ImageSequence):
                 raise FileNotFoundError(f"KittiOdometry: {root} holds no image_0/; give sequence= or a sequence folder")
             folder = root / "sequences" / str(name)
             if not folder.is_dir():
-                raise FileNotFoundError(f"KittiOdometry: no sequence folder {folder}")
+                if os.path.lexists(root / "image_0"):  # there, but no folder: what the user meant, unreadable
+                    raise FileNotFoundError(f"KittiOdometry: {root / 'image_0'} is not a folder of images (a file, "
+                                            f"a broken link or a link loop), and there is no sequence folder {folder}")
+                raise FileNotFoundError(f"KittiOdometry: no sequence folder {folder}, and no image_0/ in {root}")
             pose_candidates = [root / "poses" / f"{name}.txt"]
         calib = folder / "calib.txt"
         if not calib.is_file():
@@ -210,15 +341,31 @@ class KittiOdometry(ImageSequence):
         lefts, rights = _images(folder / "image_0"), _images(folder / "image_1")
         if len(lefts) != len(rights):
             raise ValueError(f"KittiOdometry: {len(lefts)} left images but {len(rights)} right images in {folder}")
+        for left, right in zip(lefts, rights):
+            # a pair is two files of one name (the suffix may differ: a PNG and a JPEG of one frame): paired by
+            # position alone, one renamed file would pair every later left image with the next right one
+            if left.stem != right.stem:
+                raise ValueError(f"KittiOdometry: {left} has no right image of its name in {folder / 'image_1'} "
+                                 f"(the one in its place, in name order, is {right.name}): a left and a right image "
+                                 "are paired by name")
         n = len(lefts)
+        if n < 2:  # a run of no frame pairs would pass as a run that went well
+            raise ValueError(f"KittiOdometry: {folder} holds {n} image pair; odometry needs at least 2 (one frame "
+                             "pair)")
         start = Integer(low=0, high=max(n - 2, 0)).check("start", start, prefix="KittiOdometry: ")
         stop = Integer(low=start + 2, high=n, allow_none=True).check("stop", stop, prefix="KittiOdometry: ")
         stop = n if stop is None else stop
         self.label_tolerance = float(Number(low=0.0, low_open=True, unit="px").check(
             "label_tolerance", label_tolerance, prefix="KittiOdometry: "))
         first = _read_grey(lefts[start])
-        camera = read_calibration(calib)
         width, height = int(first.shape[1]), int(first.shape[0])
+        if width < MIN_IMAGE_SIDE or height < MIN_IMAGE_SIDE:
+            # every frame would fail; a simulator setting checked against the size (the environment's
+            # z_max) would be the one blamed
+            raise ValueError(f"KittiOdometry: {lefts[start]} is a {width}x{height} image; the front end finds no "
+                             f"features in images smaller than {MIN_IMAGE_SIDE} px on a side (ORB's border alone "
+                             "is 31 px)")
+        camera = read_calibration(calib)
         if not (0 <= camera.cx <= width and 0 <= camera.cy <= height):
             # a calibration of some other image size: every ray would be bent the wrong way
             raise ValueError(f"KittiOdometry: {calib} puts the principal point at ({camera.cx:g}, {camera.cy:g}) px, "
@@ -243,11 +390,11 @@ class KittiOdometry(ImageSequence):
         return len(self._lefts)
 
     def load_images(self, k: int) -> tuple[np.ndarray, np.ndarray]:
-        left, right = _read_grey(self._lefts[k]), _read_grey(self._rights[k])
-        if left.shape != (self.camera.height, self.camera.width) or right.shape != left.shape:
-            raise ValueError(f"KittiOdometry: image pair {k} ({self._lefts[k].name}) is {left.shape} / {right.shape}, "
-                             f"the sequence's images are {(self.camera.height, self.camera.width)}")
-        return left, right
+        size = (self.camera.width, self.camera.height)  # checked in each header, before decoding
+        try:
+            return _read_grey(self._lefts[k], size), _read_grey(self._rights[k], size)
+        except ValueError as err:
+            raise ValueError(f"KittiOdometry: image pair {k}: {err}") from None
 
     def label(self, k: int, matches: Matches) -> FrameTruth | None:
         if self.true_poses is None:

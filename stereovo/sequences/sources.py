@@ -9,6 +9,7 @@ over it and, when the poses are known, scores it (per-frame success, KITTI drift
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
@@ -24,6 +25,9 @@ SOURCE_FORMS = ("rendered", "rendered:PRESET", "kitti:PATH", "kitti:PATH:SEQ")
 def parse_source(text: str) -> tuple[str, dict[str, Any]]:
     """``("rendered", {"preset": ...})`` or ``("kitti", {"root": PATH, "sequence": SEQ})`` of a source string.
 
+    ``kitti:PATH:SEQ`` with SEQ digits names sequence SEQ of PATH, unless ``PATH:SEQ`` is itself an
+    existing folder: then it is ``kitti:PATH`` with that folder.
+
     Raises:
         ValueError: naming the string and the accepted forms.
     """
@@ -34,7 +38,8 @@ def parse_source(text: str) -> tuple[str, dict[str, Any]]:
         return "rendered", ({"preset": rest} if rest else {})
     if kind == "kitti" and rest:
         head, _, tail = rest.rpartition(":")
-        if head and tail.isdigit():
+        # a folder whose own name ends in ':DIGITS' (e.g. 'run:2024') is that folder, not a sequence of another
+        if head and tail.isdigit() and not Path(rest).expanduser().is_dir():
             return "kitti", {"root": head, "sequence": tail}
         return "kitti", {"root": rest, "sequence": None}
     raise ValueError(f"source must be one of {', '.join(SOURCE_FORMS)}, got {text!r}")
@@ -53,8 +58,6 @@ def open_source(text: str, **options: Any) -> Any:
         from stereovo.sequences.rendered import RenderedSequence
 
         return RenderedSequence(**{**named, **options})
-    from pathlib import Path
-
     from stereovo.sequences.kitti import KittiOdometry
 
     root, sequence = named["root"], named["sequence"]

@@ -260,6 +260,81 @@ def test_a_bad_image_later_in_a_kitti_sequence_is_one_line_and_leaves_out_as_it_
     assert not out.exists()
 
 
+def _header_only_png(width: int, height: int) -> bytes:
+    """A PNG that declares ``width`` x ``height`` grey pixels and holds 64 zero bytes of data."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(b"\0" * 64)) + chunk(b"IEND", b""))
+
+
+@pytest.mark.parametrize("image", ["image_0/000000.png", "image_1/000002.png"])
+def test_an_image_declaring_too_many_pixels_is_one_line_and_leaves_out_as_it_was(tmp_path, capsys, image):
+    """A header claiming 100000x100000 px made OpenCV raise cv2.error: a traceback (and, for a later image,
+    an empty --out left behind). It is one line naming the file, from its header, before decoding."""
+    pytest.importorskip("cv2")
+    from tests.support.images import write_image_folder
+
+    folder = write_image_folder(tmp_path / "seq")
+    (folder / image).write_bytes(_header_only_png(100000, 100000))
+    out = tmp_path / "k"
+    assert main(["vo", "--source", f"kitti:{folder}", "--no-progress", "--out", str(out)]) == 2
+    line = one_line_error(capsys, "vo")
+    assert line.startswith(f"vo-gym vo: error: --source kitti:{folder}") and line.endswith(
+        f"{image}: declares an image of 10,000,000,000 pixels; images of at most 50,000,000 pixels are read "
+        "(MAX_IMAGE_PIXELS)"), line
+    assert not out.exists()
+
+
+def test_an_opencv_error_or_a_crash_during_the_run_leaves_out_as_it_was(tmp_path, capsys, monkeypatch):
+    """Should OpenCV's own error reach the command while the sequence is read, it is one line (exit 2),
+    not a traceback; any other error still propagates, but without the --out folder it created."""
+    cv2 = pytest.importorskip("cv2")
+    from stereovo.sequences.kitti import KittiOdometry
+    from tests.support.images import write_image_folder
+
+    folder = write_image_folder(tmp_path / "seq")
+    real = KittiOdometry.load_images
+    for error, expected in ((cv2.error("Failed to allocate 8589934592 bytes"), 2), (RuntimeError("a bug"), None)):
+        def load_images(self, k, error=error):
+            if k == 2:
+                raise error
+            return real(self, k)
+
+        monkeypatch.setattr(KittiOdometry, "load_images", load_images)
+        out = tmp_path / "k"
+        argv = ["vo", "--source", f"kitti:{folder}", "--no-progress", "--out", str(out)]
+        if expected is None:
+            with pytest.raises(RuntimeError, match="a bug"):
+                main(argv)
+        else:
+            assert main(argv) == expected
+            assert one_line_error(capsys, "vo").endswith(f"--source kitti:{folder}: Failed to allocate 8589934592 "
+                                                         "bytes")
+        assert not out.exists()
+
+
+def test_a_learned_sampler_on_frames_without_matches_fails_the_frames_and_goes_on(tmp_path, capsys):
+    """Blank images give frames of no matches: a one-shot sampler's guided weights took the maximum of
+    no logits and aborted the run (exit 2, numpy's message); the frames now fail, as without --agent."""
+    pytest.importorskip("cv2")
+    pytest.importorskip("torch")
+    from tests.support.images import write_image_folder
+
+    folder = write_image_folder(tmp_path / "blank", blank=True)
+    for agent in ([], ["--agent", "ngransac-supervised"]):
+        out = tmp_path / f"run{len(agent)}"
+        assert main(["vo", "--source", f"kitti:{folder}", "--frames", "2", "--method", "msac", *agent,
+                     "--no-progress", "--out", str(out)]) == 0
+        metrics = json.loads((out / "summary.json").read_text())["metrics"]
+        assert metrics["frames"] == 2 and metrics["failed_frames"] == 2, metrics
+    assert "2 failed" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("source, needle", [
     ("bogus", "--source must be one of rendered, rendered:PRESET, kitti:PATH, kitti:PATH:SEQ, got 'bogus'"),
     ("rendered:plane", "--source 'rendered:plane': the rendered preset must be one of car, free, got 'plane'"),

@@ -197,3 +197,41 @@ def test_gymnasium_tools_render_it_or_pass_render_mode_none():
     env.step(np.zeros(100, np.float32))
     image = env.render()
     assert image.ndim == 3 and image.shape[2] == 3 and image.dtype == np.uint8 and image.std() > 0
+
+
+@pytest.mark.parametrize("kwargs", [{}, {"sampling": "prosac"}, {"reward_mode": "msac"},
+                                    {"render_mode": "rgb_array"}])
+def test_a_frame_without_matches_is_a_failed_frame(tmp_path, kwargs):
+    """Blank images give a frame of no matches: a failed frame (success False, the failure reward, the
+    constant-velocity fallback), as a frame of too few matches is; the guided priors' maximum of no
+    logits raised numpy's "zero-size array" error from the step."""
+    import warnings
+
+    from tests.support.images import write_image_folder
+
+    folder = write_image_folder(tmp_path / "blank", blank=True, poses=True)
+    env = gym.make("vo_gym/StereoVOImages-v0", source=f"kitti:{folder}", n_frames=1, max_correspondences=100,
+                   **kwargs)
+    obs, _ = env.reset(seed=0)
+    assert env.unwrapped.current_frame.n == 0 and not obs["mask"].any()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # (the rendering's weights divided 0 by 0)
+        obs, reward, terminated, truncated, info = env.step(np.zeros(100, np.float32))
+        assert reward == -1.0 and not info["success"] and info["fallback"] and not terminated and truncated
+        assert info["status"] == "failed: too few correspondences (0, need 6)"
+        assert info["trajectory"]["failed_frames"] == 1
+        if "render_mode" in kwargs:
+            assert env.render().shape[2] == 3
+    env.close()
+
+
+def test_images_too_small_for_features_are_refused_naming_their_size(tmp_path):
+    """2x2 images were refused as 'invalid simulator setting: SimulationConfig.z_max ...', a setting
+    the user never gave: the loader refuses them, naming the image and its size."""
+    from tests.support.images import write_image_folder
+
+    folder = write_image_folder(tmp_path / "tiny", width=2, height=2, poses=True)
+    with pytest.raises(ValueError, match=r"tiny/image_0/000000.png is a 2x2 image; the front end finds no features") \
+            as err:
+        gym.make("vo_gym/StereoVOImages-v0", source=f"kitti:{folder}", n_frames=1, max_correspondences=100)
+    assert "z_max" not in str(err.value)

@@ -158,6 +158,8 @@ class _LearnedSampling:
                             dtype=np.float64)
         if self.order:
             return np.argsort(-logits, kind="stable")
+        if logits.size == 0:  # a frame without matches (a blank image): no weights; the estimate fails the frame
+            return logits
         return np.exp(logits - logits.max())  # guided-sampling weights, softmax up to a constant
 
     def observe(self, frame: Any, estimate: Any) -> None:
@@ -393,12 +395,26 @@ def _write_trajectory(out: Path, estimate: Any, settings: dict[str, Any], header
     print(f"  wrote {out}/: trajectory_est.tum, trajectory_est.kitti.txt, frames.csv, odometry.png, summary.json")
 
 
+def _read_errors() -> tuple[type[BaseException], ...]:
+    """What reading a source's images may raise on a bad file: the loaders' ValueError and OSError, and,
+    should one reach here, OpenCV's own error and a failed allocation (an image too large to decode)."""
+    import cv2
+
+    return ValueError, OSError, MemoryError, cv2.error
+
+
+def _source_error(args: argparse.Namespace, err: BaseException) -> UsageError:
+    """``--source SOURCE: REASON`` on one line."""
+    reason = " ".join(str(err).split()) or type(err).__name__
+    return UsageError(f"--source {args.source}: {reason}")
+
+
 def _open_source(args: argparse.Namespace) -> Any:
     """The image sequence ``--source`` names, its extras checked first; errors name ``--source``."""
     from stereovo.sequences.sources import open_source, parse_source as parse
 
     kind, named = parse(args.source)
-    require_extra("images", "cv2", context=f"--source {args.source}")
+    require_extra("images", "cv2", "PIL", context=f"--source {args.source}")
     if kind == "rendered":
         require_extra("render", "moderngl", "glcontext", context=f"--source {args.source}")
     from stereovo.sequences.rendering import RenderingUnavailable
@@ -413,8 +429,8 @@ def _open_source(args: argparse.Namespace) -> Any:
         if sequence.n_images() > args.frames + 1:  # the first --frames pairs
             sequence = open_source(args.source, noise_sigma=args.noise, stop=args.frames + 1, **frontend)
         return sequence
-    except (FileNotFoundError, ValueError, RenderingUnavailable) as err:
-        raise UsageError(f"--source {args.source}: {' '.join(str(err).split())}") from None
+    except (*_read_errors(), RenderingUnavailable) as err:
+        raise _source_error(args, err) from None
 
 
 def _run_source(args: argparse.Namespace) -> int:
@@ -428,11 +444,14 @@ def _run_source(args: argparse.Namespace) -> int:
         try:
             result = run_image_odometry(sequence, method=args.method, seed=args.seed,
                                         progress=not args.no_progress, **sampling)
-        except (ValueError, OSError) as err:
+        except _read_errors() as err:
             # a file read as the sequence goes on (only its first image pair is read when it opens): an
             # unreadable or mis-sized image; --out is left as it was
             start.undo()
-            raise UsageError(f"--source {args.source}: {' '.join(str(err).split())}") from None
+            raise _source_error(args, err) from None
+        except BaseException:  # anything else (a bug, Ctrl-C) before a result is written: --out as it was
+            start.undo()
+            raise
     finally:
         close = getattr(sequence, "close", None)
         if close is not None:

@@ -2,13 +2,19 @@
 
 from __future__ import annotations
 
+import os
+import struct
+import warnings
+import zlib
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from stereovo.estimation import estimate_motion
 from stereovo.metrics import frame_metrics
 from stereovo.sequences import KittiOdometry
-from tests.support.images import write_kitti
+from tests.support.images import write_image_folder, write_kitti
 
 
 pytest.importorskip("cv2", reason="the image front end needs OpenCV: pip install 'vo-gym[images]'")
@@ -138,3 +144,181 @@ def test_kitti_principal_point_outside_the_images_is_refused(tmp_path, short):
     with pytest.raises(ValueError, match=r"calib.txt puts the principal point at \(\d+(\.\d+)?, [\d.]+\) px, "
                                          r"outside the \d+x\d+ images of .*image_0"):
         KittiOdometry(tmp_path, "03")
+
+
+# ---------------------------------------------------------------- hostile image files
+
+
+def _png_header(width: int, height: int, bit_depth: int = 8, colour: int = 0) -> bytes:
+    """A PNG of a header and 64 zero bytes of data: a decoder allocates the declared image before it
+    finds the data missing (``colour`` 0 grey, 6 RGBA)."""
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    header = struct.pack(">IIBBBBB", width, height, bit_depth, colour, 0, 0, 0)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(b"\0" * 64))
+            + chunk(b"IEND", b""))
+
+
+@pytest.fixture
+def decoded(monkeypatch):
+    """The names of the files OpenCV's imread is asked to decode, in order."""
+    import cv2
+
+    names: list[str] = []
+    real = cv2.imread
+
+    def imread(path, *args):
+        names.append(Path(path).name)
+        return real(path, *args)
+
+    monkeypatch.setattr(cv2, "imread", imread)
+    return names
+
+
+@pytest.mark.parametrize("width, height, declared", [
+    (8000, 7000, r"a 8000x7000 image \(56,000,000 pixels\)"),  # under Pillow's own limit
+    (10000, 10000, r"a 10000x10000 image \(100,000,000 pixels\)"),  # Pillow warns
+    (100000, 100000, r"an image of 10,000,000,000 pixels"),  # Pillow refuses; OpenCV raised cv2.error
+])
+def test_an_image_over_the_pixel_cap_is_refused_from_its_header(tmp_path, decoded, width, height, declared):
+    """A header declaring a huge image made OpenCV allocate it (8 GiB for 69 bytes claiming 32768x32768
+    16-bit RGBA) or raise its own cv2.error: it is refused from the header, naming the file and the
+    size, before any decoding, and no warning of Pillow's leaks."""
+    folder = write_image_folder(tmp_path / "seq")
+    (folder / "image_0" / "000000.png").write_bytes(_png_header(width, height))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match=r"seq/image_0/000000.png: declares " + declared + r"; images of at most "
+                                             r"50,000,000 pixels are read \(MAX_IMAGE_PIXELS\)$"):
+            KittiOdometry(folder, None)
+    assert decoded == []
+
+
+def test_an_image_opencv_cannot_allocate_is_refused_naming_the_file(tmp_path, monkeypatch):
+    """OpenCV 5 raises cv2.error (not None) for an image over its own pixel limit or one it cannot
+    allocate: the loader says "not a readable image" of the file, as of any other. (The cap is lifted
+    here so that the header reaches OpenCV.)"""
+    from PIL import Image
+
+    import stereovo.sequences.kitti as kitti
+
+    monkeypatch.setattr(kitti, "MAX_IMAGE_PIXELS", 10**12, raising=False)
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", None)
+    folder = write_image_folder(tmp_path / "seq")
+    (folder / "image_0" / "000000.png").write_bytes(_png_header(100000, 100000))
+    with pytest.raises(ValueError, match=r"seq/image_0/000000.png: not a readable image \(OpenCV: .*PIXELS"):
+        KittiOdometry(folder, None)
+
+
+def test_a_later_image_of_another_size_is_refused_from_its_header(tmp_path, decoded):
+    """No frame costs more than the first: an image declaring another size than the sequence's first is
+    refused, naming it and both sizes, before OpenCV decodes it."""
+    folder = write_image_folder(tmp_path / "seq")  # 128x96
+    (folder / "image_1" / "000002.png").write_bytes(_png_header(4000, 3000))
+    sequence = KittiOdometry(folder, None)
+    assert sequence.images(1)[1].shape == (96, 128)
+    with pytest.raises(ValueError, match=r"KittiOdometry: image pair 2: .*seq/image_1/000002.png: a 4000x3000 "
+                                         r"image; the sequence's images are 128x96$"):
+        sequence.images(2)
+    assert decoded[-1] == "000002.png" and len(decoded) == 4  # the first image, pair 1 and pair 2's left only
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs on this platform")
+def test_an_entry_named_like_an_image_that_is_not_a_regular_file_is_refused_before_reading(tmp_path, decoded):
+    """A FIFO named 000001.png made imread wait for a writer forever; a directory or a link loop so
+    named read as nothing. Each is refused when the folder is listed, named, before anything reads it."""
+    folder = write_image_folder(tmp_path / "seq")
+    fifo = folder / "image_0" / "000001.png"
+    fifo.unlink()
+    os.mkfifo(fifo)
+    with pytest.raises(ValueError, match=r"seq/image_0/000001.png: not a regular file \(a FIFO"):
+        KittiOdometry(folder, None)
+    fifo.unlink()
+    fifo.mkdir()
+    with pytest.raises(ValueError, match=r"seq/image_0/000001.png: not a regular file \(a directory\)$"):
+        KittiOdometry(folder, None)
+    fifo.rmdir()
+    fifo.symlink_to(fifo.name)  # a link to itself
+    with pytest.raises(ValueError, match=r"seq/image_0/000001.png: not a regular file \(a link that leads to no "
+                                         r"file: .*symbolic links\)$"):
+        KittiOdometry(folder, None)
+    assert decoded == []
+    # a dot-file ('.png', a link loop too) is no image's name: skipped, as any hidden file
+    (folder / "image_1" / ".png").symlink_to(".png")
+    fifo.unlink()
+    (folder / "image_1" / "000001.png").rename(folder / "image_1" / "000001.bak")
+    assert len(KittiOdometry(folder, None)) == 1  # image pairs 000000 and 000002
+
+
+def test_left_and_right_images_are_paired_by_name(tmp_path):
+    """image_1/000001.png renamed 000009.png paired left 1 with right 2 (and left 2 with right 9)
+    without a word: a left image without a right one of its name is refused, naming both files."""
+    folder = write_image_folder(tmp_path / "seq")
+    (folder / "image_1" / "000001.png").rename(folder / "image_1" / "000009.png")
+    with pytest.raises(ValueError, match=r"KittiOdometry: .*seq/image_0/000001.png has no right image of its name "
+                                         r"in .*seq/image_1 \(the one in its place, in name order, is 000002.png\)"):
+        KittiOdometry(folder, None)
+    (folder / "image_1" / "000009.png").rename(folder / "image_1" / "000001.jpg")  # (a PNG named .jpg)
+    assert len(KittiOdometry(folder, None)) == 2  # one name, another suffix: a pair
+
+
+def test_a_truncated_jpeg_is_refused_and_a_padded_one_read(tmp_path):
+    """OpenCV decodes a truncated JPEG with its missing part grey, without an error: a JPEG that does not
+    end with the end-of-image marker is refused as truncated; zeros or whitespace after it are padding."""
+    import cv2
+
+    folder = write_image_folder(tmp_path / "seq")
+    left = folder / "image_0" / "000001.png"
+    ok, data = cv2.imencode(".jpg", cv2.imread(str(left), cv2.IMREAD_UNCHANGED))
+    assert ok and data.tobytes().endswith(b"\xff\xd9")
+    left.unlink()
+    jpeg = left.with_suffix(".jpg")
+    jpeg.write_bytes(data.tobytes()[: data.size // 2])
+    sequence = KittiOdometry(folder, None)
+    with pytest.raises(ValueError, match=r"image pair 1: .*seq/image_0/000001.jpg: a truncated JPEG \(its \d+ bytes "
+                                         r"do not end with the end-of-image marker FF D9\)$"):
+        sequence.images(1)
+    jpeg.write_bytes(data.tobytes() + b"\0" * 100 + b"\n")
+    assert np.array_equal(sequence.images(1)[0], cv2.imdecode(data, cv2.IMREAD_UNCHANGED))
+
+
+def test_a_sequence_needs_two_image_pairs(tmp_path):
+    """One image pair gave a run of no frames that reported success: refused, naming the folder and the count."""
+    folder = write_image_folder(tmp_path / "seq", n=1)
+    with pytest.raises(ValueError, match=r"KittiOdometry: .*seq holds 1 image pair; odometry needs at least 2"):
+        KittiOdometry(folder, None)
+
+
+def test_images_too_small_for_features_are_refused_naming_the_size(tmp_path):
+    """2x2 images ran as frames that all failed, and the images environment blamed its z_max, a
+    setting the user never gave: images under 64 px on a side are refused by the loader."""
+    folder = write_image_folder(tmp_path / "seq", width=2, height=2)
+    with pytest.raises(ValueError, match=r"KittiOdometry: .*seq/image_0/000000.png is a 2x2 image; the front end "
+                                         r"finds no features in images smaller than 64 px on a side"):
+        KittiOdometry(folder, None)
+    assert len(KittiOdometry(write_image_folder(tmp_path / "edge", width=64, height=64), None)) == 2
+
+
+def test_unreadable_images_name_the_file_and_why(tmp_path):
+    folder = write_image_folder(tmp_path / "seq")
+    (folder / "image_0" / "000000.png").write_text("hello, not an image\n")
+    with pytest.raises(ValueError, match=r"seq/image_0/000000.png: not a readable image \(no image format Pillow "
+                                         r"knows begins it: empty, text or damaged\)$"):
+        KittiOdometry(folder, None)
+
+
+def test_an_image_0_that_is_no_folder_is_named(tmp_path):
+    """image_0 as a link loop, or a folder without it, reported only the sequences/00 folder that was
+    looked for instead (kitti:PATH with no image_0/ is read as a dataset's sequence 00)."""
+    from stereovo.sequences import open_source
+
+    folder = tmp_path / "seq"
+    folder.mkdir()
+    with pytest.raises(FileNotFoundError, match=r"KittiOdometry: no sequence folder .*seq/sequences/00, and no "
+                                                r"image_0/ in .*seq$"):
+        open_source(f"kitti:{folder}")
+    (folder / "image_0").symlink_to("image_0")
+    with pytest.raises(FileNotFoundError, match=r"KittiOdometry: .*seq/image_0 is not a folder of images \(a file, a "
+                                                r"broken link or a link loop\), and there is no sequence folder"):
+        KittiOdometry(folder)

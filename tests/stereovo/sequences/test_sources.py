@@ -8,7 +8,7 @@ import pytest
 from stereovo.geometry import relative_motion, rotation_error
 from stereovo.sequences import open_source, run_image_odometry
 from stereovo.sequences.sources import TrajectoryEstimate, parse_source
-from tests.support.images import write_kitti
+from tests.support.images import write_image_folder, write_kitti
 
 
 pytest.importorskip("cv2", reason="the image front end needs OpenCV: pip install 'vo-gym[images]'")
@@ -46,3 +46,11 @@ def test_rendered_odometry_scores_a_short_run(short):
     result = run_image_odometry(short)
     assert result.n_frames == 3 and result.column("success").all()
     assert result.trajectory.ate_aligned_m < 0.05
+
+
+def test_a_folder_whose_name_ends_in_colon_digits_is_that_folder(tmp_path):
+    """kitti:/path/seq:2024 was read as sequence 2024 of /path/seq even where /path/seq:2024 is a folder."""
+    folder = write_image_folder(tmp_path / "seq:2024")
+    assert parse_source(f"kitti:{folder}") == ("kitti", {"root": str(folder), "sequence": None})
+    assert len(open_source(f"kitti:{folder}")) == 2
+    assert parse_source(f"kitti:{tmp_path / 'seq'}:7") == ("kitti", {"root": str(tmp_path / "seq"), "sequence": "7"})
