@@ -409,8 +409,8 @@ def test_vo_agent_errors_are_one_line(tmp_path, capsys):
     (["--source", "rendered:free", "--auc", "0.9"], "--auc 0.9 applies to simulated matches only"),
     (["--resolution", "vga"], "--resolution vga applies to a rendered --source only, not to simulated matches"),
     (["--source", "kitti:/data", "--resolution", "vga"],
-     "--resolution vga applies to a rendered or simulated sequence, not to --source kitti:/data"),
-    (["--source", "kitti:/data", "--preset", "free"], "--preset free applies to a rendered or simulated sequence"),
+     "--resolution vga applies to a rendered --source, not to --source kitti:/data"),
+    (["--source", "kitti:/data", "--preset", "free"], "--preset free applies to a rendered --source or simulated matches, not to"),
     (["--source", "rendered:free", "--preset", "car"], "--preset car contradicts --source rendered:free"),
 ])
 def test_an_option_the_input_would_ignore_is_refused_naming_it(tmp_path, capsys, args, needle):

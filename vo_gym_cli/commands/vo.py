@@ -282,10 +282,11 @@ def check_source_options(args: argparse.Namespace) -> None:
         raise UsageError(f"{flag} {shown} applies to simulated matches only, not to --source {args.source}")
     kind, named = parse(args.source)
     if kind != "rendered":
-        for flag, value in (("--resolution", args.resolution), ("--preset", args.preset)):
+        # --preset also sets the simulated drive; --resolution is the rendering's alone
+        for flag, value, owners in (("--resolution", args.resolution, "a rendered --source"),
+                                    ("--preset", args.preset, "a rendered --source or simulated matches")):
             if value is not None:
-                raise UsageError(f"{flag} {value} applies to a rendered or simulated sequence, not to "
-                                 f"--source {args.source}")
+                raise UsageError(f"{flag} {value} applies to {owners}, not to --source {args.source}")
         return
     if args.preset is not None and named.get("preset", args.preset) != args.preset:
         raise UsageError(f"--preset {args.preset} contradicts --source {args.source}")
