@@ -504,7 +504,7 @@ def test_readme_example():
     assert namespace["truncated"]  # the loop ran exactly one episode
     text = out.getvalue().strip()
     assert text.startswith("success rate ")
-    assert float(text.split()[-1]) >= 0.6  # the heuristic clearly beats uniform sampling (about 0.3 here)
+    assert float(text.split()[-1]) >= 0.6  # the heuristic (0.9) clearly beats uniform sampling (0.38 on these frames)
 
 
 @pytest.mark.parametrize("name,value", [
