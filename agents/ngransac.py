@@ -32,6 +32,7 @@ import torch
 from agents.checkpoint import load_checkpoint, save_checkpoint
 from agents.network import CorrespondenceNet
 from agents.network_size import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE, correspondence_net_parameters
+from agents.training_limits import MAX_TRAINING_STEPS
 from stereovo.estimation import (
     EstimatorOptions,
     MotionEstimate,
@@ -41,14 +42,38 @@ from stereovo.estimation import (
     method_spec,
     run_ransac,
 )
+from stereovo.estimation.estimator_options import MAX_COUNT
 from stereovo.geometry import rotation_error
 from stereovo.metrics import pose_error_ratio
+from stereovo.options import Integer, Number, Option, check_options, value_repr
 from stereovo.simulation import OUTLIER_KINDS, Frame, Sequence, SimulationConfig
+from stereovo.simulation.config import MAX_CORRESPONDENCES, MAX_FRAMES
 from vo_gym.settings import DEFAULT_ESTIMATOR_OPTIONS
 from vo_gym.features import N_FEATURES, compute_features
 
 LOSSES = ("supervised", "self-supervised", "self-supervised-smooth")
 LOSS_CAP = 4.0  # a pose that misses the success region by 4x or more all counts the same
+
+_NGRANSAC_RULES: dict[str, Option] = {
+    # counts within the caps of the estimator (hypotheses), the simulator (matches, frames) and
+    # agents.training_limits (training length, evaluations), so that a typo fails here, naming the field
+    "budget": Integer(low=1, high=MAX_COUNT),
+    "pools": Integer(low=1, high=MAX_COUNT),
+    "n_correspondences": Integer(low=3, high=MAX_CORRESPONDENCES),
+    "frames_per_sequence": Integer(low=1, high=MAX_FRAMES),
+    **{name: Integer(low=1, high=MAX_TRAINING_STEPS) for name in ("frames", "eval_every", "eval_frames")},
+    "seed": Integer(low=0),
+    "learning_rate": Number(low=0.0, low_open=True),
+    "eval_epsilon": Number(low=0.0, high=1.0, high_open=True),
+}
+"""The declarations :class:`NGRansacConfig`'s numbers are checked and normalised by (:mod:`stereovo.options`)."""
+
+RESUMABLE_FIELDS = ("frames", "seed", "eval_every")
+"""The config fields a resumed run may change (:meth:`NGRansacTrainer.resume`): how long to train
+(``frames``, the new total), the seed of the continuation and the evaluation period. The others are
+the run's: its network, loss, budget, pools, learning rate (the optimiser's state carries it),
+simulated training frames (contamination, matches, sequence length) and evaluation size (its history
+compares the evaluations)."""
 
 
 @dataclass
@@ -61,9 +86,12 @@ class NGRansacConfig:
             frame's estimated motion: a vehicle's motion is smooth, a moving object's consensus is
             not the camera's; still no ground truth).
         epsilon_range: contamination drawn per frame.
-        budget: hypotheses per pool (M), the environment's budget.
-        pools: pools per frame (K); their mean loss is the baseline.
-        frames: training frames (policy-gradient steps).
+        budget: hypotheses per pool (M), the environment's budget (at most
+            :data:`~stereovo.estimation.estimator_options.MAX_COUNT`).
+        pools: pools per frame (K, at least 2); their mean loss is the baseline.
+        frames: training frames (policy-gradient steps; at most
+            :data:`~agents.training_limits.MAX_TRAINING_STEPS`, as are ``eval_every`` and ``eval_frames``).
+        learning_rate: Adam's step size (> 0).
         method: core method that fits and scores each pool.
         max_grad_norm: the policy gradient's norm is clipped to this (None: no clipping). One
             outsized step can push the softmax onto a few points whose triplets all fail; then
@@ -106,7 +134,9 @@ class NGRansacConfig:
         lo, hi = self.epsilon_range
         if not 0 <= lo <= hi < 1:
             raise ValueError(f"epsilon_range must satisfy 0 <= low <= high < 1, got {self.epsilon_range}")
-        for name in ("budget", "pools", "frames", "frames_per_sequence", "width", "blocks", "eval_frames"):
+        for name, value in check_options(_NGRANSAC_RULES, vars(self), prefix="", only=_NGRANSAC_RULES).items():
+            setattr(self, name, value)
+        for name in ("width", "blocks"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         # a network a checkpoint can hold (agents.checkpoint refuses larger ones at load)
@@ -368,6 +398,18 @@ class NGRansacTrainer:
 
     @classmethod
     def resume(cls, path: str | Path, **overrides) -> "NGRansacTrainer":
+        """The trainer of the checkpoint ``path`` (network, optimiser state, step count, history), to
+        continue training with :meth:`train`; ``overrides`` change the fields of
+        :data:`RESUMABLE_FIELDS` only (``frames``: the new total).
+
+        Raises:
+            ValueError: an override of another field (the checkpoint fixes it), naming it and the value;
+                an unusable checkpoint (:class:`~agents.checkpoint.CheckpointError`, naming the file).
+        """
+        fixed = [f"{k}={value_repr(v)}" for k, v in overrides.items() if k not in RESUMABLE_FIELDS]
+        if fixed:
+            raise ValueError(f"NGRansacTrainer.resume: the checkpoint {path} fixes {', '.join(fixed)}; a resumed run"
+                             f" changes only {', '.join(RESUMABLE_FIELDS)}")
         net, payload = load_checkpoint(path)
         cfg = {k: v for k, v in payload["config"].items() if k != "algo"}
         cfg.update(overrides)

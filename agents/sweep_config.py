@@ -12,8 +12,11 @@ file can run code or exhaust memory; see :func:`load_sweep`) holds:
   ``{randint: [lo, hi]}`` (random, drawn per sample); ``seed`` is an axis like any other;
 - ``samples``: how many times the grid is repeated (random axes get a new draw each time), 1 to
   :data:`MAX_SAMPLES` (1000; default 1);
-- ``report_every``: trainer steps (NG-RANSAC frames, PPO environment steps) between reports;
-- ``metric``: the held-out success rate at a budget: the environment ``env_id`` with ``budget``
+- ``report_every``: trainer steps (NG-RANSAC frames, PPO environment steps) between reports, at most
+  :data:`~agents.training_limits.MAX_TRAINING_STEPS` (the trainers' own counts have the same cap);
+- ``metric``: the held-out success rate at a budget: the environment ``env_id`` (a registered step
+  id, :data:`vo_gym.registration.STEP`, such as ``vo_gym/StereoVO-v0``; so must a PPO sweep's own
+  ``env_id`` be) with ``budget``
   hypotheses per frame, contamination ``epsilon``, ``n`` correspondences, ``episodes`` episodes of
   ``frames_per_episode`` frames from seeds ``seed + i`` (kept away from training seeds), the
   trained policy acting through :func:`agents.rollout.success_rate`, as ``vo-gym evaluate`` does
@@ -22,6 +25,10 @@ file can run code or exhaust memory; see :func:`load_sweep`) holds:
 - ``scheduler``: ``{type: asha, grace_period: G, reduction_factor: R}`` (default: ASHA early
   stopping on the metric, rungs counted in reports) or ``{type: fifo}`` (every trial to the end);
 - ``search_seed``: seeds the draws of the random axes (default 0): the same file gives the same trials.
+
+Numbers with an exponent need a dot and a signed exponent: YAML 1.1, which PyYAML reads, takes
+``1e-4`` for a string, and ``1.0e-4`` for the number (a quoted number is a string too). Such text in a
+numeric field is refused, and the message says how to write it (:func:`yaml_number_hint`).
 
 :func:`load_sweep` reads a file, :func:`parse_sweep` checks a loaded mapping; both raise a one-line
 ``ValueError`` naming the file, the key and the value. Running the sweep is :mod:`agents.sweep`'s.
@@ -32,12 +39,14 @@ from __future__ import annotations
 import collections.abc
 import math
 import os
+import re
 import types
 import typing
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+from agents.training_limits import MAX_TRAINING_STEPS
 from stereovo.estimation.estimator_options import MAX_COUNT
 from stereovo.options import Integer, Number, Option, check_options, is_finite_real, is_integer, value_repr
 from stereovo.simulation.config import MAX_CORRESPONDENCES, MAX_FRAMES
@@ -58,6 +67,7 @@ __all__ = [
     "field_rules",
     "load_sweep",
     "parse_sweep",
+    "yaml_number_hint",
 ]
 
 ALGOS = ("ngransac", "ppo")
@@ -141,7 +151,8 @@ class SweepSpec:
 
     @property
     def n_reports(self) -> int:
-        return max(1, math.ceil(self.total_steps / self.report_every))
+        """Reports of one trial: ``ceil(total_steps / report_every)``, in integers (no float to overflow)."""
+        return max(1, -(-self.total_steps // self.report_every))
 
     def trainer_config(self, params: Mapping[str, Any]):
         """The trainer's config for one trial's parameters (validated by the trainer's config class)."""
@@ -210,7 +221,43 @@ class FieldRule:
             return
         if not self.accepts(value):
             raise ValueError(f"{source}: {where} must be {self.rule}{' or null' if self.optional else ''},"
-                             f" got {value_repr(value)}")
+                             f" got {value_repr(value)}{yaml_number_hint(value, integer=self.rule == 'an integer')}")
+
+
+_YAML_EXPONENT = re.compile(r"([-+]?)(\d+)(?:\.(\d*))?[eE]([-+]?)(\d+)")
+
+
+def yaml_number_hint(value: Any, integer: bool = False) -> str:
+    """What a message adds for text that reads as a number, or for a list holding such text: YAML 1.1,
+    which PyYAML reads, takes ``1e-4`` for a string (its floats need a dot and a signed exponent,
+    ``1.0e-4``), and a quoted number is a string too. Returns `` (YAML reads '1e-4' as text; write
+    1.0e-4 ...)`` naming the spelling that reads as the number (``integer``: the digits of a whole
+    number), or ``""`` for anything else."""
+    if isinstance(value, (list, tuple)):
+        return next((hint for hint in (yaml_number_hint(v, integer) for v in value[:16]) if hint), "")
+    if not isinstance(value, str) or len(value) > 60:
+        return ""
+    try:
+        number = float(value)
+    except ValueError:
+        return ""
+    if not math.isfinite(number):
+        return ""
+    if integer and number.is_integer():
+        return f" (YAML reads {value!r} as text; write {int(number)})"
+    match = _YAML_EXPONENT.fullmatch(value.strip())
+    if match:
+        sign, whole, fraction, exponent_sign, exponent = match.groups()
+        spelled = f"{sign}{whole}.{fraction or '0'}e{exponent_sign or '+'}{exponent}"
+        return f" (YAML reads {value!r} as text; write {spelled}: a YAML float needs a dot and a signed exponent)"
+    return f" (YAML reads {value!r} as text; write {number!r}, without quotes)"
+
+
+def _hinted(message: str, values: Mapping[str, Any]) -> str:
+    """``message`` (``KEY must be ..., got VALUE``) with :func:`yaml_number_hint`'s words for the value
+    of the key it starts with, one of ``values``' keys."""
+    key = message.removeprefix("sweep ").split(" ", 1)[0]
+    return message + (yaml_number_hint(values[key], integer="must be an integer" in message) if key in values else "")
 
 
 def _finite_list(length: int) -> Callable[[Any], bool]:
@@ -336,7 +383,7 @@ def parse_sweep(data: Any, source: str = "sweep") -> SweepSpec:
         if kind in ("uniform", "loguniform", "randint"):
             if len(values) != 2 or not all(map(is_finite_real, values)) or not values[0] < values[1]:
                 raise ValueError(f"{source}: {where} must be [low, high] finite numbers with low < high,"
-                                 f" got {value_repr(values)}")
+                                 f" got {value_repr(values)}{yaml_number_hint(values)}")
             if kind == "loguniform" and values[0] <= 0:
                 raise ValueError(f"{source}: {where} needs low > 0, got {value_repr(values)}")
             if kind == "randint" and not all(isinstance(v, int) for v in values):
@@ -347,6 +394,12 @@ def parse_sweep(data: Any, source: str = "sweep") -> SweepSpec:
                 if rule is not None:
                     rule.check(source, f"{where}[{i}]", value)
         space[key] = {kind: list(values)}
+    if algo == "ppo":  # the id PPO trains in: a step environment, as the metric's
+        ids = [("fixed.env_id", fixed["env_id"])] if isinstance(fixed.get("env_id"), str) else []
+        for kind, values in space.get("env_id", {}).items():
+            ids += [(f"space.env_id.{kind}[{i}]", v) for i, v in enumerate(values) if isinstance(v, str)]
+        for where, env_id in ids:
+            _check_step_env(source, where, env_id, "PPO trains in one of")
     clash = set(space) & set(fixed)
     if clash:
         raise ValueError(f"{source}: {_keys(clash)} both fixed and searched")
@@ -362,10 +415,14 @@ def parse_sweep(data: Any, source: str = "sweep") -> SweepSpec:
                          f" got {value_repr(metric_in['name'])}")
     if not isinstance(metric_in.get("env_id", ""), str):
         raise ValueError(f"{source}: metric.env_id must be a string, got {value_repr(metric_in['env_id'])}")
+    if "env_id" in metric_in:
+        _check_step_env(source, "metric.env_id", metric_in["env_id"],
+                        "the metric steps a one-shot policy through one of")
     try:
         metric = MetricSpec(**{k: v for k, v in metric_in.items() if k != "name"})
     except (TypeError, ValueError) as err:
-        raise ValueError(f"{source}: {_short(err)}") from None
+        given = {f"metric.{k}": v for k, v in metric_in.items()}
+        raise ValueError(f"{source}: {_hinted(_short(err), given)}") from None
     scheduler = data.get("scheduler") or {"type": "asha"}
     if not isinstance(scheduler, dict):
         raise ValueError(f"{source}: scheduler must be a mapping, got {value_repr(scheduler)}")
@@ -386,10 +443,13 @@ def parse_sweep(data: Any, source: str = "sweep") -> SweepSpec:
             if not is_finite_real(rf) or rf <= 1:
                 raise ValueError(f"sweep scheduler.reduction_factor must be a finite number > 1, got {value_repr(rf)}")
         samples = Integer(low=1, high=MAX_SAMPLES).check("samples", data.get("samples", 1), prefix="sweep ")
-        report_every = Integer(low=1).check("report_every", data.get("report_every"), prefix="sweep ")
+        report_every = Integer(low=1, high=MAX_TRAINING_STEPS).check("report_every", data.get("report_every"),
+                                                                      prefix="sweep ")
         search_seed = Integer(low=0).check("search_seed", data.get("search_seed", 0), prefix="sweep ")
     except ValueError as err:
-        raise ValueError(f"{source}: {str(err).removeprefix('sweep ')}") from None
+        given = {"samples": data.get("samples"), "report_every": data.get("report_every"),
+                 "search_seed": data.get("search_seed"), **{f"scheduler.{k}": v for k, v in scheduler.items()}}
+        raise ValueError(f"{source}: {_hinted(str(err).removeprefix('sweep '), given)}") from None
     spec = SweepSpec(
         name=name, algo=algo, fixed=dict(fixed), space=space, samples=samples, report_every=report_every,
         metric=metric, scheduler=scheduler, search_seed=search_seed,
@@ -401,8 +461,38 @@ def parse_sweep(data: Any, source: str = "sweep") -> SweepSpec:
     try:
         spec.trainer_config(first)
     except (TypeError, ValueError, ArithmeticError) as err:
-        raise ValueError(f"{source}: {_short(err)}") from None
+        raise ValueError(f"{source}: {_keyed(_short(err), fixed, space)}") from None
     return spec
+
+
+def _keyed(message: str, fixed: Mapping[str, Any], space: Mapping[str, Any]) -> str:
+    """A trainer config's refusal (``frames must ...``, ``PPO: timesteps must ...``) naming the sweep file's
+    key that set the field: ``fixed.frames must ...``, ``space.learning_rate (its first value) must ...``."""
+    body = message.removeprefix("PPO: ")
+    field = body.split(" ", 1)[0].split("=", 1)[0]
+    if field in fixed:
+        return f"fixed.{body}"
+    if field in space:
+        return f"space.{field} (its first value){body[len(field):]}"
+    return message
+
+
+def _check_step_env(source: str, where: str, env_id: str, purpose: str) -> None:
+    """The id at ``where`` (``metric.env_id``; a PPO sweep's ``fixed.env_id`` or a searched one) must be a
+    registered step environment (:data:`vo_gym.registration.STEP`): the metric rolls a one-shot policy
+    through it (:func:`agents.rollout.success_rate`) and PPO trains in it, which an in-frame or image
+    id, an unknown one or another package's cannot take. ``purpose`` ends the message."""
+    from vo_gym.names import did_you_mean
+    from vo_gym.registration import IMAGES, IN_FRAME, OTHER, STEP, env_kind, step_ids
+
+    kind = env_kind(env_id)
+    if kind == STEP:
+        return
+    what = {None: "not a registered environment", IMAGES: "an image environment",
+            IN_FRAME: "an in-frame environment (its action also stops the search)"}
+    what = what.get(kind, "not a vo_gym step environment")
+    hint = did_you_mean(env_id, step_ids()) if kind in (None, OTHER) else ""
+    raise ValueError(f"{source}: {where} {value_repr(env_id)} is {what}{hint}; {purpose}: {', '.join(step_ids())}")
 
 
 def _short(err: BaseException, limit: int = 400) -> str:

@@ -5,6 +5,8 @@
 #   scripts/train_adaptive.sh pg [MINUTES]    -> agents/checkpoints/adaptive-pg.pt: no prior, MINUTES of
 #       wall clock (default 25), seed 0
 # Usage: scripts/train_adaptive.sh [pg-prior|pg] [MINUTES] [OUT] [LOG]
+# Without OUT it replaces the shipped checkpoint (python -m agents.adaptive --overwrite); a given OUT
+# that exists is refused, as python -m agents.adaptive refuses it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 VARIANT="${1:-pg-prior}"
@@ -13,7 +15,7 @@ case "$VARIANT" in
   pg) MINUTES="${2:-25}"; ARGS=(--seed 0) ;;
   *) echo "train_adaptive.sh: the variant must be pg-prior or pg, got '$VARIANT'" >&2; exit 2 ;;
 esac
-OUT="${3:-agents/checkpoints/adaptive-$VARIANT.pt}"
+if [ -n "${3:-}" ]; then OUT="$3"; else OUT="agents/checkpoints/adaptive-$VARIANT.pt"; ARGS+=(--overwrite); fi
 LOG="${4:-runs/adaptive-$VARIANT.log}"
 mkdir -p "$(dirname "$LOG")"
 exec .venv/bin/python -m agents.adaptive --minutes "$MINUTES" --out "$OUT" --log "$LOG" "${ARGS[@]}"

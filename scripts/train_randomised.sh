@@ -43,8 +43,9 @@ trainer.train(progress=True)
 print("wrote", trainer.save(out))
 PY
 
+# --overwrite: a rerun replaces its own earlier sampler, as step 1 does
 "$PY" -m agents.adaptive --prior "$ONE_SHOT" --domain-randomisation --clock cpu --minutes "$MINUTES" --seed 4 \
-    --out "$IN_FRAME" --log "$OUT/adaptive-randomised.jsonl"
+    --out "$IN_FRAME" --overwrite --log "$OUT/adaptive-randomised.jsonl"
 
 "$PY" -m agents.transfer --samplers "$ONE_SHOT,$IN_FRAME" --no-classical --jobs 2 --frames "$CELL_FRAMES" \
     --domains "$DOMAINS" --out "$OUT/transfer" --no-progress

@@ -19,7 +19,8 @@ from typing import Any
 
 import gymnasium
 
-__all__ = ["ENV_IDS", "ADAPTIVE_ENV_IDS", "IMAGE_ENV_IDS", "HARD_SETTINGS", "register_envs", "registered_ids"]
+__all__ = ["ENV_IDS", "ADAPTIVE_ENV_IDS", "IMAGE_ENV_IDS", "HARD_SETTINGS", "STEP", "IN_FRAME", "IMAGES", "OTHER",
+           "env_kind", "register_envs", "registered_ids", "step_ids"]
 
 ENTRY_POINT = "vo_gym.env:StereoVOEnv"
 
@@ -88,3 +89,31 @@ def register_envs() -> None:
 def registered_ids() -> tuple[str, ...]:
     """Every id registered in Gymnasium's ``vo_gym/`` namespace, sorted (whoever registered it)."""
     return tuple(sorted(env_id for env_id in gymnasium.registry if env_id.startswith("vo_gym/")))
+
+
+STEP, IN_FRAME, IMAGES, OTHER = "step", "in-frame", "images", "other"
+"""The kinds of registered id :func:`env_kind` tells apart."""
+
+_KINDS = {ENTRY_POINT: STEP, ADAPTIVE_ENTRY_POINT: IN_FRAME, IMAGES_ENTRY_POINT: IMAGES}
+
+
+def env_kind(env_id: str) -> str | None:
+    """What the registered id ``env_id`` steps, by its entry point (the vo_gym ids registered first):
+    :data:`STEP` (:class:`vo_gym.env.StereoVOEnv`: one action per frame on simulated matches, what the
+    one-shot trainers and the sweeps' metric step), :data:`IN_FRAME` (the adaptive env, whose action
+    also stops the search), :data:`IMAGES` (matches from images), :data:`OTHER` (any other
+    entry point, e.g. a bare name or another package's id), or None when ``env_id`` is not registered."""
+    register_envs()
+    spec = gymnasium.registry.get(env_id) if isinstance(env_id, str) else None
+    if spec is None:
+        return None
+    entry_point = spec.entry_point
+    if not isinstance(entry_point, str):  # a class or a factory registered by hand
+        entry_point = f"{getattr(entry_point, '__module__', '')}:{getattr(entry_point, '__qualname__', '')}"
+    return _KINDS.get(entry_point, OTHER)
+
+
+def step_ids() -> tuple[str, ...]:
+    """The registered ``vo_gym/`` ids of kind :data:`STEP`, sorted (the ids a one-shot sampler trains
+    and is evaluated on)."""
+    return tuple(env_id for env_id in registered_ids() if env_kind(env_id) == STEP)

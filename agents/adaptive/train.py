@@ -27,7 +27,10 @@ from agents.adaptive.checkpoint import NETWORK_SIZES, load_adaptive, save_adapti
 from agents.adaptive.network import LOGIT_BOUND, AdaptiveSamplerNet, make_action, observation_tensors
 from agents.network_size import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE
 from agents.ngransac import ordered_triplet_log_prob, randomised_settings
+from agents.training_limits import MAX_TRAINING_STEPS
+from stereovo.estimation.estimator_options import MAX_COUNT
 from stereovo.options import Choice, Integer, Number, Option, check_options
+from stereovo.simulation.config import MAX_CORRESPONDENCES, MAX_FRAMES
 from vo_gym.adaptive_env import StereoVOAdaptiveEnv
 from vo_gym.registration import HARD_SETTINGS
 from vo_gym.settings import ContaminationRange
@@ -36,9 +39,16 @@ from vo_gym.settings import ContaminationRange
 _TRAIN_RULES: dict[str, Option] = {
     "minutes": Number(low=0.0, low_open=True),
     "clock": Choice(choices=("wall", "cpu")),
-    "max_episodes": Integer(low=1, allow_none=True),
-    **{name: Integer(low=1) for name in ("frames_per_episode", "batch_size", "max_hypotheses", "n",
-                                         "frames_per_update")},
+    # counts within the caps of agents.training_limits, the simulator (frames, matches) and the estimator
+    # (hypotheses), so that a typo fails here, naming the field
+    "max_episodes": Integer(low=1, high=MAX_TRAINING_STEPS, allow_none=True),
+    "frames_per_update": Integer(low=1, high=MAX_TRAINING_STEPS),
+    "frames_per_episode": Integer(low=1, high=MAX_FRAMES),
+    "n": Integer(low=3, high=MAX_CORRESPONDENCES),
+    **{name: Integer(low=1, high=MAX_COUNT) for name in ("batch_size", "max_hypotheses")},
+    "seed": Integer(low=0),
+    "lr": Number(low=0.0, low_open=True),
+    **{name: Number(low=0.0, high=1.0) for name in ("hard_fraction", "right_precision", "right_recall")},
     # a network a checkpoint can hold (agents.checkpoint refuses larger ones at load)
     **{name: Integer(low=1, high=MAX_NETWORK_SIZE) for name in ("width", "blocks")},
     "epsilons": ContaminationRange(),
@@ -52,13 +62,13 @@ class AdaptiveTrainConfig:
     """Training settings (every field is recorded in the checkpoint).
 
     Attributes:
-        minutes: wall-clock budget of training.
+        minutes: the training budget, in minutes of ``clock`` (> 0).
         frames_per_episode: frames per training trajectory (the constant-velocity feature needs a chain).
         epsilons: contamination range of the standard setting's episodes, drawn per episode.
         hard_fraction: share of episodes on the hard settings (contamination ``hard_epsilons``).
         batch_size, max_hypotheses, hypothesis_cost: the environment's.
-        n: correspondences per frame.
-        lr, width, blocks: optimiser step and network size.
+        n: correspondences per frame (3 to :data:`~stereovo.simulation.config.MAX_CORRESPONDENCES`).
+        lr, width, blocks: optimiser step (Adam's learning rate, finite and > 0) and network size.
         pg_weight, inlier_weight, stop_weight: weights of the policy-gradient and the two auxiliary losses.
         right_precision, right_recall: when the hypothesis a frame would end on counts as right.
         frames_per_update: frames whose losses are summed per optimiser step.
@@ -305,49 +315,98 @@ def _train(config: AdaptiveTrainConfig, out: str | Path, log_path: str | Path | 
     return save_adaptive(out, net, asdict(config), log), {"log": log, "episodes": episode, "frames": total_frames}
 
 
+DEFAULT_OUT = "runs/adaptive-pg.pt"
+"""Where ``python -m agents.adaptive`` writes without ``--out``: outside the package, whose shipped
+checkpoints (``agents/checkpoints``) only an explicit ``--out`` with ``--overwrite`` replaces."""
+
+# python -m agents.adaptive's options -> the AdaptiveTrainConfig field each sets (a config error names the option)
+_MAIN_OPTIONS = {"minutes": "--minutes", "seed": "--seed", "n": "--n", "epsilons": "--epsilons",
+                 "hard_epsilons": "--hard-epsilons", "hard_fraction": "--hard-fraction",
+                 "right_precision": "--right-precision", "right_recall": "--right-recall", "lr": "--lr",
+                 "clock": "--clock", "init": "--init", "prior": "--prior"}
+
+
+def _shipped_folder() -> Path:
+    from importlib import resources
+
+    from agents.catalog import SHIPPED_FOLDER, SHIPPED_PACKAGE
+
+    return Path(str(resources.files(SHIPPED_PACKAGE).joinpath(SHIPPED_FOLDER))).resolve()
+
+
+def check_out_file(out: str | Path, overwrite: bool) -> str | None:
+    """Why ``python -m agents.adaptive`` must not write the checkpoint ``out`` without ``--overwrite``
+    (an existing file, or a file in the shipped checkpoints' folder), or None when it may."""
+    path = Path(out)
+    if path.is_dir():
+        return f"--out {str(out)!r} is a directory; give the checkpoint file to write (e.g. {DEFAULT_OUT})"
+    if overwrite:
+        return None
+    if _shipped_folder() == path.resolve().parent:
+        return (f"--out {str(out)!r} is in the shipped checkpoints' folder {_shipped_folder()}; pass --overwrite to "
+                "write there (scripts/train_adaptive.sh regenerates the shipped samplers)")
+    if path.exists():
+        return f"--out {str(out)!r} exists; pass --overwrite to replace it"
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
-    """``python -m agents.adaptive --minutes 25 --out agents/checkpoints/adaptive-pg.pt``."""
+    """``python -m agents.adaptive --minutes 25 --out runs/adaptive-pg.pt``: train into one checkpoint file.
+
+    A bad option is one line (``python -m agents.adaptive: error: ...``, exit 2) naming it and its value,
+    before anything is trained: the config's own checks, the ``--init`` and ``--prior`` checkpoints
+    (read without running code), and ``--out`` (:func:`check_out_file`).
+    """
     import argparse
 
-    parser = argparse.ArgumentParser(prog="python -m agents.adaptive", description="train the learned in-frame sampler in the adaptive env")
-    parser.add_argument("--minutes", type=float, default=25.0)
-    parser.add_argument("--out", default="agents/checkpoints/adaptive-pg.pt")
-    parser.add_argument("--log", default=None)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--n", type=int, default=500)
+    class Parser(argparse.ArgumentParser):
+        def error(self, message: str):  # type: ignore[override]
+            """One line, ``python -m agents.adaptive: error: MESSAGE``, exit 2 (``--help`` shows the usage)."""
+            self.exit(2, f"{self.prog}: error: {' '.join(message.split())}\n")
+
     defaults = AdaptiveTrainConfig()
+    parser = Parser(prog="python -m agents.adaptive",
+                    description="train the learned in-frame sampler in the adaptive env")
+    parser.add_argument("--minutes", type=float, default=defaults.minutes,
+                        help=f"training budget, minutes of --clock (default: {defaults.minutes:g})")
+    parser.add_argument("--out", default=DEFAULT_OUT,
+                        help="the checkpoint file to write; an existing file, or one in the shipped checkpoints' folder "
+                             f"agents/checkpoints, only with --overwrite (default: {DEFAULT_OUT})")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an existing --out file, or write into agents/checkpoints (regenerating a "
+                             "shipped sampler)")
+    parser.add_argument("--log", default=None,
+                        help="a file to append the log windows to, one JSON line each (default: none)")
+    parser.add_argument("--seed", type=int, default=defaults.seed,
+                        help=f"seeds the episodes and the network (default: {defaults.seed})")
+    parser.add_argument("--n", type=int, default=defaults.n, help=f"correspondences per frame (default: {defaults.n})")
     parser.add_argument("--epsilons", default=None, metavar="LO,HI",
                         help=f"contamination range of the standard episodes (default: {defaults.epsilons})")
     parser.add_argument("--hard-epsilons", default=None, metavar="LO,HI",
                         help=f"contamination range of the hard episodes (default: {defaults.hard_epsilons})")
-    parser.add_argument("--hard-fraction", type=float, default=defaults.hard_fraction)
-    parser.add_argument("--right-precision", type=float, default=defaults.right_precision)
-    parser.add_argument("--right-recall", type=float, default=defaults.right_recall)
-    parser.add_argument("--lr", type=float, default=defaults.lr)
+    parser.add_argument("--hard-fraction", type=float, default=defaults.hard_fraction,
+                        help=f"share of hard episodes (default: {defaults.hard_fraction:g})")
+    parser.add_argument("--right-precision", type=float, default=defaults.right_precision,
+                        help="inlier precision at which a hypothesis counts as right, the stop belief's label "
+                             f"(default: {defaults.right_precision:g})")
+    parser.add_argument("--right-recall", type=float, default=defaults.right_recall,
+                        help="inlier recall at which a hypothesis counts as right, the stop belief's label "
+                             f"(default: {defaults.right_recall:g})")
+    parser.add_argument("--lr", type=float, default=defaults.lr,
+                        help=f"Adam's learning rate, finite and > 0 (default: {defaults.lr:g})")
     parser.add_argument("--clock", choices=("wall", "cpu"), default=defaults.clock,
-                        help="what --minutes counts: wall clock or this process' CPU time (default: wall)")
+                        help=f"what --minutes counts: wall clock or this process' CPU time (default: {defaults.clock})")
     parser.add_argument("--init", default=None, metavar="CHECKPOINT",
-                        help="start from this checkpoint's weights (path or shipped name)")
+                        help="start from this in-frame checkpoint's weights, a path or shipped name "
+                             "(default: fresh weights)")
     parser.add_argument("--prior", default=None, metavar="SAMPLER",
                         help="a fresh network adds this one-shot sampler's logits to its own "
-                             "(a shipped name, e.g. ngransac-supervised, or a one-shot .pt file)")
+                             "(a shipped name, e.g. ngransac-supervised, or a one-shot .pt file; default: none)")
     parser.add_argument("--domain-randomisation", action="store_true",
                         help="each episode draws its own outlier kinds, noise tail and score AUC")
     args = parser.parse_args(argv)
-    if args.prior is not None:
-        from agents.checkpoint import ONE_SHOT, SHIPPED_SAMPLERS, resolve_sampler
-
-        try:
-            kind = resolve_sampler(args.prior)[0]
-        except (ValueError, FileNotFoundError) as err:
-            parser.error(f"--prior: {err}")
-        if kind != ONE_SHOT:
-            parser.error(f"--prior must be a one-shot sampler (shipped: {', '.join(SHIPPED_SAMPLERS)}, or a .pt file), "
-                         f"got the {kind} {args.prior!r}")
-        if args.init is not None:
-            parser.error("--prior starts a fresh network; --init continues a checkpoint (which keeps its own prior)")
-    if not math.isfinite(args.minutes) or args.minutes <= 0:
-        parser.error(f"--minutes must be a positive number, got {args.minutes}")
+    if args.prior is not None and args.init is not None:
+        parser.error("--prior starts a fresh network; --init continues a checkpoint (which keeps its own prior)")
     ranges = {}
     for name in ("epsilons", "hard_epsilons"):
         text = getattr(args, name)
@@ -360,12 +419,48 @@ def main(argv: list[str] | None = None) -> int:
         if not 0 <= low <= high < 1:
             parser.error(f"--{name.replace('_', '-')} must satisfy 0 <= LO <= HI < 1, got {text!r}")
         ranges[name] = (low, high)
-    for name in ("hard_fraction", "right_precision", "right_recall"):
-        if not 0 <= getattr(args, name) <= 1:
-            parser.error(f"--{name.replace('_', '-')} must be in [0, 1], got {getattr(args, name)}")
-    config = AdaptiveTrainConfig(minutes=args.minutes, seed=args.seed, n=args.n, hard_fraction=args.hard_fraction,
-                                 right_precision=args.right_precision, right_recall=args.right_recall, lr=args.lr,
-                                 clock=args.clock, init=args.init, prior=args.prior,
-                                 domain_randomisation=args.domain_randomisation, **ranges)
+    try:
+        config = AdaptiveTrainConfig(minutes=args.minutes, seed=args.seed, n=args.n, hard_fraction=args.hard_fraction,
+                                     right_precision=args.right_precision, right_recall=args.right_recall, lr=args.lr,
+                                     clock=args.clock, init=args.init, prior=args.prior,
+                                     domain_randomisation=args.domain_randomisation, **ranges)
+    except ValueError as err:  # the config's checks name its field: the message names the option instead
+        text = str(err)
+        field = next((f for f in _MAIN_OPTIONS if text.startswith(f"{f} ")), None)
+        parser.error(f"{_MAIN_OPTIONS[field]}{text[len(field):]}" if field else text)
+    problem = _check_start(config) or check_out_file(args.out, args.overwrite)
+    if problem:
+        parser.error(problem)
     train_adaptive(config, args.out, args.log)
     return 0
+
+
+def _check_start(config: AdaptiveTrainConfig) -> str | None:
+    """Why the ``--prior`` or ``--init`` checkpoint of ``config`` cannot start training (read without
+    running code: the kind, the whole in-frame file, the network's sizes), or None."""
+    from agents.catalog import IN_FRAME, ONE_SHOT
+    from agents.checkpoint import SHIPPED_SAMPLERS, read_payload, resolve_sampler
+
+    if config.prior is not None:
+        try:
+            kind = resolve_sampler(config.prior)[0]
+        except (ValueError, FileNotFoundError) as err:
+            return f"--prior: {err}"
+        if kind != ONE_SHOT:
+            return (f"--prior must be a one-shot sampler (shipped: {', '.join(SHIPPED_SAMPLERS)}, or a .pt file), "
+                    f"got the {kind} {config.prior!r}")
+    if config.init is not None:
+        from agents.adaptive.checkpoint import check_adaptive_payload, shipped_adaptive_path
+
+        try:
+            kind, name, path = resolve_sampler(config.init)
+            if kind != IN_FRAME:
+                return f"--init {config.init!r} is a {kind} sampler; training continues an in-frame one"
+            path = path if path is not None else shipped_adaptive_path(name)
+            network = check_adaptive_payload(path, read_payload(path))
+        except (ValueError, FileNotFoundError) as err:
+            return f"--init: {err}"
+        if (network["width"], network["blocks"]) != (config.width, config.blocks):
+            return (f"--init {config.init!r} has width {network['width']}, blocks {network['blocks']}; this trainer "
+                    f"builds width {config.width}, blocks {config.blocks}")
+    return None

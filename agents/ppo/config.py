@@ -14,19 +14,29 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from agents.network_size import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE, ppo_policy_parameters
+from agents.training_limits import MAX_ENVS, MAX_TRAINING_STEPS
+from stereovo.estimation.estimator_options import MAX_COUNT
 from stereovo.options import Choice, Integer, Number, Option, check_options
+from stereovo.simulation.config import MAX_CORRESPONDENCES, MAX_FRAMES
 from vo_gym.features import FEATURE_LAYOUT_VERSION, FEATURE_NAMES, N_FEATURES
 from vo_gym.settings import ContaminationRange
 
 VEC_ENVS = ("dummy", "subproc")
 
 _PPO_RULES: dict[str, Option] = {
-    **{name: Integer(low=1) for name in ("n_envs", "timesteps", "n_frames", "n_correspondences", "budget", "n_steps",
-                                         "batch_size", "n_epochs", "eval_every", "eval_frames", "checkpoint_every")},
+    # counts within the caps of agents.training_limits, the simulator (frames, matches) and the estimator
+    # (hypotheses), so that a typo fails here, naming the field, and not as an overflow once training runs
+    **{name: Integer(low=1, high=MAX_TRAINING_STEPS) for name in ("timesteps", "n_steps", "batch_size", "n_epochs",
+                                                                  "eval_every", "eval_frames", "checkpoint_every")},
+    "n_envs": Integer(low=1, high=MAX_ENVS),
+    "n_frames": Integer(low=1, high=MAX_FRAMES),
+    "n_correspondences": Integer(low=3, high=MAX_CORRESPONDENCES),
+    "budget": Integer(low=1, high=MAX_COUNT),
+    "seed": Integer(low=0),
     # a policy a checkpoint can hold (agents.checkpoint and agents.ppo.archive refuse larger ones at load)
     **{name: Integer(low=1, high=MAX_NETWORK_SIZE) for name in ("width", "blocks", "critic_hidden")},
     "critic_width": Integer(low=1, high=MAX_NETWORK_SIZE, allow_none=True),
-    "eval_n_correspondences": Integer(low=3, allow_none=True),
+    "eval_n_correspondences": Integer(low=3, high=MAX_CORRESPONDENCES, allow_none=True),
     "max_wall_s": Number(low=0.0, low_open=True, allow_none=True, unit="s"),
     "vec_env": Choice(choices=VEC_ENVS),
     "epsilon_range": ContaminationRange(),
@@ -37,6 +47,12 @@ _PPO_RULES: dict[str, Option] = {
     "gae_lambda": Number(low=0.0, high=1.0),
 }
 """The declarations :class:`PPOConfig` is checked and normalised by (:mod:`stereovo.options`)."""
+
+RESUMABLE_FIELDS = ("timesteps", "n_envs", "vec_env", "seed", "eval_every", "checkpoint_every", "max_wall_s")
+"""The fields a run resumed from its SB3 zip takes from the given config (:func:`agents.ppo.train.train_ppo`):
+how long to train (``timesteps``, the new total; ``max_wall_s``), the workers, the seed of the
+continuation and the evaluation and checkpoint periods. The others are the zip's: the network, the
+environment and its reward, the PPO settings (the learning rate included) and the evaluation."""
 
 
 @dataclass

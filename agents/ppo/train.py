@@ -45,7 +45,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from agents.checkpoint import LearnedPolicy, save_checkpoint
 from agents.ppo.archive import first_line, load_ppo, read_ppo_config, zip_failure
-from agents.ppo.config import PPOConfig, build_model, make_training_env, stored_config
+from agents.ppo.config import RESUMABLE_FIELDS, PPOConfig, build_model, make_training_env, stored_config
 from agents.rollout import success_rate
 
 __all__ = [
@@ -191,8 +191,10 @@ def train_ppo(config: PPOConfig, out: str | Path, resume: str | Path | None = No
               progress: bool = True) -> PPOResult:
     """Train (or continue ``resume``, an SB3 zip, up to ``config.timesteps`` in total) and write the outputs.
 
-    With ``resume`` the stored config is used except ``timesteps``, ``n_envs``, ``vec_env``,
-    ``seed`` and the evaluation/checkpoint periods, which come from ``config``.
+    With ``resume`` the stored config is used except the fields of
+    :data:`~agents.ppo.config.RESUMABLE_FIELDS` (``timesteps``, ``n_envs``, ``vec_env``, ``seed``, the
+    evaluation/checkpoint periods and ``max_wall_s``), which come from ``config``; the others of
+    ``config`` are not read (``vo-gym train --resume`` refuses them when given).
     """
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
 
@@ -204,8 +206,7 @@ def train_ppo(config: PPOConfig, out: str | Path, resume: str | Path | None = No
     baseline: dict[str, float] = {}
     if resume is not None:
         saved = read_ppo_config(resume)
-        keep = {k: getattr(config, k) for k in ("timesteps", "n_envs", "vec_env", "seed", "eval_every",
-                                                 "checkpoint_every", "max_wall_s")}
+        keep = {k: getattr(config, k) for k in RESUMABLE_FIELDS}
         config = dataclasses.replace(saved, **keep)
         previous = out / "training.json"
         if previous.is_file():
@@ -226,6 +227,9 @@ def train_ppo(config: PPOConfig, out: str | Path, resume: str | Path | None = No
     try:
         if resume is not None:
             model = load_ppo(resume, env=env)
+            if model.seed != config.seed:  # a new seed for the continuation: its action noise too, not only its envs
+                model.seed = config.seed
+                model.set_random_seed(config.seed)
             model.policy.train_config = stored_config(config)
             model.policy_kwargs["train_config"] = stored_config(config)
             model.tensorboard_log = str(out / "tb")

@@ -100,8 +100,9 @@ def test_training_runs_and_writes_a_loadable_checkpoint(tmp_path):
 def test_training_starts_from_an_init_checkpoint_on_a_cpu_clock(tmp_path):
     torch.manual_seed(1)
     start = save_adaptive(tmp_path / "init.pt", AdaptiveSamplerNet(width=8, blocks=1), {"minutes": 1})
-    # lr 0: Adam's steps are zero, so the result must hold the init weights, not fresh ones
-    config = AdaptiveTrainConfig(minutes=0.01, n=60, frames_per_episode=2, width=8, blocks=1, lr=0.0,
+    # lr 1e-12 (a learning rate must be > 0): Adam's steps, about lr each, are far below the comparison's
+    # tolerance, so the result must hold the init weights, not fresh ones
+    config = AdaptiveTrainConfig(minutes=0.01, n=60, frames_per_episode=2, width=8, blocks=1, lr=1e-12,
                                  clock="cpu", init=str(start), seed=5)
     net, payload = load_adaptive(train_adaptive(config, tmp_path / "t.pt"))
     init, _ = load_adaptive(start)
@@ -244,6 +245,13 @@ def test_a_run_shorter_than_one_log_window_still_logs_it(tmp_path):
     # a network a checkpoint can hold: each size within 4096, the total within 2^24 parameters
     ({"width": 5000}, "width must be an integer >= 1 and <= 4096, got 5000"),
     ({"width": 2048, "blocks": 2}, "width 2048 and blocks 2 make a network of 25,247,746 parameters"),
+    # Adam's learning rate, checked here rather than by torch once training starts
+    ({"lr": -1.0}, r"^lr must be a finite number > 0, got -1.0$"), ({"lr": 0.0}, r"^lr must be a finite number > 0"),
+    ({"lr": float("inf")}, r"^lr must be a finite number > 0, got inf$"),
+    # counts within a named cap (agents.training_limits, the simulator's)
+    ({"max_episodes": 10**400}, r"^max_episodes must be None or an integer >= 1 and <= 1000000000, got ~1e\+400"),
+    ({"n": 10**9}, r"^n must be an integer >= 3 and <= 100000000, got 1000000000$"),
+    ({"hard_fraction": 1.5}, r"^hard_fraction must be a finite number in \[0, 1\], got 1.5$"),
 ])
 def test_bad_settings_are_named(kw, match):
     with pytest.raises(ValueError, match=match):
@@ -406,3 +414,55 @@ def test_the_shipped_in_frame_networks_are_far_below_the_size_cap(name):
     count = AdaptiveSamplerNet.parameter_count(**{"prior": None, **payload["network"]})
     assert count == sum(v.numel() for v in net.state_dict().values())
     assert 100 * count < checkpoint.MAX_NETWORK_PARAMETERS
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--n", "0"], "--n must be an integer >= 3 and <= 100000000, got 0"),
+    (["--lr", "-1"], "--lr must be a finite number > 0, got -1.0"),
+    (["--lr", "nan"], "--lr must be a finite number > 0, got nan"),
+    (["--minutes", "0"], "--minutes must be a finite number > 0, got 0.0"),
+    (["--seed", "-2"], "--seed must be an integer >= 0, got -2"),
+    (["--hard-fraction", "2"], "--hard-fraction must be a finite number in [0, 1], got 2.0"),
+    (["--init", "nosuch"], "--init: unknown sampler 'nosuch': not a shipped one ("),
+    (["--init", "ngransac-supervised"], "--init 'ngransac-supervised' is a one-shot sampler; training continues an "
+                                        "in-frame one"),
+])
+def test_the_command_line_refuses_bad_options_in_one_line_naming_them(tmp_path, capsys, argv, message):
+    from agents.adaptive.train import main as train_main
+
+    budget = [] if argv[0] == "--minutes" else ["--minutes", "0.01"]  # were it not refused: a short run
+    with pytest.raises(SystemExit) as exc:
+        train_main([*budget, *argv, "--out", str(tmp_path / "x.pt")])
+    assert exc.value.code == 2
+    [line] = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith(f"python -m agents.adaptive: error: {message}"), line
+    assert not (tmp_path / "x.pt").exists()
+
+
+def test_the_command_line_writes_outside_the_package_and_replaces_a_file_only_when_told(tmp_path, capsys,
+                                                                                       monkeypatch):
+    import agents.adaptive.train as adaptive_train
+
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit):
+        adaptive_train.main(["--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert f"(default: {adaptive_train.DEFAULT_OUT})" in help_text and adaptive_train.DEFAULT_OUT == "runs/adaptive-pg.pt"
+    # no --out: the default, outside the package's shipped checkpoints; an existing file is kept
+    existing = tmp_path / adaptive_train.DEFAULT_OUT
+    existing.parent.mkdir()
+    existing.write_bytes(b"an earlier run's")
+    with pytest.raises(SystemExit) as exc:
+        adaptive_train.main(["--minutes", "0.001"])
+    assert exc.value.code == 2
+    assert capsys.readouterr().err.strip() == ("python -m agents.adaptive: error: --out 'runs/adaptive-pg.pt' exists;"
+                                               " pass --overwrite to replace it")
+    assert existing.read_bytes() == b"an earlier run's"
+    # the shipped checkpoints' folder (here a stand-in) is written only with --overwrite, even a new file there
+    shipped_folder = tmp_path / "shipped"
+    shipped_folder.mkdir()
+    monkeypatch.setattr(adaptive_train, "_shipped_folder", lambda: shipped_folder.resolve())
+    with pytest.raises(SystemExit):
+        adaptive_train.main(["--minutes", "0.001", "--out", str(shipped_folder / "adaptive-new.pt")])
+    assert "is in the shipped checkpoints' folder" in capsys.readouterr().err
+    assert not (shipped_folder / "adaptive-new.pt").exists()

@@ -396,3 +396,41 @@ def test_triplet_log_prob_stays_finite_when_two_picks_hold_all_the_float32_mass(
     assert bool(torch.isfinite(value).all())
     value.sum().backward()
     assert bool(torch.isfinite(logits.grad).all())
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("frames", 10**400, "frames must be an integer >= 1 and <= 1000000000, got ~1e+400 (an integer of 401 digits)"),
+    ("eval_every", 10**10, "eval_every must be an integer >= 1 and <= 1000000000, got 10000000000"),
+    ("eval_frames", 0, "eval_frames must be an integer >= 1 and <= 1000000000, got 0"),
+    ("budget", 10**10, "budget must be an integer >= 1 and <= 1000000000, got 10000000000"),
+    ("frames_per_sequence", 10**7, "frames_per_sequence must be an integer >= 1 and <= 1000000, got 10000000"),
+    ("learning_rate", -1.0, "learning_rate must be a finite number > 0, got -1.0"),
+    ("learning_rate", float("nan"), "learning_rate must be a finite number > 0, got nan"),
+])
+def test_counts_past_their_cap_and_a_bad_learning_rate_are_refused_naming_the_field(field, value, message):
+    with pytest.raises(ValueError) as err:
+        NGRansacConfig(**{field: value})
+    assert str(err.value) == message
+
+
+def _tiny_checkpoint(path):
+    config = NGRansacConfig(n_correspondences=60, budget=4, pools=2, frames=2, width=8, blocks=1, eval_every=2,
+                            eval_frames=1, frames_per_sequence=3, learning_rate=2e-4)
+    trainer = NGRansacTrainer(config)
+    trainer.train()
+    return trainer.save(path)
+
+
+def test_resume_changes_only_the_fields_a_continuation_may_change(tmp_path):
+    path = _tiny_checkpoint(tmp_path / "ng.pt")
+    resumed = NGRansacTrainer.resume(path, frames=3, seed=7, eval_every=1)
+    assert (resumed.config.frames, resumed.config.seed, resumed.config.eval_every) == (3, 7, 1)
+    assert (resumed.config.budget, resumed.config.learning_rate, resumed.step) == (4, 2e-4, 2)
+    resumed.train(frames=1)
+    assert resumed.step == 3
+    # the optimiser's state carries the learning rate, the network its sizes, the history its evaluations:
+    # an override of such a field would be silently ignored, or change the run halfway, and is refused
+    with pytest.raises(ValueError) as err:
+        NGRansacTrainer.resume(path, learning_rate=0.5, budget=3, seed=1)
+    assert str(err.value) == (f"NGRansacTrainer.resume: the checkpoint {path} fixes learning_rate=0.5, budget=3; "
+                              "a resumed run changes only frames, seed, eval_every")

@@ -364,3 +364,116 @@ def test_a_tiny_ppo_sweep_runs_with_a_quiet_console(tmp_path, capfd):
     [row] = _results(out)
     assert row["reports"] == "2" and row["steps"] == "32"
     assert (out / "best_checkpoint" / "ppo.zip").is_file() and (out / "best_checkpoint" / "ppo.pt").is_file()
+
+
+STEP_IDS = "vo_gym/StereoVO-v0, vo_gym/StereoVOHard-v0, vo_gym/StereoVOProsac-v0, vo_gym/StereoVOProsacHard-v0"
+
+
+@pytest.mark.parametrize("algo, change, message", [
+    ("ngransac", {"metric": {"env_id": "nosuch"}},
+     f"s.yaml: metric.env_id 'nosuch' is not a registered environment; the metric steps a one-shot policy through"
+     f" one of: {STEP_IDS}"),
+    ("ngransac", {"metric": {"env_id": "vo_gym/StereoVOAdaptive-v0"}},
+     "s.yaml: metric.env_id 'vo_gym/StereoVOAdaptive-v0' is an in-frame environment (its action also stops the"
+     f" search); the metric steps a one-shot policy through one of: {STEP_IDS}"),
+    ("ngransac", {"metric": {"env_id": "vo_gym/StereoVOImages-v0"}},
+     "s.yaml: metric.env_id 'vo_gym/StereoVOImages-v0' is an image environment; the metric steps a one-shot policy"
+     f" through one of: {STEP_IDS}"),
+    ("ngransac", {"metric": {"env_id": "StereoVO-v0"}},
+     "s.yaml: metric.env_id 'StereoVO-v0' is not a vo_gym step environment (did you mean 'vo_gym/StereoVO-v0'?);"
+     f" the metric steps a one-shot policy through one of: {STEP_IDS}"),
+    ("ppo", {"space": {"env_id": {"choice": ["vo_gym/StereoVO-v0", "vo_gym/StereoVOAdaptiveHard-v0"]}}},
+     "s.yaml: space.env_id.choice[1] 'vo_gym/StereoVOAdaptiveHard-v0' is an in-frame environment (its action also"
+     f" stops the search); PPO trains in one of: {STEP_IDS}"),
+])
+def test_an_environment_the_sweep_cannot_step_is_refused_naming_the_file_and_key(algo, change, message):
+    import yaml
+
+    data = yaml.safe_load(NGRANSAC if algo == "ngransac" else PPO)
+    with pytest.raises(ValueError) as err:
+        parse_sweep({**data, **change}, "s.yaml")
+    assert str(err.value) == message
+    fine = {"metric": {"env_id": "vo_gym/StereoVOProsacHard-v0"}}  # a step id, of the PROSAC kind: fine
+    assert parse_sweep({**data, **fine}, "s.yaml").metric.env_id == "vo_gym/StereoVOProsacHard-v0"
+
+
+@pytest.mark.parametrize("algo, change, message", [
+    ("ngransac", {"fixed": {"frames": 10**400}},
+     "s.yaml: fixed.frames must be an integer >= 1 and <= 1000000000, got ~1e+400 (an integer of 401 digits)"),
+    ("ngransac", {"report_every": 10**400},
+     "s.yaml: report_every must be an integer >= 1 and <= 1000000000, got ~1e+400 (an integer of 401 digits)"),
+    ("ngransac", {"space": {"seed": {"grid": [0]}, "eval_every": {"grid": [10**10]}}},
+     "s.yaml: space.eval_every (its first value) must be an integer >= 1 and <= 1000000000, got 10000000000"),
+    ("ppo", {"fixed": {"timesteps": 10**400, "n_envs": 1, "n_steps": 16, "batch_size": 16}},
+     "s.yaml: fixed.timesteps must be an integer >= 1 and <= 1000000000, got ~1e+400 (an integer of 401 digits)"),
+])
+def test_counts_past_the_trainers_caps_are_refused_before_any_trial(algo, change, message):
+    import yaml
+
+    data = yaml.safe_load(NGRANSAC if algo == "ngransac" else PPO)
+    with pytest.raises(ValueError) as err:
+        parse_sweep({**data, **change}, "s.yaml")
+    assert str(err.value) == message
+
+
+def test_the_largest_counts_give_their_number_of_reports_exactly():
+    import yaml
+
+    data = yaml.safe_load(NGRANSAC)
+    spec = parse_sweep({**data, "fixed": {**data["fixed"], "frames": 10**9}, "report_every": 3}, "s.yaml")
+    assert spec.n_reports == 333_333_334  # ceil(10**9 / 3), in integers
+
+
+def test_a_huge_count_in_a_sweep_file_is_refused_before_out_is_made(tmp_path, capsys, monkeypatch):
+    import agents.sweep
+
+    def started(*args, **kwargs):
+        raise AssertionError("the sweep started: its file should have been refused")
+
+    monkeypatch.setattr(agents.sweep, "run_sweep", started)
+    config = _write(tmp_path, NGRANSAC.replace("frames: 6", "frames: 1" + "0" * 400))
+    assert main(["sweep", str(config), "--out", str(tmp_path / "out")]) == 2
+    [line] = capsys.readouterr().err.strip().splitlines()
+    assert line == (f"vo-gym sweep: error: {config}: fixed.frames must be an integer >= 1 and <= 1000000000,"
+                    " got ~1e+400 (an integer of 401 digits)")
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("text, message", [
+    ("fixed: {frames: 6, n_correspondences: 60, pools: 2, eval_frames: 1, learning_rate: 1e-4}",
+     "fixed.learning_rate must be a finite number, got '1e-4' (YAML reads '1e-4' as text; write 1.0e-4: a YAML"
+     " float needs a dot and a signed exponent)"),
+    ("fixed: {frames: 6, n_correspondences: 60, pools: 2, eval_frames: 1, entropy_weight: 2E3}",
+     "fixed.entropy_weight must be a finite number, got '2E3' (YAML reads '2E3' as text; write 2.0e+3: a YAML"
+     " float needs a dot and a signed exponent)"),
+    ("fixed: {frames: 6, n_correspondences: 60, pools: 2, eval_frames: 1, learning_rate: '0.001'}",
+     "fixed.learning_rate must be a finite number, got '0.001' (YAML reads '0.001' as text; write 0.001, without"
+     " quotes)"),
+    ("fixed: {frames: 1e3, n_correspondences: 60, pools: 2, eval_frames: 1}",
+     "fixed.frames must be an integer, got '1e3' (YAML reads '1e3' as text; write 1000)"),
+])
+def test_a_number_yaml_reads_as_text_is_refused_with_how_to_write_it(tmp_path, text, message):
+    path = _write(tmp_path, NGRANSAC.replace("fixed: {frames: 6, n_correspondences: 60, pools: 2, eval_frames: 1}", text))
+    with pytest.raises(ValueError) as err:
+        load_sweep(path)
+    assert str(err.value) == f"{path}: {message}"
+    written = _write(tmp_path, NGRANSAC.replace("pools: 2,", "pools: 2, entropy_weight: 1.0e-4,"), "fixed.yaml")
+    assert load_sweep(written).fixed["entropy_weight"] == 1e-4  # as the message says to write it
+
+
+def test_numbers_yaml_reads_as_text_are_named_in_the_metric_the_axes_and_the_scheduler():
+    import yaml
+
+    data = yaml.safe_load(NGRANSAC)
+    for change, needle in [
+        ({"metric": {"epsilon": "5e-1"}}, "sweep metric.epsilon must be a finite number in [0, 1), got '5e-1'"
+                                          " (YAML reads '5e-1' as text; write 5.0e-1"),
+        ({"space": {"learning_rate": {"loguniform": ["1e-5", 0.001]}}}, "got ['1e-5', 0.001] (YAML reads '1e-5' as"
+                                                                        " text; write 1.0e-5"),
+        ({"scheduler": {"type": "asha", "reduction_factor": "3e0"}}, "got '3e0' (YAML reads '3e0' as text; write 3.0e+0"),
+        ({"samples": "1e2"}, "s.yaml: samples must be an integer >= 1 and <= 1000, got '1e2' (YAML reads '1e2' as"
+                             " text; write 100)"),
+    ]:
+        with pytest.raises(ValueError) as err:
+            parse_sweep({**data, **change}, "s.yaml")
+        assert needle in str(err.value), str(err.value)

@@ -227,3 +227,109 @@ def test_out_help_says_which_trainers_write_tensorboard_logs(capsys):
     text = " ".join(capsys.readouterr().out.split())
     assert "ngransac and ppo also write TensorBoard logs under tb/, adaptive its log windows in training.jsonl" in text
     assert "directory for checkpoints and TensorBoard logs" not in text
+
+
+def _tiny_ngransac(tmp_path):
+    out = tmp_path / "ng"
+    assert main(["train", "--algo", "ngransac", "--out", str(out), *TINY]) == 0
+    return out / "ngransac-supervised.pt"
+
+
+def test_resume_refuses_every_option_the_checkpoint_fixes_in_one_line(tmp_path, capsys):
+    checkpoint = _tiny_ngransac(tmp_path)
+    capsys.readouterr()
+    fixed = ["--budget", "3", "--pools", "2", "--lr", "0.5", "--loss", "self-supervised", "--epsilon", "0.5"]
+    assert main(["train", "--algo", "ngransac", "--resume", str(checkpoint), "--frames", "6", *fixed, "--seed", "7",
+                 "--out", str(tmp_path / "z")]) == 2
+    assert one_line_error(capsys, "train") == (
+        "vo-gym train: error: --budget 3, --pools 2, --lr 0.5, --loss self-supervised, --epsilon 0.5: fixed by the "
+        f"checkpoint --resume {checkpoint}, whose run goes on with its own settings; a resumed ngransac run takes only "
+        "--seed, --frames, --eval-every (start a new run to change the others)")
+    assert not (tmp_path / "z").exists()  # refused before --out was made
+
+
+def test_resume_applies_the_options_it_takes(tmp_path):
+    checkpoint = _tiny_ngransac(tmp_path)
+    out = tmp_path / "z"
+    assert main(["train", "--algo", "ngransac", "--resume", str(checkpoint), "--frames", "6", "--seed", "7",
+                 "--eval-every", "1", "--no-progress", "--out", str(out)]) == 0
+    _, payload = load_checkpoint(out / "ngransac-supervised.pt")
+    config = payload["config"]
+    assert (config["seed"], config["eval_every"], config["frames"], config["budget"], config["pools"]) == (7, 1, 6, 4, 2)
+    assert [h["step"] for h in payload["trainer_state"]["history"]] == [2, 4, 5, 6]
+
+
+PPO_TINY = ["--timesteps", "16", "--n-envs", "1", "--n-steps", "16", "--batch-size", "16", "--n-epochs", "1",
+            "--n-correspondences", "40", "--frames-per-episode", "4", "--eval-n", "40", "--eval-frames", "4",
+            "--eval-every", "16", "--width", "8", "--blocks", "1", "--no-progress"]
+
+
+def test_ppo_resume_refuses_what_the_zip_fixes_and_applies_what_it_takes(tmp_path, capsys):
+    from agents.ppo.archive import load_ppo, read_ppo_config
+
+    out = tmp_path / "ppo"
+    assert main(["train", "--algo", "ppo", *PPO_TINY, "--out", str(out)]) == 0
+    zip_path = out / "ppo.zip"
+    capsys.readouterr()
+    assert main(["train", "--algo", "ppo", "--resume", str(zip_path), "--timesteps", "24", "--budget", "4",
+                 "--ppo-lr", "0.5", "--reward-mode", "inliers", "--env-id", "vo_gym/StereoVOHard-v0",
+                 "--out", str(tmp_path / "z")]) == 2
+    line = one_line_error(capsys, "train")
+    assert line.startswith("vo-gym train: error: --budget 4, --ppo-lr 0.5, --reward-mode inliers, --env-id "
+                           f"vo_gym/StereoVOHard-v0: fixed by the checkpoint --resume {zip_path}"), line
+    assert line.endswith("a resumed ppo run takes only --n-envs, --seed, --timesteps, --eval-every, --vec-env, "
+                         "--checkpoint-every, --max-minutes (start a new run to change the others)")
+    assert not (tmp_path / "z").exists()
+    # what it takes is applied; what is left out stays the zip's (eval_frames 4, not PPOConfig's 100)
+    assert main(["train", "--algo", "ppo", "--resume", str(zip_path), "--timesteps", "32", "--seed", "5",
+                 "--eval-every", "8", "--no-progress", "--out", str(out)]) == 0
+    config = read_ppo_config(zip_path)
+    assert (config.timesteps, config.seed, config.eval_every) == (32, 5, 8)
+    assert (config.eval_frames, config.width, config.n_correspondences, config.budget) == (4, 8, 40, PPOConfig().budget)
+    assert load_ppo(zip_path).seed == 5  # the continuation's action noise is seeded anew too
+
+
+def test_help_states_each_trainers_default_read_from_its_config(capsys, monkeypatch):
+    from agents.adaptive.train import AdaptiveTrainConfig
+
+    monkeypatch.setenv("COLUMNS", "1000")  # one line per option: no flag broken at its hyphen
+    with pytest.raises(SystemExit):
+        main(["train", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    ng, ppo, ad = NGRansacConfig(), PPOConfig(), AdaptiveTrainConfig()
+    assert f"hypotheses per pool (ngransac) or per frame (ppo) (default: ngransac {ng.budget}, ppo {ppo.budget})" in text
+    assert f"frames per evaluation (default: ngransac {ng.eval_frames}, ppo {ppo.eval_frames})" in text
+    assert f"(default: ngransac {ng.eval_every}, ppo {ppo.eval_every})" in text
+    assert f"matches per training frame (default: ppo {ppo.n_correspondences}, adaptive {ad.n};" in text
+    assert f"PPO environment steps (default {ppo.timesteps})" in text
+    assert ("takes only (ngransac: --seed, --frames, --eval-every; ppo: --n-envs, --seed, --timesteps, --eval-every, "
+            "--vec-env, --checkpoint-every, --max-minutes;") in text
+
+
+@pytest.mark.parametrize("env_id, needle", [
+    ("vo_gym/StereoVOAdaptive-v0", "--env-id vo_gym/StereoVOAdaptive-v0 is an in-frame environment (its action also "
+                                   "stops the search); PPO trains on a step id (vo_gym/StereoVO-v0, "),
+    ("vo_gym/StereoVOImages-v0", "--env-id vo_gym/StereoVOImages-v0 is an image environment; PPO trains on simulated"),
+    ("CartPole-v1", "--env-id 'CartPole-v1' is not a vo_gym step environment; PPO trains on one of: vo_gym/StereoVO-v0"),
+    ("StereoVO-v0", "--env-id 'StereoVO-v0' is not a vo_gym step environment (did you mean 'vo_gym/StereoVO-v0'?)"),
+])
+def test_ppo_refuses_an_env_id_it_cannot_train_on_before_out_is_made(tmp_path, capsys, env_id, needle):
+    assert main(["train", "--algo", "ppo", "--env-id", env_id, *PPO_TINY, "--out", str(tmp_path / "t")]) == 2
+    assert needle in one_line_error(capsys, "train")
+    assert not (tmp_path / "t").exists()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--algo", "ppo", "--timesteps", "1" + "0" * 400],
+     "--timesteps must be an integer >= 1 and <= 1000000000, got ~1e+400 (an integer of 401 digits)"),
+    (["--algo", "ppo", "--timesteps", "16", "--batch-size", "100000"],
+     "--batch-size=100000 exceeds the rollout size n_steps * n_envs = 512"),
+    (["--algo", "ngransac", "--frames", "2", "--pools", "1"], "--pools must be >= 2"),
+    (["--algo", "adaptive", "--minutes", "0.01", "--max-episodes", "1" + "0" * 20],
+     "--max-episodes must be None or an integer >= 1 and <= 1000000000, got 100000000000000000000"),
+])
+def test_a_setting_the_trainer_refuses_is_named_before_out_is_made(tmp_path, capsys, argv, message):
+    assert main(["train", *argv, "--no-progress", "--out", str(tmp_path / "t")]) == 2
+    line = one_line_error(capsys, "train")
+    assert line.startswith(f"vo-gym train: error: {message}"), line
+    assert not (tmp_path / "t").exists()

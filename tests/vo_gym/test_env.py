@@ -162,6 +162,17 @@ def test_registered_ids():
     vo_gym.register_envs()  # idempotent
 
 
+def test_env_kind_tells_the_ids_apart_by_their_entry_point():
+    from vo_gym.registration import ADAPTIVE_ENV_IDS, ENV_IDS as STEP_ENV_IDS, IMAGE_ENV_IDS
+    from vo_gym.registration import IMAGES, IN_FRAME, OTHER, STEP, env_kind, step_ids
+
+    assert step_ids() == tuple(sorted(STEP_ENV_IDS))  # what the one-shot trainers and the sweep's metric step
+    assert {env_kind(i) for i in STEP_ENV_IDS} == {STEP}
+    assert {env_kind(i) for i in ADAPTIVE_ENV_IDS} == {IN_FRAME} and {env_kind(i) for i in IMAGE_ENV_IDS} == {IMAGES}
+    assert env_kind("StereoVO-v0") == OTHER  # the bare name: registered to an entry point that names the full id
+    assert env_kind("CartPole-v1") == OTHER and env_kind("nosuch") is None
+
+
 @pytest.mark.parametrize("env_id", sorted(ENV_IDS))
 def test_gymnasium_check_env(env_id):
     env = gym.make(env_id, **SHORT)

@@ -40,15 +40,31 @@ class ArgumentParser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f"{self.prog}: error: {' '.join(message.split())}\n")
 
 
+LATE_HELP = "late_help"
+"""The attribute of an option (set by :func:`late_help`) that maps ``NAME`` to a function making the
+text of ``{NAME}`` in its help, called only when ``--help`` is formatted."""
+
+
+def late_help(action: argparse.Action, **parts: Callable[[], str]) -> argparse.Action:
+    """Let :class:`HelpFormatter` replace ``{NAME}`` in ``action``'s help by ``parts[NAME]()`` when the
+    help is formatted: text read from a library (a trainer config's defaults) that building the
+    parser must not import, so that ``vo-gym`` starts fast. Returns ``action``."""
+    setattr(action, LATE_HELP, dict(parts))
+    return action
+
+
 class HelpFormatter(argparse.RawDescriptionHelpFormatter):
     """Every option's help ends with its default, unless the text already states one.
 
     Flags (``store_true``) and options whose default is None (meaning "the library's default",
     which their text then names) get nothing appended; descriptions and epilogs keep their lines.
+    ``{NAME}`` parts of an option's help that :func:`late_help` declared are made here.
     """
 
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ""
+        for name, make in getattr(action, LATE_HELP, {}).items():
+            text = text.replace("{" + name + "}", make().replace("%", "%%"))
         if (
             "default" in text
             or action.default is None
@@ -259,12 +275,17 @@ def given_options(args: argparse.Namespace, add_parser: Callable[[argparse.Argum
             and getattr(args, action.dest, defaults[action.dest]) != defaults[action.dest]}
 
 
-def _shown_value(value: Any) -> str:
-    """An option's value as it follows the flag in a message: nothing for a flag, ``A,B`` for a list."""
+def shown_value(value: Any) -> str:
+    """An option's value as it follows the flag in a message: nothing for a flag, ``A,B`` for a list,
+    an integer of hundreds of digits by its magnitude (:func:`stereovo.options.value_repr`)."""
     if isinstance(value, bool):
         return ""
     if isinstance(value, (list, tuple)):
         return " " + ",".join(f"{v:g}" if isinstance(v, float) else str(v) for v in value)
+    if isinstance(value, int) and value.bit_length() > 200:
+        from stereovo.options import value_repr
+
+        return f" {value_repr(value)}"
     return f" {value}"
 
 
@@ -280,7 +301,7 @@ def unread_option(args: argparse.Namespace, add_parser: Callable[[argparse.Argum
     for dest, flag in given_options(args, add_parser).items():
         if dest in read_by[run] or dest not in read_anywhere:
             continue
-        return flag + _shown_value(getattr(args, dest)), dest, [r for r, read in read_by.items() if dest in read]
+        return flag + shown_value(getattr(args, dest)), dest, [r for r, read in read_by.items() if dest in read]
     return None
 
 
@@ -359,6 +380,26 @@ def flag_error(flag: str, err: Exception) -> UsageError:
         return UsageError(text)
     rule = re.sub(r"^(?:[A-Za-z_]+\.)?[a-z_ ]+? (?=must |needs )", "", text, count=1)
     return UsageError(f"{flag} {rule}" if rule != text else f"{flag}: {text}")
+
+
+def check_step_env(env_id: str, in_frame_hint: str, images_hint: str, option: str = "--env-id") -> None:
+    """Refuse an in-frame or image id (:func:`vo_gym.registration.env_kind`), which a one-shot sampler
+    cannot step, in one line naming ``option`` and the id and ending with the command's hint (what to
+    use instead), before any header or folder. An unknown id, or one of another package, passes: each
+    command names those its own way.
+
+    Raises:
+        UsageError: ``OPTION ID is an in-frame environment (...); IN_FRAME_HINT`` or ``OPTION ID is an
+            image environment; IMAGES_HINT``.
+    """
+    from vo_gym.registration import IMAGES, IN_FRAME, env_kind
+
+    kind = env_kind(env_id)
+    if kind == IN_FRAME:
+        raise UsageError(f"{option} {env_id} is an in-frame environment (its action also stops the search); "
+                         f"{in_frame_hint}")
+    if kind == IMAGES:
+        raise UsageError(f"{option} {env_id} is an image environment; {images_hint}")
 
 
 def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:

@@ -35,8 +35,8 @@ from pathlib import Path
 
 from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
 from vo_gym_cli.commands.baselines import PLOT_FORMATS, add_backend_options, backend_from_args
-from vo_gym_cli.commands.common import OUTLIER_PRESETS, open_run_folder
-from vo_gym_cli.commands.common import RunStart, UsageError, flag_error, interrupted_run, stoppable, unread_option
+from vo_gym_cli.commands.common import OUTLIER_PRESETS, open_run_folder, unread_option
+from vo_gym_cli.commands.common import RunStart, UsageError, check_step_env, flag_error, interrupted_run, stoppable
 from vo_gym_cli.commands.common import csv_list, positive_int, seed
 
 DEFAULT_AGENTS = ("uniform", "match-score", "consistency", "constant-velocity", "oracle")
@@ -210,22 +210,11 @@ def check_options_apply(args: argparse.Namespace) -> None:
 
 
 def _check_step_env(env_id: str) -> None:
-    """Refuse an in-frame or image id, which the sweeps cannot step, before any header or folder."""
-    import gymnasium as gym
-
-    import vo_gym  # noqa: F401  (registers the ids)
-    from vo_gym.registration import ADAPTIVE_ENTRY_POINT, IMAGES_ENTRY_POINT
-
-    try:
-        entry_point = gym.spec(env_id).entry_point
-    except gym.error.Error:
-        return  # an unknown id: check_environments names it, with the registered ones
-    if entry_point == ADAPTIVE_ENTRY_POINT:
-        raise UsageError(f"--env-id {env_id} is an in-frame environment (its action also stops the search); the"
-                         " sweeps step a one-shot id such as vo_gym/StereoVO-v0, and in-frame samplers are compared"
-                         " with --adaptive")
-    if entry_point == IMAGES_ENTRY_POINT:
-        raise UsageError(f"--env-id {env_id} is an image environment; evaluate on rendered images with --source rendered")
+    """Refuse an in-frame or image id, which the sweeps cannot step, before any header or folder
+    (an unknown id passes: check_environments names it, with the registered ones)."""
+    check_step_env(env_id, in_frame_hint="the sweeps step a one-shot id such as vo_gym/StereoVO-v0, and in-frame"
+                   " samplers are compared with --adaptive",
+                   images_hint="evaluate on rendered images with --source rendered")
 
 
 # An environment keyword that one of evaluate's own options sets -> that option; the other keywords

@@ -11,6 +11,13 @@ into ``<out>/adaptive.pt``, ``training.jsonl`` and ``training.json``; ``--resume
 starts from an in-frame checkpoint's weights. An option of another trainer than ``--algo``'s is
 refused in one line before anything runs (:data:`USED_BY`), never silently ignored.
 
+A resumed ngransac or ppo run goes on with its checkpoint's settings: it takes only the options of
+the fields that trainer lets a continuation change (:data:`agents.ngransac.RESUMABLE_FIELDS`,
+:data:`agents.ppo.config.RESUMABLE_FIELDS`: how long to train, the continuation's seed, the periods
+and the workers); another of its options, typed, is refused in one line naming it
+(:func:`check_resume_options`). An option left out keeps the checkpoint's value, and without
+``--resume`` the trainer config's default, which ``--help`` reads from the config classes.
+
 A non-empty ``--out`` is refused unless ``--overwrite`` (which first removes the TensorBoard event
 files and PPO's periodic zips of the run there, so that its curves and checkpoints do not mix with
 the new run's), or unless ``--resume`` names a checkpoint inside it for ngransac or ppo, which
@@ -20,19 +27,117 @@ continue that run there (their step count and history go on).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
+import re
 from pathlib import Path
+from typing import Any, Callable
 
 from vo_gym_cli.commands.common import (
+    RunStart,
     UsageError,
     bounded_int,
     check_output_dir,
+    check_step_env,
     finite_float,
     given_options,
+    late_help,
     positive_int,
     require_extras,
     seed,
+    shown_value,
 )
+
+# Each trainer's options: argparse dest -> the field of its config that the option sets
+# (agents.ngransac.NGRansacConfig, agents.ppo.config.PPOConfig, agents.adaptive.train.AdaptiveTrainConfig).
+# An option left out (None) keeps the config's default (or, resumed, the checkpoint's value).
+_NGRANSAC_OPTIONS = {
+    "seed": "seed", "loss": "loss", "epsilon": "epsilon_range", "frames": "frames", "budget": "budget",
+    "pools": "pools", "lr": "learning_rate", "max_grad_norm": "max_grad_norm", "entropy_weight": "entropy_weight",
+    "frames_per_sequence": "frames_per_sequence", "eval_every": "eval_every", "eval_frames": "eval_frames",
+}
+_PPO_OPTIONS = {
+    "env_id": "env_id", "n_envs": "n_envs", "seed": "seed", "timesteps": "timesteps", "budget": "budget",
+    "eval_frames": "eval_frames", "eval_every": "eval_every", "vec_env": "vec_env",
+    "frames_per_episode": "n_frames", "n_correspondences": "n_correspondences", "reward_mode": "reward_mode",
+    "n_steps": "n_steps", "batch_size": "batch_size", "n_epochs": "n_epochs", "ppo_lr": "learning_rate",
+    "gamma": "gamma", "gae_lambda": "gae_lambda", "clip_range": "clip_range", "ent_coef": "ent_coef",
+    "target_kl": "target_kl", "eval_n": "eval_n_correspondences", "width": "width", "blocks": "blocks",
+    "log_std_init": "log_std_init", "share_trunk": "share_trunk", "checkpoint_every": "checkpoint_every",
+    "epsilon": "epsilon_range", "max_minutes": "max_wall_s",
+}
+_ADAPTIVE_OPTIONS = {
+    "seed": "seed", "resume": "init", "minutes": "minutes", "clock": "clock", "prior": "prior",
+    "domain_randomisation": "domain_randomisation", "max_episodes": "max_episodes",
+    "frames_per_episode": "frames_per_episode", "n_correspondences": "n",
+}
+OPTIONS: dict[str, dict[str, str]] = {"ngransac": _NGRANSAC_OPTIONS, "ppo": _PPO_OPTIONS, "adaptive": _ADAPTIVE_OPTIONS}
+"""Each trainer's options (argparse dests) -> the config fields they set."""
+_SHARED = frozenset({"seed", "resume"})  # options every trainer reads (with --algo, --out, --overwrite, --no-progress)
+# how an option's value becomes its field's where the two differ
+_CONVERT: dict[str, Callable[[Any], Any]] = {
+    "epsilon": lambda text: _epsilon_range(text),
+    "max_minutes": lambda minutes: 60.0 * minutes,
+    "max_grad_norm": lambda norm: norm or None,  # 0 switches clipping off
+}
+
+
+def _config_class(algo: str) -> type:
+    if algo == "ngransac":
+        from agents.ngransac import NGRansacConfig
+
+        return NGRansacConfig
+    if algo == "ppo":
+        from agents.ppo.config import PPOConfig
+
+        return PPOConfig
+    from agents.adaptive.train import AdaptiveTrainConfig
+
+    return AdaptiveTrainConfig
+
+
+def _shown_default(value: Any) -> str:
+    if isinstance(value, tuple):
+        return ":".join(f"{v:g}" for v in value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _config_default(dest: str) -> str:
+    """``default 11``, or ``default: ngransac 11, ppo 16`` where the trainers that read ``dest`` differ:
+    each trainer config class's default of the field the option sets (made when ``--help`` is formatted:
+    :func:`~vo_gym_cli.commands.common.late_help`)."""
+    shown = []
+    for algo, options in OPTIONS.items():
+        if dest in options:
+            try:
+                config = _config_class(algo)
+            except ImportError:  # without the 'train' extra the configs cannot be read
+                return "default: the trainer config's"
+            field = {f.name: f for f in dataclasses.fields(config)}[options[dest]]
+            shown.append((algo, _shown_default(field.default)))
+    if len({value for _, value in shown}) == 1:
+        return f"default {shown[0][1]}"
+    return "default: " + ", ".join(f"{algo} {value}" for algo, value in shown)
+
+
+def _resumable_text() -> str:
+    try:
+        runs = "; ".join(f"{algo}: {', '.join(_flag(d) for d in OPTIONS[algo] if d in resumable_options(algo))}"
+                         for algo in ("ngransac", "ppo"))
+    except ImportError:  # without the 'train' extra
+        runs = "the options of how long to train, the seed, the periods and the workers"
+    return (f"a resumed ngransac or ppo run keeps its checkpoint's settings and takes only ({runs}; --frames and "
+            "--timesteps: the new total); adaptive starts fresh training from the weights, with any of its options")
+
+
+def _flag(dest: str) -> str:
+    return "--" + dest.replace("_", "-")
+
+
+def _config_option(group, *flags: str, **kwargs: Any) -> argparse.Action:
+    """An option whose help shows each trainer config's default (``{config_default}`` in its help)."""
+    action = group.add_argument(*flags, default=None, **kwargs)
+    return late_help(action, config_default=lambda: _config_default(action.dest))
 
 
 def add_parser(parser: argparse.ArgumentParser) -> None:
@@ -46,82 +151,89 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                         help="replace the run in a non-empty --out (its TensorBoard event files and PPO's periodic"
                              " zips are removed first; a --resume checkpoint inside --out continues that run without"
                              " this flag, for ngransac and ppo)")
-    parser.add_argument("--seed", type=seed, default=0, help="seed of the simulation, the sampler and the network")
-    parser.add_argument("--resume", default=None, metavar="CHECKPOINT",
-                        help="checkpoint to continue from (.pt for ngransac, the SB3 .zip for ppo, an in-frame .pt for "
-                             "adaptive; default: start afresh)")
+    parser.add_argument("--seed", type=seed, default=0,
+                        help="seed of the simulation, the sampler and the network (default 0; a resumed ngransac or ppo "
+                             "run: its checkpoint's)")
+    resume = parser.add_argument("--resume", default=None, metavar="CHECKPOINT",
+                                 help="checkpoint to continue from (.pt for ngransac, the SB3 .zip for ppo, an in-frame "
+                                      ".pt for adaptive; default: start afresh); {resumable}")
+    late_help(resume, resumable=_resumable_text)
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ng = parser.add_argument_group("ngransac")
-    ng.add_argument("--loss", choices=("supervised", "self-supervised", "self-supervised-smooth"), default="supervised",
-                    help="task loss: pose error against ground truth; minus the inlier fraction (no ground truth); "
-                         "or that plus a motion-smoothness penalty (no ground truth)")
-    ng.add_argument("--frames", type=positive_int("--frames"), default=None,
-                    help="total training frames (policy-gradient steps; default 16000); with --resume, the new total")
-    ng.add_argument("--epsilon", type=_epsilon_text, default="0.3:0.9", help="training contamination, a value or a range lo:hi")
-    # Defaults of None take agents.ngransac.NGRansacConfig's.
-    ng.add_argument("--budget", type=positive_int("--budget"), default=None, help="hypotheses per pool (default 11)")
-    ng.add_argument("--pools", type=positive_int("--pools"), default=None,
-                    help="pools per frame; their mean loss is the baseline (default 8)")
-    ng.add_argument("--lr", type=finite_float("--lr", 0.0, low_open=True), default=None, help="Adam learning rate (default 1e-4)")
-    ng.add_argument("--max-grad-norm", type=finite_float("--max-grad-norm", 0.0), default=None,
-                    help="clip the policy gradient's norm to this (default 5; 0: no clipping)")
-    ng.add_argument("--entropy-weight", type=finite_float("--entropy-weight", 0.0), default=None,
-                    help="entropy bonus on the sampling distribution, normalised by log N (default 0)")
-    ng.add_argument("--frames-per-sequence", type=positive_int("--frames-per-sequence"), default=None,
-                    help="frames per simulated training sequence; each starts without a constant-velocity "
-                         "prediction (default 10)")
-    ng.add_argument("--eval-every", type=positive_int("--eval-every"), default=None,
-                    help="frames between evaluations (default 1000; for ppo: environment steps, default 2000)")
-    ng.add_argument("--eval-frames", type=positive_int("--eval-frames"), default=None, help="frames per evaluation (default 300)")
+    _config_option(ng, "--loss", choices=("supervised", "self-supervised", "self-supervised-smooth"),
+                   help="task loss: pose error against ground truth; minus the inlier fraction (no ground truth); "
+                        "or that plus a motion-smoothness penalty (no ground truth) ({config_default})")
+    _config_option(ng, "--frames", type=positive_int("--frames"),
+                   help="total training frames (policy-gradient steps; {config_default}); with --resume, the new total")
+    _config_option(ng, "--epsilon", type=_epsilon_text,
+                   help="training contamination, a value or a range lo:hi ({config_default})")
+    _config_option(ng, "--budget", type=positive_int("--budget"),
+                   help="hypotheses per pool (ngransac) or per frame (ppo) ({config_default})")
+    _config_option(ng, "--pools", type=positive_int("--pools"),
+                   help="pools per frame; their mean loss is the baseline ({config_default})")
+    _config_option(ng, "--lr", type=finite_float("--lr", 0.0, low_open=True),
+                   help="Adam learning rate ({config_default})")
+    _config_option(ng, "--max-grad-norm", type=finite_float("--max-grad-norm", 0.0),
+                   help="clip the policy gradient's norm to this (0: no clipping; {config_default})")
+    _config_option(ng, "--entropy-weight", type=finite_float("--entropy-weight", 0.0),
+                   help="entropy bonus on the sampling distribution, normalised by log N ({config_default})")
+    _config_option(ng, "--frames-per-sequence", type=positive_int("--frames-per-sequence"),
+                   help="frames per simulated training sequence; each starts without a constant-velocity "
+                        "prediction ({config_default})")
+    _config_option(ng, "--eval-every", type=positive_int("--eval-every"),
+                   help="between evaluations: training frames (ngransac), environment steps (ppo) ({config_default})")
+    _config_option(ng, "--eval-frames", type=positive_int("--eval-frames"),
+                   help="frames per evaluation ({config_default})")
     ppo = parser.add_argument_group("ppo")
-    ppo.add_argument("--timesteps", type=positive_int("--timesteps"), default=20_000, help="PPO environment steps")
-    ppo.add_argument("--env-id", default="vo_gym/StereoVO-v0", help="registered environment id to train in")
-    ppo.add_argument("--n-envs", type=positive_int("--n-envs"), default=2, help="environments stepped in parallel")
-    # PPO-specific settings (None: agents.ppo.config.PPOConfig's default); --seed, --budget, --epsilon,
-    # --eval-frames and --eval-every (environment steps here; default 2000) apply to PPO too.
-    ppo.add_argument("--vec-env", choices=("dummy", "subproc"), default=None,
-                     help="SB3 vectorised env: DummyVecEnv (default) or SubprocVecEnv")
-    ppo.add_argument("--frames-per-episode", type=positive_int("--frames-per-episode"), default=None,
-                     help="frame pairs per training episode (default 8)")
-    ppo.add_argument("--ppo-lr", type=finite_float("--ppo-lr", 0.0, low_open=True), default=None,
-                     help="PPO learning rate (default 1e-4; --lr is NG-RANSAC's)")
-    ppo.add_argument("--n-correspondences", type=bounded_int("--n-correspondences", 3), default=None,
-                     help="matches per training frame (default 100; the net serves any N)")
-    ppo.add_argument("--eval-n", type=bounded_int("--eval-n", 3), default=None,
-                     help="matches per evaluation frame (default 500)")
-    ppo.add_argument("--reward-mode", choices=("supervised", "inliers", "msac"), default=None,
-                     help="the env's reward (default supervised)")
-    ppo.add_argument("--n-steps", type=positive_int("--n-steps"), default=None, help="rollout steps per env and update (default 256)")
-    ppo.add_argument("--batch-size", type=positive_int("--batch-size"), default=None, help="minibatch size (default 128)")
-    ppo.add_argument("--n-epochs", type=positive_int("--n-epochs"), default=None, help="epochs per update (default 4)")
-    ppo.add_argument("--gamma", type=finite_float("--gamma", 0.0, 1.0), default=None, help="discount (default 0.5: a frame's action mostly "
-                     "affects its own reward, the next one's only through the constant-velocity feature)")
-    ppo.add_argument("--gae-lambda", type=finite_float("--gae-lambda", 0.0, 1.0), default=None, help="GAE lambda (default 0.9)")
-    ppo.add_argument("--clip-range", type=finite_float("--clip-range", 0.0, low_open=True), default=None, help="PPO clip range (default 0.2)")
-    ppo.add_argument("--ent-coef", type=finite_float("--ent-coef", 0.0), default=None, help="entropy bonus (default 0)")
+    # --seed, --budget, --epsilon, --eval-frames and --eval-every apply to PPO too.
+    _config_option(ppo, "--timesteps", type=positive_int("--timesteps"),
+                   help="PPO environment steps ({config_default}); with --resume, the new total")
+    _config_option(ppo, "--env-id", help="registered step environment id to train in ({config_default})")
+    _config_option(ppo, "--n-envs", type=positive_int("--n-envs"), help="environments stepped in parallel ({config_default})")
+    _config_option(ppo, "--vec-env", choices=("dummy", "subproc"),
+                   help="SB3 vectorised env: DummyVecEnv or SubprocVecEnv ({config_default})")
+    _config_option(ppo, "--frames-per-episode", type=positive_int("--frames-per-episode"),
+                   help="frame pairs per training episode ({config_default})")
+    _config_option(ppo, "--ppo-lr", type=finite_float("--ppo-lr", 0.0, low_open=True),
+                   help="PPO learning rate ({config_default}; --lr is NG-RANSAC's)")
+    _config_option(ppo, "--n-correspondences", type=bounded_int("--n-correspondences", 3),
+                   help="matches per training frame ({config_default}; the net serves any N)")
+    _config_option(ppo, "--eval-n", type=bounded_int("--eval-n", 3), help="matches per evaluation frame ({config_default})")
+    _config_option(ppo, "--reward-mode", choices=("supervised", "inliers", "msac"), help="the env's reward ({config_default})")
+    _config_option(ppo, "--n-steps", type=positive_int("--n-steps"), help="rollout steps per env and update ({config_default})")
+    _config_option(ppo, "--batch-size", type=positive_int("--batch-size"), help="minibatch size ({config_default})")
+    _config_option(ppo, "--n-epochs", type=positive_int("--n-epochs"), help="epochs per update ({config_default})")
+    _config_option(ppo, "--gamma", type=finite_float("--gamma", 0.0, 1.0),
+                   help="discount ({config_default}: a frame's action mostly affects its own reward, the next "
+                        "one's only through the constant-velocity feature)")
+    _config_option(ppo, "--gae-lambda", type=finite_float("--gae-lambda", 0.0, 1.0), help="GAE lambda ({config_default})")
+    _config_option(ppo, "--clip-range", type=finite_float("--clip-range", 0.0, low_open=True),
+                   help="PPO clip range ({config_default})")
+    _config_option(ppo, "--ent-coef", type=finite_float("--ent-coef", 0.0), help="entropy bonus ({config_default})")
     ppo.add_argument("--target-kl", type=finite_float("--target-kl", 0.0, low_open=True), default=None,
                      help="stop an update's epochs above this KL (default off)")
-    ppo.add_argument("--width", type=positive_int("--width"), default=None, help="actor net width (default 32)")
-    ppo.add_argument("--blocks", type=positive_int("--blocks"), default=None, help="actor net residual blocks (default 3)")
-    ppo.add_argument("--log-std-init", type=finite_float("--log-std-init", -20.0, 20.0), default=None, help="initial log-std of the logits (default 1)")
+    _config_option(ppo, "--width", type=positive_int("--width"), help="actor net width ({config_default})")
+    _config_option(ppo, "--blocks", type=positive_int("--blocks"), help="actor net residual blocks ({config_default})")
+    _config_option(ppo, "--log-std-init", type=finite_float("--log-std-init", -20.0, 20.0),
+                   help="initial log-std of the logits ({config_default})")
     ppo.add_argument("--share-trunk", action="store_true", default=None,
                      help="the critic pools the actor net's embeddings (default: its own trunk)")
     ppo.add_argument("--max-minutes", type=finite_float("--max-minutes", 0.0, low_open=True), default=None,
                      help="stop after this much wall time even before --timesteps (default: no limit)")
-    ppo.add_argument("--checkpoint-every", type=positive_int("--checkpoint-every"), default=None,
-                     help="environment steps between SB3 zips (default 5000)")
+    _config_option(ppo, "--checkpoint-every", type=positive_int("--checkpoint-every"),
+                   help="environment steps between SB3 zips ({config_default})")
     # --seed, --frames-per-episode, --n-correspondences and --resume (an in-frame checkpoint to start
-    # from) apply to the in-frame trainer too; None keeps agents.adaptive.train.AdaptiveTrainConfig's default.
+    # from) apply to the in-frame trainer too.
     ad = parser.add_argument_group("adaptive")
-    ad.add_argument("--minutes", type=finite_float("--minutes", 0.0, low_open=True), default=None,
-                    help="training time budget in minutes, of --clock (default 25)")
-    ad.add_argument("--clock", choices=("wall", "cpu"), default=None,
-                    help="what --minutes counts: wall time, or this process' CPU time (the same budget on a busy "
-                         "machine) (default wall)")
+    _config_option(ad, "--minutes", type=finite_float("--minutes", 0.0, low_open=True),
+                   help="training time budget in minutes, of --clock ({config_default})")
+    _config_option(ad, "--clock", choices=("wall", "cpu"),
+                   help="what --minutes counts: wall time, or this process' CPU time (the same budget on a busy "
+                        "machine) ({config_default})")
     ad.add_argument("--prior", default=None, metavar="NAME|PATH",
                     help="a one-shot sampler whose logits a fresh network adds to its own: a shipped name "
                          "(e.g. ngransac-supervised) or a one-shot .pt file (default: none)")
-    ad.add_argument("--domain-randomisation", action="store_true",
+    ad.add_argument("--domain-randomisation", action="store_true", default=None,
                     help="each episode draws its own outlier kinds (the hostile ones included), noise tail and "
                          "score AUC (agents.ngransac.randomised_settings)")
     ad.add_argument("--max-episodes", type=positive_int("--max-episodes"), default=None,
@@ -146,30 +258,55 @@ def _epsilon_text(text: str) -> str:
     return text
 
 
-def _train_ngransac(args: argparse.Namespace, out: Path) -> int:
-    from torch.utils.tensorboard import SummaryWriter
+def config_values(args: argparse.Namespace, algo: str, only: set[str] | None = None) -> dict[str, Any]:
+    """The config fields of ``algo``'s trainer that the options in ``args`` set (the dests of ``only``,
+    if given): an option left out (None) sets nothing, so the config keeps its default."""
+    values = {}
+    for dest, field in OPTIONS[algo].items():
+        value = getattr(args, dest, None)
+        if value is not None and (only is None or dest in only):
+            values[field] = _CONVERT[dest](value) if dest in _CONVERT else value
+    return values
 
+
+def _config_error(err: Exception, args: argparse.Namespace) -> UsageError:
+    """A trainer config's refusal, whose message starts with the field's name (``frames must ...``,
+    ``PPO: batch_size=...``), as a usage error naming the option that set it; a resumed run's field
+    that no option set is the checkpoint's, and the message names the checkpoint."""
+    text = str(err)
+    body = text.removeprefix("PPO: ")
+    match = re.match(r"([a-z_]+)(?=[ =])", body)
+    dests = {field: dest for dest, field in OPTIONS[args.algo].items() if dest != "resume"}
+    if match is None or match.group(1) not in dests:
+        return UsageError(text)
+    dest = dests[match.group(1)]
+    typed = given_options(args, add_parser)
+    if args.resume is not None and dest not in typed:
+        return UsageError(f"--resume {args.resume}: its training config: {body}")
+    return UsageError(f"{typed.get(dest, _flag(dest))}{body[len(match.group(1)):]}")
+
+
+def _ngransac_trainer(args: argparse.Namespace):
+    """The NG-RANSAC trainer the options ask for: a fresh one, or the checkpoint's with the resumable
+    options that were typed (checked, before ``--out`` is made)."""
     from agents.ngransac import NGRansacConfig, NGRansacTrainer
 
     try:
         if args.resume:
-            overrides = {} if args.frames is None else {"frames": args.frames}
-            trainer = NGRansacTrainer.resume(args.resume, **overrides)
-        else:
-            given = dict(
-                budget=args.budget, pools=args.pools, frames=args.frames, learning_rate=args.lr,
-                entropy_weight=args.entropy_weight, frames_per_sequence=args.frames_per_sequence,
-                eval_every=args.eval_every, eval_frames=args.eval_frames,
-            )
-            given = {k: v for k, v in given.items() if v is not None}
-            if args.max_grad_norm is not None:
-                given["max_grad_norm"] = args.max_grad_norm or None  # 0 switches clipping off
-            config = NGRansacConfig(loss=args.loss, epsilon_range=_epsilon_range(args.epsilon), seed=args.seed, **given)
-            trainer = NGRansacTrainer(config)
-    except (ValueError, FileNotFoundError) as err:  # CheckpointError is a ValueError: one line naming the file
+            typed = set(given_options(args, add_parser))
+            return NGRansacTrainer.resume(args.resume, **config_values(args, "ngransac", only=typed))
+        return NGRansacTrainer(NGRansacConfig(**config_values(args, "ngransac")))
+    except FileNotFoundError as err:
         raise UsageError(str(err)) from None
+    except ValueError as err:  # CheckpointError is a ValueError: one line naming the file
+        raise _config_error(err, args) from None
     except (TypeError, KeyError) as err:  # a checkpoint whose config this version's trainer does not take
         raise UsageError(f"--resume {args.resume}: its training config does not fit this version ({err})") from None
+
+
+def _train_ngransac(args: argparse.Namespace, out: Path, trainer) -> int:
+    from torch.utils.tensorboard import SummaryWriter
+
     _clear_previous_run(args, out)
     writer = SummaryWriter(str(out / "tb"))
     checkpoint = out / f"ngransac-{trainer.config.loss}.pt"
@@ -198,47 +335,43 @@ def _train_ngransac(args: argparse.Namespace, out: Path) -> int:
     return 0
 
 
-# ``vo-gym train`` option -> agents.ppo.config.PPOConfig field; None (not given) keeps PPOConfig's default.
-_PPO_OPTIONS = {
-    "env_id": "env_id", "n_envs": "n_envs", "seed": "seed", "timesteps": "timesteps", "budget": "budget",
-    "eval_frames": "eval_frames", "eval_every": "eval_every", "vec_env": "vec_env",
-    "frames_per_episode": "n_frames", "n_correspondences": "n_correspondences", "reward_mode": "reward_mode",
-    "n_steps": "n_steps", "batch_size": "batch_size", "n_epochs": "n_epochs", "ppo_lr": "learning_rate",
-    "gamma": "gamma", "gae_lambda": "gae_lambda", "clip_range": "clip_range", "ent_coef": "ent_coef",
-    "target_kl": "target_kl", "eval_n": "eval_n_correspondences", "width": "width", "blocks": "blocks",
-    "log_std_init": "log_std_init", "share_trunk": "share_trunk", "checkpoint_every": "checkpoint_every",
-}
-
-
 def ppo_config_from_args(args: argparse.Namespace):
-    """The :class:`agents.ppo.config.PPOConfig` of ``vo-gym train --algo ppo`` arguments.
+    """The :class:`agents.ppo.config.PPOConfig` of ``vo-gym train --algo ppo`` arguments (a fresh run).
 
     ``--eval-every`` counts environment steps here; an option left out keeps PPOConfig's default
     (``--eval-every``: 2000), and a given value is taken as given (``--eval-every 250`` is 250).
     """
     from agents.ppo.config import PPOConfig
 
-    values = {key: getattr(args, arg) for arg, key in _PPO_OPTIONS.items() if getattr(args, arg, None) is not None}
-    if getattr(args, "max_minutes", None) is not None:
-        values["max_wall_s"] = 60.0 * args.max_minutes
-    if getattr(args, "epsilon", None) is not None:
-        values["epsilon_range"] = _epsilon_range(args.epsilon)
-    return PPOConfig(**values)
+    return PPOConfig(**config_values(args, "ppo"))
 
 
-def _train_ppo(args: argparse.Namespace, out: Path) -> int:
-    from agents.ppo.train import train_ppo
+def _ppo_config(args: argparse.Namespace):
+    """The PPO run's config (checked, before ``--out`` is made): from the options, or resumed, the zip's
+    with the resumable options that were typed."""
+    if args.resume is None:
+        try:
+            return ppo_config_from_args(args)
+        except ValueError as err:
+            raise _config_error(err, args) from None
+    from agents.ppo.archive import read_ppo_config
 
     try:
-        config = ppo_config_from_args(args)
-        resume = getattr(args, "resume", None)
-        if resume is not None and Path(resume).suffix == ".pt":
-            raise ValueError(
-                f"--resume {resume}: PPO resumes from the SB3 model zip (e.g. {Path(resume).with_suffix('.zip')}); "
-                "the .pt file is the exported actor only"
-            )
-        _clear_previous_run(args, out)
-        result = train_ppo(config, out, resume=resume, progress=not getattr(args, "no_progress", False))
+        saved = read_ppo_config(args.resume)
+    except (ValueError, FileNotFoundError) as err:  # CheckpointError: one line naming the file
+        raise UsageError(str(err)) from None
+    try:
+        return dataclasses.replace(saved, **config_values(args, "ppo", only=set(given_options(args, add_parser))))
+    except ValueError as err:
+        raise _config_error(err, args) from None
+
+
+def _train_ppo(args: argparse.Namespace, out: Path, config) -> int:
+    from agents.ppo.train import train_ppo
+
+    _clear_previous_run(args, out)
+    try:
+        result = train_ppo(config, out, resume=args.resume, progress=not getattr(args, "no_progress", False))
     except (ValueError, FileNotFoundError) as err:
         raise UsageError(str(err)) from None
     print(f"model: {result.zip_path}")
@@ -253,19 +386,19 @@ def _train_ppo(args: argparse.Namespace, out: Path) -> int:
     return 0
 
 
-def _train_adaptive(args: argparse.Namespace, out: Path) -> int:
-    from agents.adaptive.train import AdaptiveTrainConfig, train_in_frame
+def _adaptive_config(args: argparse.Namespace):
+    """The in-frame trainer's config (checked, before ``--out`` is made)."""
+    from agents.adaptive.train import AdaptiveTrainConfig
 
-    given = {"minutes": args.minutes, "clock": args.clock, "prior": args.prior, "max_episodes": args.max_episodes,
-             "frames_per_episode": args.frames_per_episode, "n": args.n_correspondences, "init": args.resume,
-             "domain_randomisation": args.domain_randomisation or None}
-    flags = {"minutes": "--minutes", "clock": "--clock", "prior": "--prior", "max_episodes": "--max-episodes",
-             "frames_per_episode": "--frames-per-episode", "n": "--n-correspondences", "init": "--resume"}
     try:
-        config = AdaptiveTrainConfig(seed=args.seed, **{k: v for k, v in given.items() if v is not None})
+        return AdaptiveTrainConfig(**config_values(args, "adaptive"))
     except ValueError as err:
-        field = next((f for f in flags if str(err).startswith(f"{f} ")), None)
-        raise UsageError(f"{flags[field]}{str(err)[len(field):]}" if field else str(err)) from None
+        raise _config_error(err, args) from None
+
+
+def _train_adaptive(args: argparse.Namespace, out: Path, config) -> int:
+    from agents.adaptive.train import train_in_frame
+
     clock = "CPU" if config.clock == "cpu" else "wall"
     print(f"vo-gym train: in-frame sampler, {config.minutes:g} min of {clock} time, seed {config.seed}"
           + (f", prior {config.prior}" if config.prior else "") + (f", from {config.init}" if config.init else "")
@@ -285,13 +418,7 @@ def _train_adaptive(args: argparse.Namespace, out: Path) -> int:
 # The options each trainer reads (argparse dests); --algo, --out, --seed, --resume and --no-progress
 # serve all three. An option of another trainer is refused rather than silently ignored: a
 # researcher who gives --algo adaptive PPO's --max-minutes would otherwise train for 25 minutes.
-USED_BY = {
-    "ngransac": frozenset({"loss", "frames", "epsilon", "budget", "pools", "lr", "max_grad_norm", "entropy_weight",
-                           "frames_per_sequence", "eval_every", "eval_frames"}),
-    "ppo": frozenset(set(_PPO_OPTIONS) - {"seed"} | {"max_minutes", "epsilon"}),
-    "adaptive": frozenset({"minutes", "clock", "prior", "domain_randomisation", "max_episodes", "frames_per_episode",
-                           "n_correspondences"}),
-}
+USED_BY = {algo: frozenset(options) - _SHARED for algo, options in OPTIONS.items()}
 # where a refused option has a counterpart in the chosen trainer
 _COUNTERPART = {("adaptive", "max_minutes"): "--minutes", ("ppo", "minutes"): "--max-minutes",
                 ("ppo", "lr"): "--ppo-lr", ("adaptive", "frames"): "--max-episodes or --minutes"}
@@ -308,22 +435,56 @@ def check_options_apply(args: argparse.Namespace) -> None:
             continue
         owners = " and ".join(algo for algo, used in USED_BY.items() if dest in used)
         hint = _COUNTERPART.get((args.algo, dest))
-        refused.append(f"{given[dest]} {getattr(args, dest)}" + f" (an option of {owners}"
+        refused.append(f"{given[dest]}{shown_value(getattr(args, dest))}" + f" (an option of {owners}"
                        + (f"; here: {hint})" if hint else ")"))
     if refused:
         raise UsageError(f"--algo {args.algo} does not take " + ", ".join(refused))
 
 
+def resumable_options(algo: str) -> frozenset[str]:
+    """The options (argparse dests) a run of ``algo`` resumed with ``--resume`` reads: ngransac's and
+    ppo's that set a field their trainer lets a continuation change
+    (:data:`agents.ngransac.RESUMABLE_FIELDS`, :data:`agents.ppo.config.RESUMABLE_FIELDS`); all of
+    adaptive's, whose --resume starts fresh training from the weights."""
+    if algo == "adaptive":
+        return frozenset(OPTIONS[algo])
+    if algo == "ngransac":
+        from agents.ngransac import RESUMABLE_FIELDS
+    else:
+        from agents.ppo.config import RESUMABLE_FIELDS
+    return frozenset(dest for dest, field in OPTIONS[algo].items() if field in RESUMABLE_FIELDS)
+
+
+def check_resume_options(args: argparse.Namespace) -> None:
+    """With ``--resume`` (ngransac, ppo), raise a one-line UsageError naming every typed option of the
+    trainer that the checkpoint fixes (the network, budget, loss or reward, environment, learning
+    rate, ...): the resumed run would go on with the checkpoint's value, whatever was typed."""
+    if args.resume is None or args.algo == "adaptive":
+        return
+    resumable = resumable_options(args.algo)
+    given = given_options(args, add_parser)
+    fixed = [f"{flag}{shown_value(getattr(args, dest))}" for dest, flag in given.items()
+             if dest in OPTIONS[args.algo] and dest not in resumable]
+    if fixed:
+        raise UsageError(f"{', '.join(fixed)}: fixed by the checkpoint --resume {args.resume}, whose run goes on "
+                         f"with its own settings; a resumed {args.algo} run takes only "
+                         f"{', '.join(_flag(d) for d in OPTIONS[args.algo] if d in resumable)} (start a new run to "
+                         "change the others)")
+
+
 def _check_env_id(env_id: str) -> None:
-    import gymnasium as gym
+    """Refuse, in one line, an id PPO cannot train on: unregistered, or not a vo_gym step environment."""
+    from vo_gym.names import did_you_mean
+    from vo_gym.registration import STEP, env_kind, step_ids
 
-    import vo_gym  # noqa: F401  (registers the vo_gym ids)
-
-    try:
-        gym.spec(env_id)
-    except gym.error.Error as err:
-        ids = sorted(k for k in gym.registry if k.startswith("vo_gym/"))
-        raise UsageError(f"--env-id {env_id!r} is not a registered environment ({err}); vo_gym's: {', '.join(ids)}") from None
+    ids = ", ".join(step_ids())
+    check_step_env(env_id, in_frame_hint=f"PPO trains on a step id ({ids}); the in-frame sampler trains with "
+                   "--algo adaptive", images_hint=f"PPO trains on simulated matches, a step id ({ids})")
+    kind = env_kind(env_id)
+    if kind != STEP:
+        what = "a registered environment" if kind is None else "a vo_gym step environment"
+        raise UsageError(f"--env-id {env_id!r} is not {what}{did_you_mean(env_id, step_ids())}; "
+                         f"PPO trains on one of: {ids}")
 
 
 def _check_checkpoints(args: argparse.Namespace) -> None:
@@ -352,7 +513,8 @@ def _check_checkpoints(args: argparse.Namespace) -> None:
             from agents.adaptive.checkpoint import check_adaptive_payload
             from agents.checkpoint import read_payload
 
-            check_adaptive_payload(path, read_payload(path))
+            network = check_adaptive_payload(path, read_payload(path))
+            _check_resumed_size(args, network)
     except (ValueError, FileNotFoundError) as err:
         raise UsageError(f"--resume: {err}") from None
     want = IN_FRAME if args.algo == "adaptive" else ONE_SHOT
@@ -360,6 +522,17 @@ def _check_checkpoints(args: argparse.Namespace) -> None:
         article = {IN_FRAME: "an", ONE_SHOT: "a"}
         raise UsageError(f"--resume {args.resume}: {article.get(kind, 'a')} {kind} checkpoint; --algo {args.algo} "
                          f"continues {article[want]} {want} one")
+
+
+def _check_resumed_size(args: argparse.Namespace, network: dict[str, Any]) -> None:
+    """Refuse an in-frame checkpoint whose network is not the size the in-frame trainer builds (it
+    starts from the weights, into a network of its config's width and blocks)."""
+    from agents.adaptive.train import AdaptiveTrainConfig
+
+    config = AdaptiveTrainConfig()
+    if (network["width"], network["blocks"]) != (config.width, config.blocks):
+        raise UsageError(f"--resume {args.resume}: its network has width {network['width']}, blocks "
+                         f"{network['blocks']}; the in-frame trainer builds width {config.width}, blocks {config.blocks}")
 
 
 def _continues_in_place(args: argparse.Namespace) -> bool:
@@ -403,14 +576,22 @@ def run(args: argparse.Namespace) -> int:
                    *(("stable_baselines3",) if args.algo == "ppo" else ()))
     if args.resume is not None and not Path(args.resume).is_file():
         raise UsageError(f"--resume: no checkpoint at {args.resume}")
-    if args.algo == "ppo":
-        _check_env_id(args.env_id)
-    elif args.resume is not None and Path(args.resume).suffix == ".zip":
+    if args.algo == "ppo" and args.resume is not None and Path(args.resume).suffix == ".pt":
+        raise UsageError(f"--resume {args.resume}: PPO resumes from the SB3 model zip (e.g. "
+                         f"{Path(args.resume).with_suffix('.zip')}); the .pt file is the exported actor only")
+    if args.algo != "ppo" and args.resume is not None and Path(args.resume).suffix == ".zip":
         raise UsageError(f"--resume {args.resume}: a .zip is a stable-baselines3 PPO model; resume it with --algo ppo")
+    check_resume_options(args)
+    if args.algo == "ppo" and args.env_id is not None:
+        _check_env_id(args.env_id)
     _check_checkpoints(args)
+    # the trainer or its config, checked before --out is made: a refused setting leaves no folder
+    prepared = {"ngransac": _ngransac_trainer, "ppo": _ppo_config, "adaptive": _adaptive_config}[args.algo](args)
+    start = RunStart(args.out)
     out = _open_out(args)  # before any computing: a bad --out loses no training
-    if args.algo == "adaptive":
-        return _train_adaptive(args, out)
-    if args.algo == "ngransac":
-        return _train_ngransac(args, out)
-    return _train_ppo(args, out)
+    train = {"ngransac": _train_ngransac, "ppo": _train_ppo, "adaptive": _train_adaptive}[args.algo]
+    try:
+        return train(args, out, prepared)
+    except UsageError:  # refused as training started (a zip whose environment does not build): --out as it was
+        start.undo()
+        raise

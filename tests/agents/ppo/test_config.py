@@ -55,3 +55,17 @@ def test_the_config_stays_torch_free():
     code = "import sys; from agents.ppo.config import PPOConfig; PPOConfig(width=64); print('torch' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("timesteps", 10**400, "PPO: timesteps must be an integer >= 1 and <= 1000000000, got ~1e+400 (an integer of 401 digits)"),
+    ("eval_every", 10**10, "PPO: eval_every must be an integer >= 1 and <= 1000000000, got 10000000000"),
+    ("n_envs", 10**6, "PPO: n_envs must be an integer >= 1 and <= 1024, got 1000000"),
+    ("n_correspondences", 10**9, "PPO: n_correspondences must be an integer >= 3 and <= 100000000, got 1000000000"),
+    ("budget", 10**10, "PPO: budget must be an integer >= 1 and <= 1000000000, got 10000000000"),
+    ("seed", -1, "PPO: seed must be an integer >= 0, got -1"),
+])
+def test_a_count_past_its_cap_is_refused_naming_it(field, value, message):
+    with pytest.raises(ValueError) as err:
+        PPOConfig(**{field: value})
+    assert str(err.value) == message
