@@ -29,7 +29,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from stereovo.estimation import StereoProblem
+from stereovo.estimation import StereoProblem, method_spec
 from stereovo.geometry import PoseChain
 from stereovo.metrics import FrameMetrics, frame_metrics
 from stereovo.options import real_array
@@ -47,6 +47,7 @@ from vo_gym.in_frame import (
 from vo_gym.rewards import inlier_reward, msac_reward, pose_error_ratio, supervised_reward
 from vo_gym.settings import (
     SIMULATOR_KEYWORDS,
+    check_reset_options,
     check_settings,
     estimator_noise,
     estimator_settings,
@@ -107,8 +108,18 @@ class StereoVOAdaptiveEnv(gym.Env):
 
     Each step costs ``hypothesis_cost`` per hypothesis drawn. The step that ends a frame adds the
     frame's reward without that cost (:mod:`vo_gym.rewards`): ``"supervised"`` (success and pose
-    error against the truth), ``"inliers"`` or ``"msac"`` (self-supervised, no ground truth).
-    A frame's rewards sum to the one-shot environment's reward for the same estimate.
+    error against the truth), ``"inliers"`` or ``"msac"`` (self-supervised, no ground truth),
+    ``failure_reward`` for a failed estimate, clipped to [-1, 1].
+
+    So a frame's rewards sum to ``r - hypothesis_cost * H``: ``r`` the reward the one-shot
+    environment (:class:`vo_gym.StereoVOEnv`) gives the same estimate at ``hypothesis_cost=0``,
+    ``H`` the hypotheses the frame drew. That equals the one-shot reward at this cost only where
+    the one-shot environment charges it in full: it charges no cost on a failed frame (its
+    reward is ``failure_reward`` flat) and clips its reward, cost included, to [-1, 1], whereas
+    here the cost is charged on every frame and outside the clip. The sum therefore lies in
+    ``[-1 - hypothesis_cost * max_hypotheses, 1]``, and one step's reward in ``[-1 -
+    hypothesis_cost * batch_size, 1]`` (e.g. -1.8 for a failed frame of 8 hypotheses at cost 0.1,
+    where the one-shot environment gives -1).
 
     ## Episode End
 
@@ -124,7 +135,9 @@ class StereoVOAdaptiveEnv(gym.Env):
     ``[:H, :N]`` block holds their inlier masks (the rest False). Read them as
     ``info["batch_samples"][:H]`` and ``info["batch_inliers"][:H, :N]``. On a frame's last step also the
     frame metrics (as :class:`vo_gym.StereoVOEnv`), ``pose_error_ratio``, ``fallback``,
-    ``outlier_ratio``, ``stopped`` (the agent stopped, not the cap) and ``all_inlier_drawn`` (a
+    ``outlier_ratio`` (the contamination epsilon the simulator drew for the frame, as in
+    :class:`vo_gym.StereoVOEnv`: the frame holds ``round(epsilon N)`` outlier rows, so the realised
+    share differs at small N), ``stopped`` (the agent stopped, not the cap) and ``all_inlier_drawn`` (a
     scored sample was all static inliers: read from the truth, for the stop's miss rate only).
 
     ## Arguments
@@ -136,7 +149,9 @@ class StereoVOAdaptiveEnv(gym.Env):
       :class:`vo_gym.StereoVOEnv`; ``hypothesis_cost`` in [0, 1] (default 0.002).
     - ``method``: the judge (default ``"msac"``).
     - ``render_mode``: None only (Gymnasium's tools pass it): the environment has no renderer, so
-      ``metadata["render_modes"]`` is empty and any other mode raises ``ValueError``.
+      ``metadata["render_modes"]`` is empty and any other mode raises ``ValueError``; ``render()``
+      warns and returns None, as Gymnasium's own environments and :class:`vo_gym.StereoVOEnv` do
+      without a render mode.
     - ``**settings``: the simulator's settings, the fields of :class:`stereovo.simulation.SimulationConfig`
       with its defaults, as in :class:`vo_gym.StereoVOEnv` (``n_frames``, ``n_correspondences``,
       ``outlier_ratio``, ``outliers`` (``"default"`` / ``"hostile"``), ``outlier_mix``, ``noise_dof``,
@@ -144,10 +159,15 @@ class StereoVOAdaptiveEnv(gym.Env):
       :data:`vo_gym.settings.DEFAULT_ESTIMATOR_OPTIONS`), except those of the search's stopping rule,
       whose role the agent and the keywords above take: ``budget``, ``confidence``,
       ``max_iterations``, ``first_batch_size`` and ``fail_at_cap`` raise ``TypeError`` saying which.
+      An option the judge would not read with the other settings raises ``ValueError`` naming it,
+      its value and why, as in :class:`vo_gym.StereoVOEnv` (:func:`vo_gym.settings.unread_options`):
+      ``least_squares_refit`` with ``refine=True`` (the default), ``gate_probability`` and
+      ``refine_gate_probability`` with ``method="msac"`` (the default), ...
 
     Each keyword's rule is declared once, in :mod:`vo_gym.settings`, and is the same as in
     :class:`vo_gym.StereoVOEnv`. Invalid values raise ``ValueError`` naming the argument; unknown
-    keywords raise ``TypeError``.
+    keywords raise ``TypeError``. ``reset(options=...)`` takes None or an empty dict; anything else
+    raises ``ValueError``.
 
     ## Version History
 
@@ -249,6 +269,7 @@ class StereoVOAdaptiveEnv(gym.Env):
     # ------------------------------------------------------------------ gymnasium API
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        check_reset_options(_OWNER, options)
         super().reset(seed=seed)
         self._sequence = Sequence(self._sequence_config, int(self.np_random.integers(0, 2**63 - 1)))
         self._rng = np.random.default_rng(int(self.np_random.integers(0, 2**63 - 1)))
@@ -277,6 +298,25 @@ class StereoVOAdaptiveEnv(gym.Env):
             truncated = self._k > self.sim_config.n_frames
             self._start_frame()
         return self._observation(), float(reward), False, truncated, info
+
+    def __getstate__(self) -> dict[str, Any]:
+        # the judge by name: the registry's method specs hold local functions, which do not pickle
+        # (stereovo.estimation.PreparedEstimator pickles its method the same way)
+        state = dict(self.__dict__)
+        state["_spec"] = self._spec.name
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        state = dict(state)
+        state["_spec"] = method_spec(state["_spec"])
+        self.__dict__.update(state)
+
+    def render(self) -> None:
+        """Nothing to draw: warns (Gymnasium's logger) and returns None, as a Gymnasium environment made
+        without a render mode does; the environment has no renderer (``render_mode`` is always None)."""
+        gym.logger.warn(f"{_OWNER}.render() called without a render_mode: the environment has no renderer "
+                        "(metadata['render_modes'] is empty), so there is nothing to draw")
+        return None
 
     def close(self) -> None:
         self._sequence = None

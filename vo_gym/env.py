@@ -30,6 +30,7 @@ from vo_gym.rewards import inlier_reward, msac_reward, pose_error_ratio, supervi
 from vo_gym.settings import (
     DEFAULT_ESTIMATOR_OPTIONS,
     SAMPLING_MODES,
+    check_reset_options,
     check_settings,
     estimator_noise,
     estimator_settings,
@@ -51,6 +52,24 @@ def _nan_to_none(value: Any) -> Any:
     if isinstance(value, float) and math.isnan(value):
         return None
     return value
+
+
+def _unscored_rows_failed(frame: Frame) -> Frame:
+    """``frame``, or where a match score is NaN or inf, a copy in which those rows are failed matches:
+    NaN coordinates (a row without depth, as a front end's failed match: mask 0, never sampled, an
+    outlier of every reward) and score 0 (below every real score in (0, 1)). A score that says nothing
+    leaves the row nothing to rank it by; its coordinates stay in the source's frame (``sequence``)."""
+    scores = frame.scores
+    if not (isinstance(scores, np.ndarray) and scores.dtype.kind == "f"):
+        return frame  # integers are finite; anything else is the features' to refuse
+    finite = np.isfinite(scores)
+    if finite.all():
+        return frame
+    bad = ~finite
+    prev, curr = np.array(frame.prev, dtype=float), np.array(frame.curr, dtype=float)
+    prev[bad] = np.nan
+    curr[bad] = np.nan
+    return dataclasses.replace(frame, prev=prev, curr=curr, scores=np.where(finite, scores, 0.0))
 
 
 def _display_weights(n: int, priors: np.ndarray | None, order: np.ndarray | None) -> np.ndarray:
@@ -113,9 +132,22 @@ class StereoVOEnv(gym.Env):
     label; the column layout is :data:`vo_gym.features.FEATURE_NAMES`
     (version :data:`vo_gym.features.FEATURE_LAYOUT_VERSION`). ``mask`` is 1 on
     valid rows and 0 on padding (whose features are 0) and on matches without
-    depth (disparity at or below the camera's ``min_disparity`` at k-1 or k:
-    finite, flagged features, see :mod:`vo_gym.features`; the estimator treats
-    them as outliers). The simulator's own frames have none.
+    depth (at k-1 or k a coordinate that is not finite, or a disparity at or
+    below the camera's ``min_disparity`` or within ``min_disparity_sigmas``,
+    default 2, standard deviations of its noise: finite, flagged features, see
+    :mod:`vo_gym.features`; the estimator never samples them and treats them as
+    outliers). The simulator's frames have such rows too (at the default depths,
+    ``z_max`` 60 m, only among their outliers): seldom with
+    ``outliers="default"``, often with ``outliers="hostile"``, whose far clutter
+    and independent left/right mismatches leave no resolvable disparity (over
+    the 21 observations of a seed-0 episode of 20 frames, N = 200,
+    ``outlier_ratio=0.8``: 1 such row of 4200 with the default outliers, 554
+    with the hostile ones). A row whose match score is NaN or
+    inf (a front end's failed match, never the simulator's) is a row without
+    depth too: the environment gives it NaN coordinates and score 0
+    (:attr:`current_frame`), so it is masked, never sampled and an outlier of
+    every reward, and a frame left with too few usable rows fails (status
+    ``"failed: ..."``, ``failure_reward``) rather than raising.
 
     ## Rewards
 
@@ -150,8 +182,13 @@ class StereoVOEnv(gym.Env):
     ``trans_err_m``, ``t_true_norm_m``, ``success``, ``precision``, ``recall``,
     ``n_inliers``, ``n_hypotheses``, ``n_scored``, ``n_point_checks``,
     ``status``), ``pose_error_ratio`` (``e`` above), ``fallback`` (the
-    constant-velocity fallback was used) and ``outlier_ratio`` (the frame's
-    contamination). At the episode's end also ``trajectory``: the
+    constant-velocity fallback was used) and ``outlier_ratio``: the contamination
+    epsilon the simulator drew for the frame (``outlier_ratio``, or its per-frame
+    draw from a ``(low, high)`` range), of which the frame holds ``round(epsilon
+    N)`` outlier rows, so the realised share ``round(epsilon N) / N`` differs at
+    small N (0.99 at N = 3 is three outliers of three); the images environment
+    reports the realised share instead (:class:`vo_gym.images_env.StereoVOImagesEnv`).
+    At the episode's end also ``trajectory``: the
     :class:`stereovo.metrics.TrajectoryMetrics` fields (unavailable values, e.g.
     KITTI drift on a trajectory shorter than 100 m, are None) plus
     ``success_rate`` and ``failed_frames``. No wall-clock time enters the info
@@ -200,10 +237,20 @@ class StereoVOEnv(gym.Env):
       (``threshold_px``, ``gate_probability``, ``polish_iterations``, ``refine``,
       ``refine_iterations``, ``refine_rounds``, ``local_refit``, ``min_inliers``, ``confidence``,
       ``max_iterations``) or an option of the chosen method; the environment's own
-      defaults are :data:`DEFAULT_ESTIMATOR_OPTIONS`.
+      defaults are :data:`DEFAULT_ESTIMATOR_OPTIONS`. An option the estimator would not read
+      with the other settings is refused (``ValueError`` naming it, its value and why,
+      :func:`vo_gym.settings.unread_options`): under a fixed ``budget`` (the default)
+      ``confidence``, ``max_iterations``, ``first_batch_size`` and ``fail_at_cap`` (the
+      budget draws exactly its hypotheses; ``confidence`` stays for the PROSAC stop of
+      ``method="prosac"`` and of ``"usac"`` with ``sampling="prosac"``, which picks the
+      sampled prefix with it); ``least_squares_refit`` with ``refine=True`` (the default);
+      ``gate_probability`` and ``refine_gate_probability`` with a method judged by the
+      reprojection gate (``"msac"``, the default, ``"ransac"``, ...), and
+      ``refine_gate_probability`` wherever no pixel-gated final refinement runs.
 
     Each keyword's rule is declared once, in :mod:`vo_gym.settings`. Invalid values raise
     ``ValueError`` naming the argument; unknown keywords raise ``TypeError``.
+    ``reset(options=...)`` takes None or an empty dict; anything else raises ``ValueError``.
 
     ## Version History
 
@@ -306,7 +353,8 @@ class StereoVOEnv(gym.Env):
     @property
     def current_frame(self) -> Frame | None:
         """The frame pair the next action applies to (None before ``reset``). Its ``truth`` is for tests and
-        oracles only; the observation never reads it."""
+        oracles only; the observation never reads it. It is the source's frame, except that rows whose
+        match score is NaN or inf are failed matches here (NaN coordinates, score 0; see Observation Space)."""
         return self._frame
 
     @property
@@ -352,13 +400,14 @@ class StereoVOEnv(gym.Env):
     # ------------------------------------------------------------------ gymnasium API
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        check_reset_options(_OWNER, options)
         super().reset(seed=seed)
         sequence_seed = int(self.np_random.integers(0, 2**63 - 1))
         ransac_seed = int(self.np_random.integers(0, 2**63 - 1))
         self._sequence = self.make_sequence(sequence_seed)
         self._ransac_rng = np.random.default_rng(ransac_seed)
         self._k = 1
-        self._frame = self._sequence.frame(1)
+        self._frame = _unscored_rows_failed(self._sequence.frame(1))
         self._chain = PoseChain(self._sequence.true_poses[0])
         self._successes = []
         self._last_step = None
@@ -403,7 +452,7 @@ class StereoVOEnv(gym.Env):
         truncated = self._k > self.sim_config.n_frames
         if truncated:
             info["trajectory"] = self._trajectory_summary()
-        self._frame = self._sequence.frame(self._k)
+        self._frame = _unscored_rows_failed(self._sequence.frame(self._k))
         return self._observation(), reward, False, truncated, info
 
     def render(self):

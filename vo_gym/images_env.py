@@ -34,9 +34,9 @@ _RULES: dict[str, Option] = {
     "texture_seed": Integer(low=0, allow_none=True),
     "cached_episodes": Integer(low=0, high=64),
 }
-# StereoVOEnv's simulator knobs that images decide for themselves
+# StereoVOEnv's simulator knobs that images decide for themselves (the camera: the resolution's or the source's)
 _SIMULATOR_ONLY = ("n_correspondences", "outlier_ratio", "outlier_mix", "outliers", "noise_dof", "score_auc", "z_min",
-                   "z_max", "noise_sigma")
+                   "z_max", "noise_sigma", "camera")
 
 
 def top_rows(frame: Frame, index: int, limit: int) -> Frame:
@@ -128,6 +128,12 @@ class StereoVOImagesEnv(StereoVOEnv):
     last ``cached_episodes`` seeds, and the procedural textures for ``texture_seed`` (None: a
     fresh set per episode, drawn from its seed).
 
+    The info's ``outlier_ratio`` is the realised share of the frame's rows that its labels mark as
+    outliers (after the cut to ``max_correspondences``; 1.0 for a frame without matches): images
+    draw no contamination, so it is not the simulated environments' drawn epsilon. A row whose
+    match score is NaN or inf is a failed match, a row without depth (see
+    :class:`vo_gym.env.StereoVOEnv`, Observation Space).
+
     Args:
         source: see above. n_frames: steps per episode. max_correspondences: observation rows.
         preset, resolution, moving_objects, image_noise, speed, world: the rendered world's (None:
@@ -138,8 +144,13 @@ class StereoVOImagesEnv(StereoVOEnv):
             source's ``noise_sigma``.
         **kwargs: any other :class:`vo_gym.env.StereoVOEnv` argument (``sampling``, ``reward_mode``,
             ``method``, ``budget``, estimator options, ...). Its simulator-only arguments
-            (``n_correspondences``, ``outlier_ratio``, ``outliers``, ``noise_dof``, ``score_auc``, ...) are
-            refused: images decide them.
+            (``n_correspondences``, ``outlier_ratio``, ``outliers``, ``noise_dof``, ``score_auc``,
+            ``camera``, ...) are refused: images decide them (the camera is the resolution's or the
+            source's).
+
+    The rendered world's arguments are checked at construction by the rules of
+    :class:`~stereovo.sequences.RenderedSequence` (e.g. ``speed`` in (0, 10] m/frame), not at the
+    first reset.
 
     With a ``source``, the frames and the camera are the source's: the rendered world's arguments
     (``preset``, ``resolution``, ``moving_objects``, ``image_noise``, ``speed``, ``world``, a
@@ -158,7 +169,8 @@ class StereoVOImagesEnv(StereoVOEnv):
                  estimator_noise_sigma: float | None = None, **kwargs: Any) -> None:
         refused = sorted(set(kwargs) & set(_SIMULATOR_ONLY))
         if refused:
-            raise TypeError(f"{_PREFIX}{refused} are simulator settings; on images the front end decides them")
+            raise TypeError(f"{_PREFIX}{refused} are simulator settings; on images the front end decides them "
+                            "(and the camera is the resolution's or the source's)")
         if source is not None and not isinstance(source, str):
             _check_source(source)
             if frontend_options is not None:
@@ -184,6 +196,18 @@ class StereoVOImagesEnv(StereoVOEnv):
                                              resolution=resolution, moving_objects=moving_objects,
                                              image_noise=image_noise, texture_seed=texture_seed,
                                              cached_episodes=cached_episodes), prefix=_PREFIX)
+        if source is None:
+            # RenderedSequence's own rules for what reset hands it (one more frame pair: the spare one of
+            # truncation), checked now rather than at the first reset
+            from stereovo.sequences.rendered import _RULES as RENDER_RULES
+
+            check_options(RENDER_RULES, dict(preset=preset, world=world, resolution=checked["resolution"],
+                                             moving_objects=checked["moving_objects"], image_noise=checked["image_noise"],
+                                             speed=speed, texture_seed=checked["texture_seed"]), prefix=_PREFIX)
+            most = RENDER_RULES["n_frames"].high
+            if checked["n_frames"] + 1 > most:
+                raise ValueError(f"{_PREFIX}n_frames must be at most {most - 1} for the rendered world (an episode "
+                                 f"renders n_frames + 1 frame pairs, at most {most}), got {checked['n_frames']}")
         if frontend_options is not None and not isinstance(frontend_options, dict):
             raise ValueError(f"{_PREFIX}frontend_options must be a dict of FrontendOptions fields, "
                              f"got {type(frontend_options).__name__}")

@@ -618,15 +618,15 @@ def test_rendered_prosac_weights_run_from_one_for_the_best_to_zero_for_the_worst
     assert weights(4, np.array([1.0, 3.0, 0.0, 4.0]), None).tolist() == [0.5, 1.5, 0.0, 2.0]
 
 
-# Two valid values for each keyword of ENV_KEYWORDS (bogus_keyword has none); n_frames and budget replace the
-# fuzz test's base settings.
+# Two valid values for each keyword of ENV_KEYWORDS (bogus_keyword has none, and confidence none under the fuzz
+# test's fixed budget, which refuses it as ignored); n_frames and budget replace the fuzz test's base settings.
 ENV_VALID = {
     "sampling": ("guided", "prosac"), "reward_mode": ("supervised", "msac"), "max_correspondences": (None, 64),
     "action_bound": (10.0, 5), "logit_scale": (1.0, 0.5), "success_bonus": (0.5, 0.0), "hypothesis_cost": (0.001, 0),
     "failure_reward": (-1.0, -0.5), "n_frames": (2, 3), "noise_sigma": (0.5, 1.0), "outlier_ratio": (0.5, (0.2, 0.6)),
     "score_auc": (0.75, 0.9), "z_min": (3.0, 5.0), "speed": (None, 8.0), "method": ("msac", "ransac"),
     "budget": (4, 8), "batch_size": (None, 2), "estimator_noise_sigma": (None, 0.7), "refine": (False, True),
-    "confidence": (0.99, 0.9), "min_inliers": (6, 8), "local_refit": (False, True), "preset": ("car", "free"),
+    "min_inliers": (6, 8), "local_refit": (False, True), "preset": ("car", "free"),
     "world": (None, "open"), "outlier_mix": (None, (0.8, 0.2, 0.0)),
 }
 VALID_ACTIONS = ("zeros", "random", "inf-pad", "huge")

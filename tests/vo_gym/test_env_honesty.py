@@ -361,7 +361,8 @@ def test_the_documented_defaults_and_the_kitti_lengths_check():
     for bad in ((), (0.0,), (-2.0,), (float("nan"),), ("a",)):
         with pytest.raises(ValueError) as raised:
             StereoVOEnv(kitti_lengths=bad)
-        assert str(raised.value) == f"StereoVOEnv: kitti_lengths must be positive numbers (m), got {bad!r}"
+        assert str(raised.value) == ("StereoVOEnv: kitti_lengths must be a non-empty list, tuple or 1-D array of "
+                                     f"positive numbers (m), got {bad!r}")
 
 
 # ------------------------- the contract, value by value: messages, settings, seeds, spaces, actions, rewards, close

@@ -107,7 +107,8 @@ def test_every_environment_keyword_has_its_rule_here():
 
 @pytest.mark.parametrize("value", [(), (0.0,), (5.0, -1.0), (float("inf"),), "ab", 3, None, ("x",)])
 def test_lengths_refuse_what_is_not_positive_finite_lengths(value):
-    with pytest.raises(ValueError, match=rf"^E: kitti_lengths must be positive numbers \(m\), got "):
+    with pytest.raises(ValueError, match=r"^E: kitti_lengths must be a non-empty list, tuple or 1-D array of "
+                                         r"positive numbers \(m\), got "):
         check_settings("E", kitti_lengths=value)
     assert Lengths().check("x", (1, 2.5)) == (1.0, 2.5)
 
@@ -119,3 +120,20 @@ def test_a_contamination_range_is_a_pair_within_zero_and_one(value):
     with pytest.raises(ValueError, match=r"^epsilons must be a \(low, high\) pair with 0 <= low <= high < 1, got "):
         ContaminationRange().check("epsilons", value, prefix="")
     assert ContaminationRange().check("epsilons", [0, np.float32(0.5)], prefix="") == (0.0, 0.5)
+
+
+LENGTHS_REFUSED = ["123", b"car", {1.0: 2.0}, {5.0}, (True, 2.0), [False], np.array([[1.0, 2.0]]), np.array([True]),
+                   np.array(5.0), iter([1.0, 2.0]), range(1, 3), [10**400]]
+LENGTHS_ACCEPTED = [([100, 200.5], (100.0, 200.5)), ((np.float32(50.0),), (50.0,)), (np.array([100, 800]), (100.0, 800.0)),
+                    ([np.int64(3)], (3.0,))]
+
+
+def test_lengths_take_only_a_list_tuple_or_1d_array_of_real_numbers():
+    # a string, bytes or a dict iterated to numbers: "123" gave (1.0, 2.0, 3.0), b"car" (99.0, 97.0, 114.0)
+    for value in LENGTHS_REFUSED:
+        with pytest.raises(ValueError, match=r"^StereoVOEnv: kitti_lengths must be a non-empty list, tuple or 1-D "
+                                             r"array of positive numbers \(m\), got "):
+            StereoVOEnv(**SMALL, kitti_lengths=value)
+    for value, lengths in LENGTHS_ACCEPTED:  # their numbers normalised to floats
+        env = StereoVOEnv(**SMALL, kitti_lengths=value)
+        assert env.kitti_lengths == lengths and all(type(x) is float for x in env.kitti_lengths)

@@ -1,0 +1,154 @@
+"""Estimator options that the estimator would not read with the other settings are refused, not ignored.
+
+Under a fixed ``budget`` (StereoVOEnv's default, 32) no adaptive stop runs; ``least_squares_refit``
+chooses the final step only without ``refine`` (the environments' default is ``refine=True``); the
+reprojection-judged methods (``msac``, the default) read neither gate quantile. Each such option used
+to give a stream bit-identical to the defaults. The last test checks the tables of
+:func:`vo_gym.settings.unread_options` against the estimator itself: every option they refuse for a
+method leaves its estimates unchanged.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import vo_gym  # noqa: F401  (registers the ids)
+from stereovo.estimation import StereoProblem, available_methods, estimate_problem, method_spec
+from stereovo.simulation import Sequence, SimulationConfig
+from vo_gym.adaptive_env import StereoVOAdaptiveEnv
+from vo_gym.env import StereoVOEnv
+from vo_gym.settings import DEFAULT_ESTIMATOR_OPTIONS
+
+SMALL = dict(n_frames=2, n_correspondences=40)
+BUDGET_ONLY = {"confidence": 0.5, "max_iterations": 1, "first_batch_size": 1, "fail_at_cap": False}
+
+
+def _refusal(env_id_or_cls, **kwargs) -> str:
+    with pytest.raises(ValueError) as err:
+        if isinstance(env_id_or_cls, str):
+            gym.make(env_id_or_cls, **SMALL, **kwargs)
+        else:
+            env_id_or_cls(**SMALL, **kwargs)
+    return str(err.value)
+
+
+@pytest.mark.parametrize("env_id", ["vo_gym/StereoVO-v0", "vo_gym/StereoVOProsac-v0", "vo_gym/StereoVOHard-v0",
+                                    "vo_gym/StereoVOProsacHard-v0"])
+@pytest.mark.parametrize("name, value", sorted(BUDGET_ONLY.items()))
+def test_the_adaptive_stops_options_are_refused_under_the_default_fixed_budget(env_id, name, value):
+    message = _refusal(env_id, **{name: value})
+    assert message.startswith(f"StereoVOEnv: {name}={value!r} would be ignored: a fixed budget (budget=32) draws "
+                              "exactly that many hypotheses per frame"), message
+    assert message.endswith("(budget=None switches to the adaptive stop)"), message
+    # the same keyword is read, and accepted, by the adaptive stop
+    env = gym.make(env_id, **SMALL, budget=None, **{name: value})
+    assert getattr(env.unwrapped.estimator_options, name) == value
+
+
+def test_a_prosac_stop_keeps_confidence_under_a_budget_and_nothing_else_of_the_adaptive_stop():
+    # PROSAC's stop still picks the sampled prefix n* with its confidence under a fixed budget
+    for kwargs in ({"method": "prosac"}, {"method": "usac"}):
+        env = StereoVOEnv(**SMALL, sampling="prosac", confidence=0.9, **kwargs)
+        assert env.estimator_options.confidence == 0.9
+        assert "max_iterations=5 would be ignored" in _refusal(StereoVOEnv, sampling="prosac", max_iterations=5, **kwargs)
+    # usac without an order builds no PROSAC stop
+    assert "confidence=0.9 would be ignored" in _refusal(StereoVOEnv, method="usac", confidence=0.9)
+
+
+@pytest.mark.parametrize("cls", [StereoVOEnv, StereoVOAdaptiveEnv])
+def test_least_squares_refit_is_refused_where_refine_replaces_it(cls):
+    for value in (False, True):
+        assert _refusal(cls, least_squares_refit=value) == (
+            f"{cls.__name__}: least_squares_refit={value!r} would be ignored: refine=True ends with the iterated LM "
+            "refinement; least_squares_refit chooses the final step only with refine=False")
+    env = cls(**SMALL, refine=False, least_squares_refit=False)
+    assert env.estimator_options.least_squares_refit is False
+
+
+@pytest.mark.parametrize("cls", [StereoVOEnv, StereoVOAdaptiveEnv])
+def test_the_gate_quantiles_are_refused_for_msac_and_kept_for_the_methods_that_read_them(cls):
+    assert _refusal(cls, gate_probability=0.5) == (
+        f"{cls.__name__}: gate_probability=0.5 would be ignored: method 'msac' judges by the stereo reprojection "
+        "gate (threshold_px), not by the 3-D Mahalanobis gate whose quantile gate_probability is")
+    assert "refine_gate_probability=0.5 would be ignored: method 'msac' has no pixel-gated final refinement" in (
+        _refusal(cls, refine_gate_probability=0.5))
+    env = cls(**SMALL, method="probabilistic", gate_probability=0.5, refine_gate_probability=0.5)
+    assert (env.estimator_options.gate_probability, env.estimator_options.refine_gate_probability) == (0.5, 0.5)
+    # probabilistic's pixel gate belongs to its final refinement: none runs without refine and least_squares_refit
+    assert "no final refinement runs for its pixel gate" in _refusal(
+        cls, method="probabilistic", refine=False, least_squares_refit=False, refine_gate_probability=0.5)
+
+
+def test_several_unread_options_are_named_together_and_a_bad_value_is_named_first():
+    message = _refusal(StereoVOEnv, confidence=0.5, gate_probability=0.5)
+    assert message.startswith("StereoVOEnv: confidence=0.5 would be ignored") and "; gate_probability=0.5 would" in message
+    assert "confidence must be a finite number in (0, 1), got 1.5" in _refusal(StereoVOEnv, confidence=1.5)
+
+
+def _frames():
+    frames = []
+    for outliers in ("default", "hostile"):
+        sequence = Sequence(SimulationConfig(n_frames=2, n_correspondences=60, outlier_ratio=0.6, outliers=outliers), 3)
+        frames += [sequence.frame(k) for k in (1, 2)]
+    return frames
+
+
+ALTERNATIVES = {"confidence": 0.5, "max_iterations": 2, "first_batch_size": 1, "fail_at_cap": False,
+                "least_squares_refit": False, "gate_probability": 0.3, "refine_gate_probability": 0.3}
+
+
+def _inputs(frame, sampling: str) -> dict:
+    if sampling == "guided":
+        return {"priors": np.exp(frame.scores)}
+    return {"order": np.argsort(-frame.scores, kind="stable")}
+
+
+def _usable_samplings(method: str, frame) -> list[str]:
+    """The samplings the method runs with (its declaration, and its recipe: the belief samplers declare
+    any input but refuse an order when they run)."""
+    out = []
+    problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, 0.5)
+    for sampling in ("guided", "prosac"):
+        try:
+            method_spec(method).check_inputs(priors=sampling == "guided", order=sampling == "prosac")
+            estimate_problem(problem, method, rng=0, budget=4, **_inputs(frame, sampling))
+        except ValueError:
+            continue
+        out.append(sampling)
+    return out
+
+
+def test_every_option_the_tables_refuse_leaves_the_methods_estimates_unchanged():
+    """The refusals follow what the estimator reads: refusing an option a method does read would take a
+    setting away; this catches a table that drifts from the recipes."""
+    from vo_gym.settings import unread_options
+
+    frames = _frames()
+    checked = set()
+    for method in available_methods():
+        for sampling in _usable_samplings(method, frames[0]):
+            for settings in ({"budget": 8, "batch_size": 4}, {"budget": 8, "refine": False},
+                             {"budget": None, "refine": False, "least_squares_refit": False}):
+                base = {**DEFAULT_ESTIMATOR_OPTIONS, **settings, "noise_sigma": 0.5}
+                if base["budget"] is None:
+                    base["max_iterations"] = 64
+                env = StereoVOEnv(**SMALL, method=method, sampling=sampling,
+                                  **{k: v for k, v in base.items() if k != "noise_sigma"})
+                unread = unread_options(method, env.estimator_options, ALTERNATIVES, sampling)
+                for name in unread:
+                    if name in base and name != "confidence":
+                        continue  # given by these settings themselves
+                    for i, frame in enumerate(frames):
+                        problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, 0.5)
+                        inputs = _inputs(frame, sampling)
+                        runs = [estimate_problem(problem, method, rng=np.random.default_rng(i), **inputs, **options)
+                                for options in (base, {**base, name: ALTERNATIVES[name]})]
+                        a, b = runs
+                        assert a.status == b.status and a.n_hypotheses == b.n_hypotheses, (method, sampling, name)
+                        assert np.array_equal(a.rotation, b.rotation) and np.array_equal(a.translation, b.translation)
+                        assert np.array_equal(a.inliers, b.inliers), (method, sampling, name)
+                    checked.add((method.split("+")[0], name))
+    # the defaults' refusals were among those checked
+    assert {("msac", name) for name in ALTERNATIVES} <= checked, sorted(checked)
