@@ -258,8 +258,11 @@ class EvalConfig:
         object.__setattr__(self, "env_kwargs", dict(self.env_kwargs))
 
     def env_kwargs_for(self, epsilon: float, budget: int) -> dict[str, Any]:
+        # max_iterations caps the adaptive methods (self.max_iterations, equal to a keyword given here):
+        # the environment draws a fixed budget and refuses a cap it would not read
+        env_kwargs = {key: value for key, value in self.env_kwargs.items() if key != "max_iterations"}
         kwargs = {
-            **self.env_kwargs, "n_frames": self.frames_per_episode, "n_correspondences": self.n,
+            **env_kwargs, "n_frames": self.frames_per_episode, "n_correspondences": self.n,
             "outlier_ratio": float(epsilon), "budget": int(budget),
         }
         if self.score_auc is not None:
