@@ -6,8 +6,9 @@ keywords, the command line) declares them with these types, so the same value is
 refused, with the same message, wherever it enters:
 
 - :class:`Integer`: Python or numpy integers only. ``bool`` is refused (``True`` is not a count),
-  and so is ``3.0`` or ``1.5`` (a float that happens to be whole is a sign of a computed value
-  that was meant to be rounded by the caller, not here).
+  so is numpy's ``timedelta64`` (an ``np.signedinteger`` to numpy), and so is ``3.0`` or ``1.5``
+  (a float that happens to be whole is a sign of a computed value that was meant to be rounded by
+  the caller, not here).
 - :class:`Boolean`: ``True``/``False`` (or numpy bools) only; ``"no"`` or ``0`` is refused
   (``"no"`` is truthy and would silently act as True).
 - :class:`Number`: a real, finite number in a range; ``"0.9"``, ``nan``, ``inf`` and complex
@@ -15,7 +16,9 @@ refused, with the same message, wherever it enters:
   it, so every computation with it would overflow).
 - :class:`Choice`: one of a fixed set of strings; the message lists them.
 
-Arrays have one contract too: :func:`real_array` (a real numeric array of a given shape).
+Arrays have one contract too: :func:`real_array` (a real numeric array of a given shape; as for
+:class:`Number`, bools are no numbers, nor are None, dates, durations and strings, though numpy
+casts them all to float64).
 
 Each declaration may allow ``None``. :meth:`Option.check` returns the value normalised to a
 plain Python ``int``/``float``/``bool``/``str`` (never changing it numerically), or raises
@@ -43,14 +46,19 @@ class OptionError(ValueError):
     """An option's value breaks its declaration; the message names the option and the value."""
 
 
+_NOT_NUMBERS = (bool, np.bool_, np.timedelta64)
+"""Types that pass for integers (``True``; numpy's timedelta64 is an ``np.signedinteger``) but are no numbers."""
+
+
 def is_integer(value: Any) -> bool:
-    """A Python or numpy integer, not a bool."""
-    return isinstance(value, (numbers.Integral, np.integer)) and not isinstance(value, (bool, np.bool_))
+    """A Python or numpy integer, not a bool, not a numpy timedelta64."""
+    return isinstance(value, (numbers.Integral, np.integer)) and not isinstance(value, _NOT_NUMBERS)
 
 
 def is_real(value: Any) -> bool:
-    """A real Python or numpy number (int or float), not a bool, not complex, not a string."""
-    return isinstance(value, (numbers.Real, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    """A real Python or numpy number (int or float), not a bool, not complex, not a string, not a
+    numpy timedelta64."""
+    return isinstance(value, (numbers.Real, np.integer, np.floating)) and not isinstance(value, _NOT_NUMBERS)
 
 
 def is_finite_real(value: Any) -> bool:
@@ -235,14 +243,31 @@ def check_options(declarations: Mapping[str, Option], values: Mapping[str, Any],
     return {name: declarations[name].check(name, values[name], prefix) for name in names}
 
 
+_NOT_NUMBER_KINDS = "bMmUSV"
+"""Dtype kinds numpy casts to float64 though they hold no numbers: bool, datetime64, timedelta64,
+str, bytes and void (structured)."""
+
+_REAL = object()  # _first_not_real's "all real"
+
+
+def _first_not_real(elements: Iterable[Any]) -> Any:
+    """The first element that is no real number (:func:`is_real`: a bool, None, a string, a date ...), or ``_REAL``."""
+    return next((x for x in elements if not is_real(x)), _REAL)
+
+
 def real_array(name: str, value: Any, shape: tuple[int | str, ...], entries: str = "numbers", per: str = "",
                what: str | None = None, prefix: str = "") -> np.ndarray:
     """``value`` as a float64 array of ``shape``, or a ``ValueError`` naming ``name`` and the value.
 
     The one check of "a real numeric array of shape X": complex values are refused (a cast would
-    drop the imaginary part with only a warning), and so are values numpy cannot read as numbers
-    and arrays of another shape. NaN and inf pass (the callers say what they mean). The input
-    itself is returned when it already is a float64 array (no copy).
+    drop the imaginary part with only a warning), and so is what numpy would cast to float64 though
+    it holds no numbers: None (NaN to numpy), bools (``True`` is not a number, as for
+    :class:`Number`), datetime64 and timedelta64 values, strings and bytes (``"1.5"``) and
+    structured (void) arrays, in an array, in a list or tuple, or in an object array (which may
+    hold real numbers only: :func:`is_real`). So are values numpy cannot read as numbers (a ragged
+    list, an integer too large for a float) and arrays of another shape. NaN and inf pass (the
+    callers say what they mean). The input itself is returned when it already is a float64 array
+    (no copy); what is accepted is ``np.asarray(value, float64)``.
 
     Args:
         name: the argument's name, for the messages (after ``prefix``, e.g. ``"StereoVOEnv: "``).
@@ -254,24 +279,49 @@ def real_array(name: str, value: Any, shape: tuple[int | str, ...], entries: str
 
     Raises:
         ValueError: ``{name} must be real {entries}, got complex dtype ...``, ``{name} must be
-            {what}, got TYPE`` or ``{name} must have shape (...), {per}, got (...)``.
+            {what}, got GOT`` (GOT: the value's type where numpy cannot cast it, else ``None``,
+            ``ndarray of dtype bool``, ``list holding True``, ``ndarray holding None`` or, for a
+            scalar, its repr) or ``{name} must have shape (...), {per}, got (...)``.
     """
-    if type(value) is np.ndarray and value.dtype.kind in "biuf":
+    if type(value) is np.ndarray and value.dtype.kind in "iuf":
         # the common case, a real array: no complex check, no conversion for float64 (np.asarray's result)
         array = value if value.dtype == np.float64 else value.astype(np.float64)
     else:
-        if np.iscomplexobj(value):
-            raise ValueError(f"{prefix}{name} must be real {entries}, got complex dtype {np.asarray(value).dtype}")
+        what = what or f"a numeric array of shape {_shape_text(shape)} of {entries}"
+        if value is None:  # np.asarray(None, float64) is a 0-d NaN
+            raise ValueError(f"{prefix}{name} must be {what}, got None")
         try:
-            array = np.asarray(value, dtype=np.float64)
-        except (TypeError, ValueError):
-            what = what or f"a numeric array of shape {_shape_text(shape)} of {entries}"
+            inferred = value if isinstance(value, np.ndarray) else np.asarray(value)
+            complex_dtype = inferred.dtype if inferred.dtype.kind == "c" else None
+            array = None if complex_dtype is not None else np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError, OverflowError):  # no numbers, a ragged list, 10**400
             raise ValueError(f"{prefix}{name} must be {what}, got {type(value).__name__}") from None
+        if complex_dtype is not None:
+            raise ValueError(f"{prefix}{name} must be real {entries}, got complex dtype {complex_dtype}")
+        got = _not_real_numbers(value, inferred)
+        if got is not None:
+            raise ValueError(f"{prefix}{name} must be {what}, got {got}")
     if array.ndim != len(shape) or any(isinstance(k, int) and k != m for k, m in zip(shape, array.shape)):
         raise ValueError(
             f"{prefix}{name} must have shape {_shape_text(shape)}{', ' + per if per else ''}, got {array.shape}"
         )
     return array
+
+
+def _not_real_numbers(value: Any, inferred: np.ndarray) -> str | None:
+    """What :func:`real_array`'s message says it got when ``value`` (``inferred``: numpy's reading
+    of it), which numpy casts to float64, holds something other than real numbers; None otherwise."""
+    kind, kind_of = inferred.dtype.kind, type(value).__name__
+    if isinstance(value, (list, tuple)):
+        # the elements themselves, not numpy's reading of them: [True, 2.0] reads as float64
+        bad = _first_not_real(np.asarray(value, dtype=object).flat)
+        return None if bad is _REAL else f"{kind_of} holding {value_repr(bad)}"
+    if kind in _NOT_NUMBER_KINDS:
+        return value_repr(value) if inferred.ndim == 0 else f"{kind_of} of dtype {inferred.dtype}"
+    if kind == "O":
+        bad = _first_not_real(inferred.flat)
+        return None if bad is _REAL else f"{kind_of} holding {value_repr(bad)}"
+    return None
 
 
 def _shape_text(shape: tuple[int | str, ...]) -> str:

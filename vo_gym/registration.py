@@ -10,7 +10,10 @@ Worker processes that start afresh (stable-baselines3's ``SubprocVecEnv`` uses
 ``forkserver`` on Linux, ``spawn`` elsewhere) have not imported ``vo_gym``: give
 them the module-qualified id, ``make_vec_env("vo_gym:vo_gym/StereoVO-v0", ...,
 vec_env_cls=SubprocVecEnv)``. Gymnasium's own ``make_vec`` ships the spec with
-its entry point and needs nothing special.
+its entry point and needs nothing special, with one exception: async workers of
+``StereoVOImages-v0`` forked from a process that has rendered (OpenGL does not survive
+``fork``) refuse to render, naming the fix, ``vector_kwargs={"context": "forkserver"}``
+(or ``"spawn"``).
 """
 
 from __future__ import annotations

@@ -7,9 +7,14 @@ camera is the centre of row ``v``, column ``u`` of the image, so a point project
 each pixel's depth ``z`` (m; 0 where nothing was drawn) and the id of the object drawn there
 (0 for the static world, ``j + 1`` for moving object j).
 
-The EGL context is made once per process (a context does not survive ``fork``: a child makes
-its own). Needs the ``render`` extra (moderngl, glcontext) and the system's EGL with Mesa
-(Debian: ``libegl1 libegl-mesa0 libgl1-mesa-dri``; ``scripts/setup.sh`` installs them).
+The EGL context is made once per process. It does not survive ``fork``: Mesa's rasteriser
+threads are not copied into the child, so a child forked from a process that had made a context
+would hang on its first GL call. Such a child gets :class:`RenderingUnavailable` instead, saying to
+start workers with ``"forkserver"`` or ``"spawn"`` (Gymnasium: ``gymnasium.make_vec(...,
+vectorization_mode="async", vector_kwargs={"context": "forkserver"})``); a child forked before
+the parent made its context (or from one that only imported moderngl) makes its own. Needs the
+``render`` extra (moderngl, glcontext) and the system's EGL with Mesa (Debian: ``libegl1
+libegl-mesa0 libgl1-mesa-dri``; ``scripts/setup.sh`` installs them).
 """
 
 from __future__ import annotations
@@ -60,23 +65,61 @@ void main() {
 NEAR, FAR = 0.3, 400.0
 """Clip range of the renderer (m)."""
 
-_CONTEXT: dict[int, object] = {}
+_CONTEXT: list[object] = []  # the process's context, once made
+
+_MADE_HERE = False
+"""This process has made (or tried to make) a GL context."""
+_FORKED_AFTER_GL = False
+"""This process was forked (``os.fork``, multiprocessing's ``"fork"``) from one that had made a GL
+context, or from a descendant of one: its inherited Mesa state deadlocks on the first GL call."""
+
+
+def _after_fork_in_child() -> None:
+    global _MADE_HERE, _FORKED_AFTER_GL
+    _FORKED_AFTER_GL = _FORKED_AFTER_GL or _MADE_HERE
+    _MADE_HERE = False
+
+
+if hasattr(os, "register_at_fork"):  # POSIX; Windows has no fork
+    os.register_at_fork(after_in_child=_after_fork_in_child)
+
+FORKED_MESSAGE = (
+    "this process was forked from one that had made an OpenGL context, and Mesa's state does not survive "
+    "fork (rendering here would hang): start worker processes with the 'forkserver' or 'spawn' method, e.g. "
+    "gymnasium.make_vec(..., vectorization_mode='async', vector_kwargs={'context': 'forkserver'}), "
+    "AsyncVectorEnv(env_fns, context='forkserver') or multiprocessing.get_context('forkserver')"
+)
+"""The message of :class:`RenderingUnavailable` in a forked child of a process that had rendered."""
 
 
 class RenderingUnavailable(RuntimeError):
-    """No headless OpenGL context could be made (moderngl or EGL missing); the message says what to install."""
+    """No headless OpenGL context can be used here: moderngl or EGL is missing (the message says what
+    to install), or this process was forked from one that had made a context (the message says to
+    use the ``forkserver`` or ``spawn`` start method)."""
+
+
+def _check_not_forked() -> None:
+    if _FORKED_AFTER_GL:
+        raise RenderingUnavailable(FORKED_MESSAGE)
 
 
 def context():
-    """The process's moderngl EGL context (made on first use)."""
-    pid = os.getpid()
-    if pid not in _CONTEXT:
+    """The process's moderngl EGL context (made on first use).
+
+    Raises:
+        RenderingUnavailable: moderngl or EGL is missing, or this process was forked from one that
+            had made a context (see the module's docstring).
+    """
+    global _MADE_HERE
+    _check_not_forked()
+    if not _CONTEXT:
         try:
             import moderngl
         except ImportError as err:
             raise RenderingUnavailable(
                 "rendered sequences need moderngl: pip install 'vo-gym[render]' (moderngl, glcontext)"
             ) from err
+        _MADE_HERE = True  # before the attempt (a failed one may have started Mesa)
         try:
             ctx = moderngl.create_standalone_context(backend="egl", require=330)
         except Exception as err:  # glcontext raises plain Exceptions naming the missing library
@@ -84,9 +127,8 @@ def context():
                 f"no headless OpenGL (EGL) context: {err}. On Debian/Ubuntu install libegl1 libegl-mesa0 "
                 "libgl1-mesa-dri (scripts/setup.sh does)"
             ) from err
-        _CONTEXT.clear()
-        _CONTEXT[pid] = ctx
-    return _CONTEXT[pid]
+        _CONTEXT.append(ctx)
+    return _CONTEXT[0]
 
 
 def _matrix(m: np.ndarray) -> bytes:
@@ -146,7 +188,12 @@ class Renderer:
         Returns:
             ``grey (H, W)`` uint8, and if ``with_depth`` ``depth (H, W)`` float32 (m, 0 = nothing)
             and ``ids (H, W)`` int16.
+
+        Raises:
+            RenderingUnavailable: in a process forked from one that had made the context (a renderer
+                inherited from the parent would hang).
         """
+        _check_not_forked()
         ctx = self._ctx
         self._fbo.use()
         ctx.enable(ctx.DEPTH_TEST)
@@ -169,7 +216,10 @@ class Renderer:
         return np.ascontiguousarray(grey), np.ascontiguousarray(raw[:, :, 0]), raw[:, :, 1].astype(np.int16)
 
     def release(self) -> None:
-        """Free the GL objects (the context stays for the next renderer)."""
+        """Free the GL objects (the context stays for the next renderer). Nothing in a process forked
+        from the renderer's: the objects are the parent's, and a GL call here would hang."""
+        if _FORKED_AFTER_GL:
+            return
         for obj in (self._fbo, self._grey, self._depth_id, self._zbuffer, self._texture, self._program):
             obj.release()
         for vao, buffer in [self._world, *self._objects]:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import re
 import sys
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -70,11 +71,13 @@ def test_worker_counts_and_seeds_of_every_layer_follow_the_contract(value):
 
 @pytest.mark.parametrize("value", [
     np.arange(6.0).reshape(3, 2), np.arange(6, dtype=np.float32).reshape(3, 2) / 7, np.arange(6).reshape(3, 2),
-    np.array([[True, False]] * 3), np.arange(6, dtype=np.uint8).reshape(3, 2), np.full((3, 2), np.nan, np.float16),
-    np.ma.masked_array(np.ones((3, 2))), [[1, 2], [3, 4], [5, 6]],
+    np.arange(6, dtype=np.uint8).reshape(3, 2), np.full((3, 2), np.nan, np.float16),
+    np.ma.masked_array(np.ones((3, 2))), [[1, 2], [3, 4], [5, 6]], ((1, 2.5), (np.float32(3), np.int8(4)), (5, 6)),
+    np.array([[1, 2.5], [Fraction(1, 3), np.int64(4)], [5, 6]], dtype=object),
 ])
 def test_real_array_gives_numpys_float64_conversion(value):
-    """The fast path for real ndarrays returns what np.asarray(value, float64) returns (the array itself for float64)."""
+    """The fast path for real ndarrays returns what np.asarray(value, float64) returns (the array itself for
+    float64); so does the slow path for lists, tuples and object arrays of real numbers."""
     from stereovo.options import real_array
 
     out = real_array("x", value, ("N", 2))
@@ -84,6 +87,119 @@ def test_real_array_gives_numpys_float64_conversion(value):
     assert (out is value) == (expected is value)
     with pytest.raises(ValueError, match=r"^x must have shape \(N, 3\), one row, got \(3, 2\)$"):
         real_array("x", value, ("N", 3), per="one row")
+
+
+M = 5  # the arrays' length in the real_array tests
+
+
+@pytest.mark.parametrize("value,got", [
+    (None, "None"),
+    (np.ones(M, bool), "ndarray of dtype bool"),
+    (np.zeros(M, "datetime64[s]"), "ndarray of dtype datetime64[s]"),
+    (np.zeros(M, "timedelta64[ms]"), "ndarray of dtype timedelta64[ms]"),
+    (np.array(["1.5"] * M), "ndarray of dtype <U3"),
+    (np.array([b"2"] * M), "ndarray of dtype |S1"),
+    (np.zeros(M, [("x", "f8")]), "ndarray of dtype [('x', '<f8')]"),
+    (np.ma.masked_array(np.ones(M, bool)), "MaskedArray of dtype bool"),
+    ([True] * M, "list holding True"),
+    ([1.0, 2.0, np.True_, 4.0, 5.0], "list holding np.True_"),  # numpy reads the list as float64
+    ((0.5,) * 4 + (None,), "tuple holding None"),
+    (["1"] * M, "list holding '1'"),
+    ([np.timedelta64(1, "s")] * M, "list holding np.timedelta64(1,'s')"),
+    (np.array([1.0, None, 2.0, 3.0, 4.0], dtype=object), "ndarray holding None"),
+    (np.array([1.0, 2.0, False, 3.0, 4.0], dtype=object), "ndarray holding False"),
+    (np.array(["7"] * M, dtype=object), "ndarray holding '7'"),
+    (True, "True"),
+    (np.datetime64("2024-01-01"), "np.datetime64('2024-01-01')"),
+])
+def test_real_array_refuses_bools_dates_strings_void_and_none_naming_what_it_got(value, got):
+    """numpy casts all of these to float64 (None to NaN, True to 1, a date to its count of seconds),
+    so they were taken for numbers; refused like other non-numbers, naming the argument and the value."""
+    from stereovo.options import real_array
+
+    with pytest.raises(ValueError) as err:
+        real_array("the action", value, (M,), what=f"a numeric array of shape ({M},)", prefix="Env: ")
+    assert str(err.value) == f"Env: the action must be a numeric array of shape ({M},), got {got}"
+
+
+@pytest.mark.parametrize("value", [[[1.0, 2.0], [3.0]], [10**400] * M])
+def test_real_array_refuses_ragged_lists_and_integers_too_large_for_a_float_in_its_own_words(value):
+    """numpy's own ValueError ('inhomogeneous shape') and an OverflowError (no ValueError) came out."""
+    from stereovo.options import real_array
+
+    with pytest.raises(ValueError) as err:
+        real_array("x", value, (M,))
+    assert str(err.value) == f"x must be a numeric array of shape ({M},) of numbers, got list"
+
+
+def test_numpy_timedelta64_is_no_integer_and_no_number():
+    """np.timedelta64 is an np.signedinteger: Integer and Number took it for a number, then failed
+    converting it with a TypeError (int() of a datetime.timedelta) instead of naming it."""
+    from stereovo.options import is_integer, is_real
+
+    value = np.timedelta64(3, "s")
+    assert not is_integer(value) and not is_real(value)
+    with pytest.raises(OptionError, match=r"^option k must be an integer >= 1, got np\.timedelta64\(3,'s'\)$"):
+        Integer(low=1).check("k", value)
+    with pytest.raises(OptionError, match=r"^option x must be a finite number, got np\.timedelta64\(3,'s'\)$"):
+        Number().check("x", value)
+
+
+def _callers_of_real_array():
+    """Each caller of real_array: the shape of the array argument it checks, a call with it (the
+    other arguments valid) and the start of its message."""
+    import gymnasium as gym
+
+    import vo_gym  # noqa: F401
+    from stereovo import estimate_motion
+    from stereovo.estimation import StereoProblem
+    from tests.support.frames import CAMERA, noise_free_pair
+    from vo_gym.features import compute_features
+
+    prev, curr = noise_free_pair(np.random.default_rng(0), np.eye(3), np.array([0, 0, -1.0]), 30)
+
+    def env_step(env_id):
+        def step(action):
+            env = gym.make(env_id, n_frames=2)
+            env.reset(seed=0)
+            try:
+                env.step(action)
+            finally:
+                env.close()
+        return step
+
+    return {
+        "StereoVO-v0": ((500,), env_step("vo_gym/StereoVO-v0"),
+                        "StereoVOEnv: the action must be a numeric array of shape (500,), got "),
+        "StereoVOAdaptive-v0": ((501,), env_step("vo_gym/StereoVOAdaptive-v0"),
+                                "StereoVOAdaptiveEnv: the action must be a numeric array of shape (501,), got "),
+        "estimate_motion priors": ((30,), lambda a: estimate_motion(prev, curr, CAMERA, "guided-mlesac", priors=a),
+                                   "priors must be an array of real weights, got "),
+        "StereoProblem prev": ((30, 4), lambda a: StereoProblem.build(a, curr, CAMERA),
+                               "prev must be a numeric (N, 4) array of (uL, vL, uR, vR) pixels, got "),
+        "compute_features scores": ((30,), lambda a: compute_features(prev, curr, a, CAMERA, 0.5, None),
+                                    "scores must be a finite (30,) array of numbers, got "),
+    }
+
+
+@pytest.mark.parametrize("caller", ["StereoVO-v0", "StereoVOAdaptive-v0", "estimate_motion priors",
+                                    "StereoProblem prev", "compute_features scores"])
+def test_every_caller_of_real_array_refuses_bool_date_and_none_arrays(caller):
+    """An environment's action np.ones(M, bool) or np.zeros(M, 'datetime64[s]') was taken as values
+    1 and 0 (such an action skips the environment's float fast path into real_array's cast), and
+    None was refused as 'must have shape (500,) ..., got ()'; so it was for priors, measurements
+    and scores."""
+    shape, call, message = _callers_of_real_array()[caller]
+    for value, got in [(np.ones(shape, bool), "ndarray of dtype bool"),
+                       (np.zeros(shape, "datetime64[s]"), "ndarray of dtype datetime64[s]"),
+                       (None, "None")]:
+        if value is None and caller == "estimate_motion priors":
+            continue  # priors=None is no priors
+        if value is not None and value.dtype == bool and caller == "compute_features scores":
+            continue  # whether a bool mask may stand for scores is compute_features' to say (it casts or not)
+        with pytest.raises(ValueError) as err:
+            call(value)
+        assert str(err.value) == message + got
 
 
 @pytest.mark.parametrize("rule,rule_text", [(Number(low=0.0), ">= 0"), (Number(), ""), (Number(low=0.0, high=1.0), "in \\[0, 1\\]")],

@@ -235,3 +235,59 @@ def test_images_too_small_for_features_are_refused_naming_their_size(tmp_path):
             as err:
         gym.make("vo_gym/StereoVOImages-v0", source=f"kitti:{folder}", n_frames=1, max_correspondences=100)
     assert "z_max" not in str(err.value)
+
+
+ASYNC_AFTER_RENDERING = '''
+import multiprocessing
+import gymnasium as gym
+import vo_gym
+from stereovo.sequences import rendering
+
+SMALL = dict(n_frames=2, resolution="vga", max_correspondences=60)
+
+
+def vector_reset(context):
+    vec = gym.make_vec("vo_gym/StereoVOImages-v0", num_envs=2, vectorization_mode="async",
+                       vector_kwargs={"context": context}, **SMALL)
+    vec.reset_async(seed=[3, 4])
+    try:
+        obs, _ = vec.reset_wait(timeout=90)
+        return f"reset {obs['features'].shape}"
+    except rendering.RenderingUnavailable as err:
+        return f"refused: {err}"
+    except multiprocessing.TimeoutError:
+        return "hung"
+    finally:
+        vec.close(terminate=True)
+
+
+if __name__ == "__main__":
+    print(rendering.__file__)
+    env = gym.make("vo_gym/StereoVOImages-v0", **SMALL)
+    env.reset(seed=0)  # this process renders (and has closed its env)
+    env.close()
+    print(vector_reset("fork"))
+    print(vector_reset("forkserver"))
+'''
+
+
+def test_async_vector_env_forked_after_rendering_is_refused_naming_forkserver_which_works(tmp_path):
+    """Forked async workers of a process that had rendered hung in Mesa (llvmpipe's threads do not
+    survive fork); their reset now raises RenderingUnavailable naming the forkserver context, and
+    with that context the same reset works. In a fresh interpreter that bounds the wait."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    script = tmp_path / "async_after_rendering.py"  # a file: forkserver workers import the main module
+    script.write_text(ASYNC_AFTER_RENDERING)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), *filter(None, [os.environ.get("PYTHONPATH")])])}
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=400, env=env)
+    assert out.returncode == 0, out.stderr
+    module, forked, forkserver = out.stdout.splitlines()
+    assert Path(module).is_relative_to(root)  # this checkout's code ran
+    assert forked.startswith("refused: this process was forked from one that had made an OpenGL context")
+    assert "vector_kwargs={'context': 'forkserver'}" in forked
+    assert forkserver.startswith("reset (2, 60, ")  # both workers rendered their episodes
