@@ -472,9 +472,12 @@ def test_two_and_one_matches_and_the_input_checks():
     assert two[:, 1].tolist() == [1.0, 0.0]  # rank / (n - 1)
     one = compute_features(frame.prev[:1], frame.curr[:1], np.array([0.7]), cam, sigma)
     assert one[0, 0] == np.float32(0.7) and one[0, 1] == 0.0 and one[0, 13] == 0.0 and one[0, 8] != 0.0
-    # Boolean and integer scores are numbers.
-    np.testing.assert_array_equal(compute_features(frame.prev, frame.curr, frame.scores > 0.5, cam, sigma),
+    # Integer scores are numbers; booleans are not (as everywhere numbers are taken: a mask passed as
+    # scores is a mistake to name, not a score of 0 or 1).
+    np.testing.assert_array_equal(compute_features(frame.prev, frame.curr, (frame.scores > 0.5).astype(int), cam, sigma),
                                   compute_features(frame.prev, frame.curr, (frame.scores > 0.5) * 1.0, cam, sigma))
+    with pytest.raises(ValueError, match=r"scores must be .*got ndarray of dtype bool"):
+        compute_features(frame.prev, frame.curr, frame.scores > 0.5, cam, sigma)
     bad_curr = frame.curr.copy()
     bad_curr[0, 0] = np.nan
     flagged = compute_features(frame.prev, bad_curr, frame.scores, cam, sigma)  # NaN: an unusable row
