@@ -199,7 +199,7 @@ class StereoVOImagesEnv(StereoVOEnv):
         if source is None:
             # RenderedSequence's own rules for what reset hands it (one more frame pair: the spare one of
             # truncation), checked now rather than at the first reset
-            from stereovo.sequences.rendered import _RULES as RENDER_RULES
+            from stereovo.sequences.rendered import RENDER_RULES
 
             check_options(RENDER_RULES, dict(preset=preset, world=world, resolution=checked["resolution"],
                                              moving_objects=checked["moving_objects"], image_noise=checked["image_noise"],

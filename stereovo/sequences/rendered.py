@@ -19,7 +19,7 @@ import numpy as np
 from stereovo.camera import StereoCamera
 from stereovo.frontend import Matches
 from stereovo.geometry import invert_transform, relative_motion
-from stereovo.options import Choice, Integer, Number, check_options
+from stereovo.options import Choice, Integer, Number, Option, check_options
 from stereovo.sequences.base import ImageSequence
 from stereovo.sequences.labels import label_matches
 from stereovo.sequences.rendering import Renderer
@@ -33,7 +33,7 @@ RESOLUTIONS: dict[str, StereoCamera] = {
 }
 """Cameras by resolution name: KITTI-like 1241x376 (the simulator's default rig) and 640x480."""
 
-_RULES = {
+RENDER_RULES: dict[str, Option] = {
     "preset": Choice(choices=tuple(sorted(PRESETS))),
     "world": Choice(choices=("street", "open"), allow_none=True),
     "n_frames": Integer(low=1, high=100_000),
@@ -43,6 +43,9 @@ _RULES = {
     "speed": Number(low=0.0, high=10.0, low_open=True, unit="m/frame", allow_none=True),
     "texture_seed": Integer(low=0, allow_none=True),
 }
+"""The rules of :class:`RenderedSequence`'s arguments (the image environment checks them at construction too)."""
+
+
 @functools.lru_cache(maxsize=4)
 def shared_textures(texture_seed: int) -> np.ndarray:
     """The texture layers of ``texture_seed``, made once per process (read-only)."""
@@ -87,7 +90,7 @@ class RenderedSequence(ImageSequence):
                  seed: int | np.random.SeedSequence | None = 0, moving_objects: int = 0, world: str | None = None,
                  image_noise: float = 2.0, speed: float | None = None, camera: StereoCamera | None = None,
                  noise_sigma: float = 0.5, texture_seed: int | None = None, **frontend_options: Any) -> None:
-        checked = check_options(_RULES, dict(preset=preset, world=world, n_frames=n_frames, resolution=resolution,
+        checked = check_options(RENDER_RULES, dict(preset=preset, world=world, n_frames=n_frames, resolution=resolution,
                                              moving_objects=moving_objects, image_noise=image_noise, speed=speed,
                                              texture_seed=texture_seed),
                                 prefix="RenderedSequence: ")

@@ -16,7 +16,7 @@ SMALL = dict(n_frames=2, max_correspondences=60)
 
 @pytest.mark.parametrize("speed", [50, 0, -0.0, 10.5, float("nan"), True, "fast"])
 def test_a_render_speed_outside_the_rendered_sequences_rule_is_refused_by_make(speed):
-    from stereovo.sequences.rendered import _RULES as RENDER_RULES
+    from stereovo.sequences.rendered import RENDER_RULES
 
     with pytest.raises(ValueError) as err:
         gym.make("vo_gym/StereoVOImages-v0", **SMALL, speed=speed)
