@@ -86,7 +86,9 @@ class LearnedEstimator:
         budget: hypotheses per frame. One-shot: exactly this many (None: the prior-aware adaptive
             stop at ``confidence``, capped by ``max_iterations``). In-frame: exactly this many batch
             after batch, the sampler's stop unused (None: its own stop, under the search's cap).
-            For both kinds a budget is the stop itself: drawn in full, above ``max_iterations`` too.
+            For both kinds a budget is the stop itself: drawn in full, above ``max_iterations`` too
+            (a one-shot budget is the core's, which refuses the options of the adaptive stop it
+            replaces: ``max_iterations``, ``first_batch_size``, ``fail_at_cap``).
         confidence: in (0, 1); the prior-aware stop's confidence (one-shot, default 0.99) or the
             stop belief at which an in-frame sampler stops (default 0.9).
         method: the core method that fits and judges hypotheses (default ``"msac"``, the
