@@ -86,9 +86,12 @@ class LearnedEstimator:
         budget: hypotheses per frame. One-shot: exactly this many (None: the prior-aware adaptive
             stop at ``confidence``, capped by ``max_iterations``). In-frame: exactly this many batch
             after batch, the sampler's stop unused (None: its own stop, under the search's cap).
-            For both kinds a budget is the stop itself: drawn in full, above ``max_iterations`` too.
+            For both kinds a budget is the stop itself: drawn in full, above ``max_iterations`` too
+            (a one-shot budget is the core's, which refuses the options of the adaptive stop it
+            replaces: ``max_iterations``, ``first_batch_size``, ``fail_at_cap``).
         confidence: in (0, 1); the prior-aware stop's confidence (one-shot, default 0.99) or the
-            stop belief at which an in-frame sampler stops (default 0.9).
+            stop belief at which an in-frame sampler stops (default 0.9); refused with a ``budget``,
+            under which no stop runs.
         method: the core method that fits and judges hypotheses (default ``"msac"``, the
             environments' judge, with which every shipped sampler was trained). An in-frame sampler
             draws from its own weights, so a method that needs ``priors=`` or ``order=`` from its
@@ -145,6 +148,7 @@ class LearnedEstimator:
                              f"{self.name!r} stops adaptively within max_iterations")
         if max_hypotheses is None:
             max_hypotheses = IN_FRAME_CAP
+        confidence_given = confidence is not None
         if confidence is None:
             confidence = DEFAULT_CONFIDENCE[self.kind]
         if isinstance(confidence, bool) or not isinstance(confidence, (int, float)) or not 0 < confidence < 1:
@@ -157,6 +161,9 @@ class LearnedEstimator:
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise ValueError(f"{label} must be {'None or ' if allow_none else ''}an integer >= 1, got {value!r}")
         self.budget = None if budget is None else int(budget)
+        if self.budget is not None and confidence_given:
+            raise ValueError(f"confidence {confidence!r}: with budget={self.budget} {self.name!r} draws exactly that "
+                             "many hypotheses and no stop runs for a confidence to set (budget=None stops at it)")
         self.method = method
         spec = self._spec = method_spec(method)
         if spec.build is None:

@@ -133,8 +133,10 @@ class ClassicalRow:
             extra["priors"] = frame.scores
         elif self.inputs == "order":
             extra["order"] = np.argsort(-frame.scores, kind="stable")
+        if self.budget is None:  # the cap of the own stop; a budget is the stop itself and reads neither
+            extra.update(max_iterations=self.cap, fail_at_cap=False)
         return estimate_motion(frame.prev, frame.curr, frame.camera, method=self.method, rng=rng, budget=self.budget,
-                               max_iterations=self.cap, fail_at_cap=False, **extra, **DEFAULT_ESTIMATOR_OPTIONS)
+                               **extra, **DEFAULT_ESTIMATOR_OPTIONS)
 
 
 class LearnedRow:
@@ -180,6 +182,7 @@ class TransferConfig:
 
 def build_rows(config: TransferConfig) -> list[tuple[str, str, str, Any]]:
     """``(sampler, kind, point, row)`` for every row and point; each learned sampler is loaded once."""
+    from agents.catalog import ONE_SHOT
     from agents.estimator import LearnedEstimator
     from agents.samplers import load_sampler
 
@@ -188,7 +191,11 @@ def build_rows(config: TransferConfig) -> list[tuple[str, str, str, Any]]:
     for name in config.sampler_names():
         policy = load_sampler(name)
         for budget in points:
-            estimator = LearnedEstimator(policy, budget=budget, max_iterations=config.cap, fail_at_cap=False)
+            # the cap of a search's own stop; a one-shot sampler's budget is the core's, which reads no cap
+            # (the estimator refuses one), while an in-frame search keeps its cap under a budget too
+            cap = {} if budget is not None and policy.kind == ONE_SHOT else {"max_iterations": config.cap,
+                                                                               "fail_at_cap": False}
+            estimator = LearnedEstimator(policy, budget=budget, **cap)
             rows.append((policy.name, policy.kind, OWN_STOP if budget is None else str(budget), LearnedRow(estimator)))
     if config.classical:
         for label, method, inputs in CLASSICAL_ROWS:

@@ -19,6 +19,7 @@ from gymnasium import spaces
 
 from stereovo.camera import StereoCamera
 from stereovo.estimation import EstimatorOptions, PreparedEstimator, StereoProblem
+from stereovo.estimation.estimator_options import SHARED_OPTIONS
 from stereovo.geometry import PoseChain
 from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, FrameMetrics, frame_metrics, trajectory_metrics
 from stereovo.options import real_array
@@ -238,9 +239,9 @@ class StereoVOEnv(gym.Env):
       ``refine_iterations``, ``refine_rounds``, ``local_refit``, ``min_inliers``, ``confidence``,
       ``max_iterations``) or an option of the chosen method; the environment's own
       defaults are :data:`DEFAULT_ESTIMATOR_OPTIONS`. An option the estimator would not read
-      with the other settings is refused (``ValueError`` naming it, its value and why,
-      :func:`vo_gym.settings.unread_options`): under a fixed ``budget`` (the default)
-      ``confidence``, ``max_iterations``, ``first_batch_size`` and ``fail_at_cap`` (the
+      with the other settings is refused (``ValueError`` naming it, its value and why, by the
+      methods' own declarations: :func:`stereovo.estimation.unread_options`): under a fixed
+      ``budget`` (the default) ``confidence``, ``max_iterations``, ``first_batch_size`` and ``fail_at_cap`` (the
       budget draws exactly its hypotheses; ``confidence`` stays for the PROSAC stop of
       ``method="prosac"`` and of ``"usac"`` with ``sampling="prosac"``, which picks the
       sampled prefix with it); ``least_squares_refit`` with ``refine=True`` (the default);
@@ -317,14 +318,15 @@ class StereoVOEnv(gym.Env):
         self.method, self.budget = method, s["budget"]
         self.batch_size = s["batch_size"] if s["batch_size"] is not None else (
             self.budget if self.budget is not None else EstimatorOptions.batch_size)
+        fixed = {"noise_sigma": self.estimator_noise_sigma, "budget": self.budget, "batch_size": self.batch_size}
         _, self.estimator_options, extra = estimator_settings(
-            _OWNER, StereoVOEnv, method, estimator_options, sampling=self.sampling,
-            fixed={"noise_sigma": self.estimator_noise_sigma, "budget": self.budget, "batch_size": self.batch_size},
+            _OWNER, StereoVOEnv, method, estimator_options, sampling=self.sampling, fixed=fixed,
         )
-        self._estimator_kwargs = {
-            **{f.name: getattr(self.estimator_options, f.name) for f in dataclasses.fields(EstimatorOptions)},
-            **extra,
-        }
+        # The options given to the estimator are the ones set here (validated, normalised), not every
+        # field: the estimator refuses a given option its method would not read (confidence under the
+        # budget, ...), and the others keep the method's defaults, as in estimator_options.
+        given = [name for name in (*DEFAULT_ESTIMATOR_OPTIONS, *estimator_options, *fixed) if name in SHARED_OPTIONS]
+        self._estimator_kwargs = {**{name: getattr(self.estimator_options, name) for name in given}, **extra}
         # the method and these options, derived and checked once instead of on every step
         self._estimator = PreparedEstimator(method, **self._estimator_kwargs)
 
@@ -391,9 +393,11 @@ class StereoVOEnv(gym.Env):
     def estimator_kwargs(self) -> dict[str, Any]:
         """What each step passes to the estimator besides the frame, ``method``, the action and the generator.
 
-        The validated :class:`~stereovo.estimation.EstimatorOptions` fields and the method's own options,
-        as keyword arguments of :func:`stereovo.estimation.estimate_motion`. A copy: editing it changes
-        nothing in the environment.
+        The :class:`~stereovo.estimation.EstimatorOptions` fields the environment sets (its defaults
+        :data:`~vo_gym.settings.DEFAULT_ESTIMATOR_OPTIONS`, the user's estimator keywords, ``noise_sigma``,
+        ``budget`` and ``batch_size``), validated, and the method's own options, as keyword arguments of
+        :func:`stereovo.estimation.estimate_motion`; the other fields keep the method's defaults there
+        (:attr:`estimator_options` holds them all). A copy: editing it changes nothing in the environment.
         """
         return dict(self._estimator_kwargs)
 

@@ -26,9 +26,10 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from stereovo.camera import StereoCamera
-from stereovo.estimation import EstimatorOptions, method_spec, validate_options
-from stereovo.estimation.estimator_options import ESTIMATOR_OPTION_RULES, MAX_COUNT, SHARED_OPTIONS
-from stereovo.estimation.registry import MethodSpec
+from stereovo.estimation import EstimatorOptions, method_spec
+from stereovo.estimation import unread_options as estimator_unread_options
+from stereovo.estimation.estimator_options import ESTIMATOR_OPTION_RULES, MAX_COUNT, SHARED_OPTIONS, unread_message
+from stereovo.estimation.registry import MethodSpec, split_options
 from stereovo.options import Choice, Integer, Number, Option, check_options, is_real, value_repr
 from stereovo.simulation import SimulationConfig
 from vo_gym.names import constructor_keywords, keyword_hint
@@ -36,7 +37,6 @@ from vo_gym.rewards import REWARD_MODES
 
 __all__ = [
     "SAMPLING_MODES", "DEFAULT_ESTIMATOR_OPTIONS", "SIMULATOR_KEYWORDS", "RULES", "Lengths", "ContaminationRange",
-    "REPROJECTION_JUDGED_METHODS", "PIXEL_GATED_REFINEMENT_METHODS", "PROSAC_STOP_METHODS",
     "check_settings", "simulation_config", "observation_rows", "estimator_noise", "estimator_settings",
     "unread_options", "check_reset_options",
 ]
@@ -57,22 +57,6 @@ SIMULATOR_KEYWORDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(S
 
 # exp(+-300) is representable in float64; a larger logit range overflows the sampling weights.
 MAX_LOGIT = 300.0
-
-REPROJECTION_JUDGED_METHODS: frozenset[str] = frozenset(
-    {"ransac", "msac", "prosac", "r-ransac", "waldsac", "lo-ransac", "preemptive", "usac"})
-"""Methods (and their ``+`` variants) that judge hypotheses by the stereo reprojection gate
-(``threshold_px``, :func:`stereovo.estimation.recipes.reprojection_judge`): they read neither
-``gate_probability`` (the quantile of the 3-D Mahalanobis gate) nor ``refine_gate_probability``."""
-
-PIXEL_GATED_REFINEMENT_METHODS: frozenset[str] = frozenset({"probabilistic", "bansac", "p-bansac", "ars"})
-"""Methods whose final refinement re-selects its inliers with the pixel Mahalanobis gate of
-``refine_gate_probability`` (``probabilistic``'s recipe and those built on its judge): the only
-readers of that option, and only when a final refinement runs (``refine`` or ``least_squares_refit``)."""
-
-PROSAC_STOP_METHODS: frozenset[str] = frozenset({"prosac", "usac"})
-"""Methods whose PROSAC stop listens under a fixed budget too: it lowers the sampler's ``n_max`` to the
-prefix ``n*`` it picks with ``confidence`` (``usac`` only when it is given an order: ``sampling="prosac"``)."""
-
 
 @dataclasses.dataclass(frozen=True)
 class Lengths(Option):
@@ -240,8 +224,9 @@ def estimator_settings(owner: str, cls: type, method: str, options: Mapping[str,
     Raises:
         TypeError: a keyword that is no option of the method, or a refused one (naming it, its value
             and why). ValueError: a bad value, named, or an option the method would not read with these
-            settings (:func:`unread_options`: ``confidence`` under a fixed budget, ``least_squares_refit``
-            with ``refine``, ...), naming it, its value and why.
+            settings (:func:`unread_options`, the estimator's: ``confidence`` under a fixed budget,
+            ``least_squares_refit`` with ``refine``, ...), naming it, its value and why; only the
+            user's ``options`` are looked at (the environment's defaults and ``fixed`` never are).
     """
     refused = dict(refused or {})
     given_refused = [name for name in options if name in refused]
@@ -262,8 +247,11 @@ def estimator_settings(owner: str, cls: type, method: str, options: Mapping[str,
             f"argument nor an option of estimator method {method!r} (its options: {allowed})"
             f"{keyword_hint(unknown, cls, [*allowed, *also_known])}"
         )
+    # The values first, then the sampling input, then the options the method would not read, in the
+    # environment's words (validate_options would refuse the last before the sampling input is known,
+    # and would count the environment's defaults as given).
     try:
-        shared, extra = validate_options(method, {**DEFAULT_ESTIMATOR_OPTIONS, **options, **fixed})
+        shared, extra = split_options(spec, {**DEFAULT_ESTIMATOR_OPTIONS, **options, **fixed})
     except (TypeError, ValueError) as err:
         raise ValueError(f"{owner}: invalid estimator setting: {err}") from None
     if sampling is not None:
@@ -273,62 +261,23 @@ def estimator_settings(owner: str, cls: type, method: str, options: Mapping[str,
             raise ValueError(f"{owner}: estimator method {method!r} with sampling={sampling!r}: {err}") from None
     unread = unread_options(spec.name, shared, options, sampling)
     if unread:
-        raise ValueError(f"{owner}: " + "; ".join(f"{name}={value_repr(options[name])} would be ignored: {why}"
-                                                  for name, why in unread.items()))
+        raise ValueError(f"{owner}: {unread_message(unread, options)}")
     return spec, shared, extra
 
 
 def unread_options(method: str, shared: EstimatorOptions, given: Iterable[str],
                    sampling: str | None = None) -> dict[str, str]:
-    """The ``given`` option names that ``method`` with the options ``shared`` never reads, each with why.
-
-    What the estimator core reads (:mod:`stereovo.estimation.recipes`, the methods' recipes, the loop):
-
-    - under a fixed ``budget`` (:class:`~stereovo.estimation.roles.termination.FixedBudget`) no adaptive
-      stop runs: ``max_iterations``, ``first_batch_size`` and ``fail_at_cap`` are never read, nor is
-      ``confidence``, except by the PROSAC stop of :data:`PROSAC_STOP_METHODS` (given an order), which
-      still picks the sampler's prefix with it;
-    - ``least_squares_refit`` chooses the final step only without ``refine`` (the iterated LM
-      refinement replaces it);
-    - ``gate_probability`` is read by the methods that judge by the 3-D Mahalanobis gate, never by
-      :data:`REPROJECTION_JUDGED_METHODS`; ``refine_gate_probability`` only by
-      :data:`PIXEL_GATED_REFINEMENT_METHODS`, when a final refinement runs.
-
-    A ``+`` method (``msac+polish+lm``, ``probabilistic+sprt``) reads what its base method reads. A
-    method the tables do not name keeps every gate option (none is refused for it).
+    """The ``given`` option names that ``method`` with the options ``shared`` never reads, each with why:
+    the estimator's :func:`stereovo.estimation.registry.unread_options` (each method declares what it
+    reads when it registers), with the environment's ``sampling``.
 
     Args:
         method: a registered method name. shared: its validated options (the method's and the
             environment's defaults under the given ones). given: the option names the caller gave.
-        sampling: ``"prosac"`` when the method gets an order, else ``"guided"`` or None.
+        sampling: ``"prosac"`` when the method gets an order, else ``"guided"`` or None (the adaptive
+            environment's agent weights: no order either).
     """
-    base = method.split("+", 1)[0]
-    given = set(given)
-    why: dict[str, str] = {}
-    if shared.budget is not None:
-        budget = f"a fixed budget (budget={shared.budget}) draws exactly that many hypotheses per frame"
-        adaptive = "(budget=None switches to the adaptive stop)"
-        why["max_iterations"] = f"{budget}, above any cap: max_iterations caps an adaptive search {adaptive}"
-        why["first_batch_size"] = (f"{budget} in batches of batch_size: first_batch_size sizes an adaptive "
-                                   f"search's first batch {adaptive}")
-        why["fail_at_cap"] = (f"{budget}: the budget is the stop itself, never a cap reached before a stop, so "
-                              f"no estimate fails at it {adaptive}")
-        if not (base in PROSAC_STOP_METHODS and (base == "prosac" or sampling == "prosac")):
-            why["confidence"] = f"{budget}: no adaptive stop runs for confidence to set {adaptive}"
-    if shared.refine:
-        why["least_squares_refit"] = ("refine=True ends with the iterated LM refinement; least_squares_refit "
-                                      "chooses the final step only with refine=False")
-    if base in REPROJECTION_JUDGED_METHODS:
-        why["gate_probability"] = (f"method {method!r} judges by the stereo reprojection gate (threshold_px), not "
-                                   "by the 3-D Mahalanobis gate whose quantile gate_probability is")
-    if base in PIXEL_GATED_REFINEMENT_METHODS:
-        if not (shared.refine or shared.least_squares_refit):
-            why["refine_gate_probability"] = ("with refine=False and least_squares_refit=False no final refinement "
-                                              "runs for its pixel gate")
-    elif base in REPROJECTION_JUDGED_METHODS or base in ("mlesac", "guided-mlesac"):
-        why["refine_gate_probability"] = (f"method {method!r} has no pixel-gated final refinement (it sets the gate "
-                                          "of probabilistic's refinement and of the methods built on its judge)")
-    return {name: text for name, text in why.items() if name in given}
+    return estimator_unread_options(method, shared, given, order=sampling == "prosac")
 
 
 def check_reset_options(owner: str, options: Any) -> None:

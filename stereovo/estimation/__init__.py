@@ -17,11 +17,12 @@ The floors, bottom to top (each imports only those below it):
   optimisation, the final LM refinement; beside them :mod:`~stereovo.estimation.covariance`,
   the pose covariance of a fit;
 - :mod:`~stereovo.estimation.estimator_options`: :class:`EstimatorOptions`, the options every
-  method shares, and the named enhancements;
+  method shares, the named enhancements, and :class:`OptionReads`, which of them a method reads;
 - :mod:`~stereovo.estimation.loop`: :func:`run_ransac`, the one loop, on
   :class:`RansacComponents`, returning a :class:`RansacReport`;
-- :mod:`~stereovo.estimation.registry`: the named methods, their option declarations and
-  :func:`validate_options`;
+- :mod:`~stereovo.estimation.registry`: the named methods, their option declarations,
+  :func:`validate_options` and :func:`unread_options` (a given option the method would not read is
+  refused by every entry point);
 - :mod:`~stereovo.estimation.recipes`: the core's own methods (``ransac``, ``msac``,
   ``probabilistic``), the recipe parts every method shares and the ``+`` variants;
 - :mod:`~stereovo.estimation.methods`: one module per paper (its roles, its option
@@ -32,10 +33,16 @@ The floors, bottom to top (each imports only those below it):
 
 from stereovo.estimation import methods  # noqa: F401  (registers the named methods)
 from stereovo.estimation.api import MotionEstimate, PreparedEstimator, estimate_motion, estimate_problem
-from stereovo.estimation.estimator_options import EstimatorOptions
+from stereovo.estimation.estimator_options import EstimatorOptions, OptionReads
 from stereovo.estimation.loop import RansacComponents, RansacReport, run_ransac
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.registry import available_methods, method_spec, register_method, validate_options
+from stereovo.estimation.registry import (
+    available_methods,
+    method_spec,
+    register_method,
+    unread_options,
+    validate_options,
+)
 from stereovo.estimation.roles.samplers import ReplaySampler, UniformSampler, WeightedSampler
 from stereovo.estimation.roles.solvers import SAMPLE_SIZE
 
@@ -48,6 +55,7 @@ __all__ = [
     "WeightedSampler",
     "run_ransac",
     "EstimatorOptions",
+    "OptionReads",
     "MotionEstimate",
     "PreparedEstimator",
     "StereoProblem",
@@ -56,5 +64,6 @@ __all__ = [
     "estimate_problem",
     "method_spec",
     "register_method",
+    "unread_options",
     "validate_options",
 ]

@@ -19,7 +19,7 @@ from stereovo.estimation.covariance import pose_covariance
 from stereovo.estimation.estimator_options import EstimatorOptions
 from stereovo.estimation.loop import RansacReport
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.registry import MethodSpec, method_spec, split_options
+from stereovo.estimation.registry import MethodSpec, method_spec, refuse_unread, split_options
 from stereovo.estimation.roles.samplers import validate_order, validate_priors
 from stereovo.estimation.roles.solvers import SAMPLE_SIZE
 
@@ -184,7 +184,10 @@ def estimate_motion(
         rng: a ``numpy.random.Generator`` or a seed; the same seed gives the same result.
         **options: fields of :class:`stereovo.estimation.EstimatorOptions` (the options every method
             shares) and the method's own (``method_spec(method).extra_options``). Match scores reach a
-            method only through ``priors=`` or ``order=``.
+            method only through ``priors=`` or ``order=``. An option the method would not read with
+            the others is refused (:func:`~stereovo.estimation.registry.unread_options`: e.g.
+            ``confidence`` under a fixed ``budget``, ``least_squares_refit`` with ``refine=True``,
+            ``gate_probability`` for a method judged by the reprojection gate).
 
     Returns:
         A :class:`MotionEstimate`. Rows without a resolvable depth (NaN or inf; disparity at or
@@ -200,19 +203,24 @@ def estimate_motion(
 
     Raises:
         ValueError: malformed input (shapes, mismatched N, complex or non-numeric values), bad
-            priors/order, an unknown method or option.
+            priors/order, an unknown method or option, a bad value (naming it), or an option the
+            method would not read (``"method 'ransac': confidence=0.5 would be ignored: a fixed budget
+            (budget=64) draws ..."``, naming each such option, its value and why).
     """
     start = time.perf_counter()
     spec = method_spec(method)
     shared, extra = split_options(spec, options)
+    refuse_unread(spec, shared, options, order is not None)
     problem = StereoProblem.build(prev, curr, camera, shared.noise_sigma, shared.min_disparity_sigmas)
     return _estimate(problem, spec, shared, extra, priors, order, rng, start)
 
 
-def problem_options(spec: MethodSpec, problem: StereoProblem, options: dict) -> tuple[EstimatorOptions, dict]:
+def problem_options(spec: MethodSpec, problem: StereoProblem, options: dict,
+                    order: bool | None = None) -> tuple[EstimatorOptions, dict]:
     """The shared and the method's own options of an estimate on a built ``problem``: its pixel noise
     and disparity rule fill in, and a caller's differing value is refused (the covariances and the
-    unusable rows were computed with the problem's)."""
+    unusable rows were computed with the problem's), as is an option the method would not read
+    (``order``: whether it gets ``order=``, :func:`~stereovo.estimation.registry.unread_options`)."""
     if "noise_sigma" in options and options["noise_sigma"] != problem.noise_sigma:
         raise ValueError(
             f"noise_sigma={options['noise_sigma']!r} differs from the problem's {problem.noise_sigma!r}, "
@@ -223,9 +231,11 @@ def problem_options(spec: MethodSpec, problem: StereoProblem, options: dict) -> 
             f"min_disparity_sigmas={options['min_disparity_sigmas']!r} differs from the problem's "
             f"{problem.min_disparity_sigmas!r}, with which its unusable rows were chosen"
         )
-    return split_options(
+    shared, extra = split_options(
         spec, {**options, "noise_sigma": problem.noise_sigma, "min_disparity_sigmas": problem.min_disparity_sigmas}
     )
+    refuse_unread(spec, shared, options, order)
+    return shared, extra
 
 
 def estimate_problem(
@@ -240,14 +250,14 @@ def estimate_problem(
     problem.curr, problem.camera, ..., noise_sigma=problem.noise_sigma)``.
 
     Raises:
-        ValueError: as :func:`estimate_motion`, and if a ``noise_sigma`` option differs from
-            the one the problem was built with.
+        ValueError: as :func:`estimate_motion` (an option the method would not read included), and
+            if a ``noise_sigma`` option differs from the one the problem was built with.
     """
     start = time.perf_counter()
     if not isinstance(problem, StereoProblem):
         raise ValueError(f"problem must be a StereoProblem, got {type(problem).__name__}")
     spec = method_spec(method)
-    shared, extra = problem_options(spec, problem, options)
+    shared, extra = problem_options(spec, problem, options, order is not None)
     return _estimate(problem, spec, shared, extra, priors, order, rng, start)
 
 
@@ -266,7 +276,7 @@ class PreparedEstimator:
         **options: as :func:`estimate_problem`'s; checked on the first estimate, as there.
     """
 
-    _MAX_PREPARED = 16  # derived option sets kept (one per noise and disparity rule; an env has one)
+    _MAX_PREPARED = 16  # derived option sets kept (one per noise, disparity rule and order= or not; an env has one)
 
     def __init__(self, method: str = "probabilistic", **options) -> None:
         self._spec = method_spec(method)
@@ -283,12 +293,13 @@ class PreparedEstimator:
         """The options as given (a copy)."""
         return dict(self._options)
 
-    def _derived(self, problem: StereoProblem) -> tuple[EstimatorOptions, dict]:
-        """The options of an estimate on ``problem``, as :func:`estimate_problem` derives and checks them."""
-        key = (problem.noise_sigma, problem.min_disparity_sigmas)
+    def _derived(self, problem: StereoProblem, order: bool) -> tuple[EstimatorOptions, dict]:
+        """The options of an estimate on ``problem`` with or without ``order=``, as
+        :func:`estimate_problem` derives and checks them (whether an option is read can depend on the order)."""
+        key = (problem.noise_sigma, problem.min_disparity_sigmas, order)
         derived = self._prepared.get(key)
         if derived is None:
-            derived = problem_options(self._spec, problem, self._options)
+            derived = problem_options(self._spec, problem, self._options, order)
             if len(self._prepared) >= self._MAX_PREPARED:
                 self._prepared.clear()
             self._prepared[key] = derived
@@ -302,7 +313,7 @@ class PreparedEstimator:
         start = time.perf_counter()
         if not isinstance(problem, StereoProblem):
             raise ValueError(f"problem must be a StereoProblem, got {type(problem).__name__}")
-        shared, extra = self._derived(problem)
+        shared, extra = self._derived(problem, order is not None)
         # a copy of the method's options per call, as estimate_problem hands each call its own
         return _estimate(problem, self._spec, shared, dict(extra), priors, order, rng, start)
 

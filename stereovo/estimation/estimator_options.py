@@ -1,8 +1,12 @@
-"""The options every method shares: :class:`EstimatorOptions`, their declarations, the enhancements.
+"""The options every method shares: :class:`EstimatorOptions`, their declarations, the enhancements,
+and which of them a method reads.
 
 :data:`ESTIMATOR_OPTION_RULES` declares each field (:mod:`stereovo.options`), and
 :class:`EstimatorOptions` is checked against it on construction; :data:`ENHANCEMENTS` names
-the project's additions to the papers' recipes by the option values that switch them on.
+the project's additions to the papers' recipes by the option values that switch them on;
+:class:`OptionReads`, which each method declares when it registers, says which of the options it
+would never read with the others' values (:meth:`OptionReads.unread`), so that such an option is
+refused when given, never accepted and ignored.
 """
 
 from __future__ import annotations
@@ -10,12 +14,12 @@ from __future__ import annotations
 import dataclasses
 import functools
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, Iterable, Mapping
 
 from scipy.stats import chi2
 
 from stereovo.estimation.roles.solvers import SAMPLE_SIZE
-from stereovo.options import Boolean, Integer, Number, Option, OptionError
+from stereovo.options import Boolean, Integer, Number, Option, OptionError, value_repr
 
 MAX_COUNT = 10**9
 """Upper bound of every hypothesis or iteration count option (a cap that keeps counts in int64 arithmetic)."""
@@ -202,3 +206,125 @@ def recipe_note(defaults: Mapping[str, Any]) -> str:
 
 SHARED_OPTIONS = frozenset(f.name for f in dataclasses.fields(EstimatorOptions))
 """The :class:`EstimatorOptions` field names: the options every method accepts besides its own."""
+
+
+# ----------------------------------------------------------------------------- which options a method reads
+
+JUDGES: dict[str, str] = {
+    "reprojection": "hypotheses judged by the stereo reprojection gate (threshold_px)",
+    "mahalanobis": "hypotheses judged by the 3-D Mahalanobis gate (the chi-square(3) quantile gate_probability)",
+    "clique": "inliers chosen as the maximum clique of rigid-distance-consistent matches, its motion fitted by a "
+              "RANSAC under the 3-D Mahalanobis gate (gate_probability) and re-gated by the stereo reprojection "
+              "gate (threshold_px)",
+}
+"""The judges a method may declare (:attr:`OptionReads.judge`), in words."""
+
+REFINEMENTS: dict[str, str] = {
+    "plain": "the iterated LM refinement with refine, else one least-squares refit with least_squares_refit, "
+             "each re-selecting the inliers under the judge's gate",
+    "pixel-gated": "as 'plain', re-selecting the inliers by the pixel Mahalanobis gate of refine_gate_probability",
+    "lm-only": "the iterated LM refinement with refine, else none: the method's own fit is its last step",
+}
+"""The final refinements a method may declare (:attr:`OptionReads.refinement`), in words."""
+
+STOPS: dict[str, str] = {
+    "adaptive": "an adaptive stop (confidence, max_iterations, first_batch_size, fail_at_cap), which a fixed "
+                "budget replaces",
+    "prosac": "PROSAC's stop: adaptive without a budget; under a fixed budget it still lowers the sampler's "
+              "prefix to the n* it picks with confidence",
+    "prosac-given-order": "'prosac' when the method is given order=, else 'adaptive'",
+    "clique-fit": "no hypothesis loop: the RANSAC of the fit inside the clique stops adaptively at confidence "
+                  "under a cap of its own, whatever the budget",
+}
+"""The stops a method may declare (:attr:`OptionReads.stop`), in words."""
+
+
+@dataclass(frozen=True)
+class OptionReads:
+    """Which of the shared options (:class:`EstimatorOptions`) a method's recipe reads, declared by
+    the parts of the recipe that decide it; every method declares one when it registers
+    (:func:`~stereovo.estimation.registry.register_method`), and its ``+`` variants keep it (an
+    enhancement switches a part on or off by an option value, which :meth:`unread` reads; it never
+    changes the judge, the refinement or the stop).
+
+    Attributes:
+        judge: how hypotheses are judged, a key of :data:`JUDGES`: ``"reprojection"`` never reads
+            ``gate_probability``.
+        refinement: the final refinement, a key of :data:`REFINEMENTS`: only ``"pixel-gated"`` reads
+            ``refine_gate_probability`` (and only when a refinement runs); ``"lm-only"`` never reads
+            ``least_squares_refit``, nor does any refinement with ``refine=True``.
+        stop: the stopping rule, a key of :data:`STOPS`: under a fixed ``budget`` an ``"adaptive"``
+            stop reads none of ``confidence``, ``max_iterations``, ``first_batch_size`` and
+            ``fail_at_cap``; the PROSAC stop still reads ``confidence``; ``"clique-fit"`` reads
+            ``confidence`` whatever the budget.
+    """
+
+    judge: str
+    refinement: str
+    stop: str
+
+    def __post_init__(self) -> None:
+        for name, known in (("judge", JUDGES), ("refinement", REFINEMENTS), ("stop", STOPS)):
+            if getattr(self, name) not in known:
+                raise ValueError(f"OptionReads.{name} must be one of {sorted(known)}, got {getattr(self, name)!r}")
+
+    def unread(self, method: str, options: EstimatorOptions, given: Iterable[str],
+               order: bool | None = None) -> dict[str, str]:
+        """The names in ``given`` that ``method`` (declaring this) never reads with ``options``, each
+        mapped to why; an empty dict when it reads them all.
+
+        Args:
+            method: the method's name (for the reasons). options: its options as it runs with them
+                (the method's defaults under the given ones). given: the option names the caller
+                gave; only these are looked at (a default is never refused).
+            order: whether the method is given ``order=`` (PROSAC sampling); None when not known,
+                which keeps an option that the method reads with an order.
+        """
+        given = set(given) & UNREAD_CANDIDATES
+        if not given:
+            return {}
+        why: dict[str, str] = {}
+        if options.budget is not None and self.stop != "clique-fit":
+            budget = f"a fixed budget (budget={options.budget}) draws exactly that many hypotheses per frame"
+            adaptive = "(budget=None switches to the adaptive stop)"
+            why["max_iterations"] = f"{budget}, above any cap: max_iterations caps an adaptive search {adaptive}"
+            why["first_batch_size"] = (f"{budget} in batches of batch_size: first_batch_size sizes an adaptive "
+                                       f"search's first batch {adaptive}")
+            why["fail_at_cap"] = (f"{budget}: the budget is the stop itself, never a cap reached before a stop, so "
+                                  f"no estimate fails at it {adaptive}")
+            # the PROSAC stop listens under a budget too: it picks the sampled prefix n* with confidence
+            prosac = self.stop == "prosac" or (self.stop == "prosac-given-order" and order is not False)
+            if not prosac:
+                why["confidence"] = f"{budget}: no adaptive stop runs for confidence to set {adaptive}"
+        if self.refinement == "lm-only":
+            why["least_squares_refit"] = (f"method {method!r} ends with its own fit, refined only by the iterated LM "
+                                          "refinement of refine=True: no least-squares refit runs for "
+                                          "least_squares_refit to choose")
+        elif options.refine:
+            why["least_squares_refit"] = ("refine=True ends with the iterated LM refinement; least_squares_refit "
+                                          "chooses the final step only with refine=False")
+        if self.judge == "reprojection":
+            why["gate_probability"] = (f"method {method!r} judges by the stereo reprojection gate (threshold_px), not "
+                                       "by the 3-D Mahalanobis gate whose quantile gate_probability is")
+        if self.refinement != "pixel-gated":
+            why["refine_gate_probability"] = (f"method {method!r} has no pixel-gated final refinement (it sets the "
+                                              "gate of probabilistic's refinement and of the methods built on its "
+                                              "judge)")
+        elif not (options.refine or options.least_squares_refit):
+            why["refine_gate_probability"] = ("with refine=False and least_squares_refit=False no final refinement "
+                                              "runs for its pixel gate")
+        return {name: text for name, text in why.items() if name in given}
+
+
+UNREAD_CANDIDATES = frozenset({
+    "confidence", "max_iterations", "first_batch_size", "fail_at_cap", "least_squares_refit", "gate_probability",
+    "refine_gate_probability",
+})
+"""The shared options that some method leaves unread with some settings (:meth:`OptionReads.unread`):
+a call that gives none of them needs no look (the environment's every step)."""
+
+
+def unread_message(unread: Mapping[str, str], values: Mapping[str, Any]) -> str:
+    """``"NAME=VALUE would be ignored: WHY"`` for each of ``unread`` (name -> why), joined by ``"; "``:
+    the one wording of a refused unread option, VALUE the given one of ``values`` (:func:`value_repr`)."""
+    return "; ".join(f"{name}={value_repr(values[name])} would be ignored: {why}" for name, why in unread.items())

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from stereovo.estimation.estimator_options import EstimatorOptions, chi2_quantile
+from stereovo.estimation.estimator_options import EstimatorOptions, OptionReads, chi2_quantile
 from stereovo.estimation.loop import RansacComponents
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.registry import register_method, register_variant
@@ -111,6 +111,16 @@ def reprojection_judge(options: EstimatorOptions, quality) -> tuple[Reprojection
     return ReprojectionResidual(options.reprojection_threshold_sq), quality, options.reprojection_threshold_sq
 
 
+REPROJECTION_READS = OptionReads(judge="reprojection", refinement="plain", stop="adaptive")
+"""What a recipe of :func:`base_components` judged by :func:`reprojection_judge` reads: no
+``gate_probability`` nor ``refine_gate_probability``; under a fixed budget nothing of the adaptive stop."""
+
+PROBABILISTIC_READS = OptionReads(judge="mahalanobis", refinement="pixel-gated", stop="adaptive")
+"""What ``probabilistic``'s recipe and those built on its judge read: the 3-D gate's ``gate_probability``,
+the pixel gate's ``refine_gate_probability`` when a final refinement runs; under a fixed budget nothing of
+the adaptive stop."""
+
+
 def _reprojection_recipe(quality):
     """The plain loop judged by the stereo reprojection gate with ``quality`` (a class)."""
 
@@ -124,9 +134,11 @@ register_method(
     "ransac",
     "minimal 3-point fits, inlier count under a stereo reprojection gate, exact (without replacement) stop",
     "Fischler & Bolles 1981",
+    reads=REPROJECTION_READS,
 )(_reprojection_recipe(InlierCount))
 register_method(
     "msac", "minimal 3-point fits, truncated quadratic cost under a stereo reprojection gate", "Torr & Zisserman 2000",
+    reads=REPROJECTION_READS,
 )(_reprojection_recipe(TruncatedQuadratic))
 
 
@@ -163,6 +175,7 @@ PROBABILISTIC_RECIPE: dict[str, Any] = {
     "the project's tuned recipe",
     "Brink et al.",
     defaults=PROBABILISTIC_RECIPE,
+    reads=PROBABILISTIC_READS,
 )
 def build_probabilistic(problem, options, priors, order, extra) -> RansacComponents:
     threshold = options.mahalanobis_threshold_sq

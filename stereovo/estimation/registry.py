@@ -1,23 +1,29 @@
 """The registry of named methods: :class:`MethodSpec`, the decorators that register, the look-ups.
 
 A method registers a recipe for the shared loop (:func:`register_method`) or a direct
-estimator (:func:`register_estimator`); :func:`register_variant` adds ``base+enhancement``
-variants; options several methods share are declared once (:func:`declare_options`).
+estimator (:func:`register_estimator`), declaring with it which shared options its recipe reads
+(:class:`~stereovo.estimation.estimator_options.OptionReads`); :func:`register_variant` adds
+``base+enhancement`` variants; options several methods share are declared once
+(:func:`declare_options`). :func:`validate_options` checks a call's options by these declarations
+and refuses the ones the method would not read (:func:`unread_options`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Iterable, Mapping
 
 import numpy as np
 
 from stereovo.estimation.estimator_options import (
     ENHANCEMENTS,
     SHARED_OPTIONS,
+    UNREAD_CANDIDATES,
     EstimatorOptions,
+    OptionReads,
     recipe_note,
+    unread_message,
 )
 from stereovo.estimation.loop import RansacComponents, RansacReport, run_ransac
 from stereovo.estimation.problem import StereoProblem
@@ -37,13 +43,16 @@ class MethodSpec:
     """A registered estimator: its recipe (or direct runner), a one-line description and its paper.
 
     Exactly one of ``build`` (a :class:`RansacComponents` recipe for the shared loop) and
-    ``runner`` (a direct estimator returning the loop's :class:`RansacReport`) is set.
+    ``runner`` (a direct estimator returning the loop's :class:`RansacReport`) is set. ``reads``
+    declares which shared options the recipe reads (its judge, final refinement and stop); a
+    ``+`` variant keeps its base's.
     """
 
     name: str
     description: str
     reference: str
     build: MethodBuilder | None
+    reads: OptionReads
     extra_options: tuple[str, ...] = ()  # method-specific keyword options besides EstimatorOptions
     runner: MethodRunner | None = None
     # Declarations (stereovo.options) of the extra options that have one; a given value is checked
@@ -129,6 +138,9 @@ def declare_options(rules: Mapping[str, Option]) -> None:
 def _register(spec: MethodSpec) -> None:
     if spec.name in _METHODS:
         raise ValueError(f"method {spec.name!r} is already registered")
+    if not isinstance(spec.reads, OptionReads):
+        raise ValueError(f"method {spec.name!r}: reads must be an OptionReads (its judge, refinement and stop), "
+                         f"got {spec.reads!r}")
     for option, value in spec.option_defaults().items():
         spec.option_rule(option).check(option, value)  # each declared default obeys its rule
     unknown = set(spec.defaults) - {f.name for f in dataclasses.fields(EstimatorOptions)}
@@ -146,7 +158,7 @@ def _option_names_and_rules(extra_options) -> tuple[tuple[str, ...], dict[str, O
 
 def register_method(
     name: str, description: str, reference: str, extra_options: tuple[str, ...] | Mapping[str, Option] = (),
-    inputs: str = "any", defaults: Mapping[str, Any] | None = None,
+    inputs: str = "any", defaults: Mapping[str, Any] | None = None, *, reads: OptionReads,
 ) -> Callable[[MethodBuilder], MethodBuilder]:
     """Decorator registering ``build(problem, options, priors, order, extra) -> RansacComponents``.
 
@@ -154,7 +166,9 @@ def register_method(
     mapping of them to their declarations (:mod:`stereovo.options`; None: the shared one). Each
     given value is checked before the method runs, and the recipe gets every option, the caller's
     value or the declaration's :attr:`~stereovo.options.Option.default`. ``inputs``: see
-    :meth:`MethodSpec.check_inputs`. ``defaults``: :attr:`MethodSpec.defaults`.
+    :meth:`MethodSpec.check_inputs`. ``defaults``: :attr:`MethodSpec.defaults`. ``reads`` (required,
+    so that no method leaves it out): the judge, final refinement and stop the recipe has, which
+    say the shared options it never reads (:class:`OptionReads`).
     """
 
     def decorator(build: MethodBuilder) -> MethodBuilder:
@@ -164,7 +178,7 @@ def register_method(
             # every caller's recipe reads the method's options complete: given or at their defaults
             return build(problem, options, priors, order, _METHODS[name].check_options(extra))
 
-        _register(MethodSpec(name, description, reference, recipe, names, option_rules=rules, inputs=inputs,
+        _register(MethodSpec(name, description, reference, recipe, reads, names, option_rules=rules, inputs=inputs,
                              defaults=dict(defaults or {})))
         return build
 
@@ -173,14 +187,14 @@ def register_method(
 
 def register_estimator(
     name: str, description: str, reference: str, extra_options: tuple[str, ...] | Mapping[str, Option] = (),
-    inputs: str = "none",
+    inputs: str = "none", *, reads: OptionReads,
 ) -> Callable[[MethodRunner], MethodRunner]:
     """Decorator registering a method that is not a sampling loop.
 
     The runner ``run(problem, options, priors, order, extra, rng) -> RansacReport`` reuses the
     core's fit, refinement and scoring; :func:`estimate_motion` wraps its report like the loop's.
-    ``extra_options`` and ``inputs`` as :func:`register_method`'s (a direct runner samples nothing:
-    ``inputs="none"`` by default).
+    ``extra_options``, ``inputs`` and ``reads`` as :func:`register_method`'s (a direct runner samples
+    nothing: ``inputs="none"`` by default).
     """
 
     def decorator(runner: MethodRunner) -> MethodRunner:
@@ -189,7 +203,7 @@ def register_estimator(
         def run(problem, options, priors, order, extra, rng):
             return runner(problem, options, priors, order, _METHODS[name].check_options(extra), rng)
 
-        _register(MethodSpec(name, description, reference, None, names, run, option_rules=rules, inputs=inputs))
+        _register(MethodSpec(name, description, reference, None, reads, names, run, option_rules=rules, inputs=inputs))
         return runner
 
     return decorator
@@ -254,31 +268,85 @@ def _split_options(spec: MethodSpec, options: Mapping[str, Any]) -> tuple[Estima
     return EstimatorOptions(**merged), extra
 
 
+def unread_options(method: str, options: EstimatorOptions, given: Iterable[str],
+                   order: bool | None = None) -> dict[str, str]:
+    """The names in ``given`` that ``method`` never reads with ``options``, each mapped to why (by its
+    declaration, :meth:`OptionReads.unread <stereovo.estimation.estimator_options.OptionReads.unread>`):
+
+    - under a fixed ``budget`` no adaptive stop runs: ``max_iterations``, ``first_batch_size`` and
+      ``fail_at_cap`` are never read, nor is ``confidence``, except by a PROSAC stop (``prosac``; ``usac``
+      given an order), which still picks the sampler's prefix with it, and by ``inlier-detection``,
+      whose fit inside the clique stops at it whatever the budget;
+    - ``least_squares_refit`` chooses the final step only without ``refine`` (the iterated LM
+      refinement replaces it), and never in ``inlier-detection``, which ends with its own fit;
+    - ``gate_probability`` is never read by a method judged by the stereo reprojection gate
+      (``ransac``, ``msac``, ``prosac``, ``r-ransac``, ``waldsac``, ``lo-ransac``, ``preemptive``,
+      ``usac``); ``refine_gate_probability`` only by those with ``probabilistic``'s pixel-gated final
+      refinement (``probabilistic``, ``bansac``, ``p-bansac``, ``ars``), when a final refinement runs.
+
+    A ``+`` method (``msac+polish+lm``, ``probabilistic+sprt``) reads what its base reads, with its own
+    defaults (``+lm``'s ``refine=True`` leaves ``least_squares_refit`` unread).
+
+    Args:
+        method: a registered name. options: its validated options (its defaults under the given ones).
+        given: the option names the caller gave (defaults are never refused).
+        order: whether ``order=`` is passed; None when not known (an option read with an order is kept).
+
+    Raises:
+        ValueError: an unknown method.
+    """
+    return method_spec(method).reads.unread(method, options, given, order)
+
+
+def refuse_unread(spec: MethodSpec, options: EstimatorOptions, given: Mapping[str, Any], order: bool | None) -> None:
+    """Raise if the caller ``given`` options (name -> value) that method ``spec`` with ``options``
+    never reads (:func:`unread_options`); ``order`` as there.
+
+    Raises:
+        ValueError: ``"method NAME: OPTION=VALUE would be ignored: WHY; ..."``, every such option named.
+    """
+    if UNREAD_CANDIDATES.isdisjoint(given):  # the common call: nothing to look up
+        return
+    unread = spec.reads.unread(spec.name, options, given, order)
+    if unread:
+        raise ValueError(f"method {spec.name!r}: {unread_message(unread, given)}")
+
+
 def validate_options(
     method: str, options: Mapping[str, Any], priors: bool | None = None, order: bool | None = None
 ) -> tuple[EstimatorOptions, dict[str, Any]]:
     """Check a method call's settings without running it: the shared options, the method's own
-    options and, when ``priors`` or ``order`` is given (whether priors= / order= will be passed),
-    whether the method runs with that sampling input. What
-    :func:`~stereovo.estimation.api.estimate_motion` accepts, this accepts.
+    options, when ``priors`` or ``order`` is given (whether priors= / order= will be passed) whether
+    the method runs with that sampling input, and that it reads every option given
+    (:func:`unread_options`; without ``priors`` and ``order`` an option that the method reads only
+    with an order is kept). What :func:`~stereovo.estimation.api.estimate_motion` accepts, this accepts.
 
     Returns:
         The :class:`EstimatorOptions` and the method's own options (validated, normalised).
 
     Raises:
         ValueError: an unknown method or option, a value its declaration refuses (naming both),
-            or sampling inputs the method cannot use.
+            sampling inputs the method cannot use, or an option the method would not read with the
+            others (naming it, its value and why), in that order.
     """
     spec = method_spec(method)
-    shared, extra = split_options(spec, dict(options))
-    if priors is not None or order is not None:
+    options = dict(options)
+    shared, extra = split_options(spec, options)
+    told = priors is not None or order is not None
+    if told:
         spec.check_inputs(bool(priors), bool(order))
+    refuse_unread(spec, shared, options, bool(order) if told else None)
     return shared, extra
 
 
 def register_variant(base: str, *enhancements: str) -> str:
     """Register ``base+e1+e2...``: method ``base`` with the named :data:`ENHANCEMENTS` switched on by
-    default (for the baseline report's "+ enhancement" rows). Returns the variant's name."""
+    default (for the baseline report's "+ enhancement" rows). Returns the variant's name.
+
+    The variant keeps its base's :attr:`MethodSpec.reads`: an enhancement is an option value (the
+    sample polish, the local refit, the rigidity check, the LM refinement), which the judge, the
+    final refinement and the stop it declares do not depend on; what its defaults switch is read
+    from the options (``+lm``'s ``refine=True`` leaves ``least_squares_refit`` unread)."""
     unknown = [e for e in enhancements if e not in ENHANCEMENTS]
     if unknown or not enhancements:
         raise ValueError(f"enhancements must be some of {sorted(ENHANCEMENTS)}, got {list(enhancements)}")

@@ -176,10 +176,19 @@ def test_in_frame_stop_options_work_or_are_refused():
     assert LearnedEstimator(IN_FRAME, max_iterations=256, fail_at_cap=False).max_hypotheses == 64
     # a cap above max_iterations' default (10 000) stays when max_iterations is not given
     assert LearnedEstimator(IN_FRAME, max_hypotheses=20_000).max_hypotheses == 20_000
-    # a budget is the stop itself, for both kinds: drawn in full above max_iterations (docs/algorithms.md)
+    # a budget is the stop itself, for both kinds: drawn in full above max_iterations (docs/algorithms.md); the
+    # in-frame cap stays read (the sampler sees hypotheses spent / cap), a one-shot budget is the core's, which
+    # refuses the cap of the adaptive stop it replaces, and neither kind reads a confidence under a budget
+    est = LearnedEstimator(IN_FRAME, budget=8, max_iterations=3).estimate(prev, curr, camera, scores)
+    assert est.n_hypotheses == 8
+    assert LearnedEstimator(ONE_SHOT, budget=8).estimate(prev, curr, camera, scores).n_hypotheses == 8
+    with pytest.raises(ValueError, match="max_iterations=3 would be ignored: a fixed budget .budget=8."):
+        LearnedEstimator(ONE_SHOT, budget=8, max_iterations=3)
     for sampler in (ONE_SHOT, IN_FRAME):
-        est = LearnedEstimator(sampler, budget=8, max_iterations=3).estimate(prev, curr, camera, scores)
-        assert est.n_hypotheses == 8, sampler
+        with pytest.raises(ValueError) as info:
+            LearnedEstimator(sampler, budget=8, confidence=0.5)
+        assert str(info.value) == (f"confidence 0.5: with budget=8 {sampler!r} draws exactly that many hypotheses "
+                                   "and no stop runs for a confidence to set (budget=None stops at it)")
     # what the in-frame search does is what its options say
     options = LearnedEstimator(IN_FRAME, confidence=0.95).options
     assert (options.fail_at_cap, options.confidence) == (False, 0.95)

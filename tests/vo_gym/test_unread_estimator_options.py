@@ -3,9 +3,10 @@
 Under a fixed ``budget`` (StereoVOEnv's default, 32) no adaptive stop runs; ``least_squares_refit``
 chooses the final step only without ``refine`` (the environments' default is ``refine=True``); the
 reprojection-judged methods (``msac``, the default) read neither gate quantile. Each such option used
-to give a stream bit-identical to the defaults. The last test checks the tables of
-:func:`vo_gym.settings.unread_options` against the estimator itself: every option they refuse for a
-method leaves its estimates unchanged.
+to give a stream bit-identical to the defaults. The last test checks :func:`vo_gym.settings.unread_options`
+(the estimator's declarations, with the environment's settings) against the estimator itself: every option
+it refuses for a method leaves its estimates unchanged (run with the estimator's own refusal switched off,
+since it refuses them too).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import numpy as np
 import pytest
 
 import vo_gym  # noqa: F401  (registers the ids)
-from stereovo.estimation import StereoProblem, available_methods, estimate_problem, method_spec
+from stereovo.estimation import StereoProblem, api, available_methods, estimate_problem, method_spec
 from stereovo.simulation import Sequence, SimulationConfig
 from vo_gym.adaptive_env import StereoVOAdaptiveEnv
 from vo_gym.env import StereoVOEnv
@@ -120,10 +121,12 @@ def _usable_samplings(method: str, frame) -> list[str]:
     return out
 
 
-def test_every_option_the_tables_refuse_leaves_the_methods_estimates_unchanged():
+def test_every_option_the_tables_refuse_leaves_the_methods_estimates_unchanged(monkeypatch):
     """The refusals follow what the estimator reads: refusing an option a method does read would take a
-    setting away; this catches a table that drifts from the recipes."""
+    setting away; this catches a declaration that drifts from the recipes."""
     from vo_gym.settings import unread_options
+
+    monkeypatch.setattr(api, "refuse_unread", lambda *args: None)  # the estimate the option would have given
 
     frames = _frames()
     checked = set()
@@ -152,3 +155,22 @@ def test_every_option_the_tables_refuse_leaves_the_methods_estimates_unchanged()
                     checked.add((method.split("+")[0], name))
     # the defaults' refusals were among those checked
     assert {("msac", name) for name in ALTERNATIVES} <= checked, sorted(checked)
+
+
+@pytest.mark.parametrize("kwargs", [{}, {"method": "probabilistic"}, {"sampling": "prosac", "method": "usac"},
+                                    {"budget": None, "max_iterations": 64, "confidence": 0.9}])
+def test_the_estimator_gets_only_options_its_method_reads_and_the_environments_defaults_count_as_given_by_none(kwargs):
+    """The environment gives the estimator what it sets (its defaults, the user's keywords, noise, budget and
+    batch size), not every field: a field it never set, such as confidence under the budget, would be refused."""
+    from stereovo.estimation import estimate_motion
+    from stereovo.estimation.registry import unread_options
+
+    env = StereoVOEnv(**SMALL, **kwargs)
+    given = env.estimator_kwargs
+    assert unread_options(env.method, env.estimator_options, given, order=env.sampling == "prosac") == {}
+    assert {"noise_sigma", "budget", "batch_size", *DEFAULT_ESTIMATOR_OPTIONS} <= set(given)
+    env.reset(seed=0)
+    frame = env.sequence.frame(1)
+    inputs = _inputs(frame, env.sampling)
+    estimate_motion(frame.prev, frame.curr, frame.camera, method=env.method, rng=0, **inputs, **given)  # as bench_env
+    env.step(env.action_space.sample())  # and the environment's own estimator runs

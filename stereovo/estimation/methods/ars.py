@@ -40,6 +40,7 @@ from stereovo.estimation.methods.bansac import (
     initial_beliefs,
     judged_components,
 )
+from stereovo.estimation.recipes import PROBABILISTIC_READS
 from stereovo.estimation.registry import register_method
 from stereovo.estimation.roles.solvers import SAMPLE_SIZE
 
@@ -142,6 +143,7 @@ class ArsSampler:
     "failure (adaptive reordering); adaptive stop; the probabilistic method's judge",
     "Wei, Matas & Barath, ICCV 2023",
     extra_options={"initial_probability": None, "prior_ceiling": CEILING_RULE},
+    reads=PROBABILISTIC_READS,  # probabilistic's judge and refinement (judged_components); an adaptive stop
 )
 def _build_ars(problem, options, priors, order, extra):
     return judged_components(problem, options, priors, order, ArsSampler(problem.n, priors, **belief_options(extra)))

@@ -84,6 +84,7 @@ from stereovo.estimation.kernels import beliefs as belief_kernels
 from stereovo.estimation.kernels.mahalanobis import point_columns
 from stereovo.estimation.kernels.sampling import weighted_triplets
 from stereovo.estimation.loop import LoopState, RansacComponents, RansacSearch, local_refit_redundant
+from stereovo.estimation.recipes import PROBABILISTIC_READS
 from stereovo.estimation.registry import declare_options, method_spec, register_method
 from stereovo.estimation.roles.local_optimization import ConsensusRefit
 from stereovo.estimation.roles.sample_check import RigidityCheck
@@ -705,6 +706,7 @@ def _build_verdict_variant(problem, options, priors, order, extra):
     "model's outliers, or at the adaptive bound; the probabilistic method's judge",
     "Piedade & Miraldo, ICCV 2023",
     extra_options=bansac_options(BANSAC_THRESHOLD),
+    reads=PROBABILISTIC_READS,  # probabilistic's judge and refinement (judged_components); an adaptive stop
 )
 def _build_bansac(problem, options, priors, order, extra):
     return _build(problem, options, priors, order, extra)
@@ -715,6 +717,7 @@ def _build_bansac(problem, options, priors, order, extra):
     "P-BANSAC: BANSAC with the looser stop (beliefs under 0.1 count as ruled out)",
     "Piedade & Miraldo, ICCV 2023",
     extra_options=bansac_options(P_BANSAC_THRESHOLD),
+    reads=PROBABILISTIC_READS,
 )
 def _build_p_bansac(problem, options, priors, order, extra):
     return _build(problem, options, priors, order, extra)

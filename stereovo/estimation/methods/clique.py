@@ -52,7 +52,7 @@ import time
 
 import numpy as np
 
-from stereovo.estimation.estimator_options import MAX_COUNT
+from stereovo.estimation.estimator_options import MAX_COUNT, OptionReads
 from stereovo.estimation.kernels.rigidity import distance_change_sq, rigid_distance_consistent
 from stereovo.estimation.loop import RansacComponents, RansacReport, final_report, run_ransac
 from stereovo.estimation.problem import StereoProblem
@@ -358,6 +358,9 @@ def detect_inliers(
         "clique_time_limit_s": Number(low=0.0, high=1e6, low_open=True, unit="s", default=0.5),
         "clique_graph_max": Integer(low=SAMPLE_SIZE, high=20_000, default=GRAPH_MAX),  # 20,000: a 400 MB graph at most
     },
+    # the fit's RANSAC reads gate_probability and confidence (whatever the budget); Howard's reprojection
+    # fit is the last step unless refine adds the LM refinement, so least_squares_refit has no role
+    reads=OptionReads(judge="clique", refinement="lm-only", stop="clique-fit"),
 )
 def _run_inlier_detection(problem, options, priors, order, extra, rng):
     if priors is not None or order is not None:

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from stereovo.estimation.estimator_options import MAX_COUNT
-from stereovo.estimation.recipes import base_components, reprojection_judge
+from stereovo.estimation.recipes import REPROJECTION_READS, base_components, reprojection_judge
 from stereovo.estimation.registry import declare_options, register_method
 from stereovo.estimation.roles.reprojection import gauss_newton_steps
 from stereovo.estimation.roles.scoring import TruncatedQuadratic
@@ -176,6 +176,7 @@ def inner_ransac_lo(extra: dict) -> InnerRansacLO:
     "MSAC with LO+ on every new best: inner RANSAC on non-minimal samples, shrinking-gate least squares",
     "Chum, Matas & Kittler 2003; Lebeda, Matas & Chum 2012",
     extra_options=LO_OPTIONS,
+    reads=REPROJECTION_READS,
 )
 def _build_lo_ransac(problem, options, priors, order, extra):
     components = base_components(problem, options, priors, order, *reprojection_judge(options, TruncatedQuadratic()))

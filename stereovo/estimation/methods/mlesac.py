@@ -47,6 +47,7 @@ import numpy as np
 from stereovo.estimation.estimator_options import MAX_COUNT
 from stereovo.estimation.kernels.logaddexp import logaddexp_2d, mixture_logaddexp
 from stereovo.estimation.problem import StereoProblem
+from stereovo.estimation.estimator_options import OptionReads
 from stereovo.estimation.recipes import base_components
 from stereovo.estimation.registry import register_method
 from stereovo.estimation.roles.scoring import MahalanobisResidual
@@ -242,6 +243,10 @@ class GuidedMlesacQuality:
         return np.sum(log_add_exp(np.log(self.gamma) + log_p_in, np.log1p(-self.gamma) + self.log_p_out), axis=-1)
 
 
+MLESAC_READS = OptionReads(judge="mahalanobis", refinement="plain", stop="adaptive")
+"""Both MLESACs judge by the 3-D Mahalanobis gate and end with the plain refinement (no pixel gate)."""
+
+
 @register_method(
     "mlesac",
     "mixture likelihood (Gaussian Mahalanobis inliers + uniform outliers), inlier fraction by EM per hypothesis",
@@ -250,6 +255,7 @@ class GuidedMlesacQuality:
         "mlesac_em_iterations": Integer(low=1, high=MAX_COUNT, default=MlesacQuality.em_iterations),
         "mlesac_em_tolerance": Number(low=0.0, low_open=True, default=MlesacQuality.em_tolerance),
     },
+    reads=MLESAC_READS,
 )
 def _build_mlesac(problem, options, priors, order, extra):
     quality = MlesacQuality.for_problem(
@@ -264,6 +270,7 @@ def _build_mlesac(problem, options, priors, order, extra):
     "MLESAC with a prior inlier probability gamma_i per match (priors=, required), sampling by gamma_i",
     "Tordoff & Murray 2005",
     inputs="priors",
+    reads=MLESAC_READS,
 )
 def _build_guided_mlesac(problem, options, priors, order, extra):
     if priors is None:

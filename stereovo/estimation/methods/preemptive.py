@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stereovo.estimation.estimator_options import MAX_COUNT
-from stereovo.estimation.recipes import base_components, reprojection_judge
+from stereovo.estimation.recipes import REPROJECTION_READS, base_components, reprojection_judge
 from stereovo.estimation.registry import register_method
 from stereovo.estimation.roles.partial import residuals_on
 from stereovo.estimation.roles.scoring import TruncatedQuadratic
@@ -139,6 +139,7 @@ DEFAULT_HYPOTHESES = PreemptiveVerification.hypotheses  # Nister's M without a b
         "preemptive_hypotheses": Integer(low=1, high=MAX_COUNT, allow_none=True, default=None),
         "preemptive_block": Integer(low=1, high=MAX_COUNT, default=PreemptiveVerification.block),
     },
+    reads=REPROJECTION_READS,  # a budget is its M and the stop itself; without one the bound is adaptive
 )
 def _build_preemptive(problem, options, priors, order, extra):
     m = extra["preemptive_hypotheses"]

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import binom, norm
 
-from stereovo.estimation.estimator_options import MAX_COUNT, EstimatorOptions
+from stereovo.estimation.estimator_options import MAX_COUNT, EstimatorOptions, OptionReads
 from stereovo.estimation.loop import LoopState
 from stereovo.estimation.recipes import base_components, reprojection_judge
 from stereovo.estimation.registry import declare_options, register_method
@@ -176,6 +176,8 @@ def prosac_termination(sampler: ProsacSampler, options: EstimatorOptions, extra:
     "Chum & Matas 2005",
     extra_options=PROSAC_OPTIONS,
     inputs="order",
+    # its stop listens under a fixed budget too (see below): confidence stays read there
+    reads=OptionReads(judge="reprojection", refinement="plain", stop="prosac"),
 )
 def _build_prosac(problem, options, priors, order, extra):
     if order is None:

@@ -35,7 +35,14 @@ from scipy.optimize import brentq
 from stereovo.estimation.estimator_options import MAX_COUNT
 from stereovo.estimation.kernels.verification import sprt_verify, sprt_verify_mahalanobis
 from stereovo.estimation.loop import LoopState
-from stereovo.estimation.recipes import PROBABILISTIC_RECIPE, base_components, build_probabilistic, reprojection_judge
+from stereovo.estimation.recipes import (
+    PROBABILISTIC_READS,
+    PROBABILISTIC_RECIPE,
+    REPROJECTION_READS,
+    base_components,
+    build_probabilistic,
+    reprojection_judge,
+)
 from stereovo.estimation.registry import declare_options, register_method
 from stereovo.estimation.roles.partial import residuals_on
 from stereovo.estimation.roles.scoring import InlierCount, MahalanobisResidual, ReprojectionResidual
@@ -477,6 +484,7 @@ def with_sprt(components, problem, options, extra):
     "randomized RANSAC with the SPRT: early rejection, adaptive epsilon/delta, SPRT-aware stopping",
     "Matas & Chum 2005; Chum & Matas 2008",
     extra_options=SPRT_OPTIONS,
+    reads=REPROJECTION_READS,  # the SPRT-aware stop is adaptive: a fixed budget replaces it
 )
 def _build_waldsac(problem, options, priors, order, extra):
     components = base_components(problem, options, priors, order, *reprojection_judge(options, InlierCount()))
@@ -498,6 +506,7 @@ PROBABILISTIC_SPRT = {
     "reference": "Brink et al.; Matas & Chum 2005; Chum & Matas 2008",
     "extra_options": SPRT_OPTIONS,
     "defaults": PROBABILISTIC_RECIPE,
+    "reads": PROBABILISTIC_READS,  # probabilistic's judge and refinement; the SPRT-aware stop is adaptive
 }
 """``probabilistic+sprt``'s registration (:func:`~stereovo.estimation.registry.register_method`'s
 arguments, with :func:`build_probabilistic_sprt`): the methods package registers it last, among the

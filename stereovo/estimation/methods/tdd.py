@@ -32,7 +32,7 @@ import numpy as np
 
 from stereovo.estimation.estimator_options import MAX_COUNT
 from stereovo.estimation.kernels.verification import tdd_pretest
-from stereovo.estimation.recipes import base_components, reprojection_judge
+from stereovo.estimation.recipes import REPROJECTION_READS, base_components, reprojection_judge
 from stereovo.estimation.registry import register_method
 from stereovo.estimation.roles.partial import residuals_at
 from stereovo.estimation.roles.scoring import InlierCount
@@ -358,6 +358,7 @@ class TddTermination:
     "randomized RANSAC: T(d,d) pre-test on d random points before full scoring, bound stretched by 1/alpha",
     "Matas & Chum 2002",
     extra_options={"tdd_d": Integer(low=1, high=MAX_COUNT, default=TddVerification.d)},
+    reads=REPROJECTION_READS,  # the T(d,d) stop is adaptive: a fixed budget replaces it
 )
 def _build_r_ransac(problem, options, priors, order, extra):
     d = extra["tdd_d"]

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from stereovo.estimation.methods.lo import LO_OPTIONS, inner_ransac_lo
 from stereovo.estimation.methods.prosac import PROSAC_OPTIONS, prosac_sampler, prosac_termination
 from stereovo.estimation.methods.sprt import SPRT_OPTIONS, SprtTermination, sprt_verifier
+from stereovo.estimation.estimator_options import OptionReads
 from stereovo.estimation.recipes import base_components, reprojection_judge
 from stereovo.estimation.registry import register_method
 from stereovo.estimation.roles.scoring import TruncatedQuadratic
@@ -60,6 +61,8 @@ class EarliestTermination:
     "USAC-like: PROSAC sampling if order= (else uniform/guided), SPRT verification, LO+, SPRT/PROSAC stop",
     "Raguram et al. 2013",
     extra_options=SPRT_OPTIONS + LO_OPTIONS + PROSAC_OPTIONS,
+    # given an order, PROSAC's stop listens under a fixed budget too (see below)
+    reads=OptionReads(judge="reprojection", refinement="plain", stop="prosac-given-order"),
 )
 def _build_usac(problem, options, priors, order, extra):
     components = base_components(problem, options, priors, None, *reprojection_judge(options, TruncatedQuadratic()))
