@@ -218,7 +218,8 @@ class StereoVOAdaptiveEnv(gym.Env):
             _OWNER, StereoVOAdaptiveEnv, method, settings, fixed={"noise_sigma": self.estimator_noise_sigma},
             also_known=SIMULATOR_KEYWORDS, refused=_REFUSED_OPTIONS,
         )
-        if self._spec.inputs != "any":  # the agent's weights drive the sampler: the judge must take none
+        # the agent's weights drive the sampler: the judge must need no priors= or order= of its own
+        if self._spec.inputs not in ("any", "priors-optional"):
             why = ("needs priors= or order= from its caller" if self._spec.inputs in ("priors", "order")
                    else "draws no hypotheses for the agent to steer")
             raise ValueError(f"{_OWNER}: method {method!r} cannot judge the in-frame search: it {why}; "

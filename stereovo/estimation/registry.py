@@ -61,7 +61,9 @@ class MethodSpec:
     # The method's own defaults for EstimatorOptions fields (e.g. probabilistic's tuned recipe, a
     # variant's enhancements): plain values, applied unless the caller gives the option.
     defaults: Mapping[str, Any] = dataclasses.field(default_factory=dict)
-    inputs: str = "any"  # what the sampler takes: "any" (priors=, order= or neither), "priors", "order", "none"
+    # what the sampler takes: "any" (priors=, order= or neither), "priors", "order", "none", or
+    # "priors-optional" (priors= or neither: a belief sampler, which has no use for a ranking)
+    inputs: str = "any"
 
     def check_options(self, extra: Mapping[str, Any]) -> dict[str, Any]:
         """The given method options, validated against :attr:`option_rules` and normalised.
@@ -97,6 +99,8 @@ class MethodSpec:
                 f"method {self.name!r} needs priors=: one inlier probability gamma_i per correspondence "
                 "(e.g. calibrated match scores; clipped to (0, 1))"
             )
+        if self.inputs == "priors-optional" and order:
+            raise ValueError(f"method {self.name!r} samples by inlier beliefs: give priors= (or nothing), not order=")
         if self.inputs == "none" and (priors or order):
             raise ValueError(
                 f"method {self.name!r} does not sample hypotheses: priors= and order= have no role in it; pass neither"

@@ -137,3 +137,10 @@ def test_lengths_take_only_a_list_tuple_or_1d_array_of_real_numbers():
     for value, lengths in LENGTHS_ACCEPTED:  # their numbers normalised to floats
         env = StereoVOEnv(**SMALL, kitti_lengths=value)
         assert env.kitti_lengths == lengths and all(type(x) is float for x in env.kitti_lengths)
+
+
+@pytest.mark.parametrize("method", ["bansac", "p-bansac", "ars"])
+def test_a_belief_sampler_under_prosac_sampling_is_refused_at_construction(method):
+    # it used to be accepted and to fail at the first step, when the recipe was built with the order
+    with pytest.raises(ValueError, match=f"method '{method}' with sampling='prosac': .*give priors= \\(or nothing\\)"):
+        StereoVOEnv(sampling="prosac", method=method)

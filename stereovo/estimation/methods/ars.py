@@ -143,6 +143,7 @@ class ArsSampler:
     "failure (adaptive reordering); adaptive stop; the probabilistic method's judge",
     "Wei, Matas & Barath, ICCV 2023",
     extra_options={"initial_probability": None, "prior_ceiling": CEILING_RULE},
+    inputs="priors-optional",
     reads=PROBABILISTIC_READS,  # probabilistic's judge and refinement (judged_components); an adaptive stop
 )
 def _build_ars(problem, options, priors, order, extra):

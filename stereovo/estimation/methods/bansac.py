@@ -706,6 +706,7 @@ def _build_verdict_variant(problem, options, priors, order, extra):
     "model's outliers, or at the adaptive bound; the probabilistic method's judge",
     "Piedade & Miraldo, ICCV 2023",
     extra_options=bansac_options(BANSAC_THRESHOLD),
+    inputs="priors-optional",
     reads=PROBABILISTIC_READS,  # probabilistic's judge and refinement (judged_components); an adaptive stop
 )
 def _build_bansac(problem, options, priors, order, extra):
@@ -717,6 +718,7 @@ def _build_bansac(problem, options, priors, order, extra):
     "P-BANSAC: BANSAC with the looser stop (beliefs under 0.1 count as ruled out)",
     "Piedade & Miraldo, ICCV 2023",
     extra_options=bansac_options(P_BANSAC_THRESHOLD),
+    inputs="priors-optional",
     reads=PROBABILISTIC_READS,
 )
 def _build_p_bansac(problem, options, priors, order, extra):

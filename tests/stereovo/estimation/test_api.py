@@ -13,7 +13,7 @@ from hypothesis import given, strategies as st
 
 from stereovo import available_methods, estimate_motion
 from stereovo.benchmark.runner import METHOD_INPUTS, score_inputs
-from stereovo.estimation import method_spec, StereoProblem, estimate_problem
+from stereovo.estimation import method_spec, StereoProblem, estimate_problem, validate_options
 from stereovo.geometry import random_rotation, rotation_error, se3_exp
 from stereovo.metrics import is_success, frame_metrics
 from stereovo.simulation import SimulationConfig, simulate_frame
@@ -495,3 +495,13 @@ def test_a_seed_gives_numpys_default_generator_stream(seed):
 
     np.testing.assert_array_equal(as_generator(seed).random(8), np.random.default_rng(seed).random(8))
     assert type(as_generator(seed).bit_generator) is np.random.PCG64
+
+
+@pytest.mark.parametrize("method", ["bansac", "p-bansac", "ars"])
+def test_belief_samplers_refuse_an_order_before_running(method):
+    """A belief sampler takes priors= or nothing: an order is refused when the call is checked (the
+    environments check at construction), not when the recipe is built at the first estimate."""
+    with pytest.raises(ValueError, match=f"method '{method}' samples by inlier beliefs: give priors= \\(or nothing\\)"):
+        validate_options(method, {}, priors=False, order=True)
+    validate_options(method, {}, priors=True, order=False)
+    validate_options(method, {}, priors=False, order=False)

@@ -195,7 +195,7 @@ def test_methods_run_without_priors_same_seed_same_result_and_refuse_an_order(me
     np.testing.assert_array_equal(a.rotation, b.rotation)
     assert a.n_hypotheses == b.n_hypotheses and a.report.counters == b.report.counters
     assert any(key.startswith(method.removeprefix("p-")) for key in a.report.counters)
-    with pytest.raises(ValueError, match="not an order"):
+    with pytest.raises(ValueError, match="give priors= \\(or nothing\\), not order="):
         estimate_motion(frame.prev, frame.curr, frame.camera, method=method, order=np.arange(frame.n))
     with pytest.raises(ValueError, match="initial_probability"):
         estimate_motion(frame.prev, frame.curr, frame.camera, method=method, initial_probability=1.5)
