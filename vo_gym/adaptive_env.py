@@ -160,7 +160,7 @@ class StereoVOAdaptiveEnv(gym.Env):
       whose role the agent and the keywords above take: ``budget``, ``confidence``,
       ``max_iterations``, ``first_batch_size`` and ``fail_at_cap`` raise ``TypeError`` saying which.
       An option the judge would not read with the other settings raises ``ValueError`` naming it,
-      its value and why, as in :class:`vo_gym.StereoVOEnv` (:func:`vo_gym.settings.unread_options`):
+      its value and why, as in :class:`vo_gym.StereoVOEnv` (:func:`stereovo.estimation.unread_options`):
       ``least_squares_refit`` with ``refine=True`` (the default), ``gate_probability`` and
       ``refine_gate_probability`` with ``method="msac"`` (the default), ...
 

@@ -27,7 +27,7 @@ import numpy as np
 
 from stereovo.camera import StereoCamera
 from stereovo.estimation import EstimatorOptions, method_spec
-from stereovo.estimation import unread_options as estimator_unread_options
+from stereovo.estimation import unread_options
 from stereovo.estimation.estimator_options import ESTIMATOR_OPTION_RULES, MAX_COUNT, SHARED_OPTIONS, unread_message
 from stereovo.estimation.registry import MethodSpec, split_options
 from stereovo.options import Choice, Integer, Number, Option, check_options, is_real, value_repr
@@ -38,7 +38,7 @@ from vo_gym.rewards import REWARD_MODES
 __all__ = [
     "SAMPLING_MODES", "DEFAULT_ESTIMATOR_OPTIONS", "SIMULATOR_KEYWORDS", "RULES", "Lengths", "ContaminationRange",
     "check_settings", "simulation_config", "observation_rows", "estimator_noise", "estimator_settings",
-    "unread_options", "check_reset_options",
+    "check_reset_options",
 ]
 
 SAMPLING_MODES: tuple[str, ...] = ("guided", "prosac")
@@ -57,6 +57,7 @@ SIMULATOR_KEYWORDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(S
 
 # exp(+-300) is representable in float64; a larger logit range overflows the sampling weights.
 MAX_LOGIT = 300.0
+
 
 @dataclasses.dataclass(frozen=True)
 class Lengths(Option):
@@ -224,7 +225,7 @@ def estimator_settings(owner: str, cls: type, method: str, options: Mapping[str,
     Raises:
         TypeError: a keyword that is no option of the method, or a refused one (naming it, its value
             and why). ValueError: a bad value, named, or an option the method would not read with these
-            settings (:func:`unread_options`, the estimator's: ``confidence`` under a fixed budget,
+            settings (:func:`stereovo.estimation.unread_options`: ``confidence`` under a fixed budget,
             ``least_squares_refit`` with ``refine``, ...), naming it, its value and why; only the
             user's ``options`` are looked at (the environment's defaults and ``fixed`` never are).
     """
@@ -259,25 +260,11 @@ def estimator_settings(owner: str, cls: type, method: str, options: Mapping[str,
             spec.check_inputs(priors=sampling == "guided", order=sampling == "prosac")
         except ValueError as err:
             raise ValueError(f"{owner}: estimator method {method!r} with sampling={sampling!r}: {err}") from None
-    unread = unread_options(spec.name, shared, options, sampling)
+    # the adaptive environment (sampling None) steers with weights: no order either
+    unread = unread_options(spec.name, shared, options, order=sampling == "prosac")
     if unread:
         raise ValueError(f"{owner}: {unread_message(unread, options)}")
     return spec, shared, extra
-
-
-def unread_options(method: str, shared: EstimatorOptions, given: Iterable[str],
-                   sampling: str | None = None) -> dict[str, str]:
-    """The ``given`` option names that ``method`` with the options ``shared`` never reads, each with why:
-    the estimator's :func:`stereovo.estimation.registry.unread_options` (each method declares what it
-    reads when it registers), with the environment's ``sampling``.
-
-    Args:
-        method: a registered method name. shared: its validated options (the method's and the
-            environment's defaults under the given ones). given: the option names the caller gave.
-        sampling: ``"prosac"`` when the method gets an order, else ``"guided"`` or None (the adaptive
-            environment's agent weights: no order either).
-    """
-    return estimator_unread_options(method, shared, given, order=sampling == "prosac")
 
 
 def check_reset_options(owner: str, options: Any) -> None:
