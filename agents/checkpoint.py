@@ -433,7 +433,7 @@ class LearnedPolicy:
         Args:
             prev, curr: ``(N, 4)`` measurements ``(uL, vL, uR, vR)`` in pixels at k-1 and k.
             camera: the :class:`stereovo.StereoCamera`.
-            scores: ``(N,)`` match scores in (0, 1), higher = better; None: unknown, every row gets
+            scores: ``(N,)`` match scores in [0, 1], higher = better; None: unknown, every row gets
                 the uninformative score (:mod:`agents.matches`, as :class:`agents.LearnedEstimator`).
             previous_motion: ``(R (3, 3), t (3,) m)`` estimated for the previous frame pair
                 (``x_k = R x_{k-1} + t``), the constant-velocity feature; None if unknown.

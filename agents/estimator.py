@@ -233,7 +233,7 @@ class LearnedEstimator:
             prev, curr: ``(N, 4)`` stereo measurements ``(uL, vL, uR, vR)`` in pixels at k-1 and k;
                 row i of both is one putative match. Any N.
             camera: the rectified :class:`stereovo.StereoCamera`.
-            scores: ``(N,)`` match scores in (0, 1), higher = better (e.g. a descriptor ratio test
+            scores: ``(N,)`` match scores in [0, 1], higher = better (e.g. a descriptor ratio test
                 mapped to (0, 1)). None: no score is known, and every row gets the uninformative
                 score :data:`UNINFORMATIVE_SCORE` and the mid rank 0.5; the samplers were trained
                 with scores of ROC AUC 0.6-0.75, so they lose that signal and rely on geometry
@@ -253,8 +253,8 @@ class LearnedEstimator:
 
         Raises:
             ValueError: malformed input (shapes, mismatched N, complex or non-numeric values, scores of
-                the wrong shape, an ``rng`` that is neither a Generator nor a seed); NaN and inf rows
-                are unusable rows, not errors.
+                the wrong shape, scores outside [0, 1] or not finite, an ``rng`` that is neither a
+                Generator nor a seed); NaN and inf measurement rows are unusable rows, not errors.
         """
         start = time.perf_counter()
         problem = StereoProblem.build(prev, curr, camera, self.noise_sigma, self._shared.min_disparity_sigmas)

@@ -235,6 +235,25 @@ def test_priors_without_scores_follow_the_rows_and_match_the_estimators_recipe()
     assert pose_is_right(mine, R, t)
 
 
+@pytest.mark.parametrize("sampler", [ONE_SHOT, IN_FRAME])
+def test_scores_on_another_scale_are_refused_and_the_ends_of_0_1_taken(sampler):
+    prev, curr, camera, scores, inlier, R, t = hand_built_frame(np.random.default_rng(8), outliers=0.3)
+    estimator = LearnedEstimator(sampler)
+    # a descriptor distance (lower = better, 0-255): the networks never saw such a score column
+    distances = np.where(inlier, 20.0, 180.0)
+    with pytest.raises(ValueError, match=r"scores must lie in \[0, 1\].* 300 of 300 outside, from 20 to 180"):
+        estimator.estimate(prev, curr, camera, distances)
+    one_off = scores.copy()
+    one_off[7] = -1e-9
+    with pytest.raises(ValueError, match=r"1 of 300 outside, from -1e-09 to"):
+        estimator.estimate(prev, curr, camera, one_off)
+    with pytest.raises(ValueError, match=r"scores must lie in \[0, 1\]"):
+        load_sampler(ONE_SHOT).priors(prev, curr, camera, scores * 2.0)
+    flags = inlier.astype(float)  # a matcher's 0 / 1 verdicts are scores at the ends of the range
+    estimator.reset()
+    assert pose_is_right(estimator.estimate(prev, curr, camera, flags), R, t)
+
+
 @pytest.mark.parametrize("bad, match", [
     ("no-such-sampler", "unknown sampler 'no-such-sampler'"),
     ("missing/sampler.pt", "missing/sampler.pt"),
