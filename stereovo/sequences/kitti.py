@@ -12,7 +12,8 @@ benchmark suite", CVPR 2012)::
 P1 (``fx, fy, cx, cy`` of P0, ``baseline = -P1[0, 3] / P1[0, 0]``), the image size from the first
 image. An image pair is two files of one name in ``image_0/`` and ``image_1/``; a sequence has at least
 two. Each image's header is read before the image (Pillow), so that an image larger than
-:data:`MAX_IMAGE_PIXELS` or of another size than the first is refused before it is decoded (OpenCV).
+:data:`MAX_IMAGE_PIXELS` or of another size than the first is refused before it is decoded (OpenCV);
+a JPEG is read only when its structure reaches its end-of-image marker (:mod:`stereovo.sequences.jpeg`).
 Only text and images are read: nothing in the folder can run code.
 
 Labels when poses are known: there are no depth maps, so a match is labelled an inlier when the
@@ -23,12 +24,14 @@ these labels are approximate for distant points and near the tolerance.
 
 from __future__ import annotations
 
+import io
+import itertools
 import os
-import re
 import stat
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
@@ -38,6 +41,7 @@ from stereovo.frontend.images import MIN_IMAGE_SIDE
 from stereovo.geometry import invert_transform, relative_motion
 from stereovo.options import Integer, Number
 from stereovo.sequences.base import ImageSequence
+from stereovo.sequences.jpeg import jpeg_defect
 from stereovo.simulation import FrameTruth, OutlierKind
 
 _IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".pgm", ".ppm", ".bmp", ".tif", ".tiff")
@@ -69,20 +73,20 @@ def read_calibration(path: Path) -> StereoCamera:
     P0 and P1 must be the projections of a rectified pair: ``K [I | 0]`` and ``K [I | (-b, 0, 0)]``
     with ``K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` (Geiger, Lenz & Urtasun, CVPR 2012). Any other
     form (skew, a third row other than ``(0, 0, 1, 0)``, a vertical or depth offset) would be read as
-    some other camera without a word, so it is refused, naming the file and the entry.
+    some other camera without a word, so it is refused, naming the file and the entry; so is a file
+    that is not a regular one, or a line over :data:`MAX_LINE` characters.
     """
     rows: dict[str, np.ndarray] = {}
-    with open(path, encoding="utf-8", errors="replace") as handle:
-        for number, line in enumerate(handle, 1):
-            if ":" not in line:
-                continue
-            key, _, values = line.partition(":")
-            key = key.strip()
-            if key not in ("P0", "P1"):
-                continue
-            if key in rows:  # which of the two was meant cannot be told
-                raise ValueError(f"{path}, line {number}: a second {key} line")
-            rows[key] = _three_by_four(values, f"{path}, line {number}: {key}", repr(values.strip()))
+    for number, line in _lines(path):
+        if ":" not in line:
+            continue
+        key, _, values = line.partition(":")
+        key = key.strip()
+        if key not in ("P0", "P1"):
+            continue
+        if key in rows:  # which of the two was meant cannot be told
+            raise ValueError(f"{path}, line {number}: a second {key} line")
+        rows[key] = _three_by_four(values, f"{path}, line {number}: {key}", repr(values.strip()))
     missing = [key for key in ("P0", "P1") if key not in rows]
     if missing:
         raise ValueError(f"{path}: no {' and no '.join(missing)} line (KITTI's 'P0: 12 numbers' projections)")
@@ -128,26 +132,75 @@ def _check_rectified_projection(path: Path, key: str, P: np.ndarray) -> None:
 
 
 def read_poses(path: Path) -> np.ndarray:
-    """``(N, 4, 4)`` camera-to-world poses from KITTI's pose file (12 numbers a line)."""
+    """``(N, 4, 4)`` camera-to-world poses from KITTI's pose file (12 numbers a line).
+
+    Raises:
+        ValueError: naming the file and the line: not 12 finite numbers, not a rotation and a position
+            within :data:`MAX_POSITION_M`, a line over :data:`MAX_LINE` characters; no pose; not a
+            regular file.
+    """
     poses = []
-    with open(path, encoding="utf-8", errors="replace") as handle:
-        for number, line in enumerate(handle, 1):
-            if not line.strip():
-                continue
-            pose = np.eye(4)
-            pose[:3, :] = _three_by_four(line, f"{path}, line {number}: a pose", repr(line.strip()[:60]))
-            # A camera-to-world pose: a rotation (KITTI's, from GPS/INS, are orthonormal to about 1e-6)
-            # and a position on the Earth's scale; anything else would fail far away, in the drift's SVD.
-            R = pose[:3, :3]
-            # (a rotation's entries lie in [-1, 1]: checked first, so that R R' of huge ones cannot overflow)
-            if (np.abs(R).max() > 1.001 or not np.allclose(R @ R.T, np.eye(3), atol=1e-3) or np.linalg.det(R) <= 0
-                    or np.abs(pose[:3, 3]).max() > MAX_POSITION_M):
-                raise ValueError(f"{path}, line {number}: a pose must be a rotation and a position within "
-                                 f"{MAX_POSITION_M:g} m, got {line.strip()[:60]!r}")
-            poses.append(pose)
+    for number, line in _lines(path):
+        if not line.strip():
+            continue
+        pose = np.eye(4)
+        pose[:3, :] = _three_by_four(line, f"{path}, line {number}: a pose", repr(line.strip()[:60]))
+        # A camera-to-world pose: a rotation (KITTI's, from GPS/INS, are orthonormal to about 1e-6)
+        # and a position on the Earth's scale; anything else would fail far away, in the drift's SVD.
+        R = pose[:3, :3]
+        # (a rotation's entries lie in [-1, 1]: checked first, so that R R' of huge ones cannot overflow)
+        if (np.abs(R).max() > 1.001 or not np.allclose(R @ R.T, np.eye(3), atol=1e-3) or np.linalg.det(R) <= 0
+                or np.abs(pose[:3, 3]).max() > MAX_POSITION_M):
+            raise ValueError(f"{path}, line {number}: a pose must be a rotation and a position within "
+                             f"{MAX_POSITION_M:g} m, got {line.strip()[:60]!r}")
+        poses.append(pose)
     if not poses:
         raise ValueError(f"{path}: no poses")
     return np.array(poses)
+
+
+MAX_LINE = 4096
+"""The most characters a line of a calibration or pose file may hold, its end included: KITTI's hold
+under 250. Longer is refused as it is read; a file of one endless line was read whole into memory."""
+
+
+def _open_regular(path: Path, what: str) -> BinaryIO:
+    """``path`` open for reading bytes, once it is known to be a regular file (``what`` it should be
+    names it in a message).
+
+    Raises:
+        ValueError: ``{path}: not a readable {what} (REASON)`` or ``{path}: not a regular file (KIND)``.
+    """
+    try:
+        # O_NONBLOCK: a FIFO (put there after the folder was checked) opens at once instead of waiting for a writer
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except OSError as err:
+        link = "a link that leads to no file: " if os.path.islink(path) else ""
+        raise ValueError(f"{path}: not a readable {what} ({link}{err.strerror})") from None
+    handle = os.fdopen(fd, "rb")
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        handle.close()
+        raise ValueError(f"{path}: not a regular file ({_file_kind(mode)})")
+    return handle
+
+
+def _lines(path: Path) -> Iterator[tuple[int, str]]:
+    """``(number, line)`` of text file ``path`` (UTF-8, undecodable bytes replaced), numbered from 1.
+
+    Raises:
+        ValueError: naming the file: not a regular file (see :func:`_open_regular`), or a line over
+            :data:`MAX_LINE` characters.
+    """
+    with _open_regular(path, "text file") as raw, io.TextIOWrapper(raw, encoding="utf-8", errors="replace") as text:
+        for number in itertools.count(1):
+            line = text.readline(MAX_LINE + 1)
+            if not line:
+                return
+            if len(line) > MAX_LINE:
+                raise ValueError(f"{path}, line {number}: longer than {MAX_LINE} characters (MAX_LINE); a line "
+                                 "holds one entry of 12 numbers")
+            yield number, line
 
 
 def _images(folder: Path) -> list[Path]:
@@ -193,15 +246,6 @@ header claiming 32768x32768 16-bit RGBA made OpenCV ask for 8 GiB, 389 KB of zer
 20000x20000 took 830 MB. 50 MP is 100 times a KITTI image (1241x376) and 1.5 times an 8K frame; decoded
 as 16-bit RGBA, the costliest form OpenCV returns, it is 400 MB."""
 
-_JPEG_END = b"\xff\xd9"
-"""JPEG's end-of-image marker (EOI), the last two bytes of a complete file."""
-
-_JPEG_PADDING = b"\x00 \t\r\n"
-"""Bytes some writers append after the end-of-image marker (zeros, whitespace): not a truncation."""
-
-_JPEG_TAIL = 4096
-"""The bytes at a JPEG file's end searched for the end-of-image marker under the padding."""
-
 
 def _declared_size(path: Path) -> tuple[int, int]:
     """``(width, height)`` (px) that the header of image file ``path`` declares, read without decoding
@@ -209,34 +253,23 @@ def _declared_size(path: Path) -> tuple[int, int]:
 
     Raises:
         ValueError: naming the file: not a regular file, not a readable image (Pillow identifies no
-            image format in it), more than :data:`MAX_IMAGE_PIXELS` pixels, or a JPEG without its
-            end-of-image marker (truncated: OpenCV would decode the missing part as grey).
+            image format in it), more than :data:`MAX_IMAGE_PIXELS` pixels, or a JPEG whose structure
+            does not reach its end-of-image marker (truncated: OpenCV would decode the missing part as
+            grey; see :func:`~stereovo.sequences.jpeg.jpeg_defect`).
     """
     from PIL import Image, UnidentifiedImageError
 
-    try:
-        # O_NONBLOCK: a FIFO (put there after the folder was listed) opens at once instead of waiting for a writer
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
-    except OSError as err:
-        raise ValueError(f"{path}: not a readable image ({err.strerror})") from None
-    with os.fdopen(fd, "rb") as handle:
-        mode = os.fstat(fd).st_mode
-        if not stat.S_ISREG(mode):
-            raise ValueError(f"{path}: not a regular file ({_file_kind(mode)})")
+    with _open_regular(path, "image") as handle:
         try:
-            with warnings.catch_warnings():
-                # Pillow's own guard (Image.MAX_IMAGE_PIXELS, a warning then an error) is looser than
-                # MAX_IMAGE_PIXELS; the size is checked below, with this module's message
+            with warnings.catch_warnings():  # the filter below lasts for this read only: the caller's are kept
+                # Pillow warns of an image over its own limit, Image.MAX_IMAGE_PIXELS, and still hands over
+                # the size, checked below against MAX_IMAGE_PIXELS with this module's message
                 warnings.simplefilter("ignore", Image.DecompressionBombWarning)
                 with Image.open(handle) as image:
                     (width, height), kind = image.size, image.format
-        except Image.DecompressionBombError as err:
-            # Pillow refuses before it hands over the size; its message holds the pixel count
-            count = re.search(r"\((\d+) pixels\)", str(err))
-            if count is None or int(count.group(1)) <= MAX_IMAGE_PIXELS:  # a lower limit someone set in Pillow
-                raise ValueError(f"{path}: not a readable image (Pillow: {err})") from None
-            raise ValueError(f"{path}: declares an image of {int(count.group(1)):,} pixels; images of at most "
-                             f"{MAX_IMAGE_PIXELS:,} pixels are read (MAX_IMAGE_PIXELS)") from None
+        except Image.DecompressionBombError:
+            # Pillow refuses, without the size, an image over twice its limit (its documented rule)
+            raise ValueError(_refused_by_pillow(path)) from None
         except UnidentifiedImageError:
             raise ValueError(f"{path}: not a readable image (no image format Pillow knows begins it: empty, text or "
                              "damaged)") from None
@@ -245,13 +278,24 @@ def _declared_size(path: Path) -> tuple[int, int]:
         if width * height > MAX_IMAGE_PIXELS:
             raise ValueError(f"{path}: declares a {width}x{height} image ({width * height:,} pixels); images of at "
                              f"most {MAX_IMAGE_PIXELS:,} pixels are read (MAX_IMAGE_PIXELS)")
-        if kind in ("JPEG", "MPO"):  # (MPO: several JPEGs in one file, the last one's marker ends it)
-            end = handle.seek(0, os.SEEK_END)
-            handle.seek(max(end - _JPEG_TAIL, 0))
-            if not handle.read().rstrip(_JPEG_PADDING).endswith(_JPEG_END):
-                raise ValueError(f"{path}: a truncated JPEG (its {end} bytes do not end with the end-of-image "
-                                 f"marker FF D9)")
+        if kind in ("JPEG", "MPO"):  # (MPO: JPEGs one after another; OpenCV decodes the first)
+            defect = jpeg_defect(handle)
+            if defect is not None:
+                raise ValueError(f"{path}: {defect}")
     return width, height
+
+
+def _refused_by_pillow(path: Path) -> str:
+    """The message for an image Pillow refused with ``DecompressionBombError``: over twice
+    ``Image.MAX_IMAGE_PIXELS``, which is over :data:`MAX_IMAGE_PIXELS` unless someone lowered Pillow's."""
+    from PIL import Image
+
+    pillow = 2 * (Image.MAX_IMAGE_PIXELS or 0)
+    if pillow >= MAX_IMAGE_PIXELS:
+        return (f"{path}: declares an image of more than {pillow:,} pixels; images of at most {MAX_IMAGE_PIXELS:,} "
+                "pixels are read (MAX_IMAGE_PIXELS)")
+    return (f"{path}: not a readable image (Pillow refuses images of more than {pillow:,} pixels: twice its "
+            f"Image.MAX_IMAGE_PIXELS, {pillow // 2:,})")
 
 
 def _read_grey(path: Path, size: tuple[int, int] | None = None) -> np.ndarray:
@@ -309,10 +353,11 @@ class KittiOdometry(ImageSequence):
 
     Raises:
         FileNotFoundError: a missing folder, image folder or calib.txt, named.
-        ValueError: malformed calibration or poses, unequal image counts or names, fewer than two image
-            pairs, a bad range, a first image that is unreadable, not a regular file, over
-            :data:`MAX_IMAGE_PIXELS` or under :data:`~stereovo.frontend.images.MIN_IMAGE_SIDE` on a side
-            (a later image is read, and refused likewise, by :meth:`load_images`).
+        ValueError: malformed calibration or poses (or files of them that are not regular files), unequal
+            image counts or names, fewer than two image pairs, a bad range, a first image that is
+            unreadable, not a regular file, over :data:`MAX_IMAGE_PIXELS` or under
+            :data:`~stereovo.frontend.images.MIN_IMAGE_SIDE` on a side, or a truncated JPEG (a later
+            image is read, and refused likewise, by :meth:`load_images`).
     """
 
     def __init__(self, root: str | os.PathLike, sequence: str | int | None = "00", start: int = 0,
@@ -336,7 +381,7 @@ class KittiOdometry(ImageSequence):
                 raise FileNotFoundError(f"KittiOdometry: no sequence folder {folder}, and no image_0/ in {root}")
             pose_candidates = [root / "poses" / f"{name}.txt"]
         calib = folder / "calib.txt"
-        if not calib.is_file():
+        if not os.path.lexists(calib):  # (one that is there but no file is refused, as such, when read)
             raise FileNotFoundError(f"KittiOdometry: no calibration file {calib}")
         lefts, rights = _images(folder / "image_0"), _images(folder / "image_1")
         if len(lefts) != len(rights):
@@ -376,7 +421,8 @@ class KittiOdometry(ImageSequence):
         self.root, self.folder, self.sequence = root, folder, name
         self._lefts, self._rights = lefts[start:stop], rights[start:stop]
         self.start = start
-        self.poses_file = next((p for p in pose_candidates if p.is_file()), None)
+        # one that is there but no file (a broken link, a FIFO) is refused when read, not passed over in silence
+        self.poses_file = next((p for p in pose_candidates if os.path.lexists(p)), None)
         self.true_poses = None
         if self.poses_file is not None:
             poses = read_poses(self.poses_file)

@@ -235,8 +235,31 @@ def test_vo_on_a_kitti_folder_with_and_without_poses(tmp_path, capsys, short):
     assert "no ground-truth poses" in capsys.readouterr().out
 
 
+def test_vo_on_a_kitti_folder_of_jpegs_with_data_after_their_end(tmp_path, capsys, short):
+    """Cameras and tools append data after a JPEG's end-of-image marker: such images, baseline and
+    progressive, were refused as truncated; they are read, and the run goes as on the PNGs."""
+    import cv2
+    from PIL import Image
+
+    from tests.support.images import write_kitti
+
+    folder = write_kitti(tmp_path / "data", short, "05")
+    tail = np.random.default_rng(4).integers(0, 256, 1024, np.uint8).tobytes()
+    for k, png in enumerate(sorted(folder.glob("image_*/*.png"))):
+        with Image.open(png) as image:
+            image.save(png.with_suffix(".jpg"), quality=95, progressive=k % 2 == 1)
+        png.unlink()
+        png.with_suffix(".jpg").write_bytes(png.with_suffix(".jpg").read_bytes() + tail)
+        assert cv2.imread(str(png.with_suffix(".jpg")), cv2.IMREAD_UNCHANGED) is not None
+    out = tmp_path / "k"
+    assert main(["vo", "--source", f"kitti:{tmp_path / 'data'}:05", "--no-progress", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["metrics"]["frames"] == 3 and summary["metrics"]["success_rate"] == 1.0
+
+
 @pytest.mark.parametrize("damage, needle", [
     ("truncated", "000001.png: not a readable image"),
+    ("truncated jpeg", "000001.jpg: a truncated JPEG (its "),
     ("right smaller", "image pair 1"),
 ])
 def test_a_bad_image_later_in_a_kitti_sequence_is_one_line_and_leaves_out_as_it_was(tmp_path, capsys, short,
@@ -250,6 +273,11 @@ def test_a_bad_image_later_in_a_kitti_sequence_is_one_line_and_leaves_out_as_it_
     if damage == "truncated":
         image = folder / "image_0" / "000001.png"
         image.write_bytes(image.read_bytes()[: image.stat().st_size // 2])
+    elif damage == "truncated jpeg":  # (OpenCV decodes it, its missing part grey)
+        image = folder / "image_0" / "000001.png"
+        ok, data = cv2.imencode(".jpg", cv2.imread(str(image), cv2.IMREAD_UNCHANGED))
+        image.unlink()
+        image.with_suffix(".jpg").write_bytes(data.tobytes()[: data.size // 2])
     else:
         image = folder / "image_1" / "000001.png"
         cv2.imwrite(str(image), cv2.imread(str(image), cv2.IMREAD_GRAYSCALE)[:-8, :-8])
@@ -277,6 +305,8 @@ def test_an_image_declaring_too_many_pixels_is_one_line_and_leaves_out_as_it_was
     """A header claiming 100000x100000 px made OpenCV raise cv2.error: a traceback (and, for a later image,
     an empty --out left behind). It is one line naming the file, from its header, before decoding."""
     pytest.importorskip("cv2")
+    from PIL import Image
+
     from tests.support.images import write_image_folder
 
     folder = write_image_folder(tmp_path / "seq")
@@ -285,8 +315,9 @@ def test_an_image_declaring_too_many_pixels_is_one_line_and_leaves_out_as_it_was
     assert main(["vo", "--source", f"kitti:{folder}", "--no-progress", "--out", str(out)]) == 2
     line = one_line_error(capsys, "vo")
     assert line.startswith(f"vo-gym vo: error: --source kitti:{folder}") and line.endswith(
-        f"{image}: declares an image of 10,000,000,000 pixels; images of at most 50,000,000 pixels are read "
-        "(MAX_IMAGE_PIXELS)"), line
+        # (Pillow refuses, without the size, over twice its own limit)
+        f"{image}: declares an image of more than {2 * Image.MAX_IMAGE_PIXELS:,} pixels; images of at most 50,000,000 "
+        "pixels are read (MAX_IMAGE_PIXELS)"), line
     assert not out.exists()
 
 

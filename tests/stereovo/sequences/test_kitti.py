@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import struct
 import warnings
 import zlib
@@ -146,6 +147,43 @@ def test_kitti_principal_point_outside_the_images_is_refused(tmp_path, short):
         KittiOdometry(tmp_path, "03")
 
 
+def test_a_calibration_or_pose_file_of_one_endless_line_is_refused_naming_it(tmp_path):
+    """A calib.txt of one line of 100 MB was read whole into memory (a MemoryError for a larger one): a line
+    is read up to MAX_LINE characters, and a longer one refused, naming the file and the line."""
+    folder = write_image_folder(tmp_path / "seq", poses=True)
+    calib = folder / "calib.txt"
+    good = calib.read_text()
+    calib.write_text(good + "# " + "x" * 100_000)
+    with pytest.raises(ValueError, match=r"seq/calib.txt, line 3: longer than 4096 characters \(MAX_LINE\); a line "
+                                         r"holds one entry of 12 numbers$"):
+        KittiOdometry(folder, None)
+    calib.write_text(good + "# " + "x" * 4000 + "\n")
+    (folder / "poses.txt").write_text("1 " * 10_000)
+    with pytest.raises(ValueError, match=r"seq/poses.txt, line 1: longer than 4096 characters"):
+        KittiOdometry(folder, None)
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs on this platform")
+def test_a_calibration_or_pose_file_that_is_not_a_regular_file_is_refused_naming_it(tmp_path):
+    """A poses.txt that was a broken link was passed over in silence (a run without ground truth), a
+    calib.txt that was a FIFO was said to be missing: each is refused, named, as what it is."""
+    folder = write_image_folder(tmp_path / "seq")
+    (folder / "poses.txt").symlink_to("nowhere.txt")
+    with pytest.raises(ValueError, match=r"seq/poses.txt: not a readable text file \(a link that leads to no file: "
+                                         r"No such file or directory\)$"):
+        KittiOdometry(folder, None)
+    (folder / "poses.txt").unlink()
+    calib = folder / "calib.txt"
+    calib.unlink()
+    os.mkfifo(calib)
+    with pytest.raises(ValueError, match=r"seq/calib.txt: not a regular file \(a FIFO: reading it would wait for a "
+                                         r"writer\)$"):
+        KittiOdometry(folder, None)
+    calib.unlink()
+    with pytest.raises(FileNotFoundError, match=r"KittiOdometry: no calibration file .*seq/calib.txt$"):
+        KittiOdometry(folder, None)
+
+
 # ---------------------------------------------------------------- hostile image files
 
 
@@ -179,7 +217,8 @@ def decoded(monkeypatch):
 @pytest.mark.parametrize("width, height, declared", [
     (8000, 7000, r"a 8000x7000 image \(56,000,000 pixels\)"),  # under Pillow's own limit
     (10000, 10000, r"a 10000x10000 image \(100,000,000 pixels\)"),  # Pillow warns
-    (100000, 100000, r"an image of 10,000,000,000 pixels"),  # Pillow refuses; OpenCV raised cv2.error
+    # Pillow refuses, without the size, over twice its Image.MAX_IMAGE_PIXELS; OpenCV raised cv2.error
+    (100000, 100000, r"an image of more than \d{3},\d{3},\d{3} pixels"),
 ])
 def test_an_image_over_the_pixel_cap_is_refused_from_its_header(tmp_path, decoded, width, height, declared):
     """A header declaring a huge image made OpenCV allocate it (8 GiB for 69 bytes claiming 32768x32768
@@ -193,6 +232,37 @@ def test_an_image_over_the_pixel_cap_is_refused_from_its_header(tmp_path, decode
                                              r"50,000,000 pixels are read \(MAX_IMAGE_PIXELS\)$"):
             KittiOdometry(folder, None)
     assert decoded == []
+
+
+def test_loading_a_folder_leaves_the_warnings_filters_as_they_were(tmp_path):
+    """Pillow warns of an image over its own limit and refuses one over twice it; the loader hears neither
+    outside the header read: the caller's warnings filters are the same after, and Pillow's warning still
+    reaches the caller when the caller opens such an image."""
+    from PIL import Image
+
+    folder = write_image_folder(tmp_path / "seq")
+    (folder / "image_1" / "000001.png").write_bytes(_png_header(10000, 10000))  # Pillow warns
+    (folder / "image_1" / "000002.png").write_bytes(_png_header(100000, 100000))  # Pillow refuses
+    before = list(warnings.filters)
+    sequence = KittiOdometry(folder, None)
+    for k in (1, 2):
+        with pytest.raises(ValueError, match=rf"image pair {k}: .*seq/image_1/00000{k}.png: declares "):
+            sequence.images(k)
+    assert warnings.filters == before
+    with pytest.warns(Image.DecompressionBombWarning):
+        Image.open(folder / "image_1" / "000001.png").close()
+
+
+def test_an_image_under_the_cap_that_a_lowered_pillow_limit_refuses_names_pillows_limit(tmp_path, monkeypatch):
+    """Someone lowered Pillow's Image.MAX_IMAGE_PIXELS below the loader's: the image it refuses, without
+    its size, is refused naming Pillow's limit, not said to be over MAX_IMAGE_PIXELS."""
+    from PIL import Image
+
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 1000)
+    folder = write_image_folder(tmp_path / "seq")  # 128x96: 12,288 pixels
+    with pytest.raises(ValueError, match=r"seq/image_0/000000.png: not a readable image \(Pillow refuses images of "
+                                         r"more than 2,000 pixels: twice its Image.MAX_IMAGE_PIXELS, 1,000\)$"):
+        KittiOdometry(folder, None)
 
 
 def test_an_image_opencv_cannot_allocate_is_refused_naming_the_file(tmp_path, monkeypatch):
@@ -263,24 +333,122 @@ def test_left_and_right_images_are_paired_by_name(tmp_path):
     assert len(KittiOdometry(folder, None)) == 2  # one name, another suffix: a pair
 
 
-def test_a_truncated_jpeg_is_refused_and_a_padded_one_read(tmp_path):
-    """OpenCV decodes a truncated JPEG with its missing part grey, without an error: a JPEG that does not
-    end with the end-of-image marker is refused as truncated; zeros or whitespace after it are padding."""
+def test_jpegs_baseline_progressive_and_with_data_after_their_end_give_frames(kitti_root, tmp_path):
+    """Cameras and tools append data after a JPEG's end-of-image marker, which OpenCV and Pillow read past:
+    such files, progressive ones and one with an EXIF thumbnail are read as OpenCV decodes them, and give
+    frames whose motion is found."""
     import cv2
 
+    from tests.support.jpegs import exif_with_thumbnail, jpeg_bytes
+
+    root = tmp_path / "kitti"
+    shutil.copytree(kitti_root, root)
+    folder = root / "sequences" / "07"
+    tail = np.random.default_rng(2).integers(0, 256, 1024, np.uint8).tobytes()
+    thumbnail = jpeg_bytes(np.full((16, 16), 128, np.uint8))
+    written = {}
+    for k, side, options, after in ((1, 0, {}, tail), (1, 1, {"progressive": True}, tail),
+                                    (2, 0, {"exif": exif_with_thumbnail(thumbnail)}, b""),
+                                    (2, 1, {"progressive": True}, b"\0" * 64)):
+        png = folder / f"image_{side}" / f"{k:06d}.png"
+        data = jpeg_bytes(cv2.imread(str(png), cv2.IMREAD_UNCHANGED), quality=95, **options) + after
+        png.unlink()
+        png.with_suffix(".jpg").write_bytes(data)
+        written[k, side] = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    sequence = KittiOdometry(root, 7)
+    for (k, side), image in written.items():
+        assert np.array_equal(sequence.images(k)[side], image)
+    for k in (1, 2):
+        frame = sequence.frame(k)
+        est = estimate_motion(frame.prev, frame.curr, frame.camera, noise_sigma=0.5, rng=np.random.default_rng(0))
+        assert frame_metrics(est, frame.truth).success
+
+
+def _jpeg_folder(tmp_path: Path, data: bytes) -> Path:
+    """A noise folder whose image_0/000001 is the JPEG ``data`` (a 128x96 image, or part of one)."""
     folder = write_image_folder(tmp_path / "seq")
-    left = folder / "image_0" / "000001.png"
-    ok, data = cv2.imencode(".jpg", cv2.imread(str(left), cv2.IMREAD_UNCHANGED))
-    assert ok and data.tobytes().endswith(b"\xff\xd9")
-    left.unlink()
-    jpeg = left.with_suffix(".jpg")
-    jpeg.write_bytes(data.tobytes()[: data.size // 2])
-    sequence = KittiOdometry(folder, None)
-    with pytest.raises(ValueError, match=r"image pair 1: .*seq/image_0/000001.jpg: a truncated JPEG \(its \d+ bytes "
-                                         r"do not end with the end-of-image marker FF D9\)$"):
+    (folder / "image_0" / "000001.png").unlink()
+    (folder / "image_0" / "000001.jpg").write_bytes(data)
+    return folder
+
+
+def _cut(kind: str) -> tuple[bytes, str]:
+    """A 128x96 JPEG cut at ``kind``'s point, and the message (a pattern) that refuses it."""
+    from tests.support.jpegs import exif_with_thumbnail, jpeg_bytes, smooth_noise
+
+    image = smooth_noise(96, 128)
+    baseline, progressive = jpeg_bytes(image), jpeg_bytes(image, progressive=True)
+    scans = [i for i in range(len(progressive)) if progressive.startswith(b"\xff\xda", i)]
+    table = progressive.index(b"\xff\xc4", scans[0] + 2)
+    thumbnail = jpeg_bytes(smooth_noise(16, 16, 1))
+    exif = jpeg_bytes(image, exif=exif_with_thumbnail(thumbnail))
+    in_scan = r"a truncated JPEG \(its \d+ bytes end in the entropy-coded data of scan {}, before the end-of-image " \
+              r"marker FF D9\)$"
+    return {
+        "in the scan": (baseline[:len(baseline) // 2], in_scan.format(1)),
+        "before the end marker": (baseline[:-2], in_scan.format(1)),
+        "between FF and D9": (baseline[:-1], in_scan.format(1)),
+        "in the third of six scans": (progressive[:scans[2] + 40], in_scan.format(3)),
+        "in a table between scans": (progressive[:table + 8], r"a truncated JPEG \(its \d+ bytes end inside the "
+                                     r"segment of marker FF C4 at byte \d+, which declares \d+ bytes, before the "
+                                     r"end-of-image marker FF D9\)$"),
+        # the thumbnail's own end marker, inside APP1, does not end the file
+        "in the main scan after an EXIF thumbnail": (exif[:(exif.index(thumbnail) + len(thumbnail) + len(exif)) // 2],
+                                                     in_scan.format(1)),
+        # (Pillow reads the header up to the first scan, and refuses it first)
+        "in the header's tables": (baseline[:300], r"not a readable image \(Pillow: .+\)$"),
+    }[kind]
+
+
+@pytest.mark.parametrize("kind", ["in the scan", "before the end marker", "between FF and D9",
+                                  "in the third of six scans", "in a table between scans",
+                                  "in the main scan after an EXIF thumbnail", "in the header's tables"])
+def test_a_truncated_jpeg_is_refused_naming_the_file_and_where_it_ends(tmp_path, decoded, kind):
+    """OpenCV decodes a truncated JPEG with its missing part grey, without an error: a JPEG whose segments
+    and scans do not reach its end-of-image marker is refused, naming the file, before OpenCV decodes it."""
+    data, message = _cut(kind)
+    sequence = KittiOdometry(_jpeg_folder(tmp_path, data), None)
+    with pytest.raises(ValueError, match=r"KittiOdometry: image pair 1: .*seq/image_0/000001.jpg: " + message):
         sequence.images(1)
-    jpeg.write_bytes(data.tobytes() + b"\0" * 100 + b"\n")
-    assert np.array_equal(sequence.images(1)[0], cv2.imdecode(data, cv2.IMREAD_UNCHANGED))
+    assert "000001.jpg" not in decoded
+
+
+@pytest.mark.parametrize("length", [0, 1, 3, 0xFFFF])
+def test_garbage_segment_lengths_are_refused_naming_the_file(tmp_path, length):
+    """A Huffman table's length after a progressive JPEG's first scan (Pillow reads only up to the first)
+    set to garbage: refused as damaged or truncated, naming the file."""
+    from tests.support.jpegs import jpeg_bytes, smooth_noise
+
+    data = jpeg_bytes(smooth_noise(96, 128), progressive=True)
+    table = data.index(b"\xff\xc4", data.index(b"\xff\xda") + 2)
+    sequence = KittiOdometry(_jpeg_folder(tmp_path, data[:table + 2] + struct.pack(">H", length) + data[table + 4:]),
+                             None)
+    with pytest.raises(ValueError, match=r"KittiOdometry: image pair 1: .*seq/image_0/000001.jpg: a "
+                                         r"(damaged|truncated) JPEG \(.*at byte \d+"):
+        sequence.images(1)
+
+
+def test_random_damage_to_a_jpegs_header_is_read_or_refused_in_one_line(tmp_path):
+    """Bytes of a JPEG's marker segments overwritten at random: each file is read, or refused with the
+    loader's one-line error naming it; no other exception, no hang."""
+    from tests.support.jpegs import jpeg_bytes, smooth_noise
+
+    data = jpeg_bytes(smooth_noise(96, 128), progressive=True)
+    sequence = KittiOdometry(_jpeg_folder(tmp_path, data), None)
+    jpeg = sequence.folder / "image_0" / "000001.jpg"
+    rng = np.random.default_rng(11)
+    outcomes = set()
+    for _ in range(150):
+        damaged = bytearray(data)
+        for at in rng.integers(2, data.index(b"\xff\xda") + 10, 2):
+            damaged[at] = rng.integers(0, 256)
+        jpeg.write_bytes(bytes(damaged))
+        try:
+            outcomes.add(sequence.images(1)[0].shape)
+        except ValueError as err:
+            assert str(err).startswith(f"KittiOdometry: image pair 1: {jpeg}: ") and "\n" not in str(err), err
+            outcomes.add("refused")
+    assert outcomes == {(96, 128), "refused"}
 
 
 def test_a_sequence_needs_two_image_pairs(tmp_path):
