@@ -267,6 +267,12 @@ class StereoVOAdaptiveEnv(gym.Env):
         """Hypotheses drawn in the current frame so far."""
         return 0 if self._search is None else self._search.drawn
 
+    @property
+    def method_options(self) -> dict[str, Any]:
+        """The judging method's own options (``method_spec(method).extra_options``), validated: the given
+        ones over their declared defaults, as each frame's search reads them (a copy)."""
+        return dict(self._extra)
+
     # ------------------------------------------------------------------ gymnasium API
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):

@@ -62,7 +62,8 @@ class AdaptiveTrainConfig:
     """Training settings (every field is recorded in the checkpoint).
 
     Attributes:
-        minutes: the training budget, in minutes of ``clock`` (> 0).
+        minutes: the training budget, in minutes of ``clock`` (> 0); the clock starts after numba's
+            kernels are compiled or loaded from its cache (:func:`compile_kernels`).
         frames_per_episode: frames per training trajectory (the constant-velocity feature needs a chain).
         epsilons: contamination range of the standard setting's episodes, drawn per episode.
         hard_fraction: share of episodes on the hard settings (contamination ``hard_epsilons``).
@@ -149,6 +150,33 @@ def _training_env(config: AdaptiveTrainConfig, episode: int) -> tuple[StereoVOAd
     return env, {"hard": hard, "epsilon": kwargs["outlier_ratio"]}
 
 
+def compile_kernels(config: AdaptiveTrainConfig) -> None:
+    """Run one frame of a standard and of a hard training episode's environment (those of ``config``
+    that training would meet first), so that numba's kernels are compiled or loaded from its cache
+    before a budget is timed. Draws nothing from torch's generator and changes nothing training
+    reads: the same config trains the same weights with or without it."""
+    first: dict[bool, int] = {}
+    # hard_fraction 0 or 1 has one kind only, and a rare kind may not come within 64 episodes: its
+    # few kernels of its own then compile inside the budget, as before
+    for episode in range(64):
+        first.setdefault(episode_settings(config, episode)[1], episode)
+        if len(first) == 2:
+            break
+    for episode in first.values():
+        env, _ = _training_env(config, episode)
+        obs, _ = env.reset(seed=config.seed * 1_000_003 + episode)
+        n = env.current_frame.n
+        done = False
+        while not done:
+            action = np.full(env.action_space.shape, -LOGIT_BOUND, dtype=np.float32)
+            # uniform logits; stop once a batch is drawn, as the policy may (the stop path's kernels too)
+            step = make_action(np.zeros(n), obs["mask"][:n], env.frame_hypotheses > 0)
+            action[:n], action[-1] = step[:n], step[-1]
+            obs, _, _, truncated, info = env.step(action)
+            done = info["frame_done"] or truncated
+        env.close()
+
+
 def right_hypothesis(masks: np.ndarray, weights: np.ndarray, inlier: np.ndarray, precision: float, recall: float) -> bool:
     """Whether the hypothesis selected by ``weights`` among ``masks (H, N)`` is right against the labels."""
     if masks.shape[0] == 0:
@@ -229,6 +257,10 @@ def _train(config: AdaptiveTrainConfig, out: str | Path, log_path: str | Path | 
         stop_rng.set_state(torch.get_rng_state())
     optimiser = torch.optim.Adam(net.parameters(), lr=config.lr)
     bce = nn.BCEWithLogitsLoss()
+    # On a first run numba compiles the env's and the estimator's kernels (about half a minute of CPU;
+    # stereovo.compilation says so on stderr): that would come out of the budget, and a short budget
+    # would then train less or nothing, silently. So they compile first, and the clock starts after.
+    compile_kernels(config)
     baseline, log, start, last_log = 0.0, [], clock(), time.time()
     stats = {"frames": 0, "success": 0, "hypotheses": 0, "stops": 0}
     episode, pending = 0, []

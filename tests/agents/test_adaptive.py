@@ -226,6 +226,36 @@ def test_the_same_seed_trains_the_same_weights(tmp_path):
     assert any(not torch.equal(wa[k], torch.zeros_like(wa[k])) for k in wa)
 
 
+def test_the_budget_starts_after_the_kernels_compile_and_compiling_changes_no_weight(tmp_path, monkeypatch):
+    """A first run's numba compilation (half a minute of CPU) is not taken from the training budget:
+    here compiling is made to outlast a 0.6 s CPU budget, and an episode is still trained."""
+    import time
+
+    import agents.adaptive.train as train_module
+
+    compile_kernels = train_module.compile_kernels
+    budget_s = 60 * 0.01
+
+    def slow_compile(config):
+        compile_kernels(config)
+        start = time.process_time()
+        while time.process_time() - start <= budget_s:  # CPU time, the clock this run's budget counts
+            pass
+
+    config = dataclasses.replace(tiny(max_episodes=1, seed=5), minutes=0.01, clock="cpu")
+    threads = torch.get_num_threads()
+    try:
+        monkeypatch.setattr(train_module, "compile_kernels", slow_compile)
+        slow = train_in_frame(config, tmp_path / "slow", progress=False)
+        monkeypatch.setattr(train_module, "compile_kernels", lambda config: None)
+        without = train_in_frame(config, tmp_path / "without", progress=False)
+    finally:
+        torch.set_num_threads(threads)
+    assert (slow.episodes, slow.frames) == (1, 2)
+    ws, ww = (load_adaptive(r.checkpoint)[0].state_dict() for r in (slow, without))
+    assert all(torch.equal(ws[k], ww[k]) for k in ws)
+
+
 def test_a_run_shorter_than_one_log_window_still_logs_it(tmp_path):
     config = dataclasses.replace(tiny(max_episodes=2, seed=3), log_every_s=3600.0)
     threads = torch.get_num_threads()

@@ -22,6 +22,15 @@ def fuzz_frame(seed: int, n: int, eps: float):
     return simulate_frame(SimulationConfig(n_correspondences=n, outlier_ratio=eps), np.random.default_rng(seed))
 
 
+MALFORMED_KINDS = ("shape", "rows", "complex")
+""":func:`corrupted`'s kinds that an estimate refuses (docs/algorithms.md: only wrong shapes, non-numeric
+or complex arrays, a wrong camera and bad options raise)."""
+
+WELL_FORMED_KINDS = ("none", "nan", "inf", "huge", "zero-disparity", "negative-disparity", "fortran", "strided",
+                     "float32", "int", "list", "duplicate", "constant", "empty")
+"""The others: NaN, inf and depthless rows are unusable rows, not malformed input; the rest are valid layouts."""
+
+
 @st.composite
 def measurements(draw):
     """prev, curr, scores: a simulated frame, sometimes corrupted the ways callers get it wrong."""

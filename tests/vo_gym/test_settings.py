@@ -81,7 +81,7 @@ def test_a_methods_own_options_reach_the_adaptive_search_and_are_checked_as_in_t
     env = StereoVOAdaptiveEnv(**SMALL, method="mlesac", mlesac_em_iterations=2)
     # the given option, and every other option of the method at its declared default
     declared = {name: method_spec("mlesac").option_rule(name).default for name in method_spec("mlesac").extra_options}
-    assert env._extra == {**declared, "mlesac_em_iterations": 2}
+    assert env.method_options == {**declared, "mlesac_em_iterations": 2}
     for cls in BOTH:
         assert "mlesac_em_iterations" in _message(cls, method="mlesac", mlesac_em_iterations=0)
         with pytest.raises(TypeError, match="sprt_t_m"):

@@ -148,6 +148,14 @@ class WeightedSampler:
         self._cdf = cdf  # inclusive: mass of [0, i]
         self._before = before  # exclusive: mass of [0, i)
 
+    @property
+    def weights(self) -> np.ndarray:
+        """``(N,)`` read-only: the chance of each correspondence to be drawn first, ``priors / sum(priors)``
+        as :func:`normalised_weights` computes it (a prior that would underflow keeps the smallest normal weight)."""
+        view = self._w.view()
+        view.flags.writeable = False
+        return view
+
     def draw(self, batch: int, rng: np.random.Generator) -> np.ndarray:
         w = self._w
         u = rng.random((batch, SAMPLE_SIZE))

@@ -66,25 +66,47 @@ def test_error_vector_convention_is_the_left_perturbation_mapped_to_world_form()
 
 
 def test_covariance_matches_the_monte_carlo_spread_of_the_least_squares_fit():
-    """Refitting one frame's inliers under fresh pixel noise: the spread of the error vectors
-    agrees with the propagated covariance (both images' noise, k-1 triangulation included)."""
-    camera = StereoCamera()
-    frame = simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.0, noise_sigma=0.0), rng=4)
-    clean_prev, clean_curr = frame.prev, frame.curr
-    R_true, t_true = frame.truth.rotation, frame.truth.translation
-    rng = np.random.default_rng(1)
-    errors = []
-    for _ in range(150):
-        noise = rng.normal(0, 0.5, (2, frame.n, 3))
-        prev = clean_prev + noise[0][:, [0, 2, 1, 2]]
-        curr = clean_curr + noise[1][:, [0, 2, 1, 2]]
-        est = estimate_motion(prev, curr, camera, noise_sigma=0.5, rng=0)
-        errors.append(np.concatenate([so3_log(est.rotation @ R_true.T), est.translation - t_true]))
-    problem = StereoProblem.build(clean_prev, clean_curr, camera, 0.5)
-    predicted = pose_covariance(problem, R_true, t_true, np.ones(frame.n, dtype=bool))
-    empirical = np.cov(np.array(errors).T)
-    # standard deviations within 20 % (150 samples: ~6 % sampling error each)
-    np.testing.assert_allclose(np.sqrt(np.diag(empirical)), np.sqrt(np.diag(predicted)), rtol=0.2)
+    """The least-squares fit of a noise-free frame's rows under fresh pixel noise (both images', so the
+    k-1 triangulation's too), 1000 times, each on a frame of its own: its error vectors, whitened by
+    the covariance propagated at the true motion, are chi-square. The sum of all 1000 squared
+    Mahalanobis norms is chi-square(6000) (the whole matrix, correlations included) and each axis'
+    sum of squared standardised errors chi-square(1000); each of the seven lies within the two-sided
+    quantiles that a first-order-correct covariance leaves with probability 1e-6 in all (a covariance
+    2x too small or too large is ~20 standard deviations out).
+
+    The fit is the refinement's, from the true motion on every row: the one this covariance describes.
+    An estimate can differ from it (a refinement that lost support is rolled back:
+    tests/stereovo/estimation/test_loop.py); the estimate's own covariance against its own errors is
+    the NEES test's above."""
+    from scipy.stats import chi2
+
+    from stereovo.estimation.roles.refinement import ReprojectionRefiner
+    from stereovo.estimation.roles.scoring import ReprojectionResidual
+
+    camera, sigma, draws = StereoCamera(), 0.5, 1000
+    config = SimulationConfig(n_correspondences=200, outlier_ratio=0.0, noise_sigma=0.0)
+    fit = ReprojectionRefiner(iterations=30, rounds=1)
+    keep_all = ReprojectionResidual(1e12), 1e12
+    rng = np.random.default_rng(2024)
+    mahalanobis, per_axis = np.empty(draws), np.empty((draws, 6))
+    for i in range(draws):
+        frame = simulate_frame(config, rng)
+        R_true, t_true = frame.truth.rotation, frame.truth.translation
+        noise = rng.normal(0, sigma, (2, frame.n, 3))  # (uL, uR, v) per image: rows share v
+        prev, curr = frame.prev + noise[0][:, [0, 2, 1, 2]], frame.curr + noise[1][:, [0, 2, 1, 2]]
+        noisy = StereoProblem.build(prev, curr, camera, sigma)
+        R, t, inliers = fit.refine(noisy, R_true, t_true, np.ones(frame.n, dtype=bool), *keep_all)
+        assert inliers.all()
+        error = np.concatenate([so3_log(R @ R_true.T), t - t_true])
+        predicted = pose_covariance(StereoProblem.build(frame.prev, frame.curr, camera, sigma), R_true, t_true,
+                                    np.ones(frame.n, dtype=bool))
+        mahalanobis[i] = error @ np.linalg.solve(predicted, error)
+        per_axis[i] = error**2 / np.diag(predicted)
+    tail = 1e-6 / 14  # two tails of seven statistics
+    total = mahalanobis.sum()
+    assert chi2.ppf(tail, 6 * draws) < total < chi2.isf(tail, 6 * draws), total / (6 * draws)
+    for axis, value in enumerate(per_axis.sum(axis=0)):
+        assert chi2.ppf(tail, draws) < value < chi2.isf(tail, draws), (axis, value / draws)
 
 
 def test_pose_covariance_needs_three_inliers():

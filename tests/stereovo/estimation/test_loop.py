@@ -281,58 +281,93 @@ def test_runner_up_refit_off_or_out_of_reach_changes_nothing():
     assert a.n_hypotheses == b.n_hypotheses
 
 
-def test_runner_up_refit_recovers_the_consensus_a_mixed_best_locked_out():
-    """Hostile preset, N 200, eps 0.9 (20 true inliers with Student-t noise): the search's best is a
-    mixed consensus whose raw support beats every all-inlier hypothesis' before its refit; without
-    the runner-up refit ``probabilistic`` returns a pose 6-23 cm off, with it the true motion."""
-    config = SimulationConfig(n_correspondences=200, outlier_ratio=0.9, outliers="hostile")
-    frames = [simulate_frame(config, np.random.default_rng(s))
-              for s in np.random.SeedSequence([0, 200, 900]).spawn(28)]
+def test_runner_up_refit_raises_the_final_score_far_more_often_than_it_lowers_it_and_costs_no_success():
+    """Hostile preset, N 100, eps 0.9 (10 true inliers with Student-t noise): an all-inlier minimal fit
+    collects only part of the inliers its refit would, so a mixed consensus can hold the best score
+    (docs/algorithms.md, "The runner-up refit"); the runner-up refit lets a refitted hypothesis beat it
+    under the same judge. ``probabilistic`` with and without it, frame by frame with the same seed, on
+    500 frames: the final score is higher with it on more frames than it is lower, and it succeeds
+    not significantly less often.
+
+    Calibration: on 2000 other frames (SeedSequence([8, 100, 900])) the final score was higher with
+    the refit on 14.8 % of frames and lower on 4.0 %; at those rates 500 frames end with no more
+    raised than lowered with probability 2e-9 (sum over D of P(D) P(Binom(D, q) <= D/2), q = 0.79;
+    3e-6 at rates two standard errors worse). A no-op refit raises none; one that replaces the best
+    whatever its score lowers more than it raises. Per frame the score can drop (a win ends the
+    search sooner), so the comparison is of counts."""
+    from scipy.stats import binom
+
     from stereovo.metrics import is_success
 
-    def success(frame, **options):
-        est = estimate_motion(frame.prev, frame.curr, frame.camera, method="probabilistic", rng=18,
-                              noise_sigma=frame.noise_sigma, **options)
-        r = rotation_error(est.rotation, frame.truth.rotation)
-        t = np.linalg.norm(est.translation - frame.truth.translation)
-        return est.ok and bool(is_success(r, t, np.linalg.norm(frame.truth.translation)))
-
-    frame = frames[18]
-    assert not success(frame, runner_up_refit=None)
-    assert success(frame)
+    config = SimulationConfig(n_correspondences=100, outlier_ratio=0.9, outliers="hostile")
+    raised = lowered = only_with = only_without = wins = 0
+    for i, seed in enumerate(np.random.SeedSequence([9, 100, 900]).spawn(500)):
+        frame = simulate_frame(config, np.random.default_rng(seed))
+        outcome = []
+        for options in ({}, {"runner_up_refit": None}):
+            est = estimate_motion(frame.prev, frame.curr, frame.camera, method="probabilistic", rng=i,
+                                  noise_sigma=frame.noise_sigma, **options)
+            r = rotation_error(est.rotation, frame.truth.rotation)
+            t = np.linalg.norm(est.translation - frame.truth.translation)
+            outcome.append((est.score, est.ok and bool(is_success(r, t, np.linalg.norm(frame.truth.translation)))))
+            wins += est.counters.get("runner_up_wins", 0)
+        (score_with, ok_with), (score_without, ok_without) = outcome
+        raised += score_with > score_without
+        lowered += score_with < score_without
+        only_with += ok_with and not ok_without
+        only_without += ok_without and not ok_with
+    assert wins > 0 and raised > lowered, (raised, lowered)
+    # a refit that does not lower the success rate (each frame only one run succeeds on going its way
+    # with probability >= 1/2) gives a lower binomial tail this small with probability < 1e-6
+    assert binom.cdf(only_with, only_with + only_without, 0.5) >= 1e-6, (only_with, only_without)
 
 
 def test_a_search_capped_before_its_stop_fails_unless_the_returned_model_meets_it():
     """Fischler & Bolles end a search whose cap comes first either in failure or with its largest
     consensus; ``fail_at_cap`` (the default) fails it unless the returned model's inliers meet the
-    stop (the refit consensus can be far larger than the hypothesis' own)."""
-    from stereovo.metrics import frame_metrics
+    stop (the refit consensus can be far larger than the hypothesis' own). Over 200 frames of
+    random and hostile mismatches at eps 0.3-0.9, each with a cap of 8 to 1024 drawn with it,
+    ``ransac`` with and without ``fail_at_cap`` (the same seed) runs the same search, and the rule
+    alone decides between them; a fixed budget is the stop itself and never fails at it.
 
-    def run(frame, seed, **options):
-        est = estimate_motion(frame.prev, frame.curr, frame.camera, method="ransac", rng=seed, **options)
-        return est, frame_metrics(est, frame.truth)
+    Each of the four cases (stopped before the cap, failed anyway, cap reached but stop met, cap
+    reached and stop unmet) came on >= 16 % of 300 such frames, so each is missed by 200 with
+    probability < 0.84 ** 200 < 1e-15."""
+    rng = np.random.default_rng(2024)
+    seen = {"before the cap": 0, "failed anyway": 0, "met at the cap": 0, "unconfirmed": 0}
+    for i in range(200):
+        eps = float(rng.choice([0.3, 0.5, 0.7, 0.9]))
+        outliers = {"outliers": "hostile"} if rng.random() < 0.5 else {}
+        cap = int(rng.choice([8, 16, 32, 64, 128, 256, 1024]))
+        frame = simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=eps, **outliers),
+                               np.random.default_rng(rng.integers(2**32)))
 
-    # the confident error of plain ransac on the hostile stream (frame 927 of
-    # scripts/bench_confident_errors.py): 10 "inliers", 1.2 m off, after 10 000 hypotheses
-    hostile = simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.9, outliers="hostile"), 927)
-    old, errors = run(hostile, 927, fail_at_cap=False)
-    assert old.ok and old.n_hypotheses == 10_000 and errors.trans_err_m > 1.0
-    est, _ = run(hostile, 927)
-    assert est.status.startswith("failed: no confident consensus (the cap of 10000 hypotheses came before the stop")
-    assert not est.ok and not est.inliers.any() and est.n_hypotheses == 10_000
-    np.testing.assert_array_equal(est.rotation, np.eye(3))
-    np.testing.assert_array_equal(est.translation, np.zeros(3))
+        def run(**options):
+            return estimate_motion(frame.prev, frame.curr, frame.camera, method="ransac", rng=i, **options)
 
-    easy = simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.3), 0)
-    capped, _ = run(easy, 0, max_iterations=32)
-    assert "no confident consensus" in capped.status and capped.n_hypotheses == 32
-    assert run(easy, 0, max_iterations=32, fail_at_cap=False)[0].ok
-    budget, _ = run(easy, 0, budget=32)  # a fixed budget is the stop itself
-    assert budget.ok and budget.n_hypotheses == 32
-    # the cap came first, but the returned model's 119 inliers of 200 need fewer than 24 draws
-    met, errors = run(simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.3), 3), 3,
-                      max_iterations=24)
-    assert met.ok and met.n_hypotheses == 24 and errors.success
+        kept, est = run(max_iterations=cap, fail_at_cap=False), run(max_iterations=cap)
+        assert est.n_hypotheses == kept.n_hypotheses <= cap
+        problem, _ = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma).usable_subproblem()
+        termination = method_spec("ransac").build(problem, EstimatorOptions(max_iterations=cap), None, None,
+                                                  {}).termination
+        if kept.n_hypotheses < cap or not kept.ok or termination.required(kept.n_inliers, problem.n) < cap:
+            case = ("before the cap" if kept.n_hypotheses < cap else "failed anyway" if not kept.ok
+                    else "met at the cap")
+            assert est.status == kept.status, case
+            np.testing.assert_array_equal(est.rotation, kept.rotation)
+            np.testing.assert_array_equal(est.inliers, kept.inliers)
+        else:
+            case = "unconfirmed"
+            assert est.status == (f"failed: no confident consensus (the cap of {cap} hypotheses came before the "
+                                  f"stop, which the returned model's {kept.n_inliers} inliers of {problem.n} rows "
+                                  "do not meet)")
+            assert not est.ok and not est.inliers.any()
+            np.testing.assert_array_equal(est.rotation, np.eye(3))
+            np.testing.assert_array_equal(est.translation, np.zeros(3))
+        seen[case] += 1
+        budget = run(budget=cap)
+        assert budget.n_hypotheses == cap and "no confident consensus" not in budget.status
+    assert min(seen.values()) > 0, seen
 
 
 def test_a_search_at_its_cap_is_confirmed_when_its_models_inliers_need_one_draw_fewer():

@@ -71,7 +71,7 @@ def test_cumulative_weights_are_numpys_tables_or_decline():
         w, cdf, before, equal, n_positive, direct = cumulative_weights(priors, np.finfo(float).tiny)
         expected = _tables_by_numpy(priors)
         sampler = WeightedSampler(priors)
-        for got, want in zip((sampler._w, sampler._cdf, sampler._before), expected[:3]):
+        for got, want in zip((sampler.weights, sampler._cdf, sampler._before), expected[:3]):
             np.testing.assert_array_equal(got, want)
         assert (sampler._equal_weights, sampler._n_positive) == expected[3:]
         if direct:

@@ -190,7 +190,7 @@ def test_compiled_sprt_decides_exactly_like_the_vectorised_test():
             scores, checks = verifier.verify(ctx, R, t, np.random.default_rng(9), samples=samples)
         finally:
             sprt_module.ReprojectionResidual = original
-        results.append((scores, checks, verifier._n_rejected, verifier._ratio_sum))
+        results.append((scores, checks, verifier.counters()["sprt_rejected"], verifier._ratio_sum))
     np.testing.assert_array_equal(results[0][0], results[1][0])
     assert results[0][1:3] == results[1][1:3]
     assert results[0][3] == pytest.approx(results[1][3])
@@ -561,7 +561,7 @@ def test_compiled_mahalanobis_sprt_decides_like_the_numpy_route(monkeypatch):
             monkeypatch.setattr(sprt_module, "MahalanobisResidual", _OtherMahalanobis)
         verifier = SprtVerification(problem.n, t_m=200.0, epsilon0=0.4, delta0=0.05)
         scores, checks = verifier.verify(ctx, R, t, np.random.default_rng(9), samples=samples)
-        results.append((scores, checks, verifier._n_rejected, verifier._ratio_sum))
+        results.append((scores, checks, verifier.counters()["sprt_rejected"], verifier._ratio_sum))
     np.testing.assert_array_equal(results[0][0], results[1][0])
     assert results[0][1:3] == results[1][1:3]
     assert 0 < results[0][2] < R.shape[0]  # both outcomes exercised

@@ -193,7 +193,7 @@ def test_weighted_q_holds_when_a_few_weights_hold_almost_all_the_mass(priors, in
     # W - w_a cancels to 0 in floating point for the heavy point: the masses left are summed again
     sampler = WeightedSampler(priors)
     q = sampler.all_inlier_probability(inliers)
-    assert q == pytest.approx(float(exact_q(sampler._w, inliers)), rel=1e-9, abs=1e-300)
+    assert q == pytest.approx(float(exact_q(sampler.weights, inliers)), rel=1e-9, abs=1e-300)
     # the draws: the cumulative sums cannot resolve the mass left, so such rows are drawn exactly
     draws = sampler.draw(20_000, np.random.default_rng(2))
     assert np.all(np.diff(np.sort(draws, axis=1), axis=1) > 0)
@@ -343,7 +343,7 @@ def test_weighted_draws_invert_the_cumulative_weights_left(priors):
     s = WeightedSampler(np.array(priors))
     draws = s.draw(300, np.random.default_rng(5))
     u = np.random.default_rng(5).random((300, 3))
-    assert draws.tolist() == [_weighted_reference(row, s._w) for row in u]
+    assert draws.tolist() == [_weighted_reference(row, s.weights) for row in u]
 
 
 def test_weighted_rows_that_rounding_cannot_place_are_drawn_exactly():
@@ -375,9 +375,11 @@ def test_the_weighted_samplers_tables_are_the_float64_quotient_and_its_running_s
             s = WeightedSampler(p)
         q = np.asarray(p, dtype=float)
         w = q / q.sum()  # numpy's pairwise sum of the float64 values, then the quotient
-        np.testing.assert_array_equal(s._w, w)
+        np.testing.assert_array_equal(s.weights, w)
         np.testing.assert_array_equal(s._cdf, np.cumsum(w))
         np.testing.assert_array_equal(s._before, np.r_[0.0, np.cumsum(w)[:-1]])
+        with pytest.raises(ValueError, match="read-only"):  # the draws' tables are built from them
+            s.weights[0] = 1.0
 
 
 def test_log_probability_stays_a_finite_log_probability_when_the_mass_left_rounds_to_zero():
