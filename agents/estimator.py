@@ -36,7 +36,7 @@ from agents.checkpoint import IN_FRAME, ONE_SHOT, CheckpointError
 from agents.matches import UNINFORMATIVE_SCORE, match_features
 from agents.samplers import load_sampler
 from stereovo.camera import StereoCamera
-from stereovo.estimation import StereoProblem, estimate_problem, method_spec, validate_options
+from stereovo.estimation import StereoProblem, drop_unread, estimate_problem, method_spec, validate_options
 from stereovo.estimation.api import MotionEstimate, as_generator
 from stereovo.estimation.roles.solvers import SAMPLE_SIZE
 from vo_gym.settings import DEFAULT_ESTIMATOR_OPTIONS
@@ -170,6 +170,10 @@ class LearnedEstimator:
             raise ValueError(f"method {method!r} does not sample hypotheses, so a learned sampler has no role in it; "
                              "pick a sampling method (e.g. 'msac')")
         options = {**DEFAULT_ESTIMATOR_OPTIONS, **estimator_options}
+        # the environments' recipe and this estimator's own settings, only where the method reads them
+        # (validate_options refuses the caller's own that it would not read)
+        own = set(DEFAULT_ESTIMATOR_OPTIONS) | {"first_batch_size"} | ({"batch_size"} if batch_size is None else set())
+        own -= set(estimator_options)
         if self.kind == ONE_SHOT:
             if self.budget is None:
                 options.setdefault("first_batch_size", 4)
@@ -178,6 +182,7 @@ class LearnedEstimator:
             else:
                 options["batch_size"] = self.budget if batch_size is None else batch_size
             options["budget"] = self.budget
+            options = drop_unread(method, options, among=own, order=False)
             self._shared, _ = validate_options(method, options, priors=True)
             self._options = {k: v for k, v in options.items() if k != "noise_sigma"}
         else:
@@ -192,6 +197,7 @@ class LearnedEstimator:
                 raise ValueError(f"first_batch_size {estimator_options['first_batch_size']!r}: in-frame sampler "
                                  f"{self.name!r} draws batch_size hypotheses a batch from the first (default "
                                  f"{IN_FRAME_BATCH}, its training batch)")
+            options = drop_unread(method, options, among=own, order=False)
             self._shared, self._extra = validate_options(method, options)
             if "fail_at_cap" in estimator_options and self._shared.fail_at_cap:
                 raise ValueError(f"fail_at_cap {estimator_options['fail_at_cap']!r}: in-frame sampler {self.name!r} "

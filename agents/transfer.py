@@ -42,7 +42,7 @@ from typing import Any, Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
-from stereovo.estimation import estimate_motion
+from stereovo.estimation import drop_unread, estimate_motion
 from stereovo.metrics import frame_metrics
 from stereovo.reporting import wilson_interval
 from stereovo.simulation import Sequence as SimSequence
@@ -123,6 +123,11 @@ class ClassicalRow:
 
     def __init__(self, name: str, method: str, inputs: str, budget: int | None, cap: int) -> None:
         self.name, self.method, self.inputs, self.budget, self.cap = name, method, inputs, budget, cap
+        options: dict[str, Any] = {"budget": budget, **DEFAULT_ESTIMATOR_OPTIONS}
+        if budget is None:  # the cap of the own stop; a budget is the stop itself and reads neither
+            options.update(max_iterations=cap, fail_at_cap=False)
+        # the environments' recipe where the method reads it (BANSAC and ARS refit every new best anyway)
+        self.options = drop_unread(method, options, order=inputs == "order")
 
     def reset(self) -> None:
         pass
@@ -133,10 +138,8 @@ class ClassicalRow:
             extra["priors"] = frame.scores
         elif self.inputs == "order":
             extra["order"] = np.argsort(-frame.scores, kind="stable")
-        if self.budget is None:  # the cap of the own stop; a budget is the stop itself and reads neither
-            extra.update(max_iterations=self.cap, fail_at_cap=False)
-        return estimate_motion(frame.prev, frame.curr, frame.camera, method=self.method, rng=rng, budget=self.budget,
-                               **extra, **DEFAULT_ESTIMATOR_OPTIONS)
+        return estimate_motion(frame.prev, frame.curr, frame.camera, method=self.method, rng=rng, **extra,
+                               **self.options)
 
 
 class LearnedRow:

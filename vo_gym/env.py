@@ -18,7 +18,7 @@ import numpy as np
 from gymnasium import spaces
 
 from stereovo.camera import StereoCamera
-from stereovo.estimation import EstimatorOptions, PreparedEstimator, StereoProblem
+from stereovo.estimation import EstimatorOptions, PreparedEstimator, StereoProblem, drop_unread
 from stereovo.estimation.estimator_options import SHARED_OPTIONS
 from stereovo.geometry import PoseChain
 from stereovo.metrics import KITTI_LENGTHS, KITTI_STEP, FrameMetrics, frame_metrics, trajectory_metrics
@@ -326,7 +326,10 @@ class StereoVOEnv(gym.Env):
         # field: the estimator refuses a given option its method would not read (confidence under the
         # budget, ...), and the others keep the method's defaults, as in estimator_options.
         given = [name for name in (*DEFAULT_ESTIMATOR_OPTIONS, *estimator_options, *fixed) if name in SHARED_OPTIONS]
-        self._estimator_kwargs = {**{name: getattr(self.estimator_options, name) for name in given}, **extra}
+        kwargs = {**{name: getattr(self.estimator_options, name) for name in given}, **extra}
+        # the environment's own settings only where the method reads them (the user's were checked above)
+        self._estimator_kwargs = drop_unread(method, kwargs, among=set(kwargs) - set(estimator_options),
+                                             order=self.sampling == "prosac")
         # the method and these options, derived and checked once instead of on every step
         self._estimator = PreparedEstimator(method, **self._estimator_kwargs)
 
@@ -395,7 +398,8 @@ class StereoVOEnv(gym.Env):
 
         The :class:`~stereovo.estimation.EstimatorOptions` fields the environment sets (its defaults
         :data:`~vo_gym.settings.DEFAULT_ESTIMATOR_OPTIONS`, the user's estimator keywords, ``noise_sigma``,
-        ``budget`` and ``batch_size``), validated, and the method's own options, as keyword arguments of
+        ``budget`` and ``batch_size``; of its own, those the method reads: :func:`stereovo.estimation.drop_unread`),
+        validated, and the method's own options, as keyword arguments of
         :func:`stereovo.estimation.estimate_motion`; the other fields keep the method's defaults there
         (:attr:`estimator_options` holds them all). A copy: editing it changes nothing in the environment.
         """

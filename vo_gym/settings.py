@@ -261,7 +261,7 @@ def estimator_settings(owner: str, cls: type, method: str, options: Mapping[str,
         except ValueError as err:
             raise ValueError(f"{owner}: estimator method {method!r} with sampling={sampling!r}: {err}") from None
     # the adaptive environment (sampling None) steers with weights: no order either
-    unread = unread_options(spec.name, shared, options, order=sampling == "prosac")
+    unread = unread_options(spec.name, shared, options, order=sampling == "prosac", extra=extra)
     if unread:
         raise ValueError(f"{owner}: {unread_message(unread, options)}")
     return spec, shared, extra

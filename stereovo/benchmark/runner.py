@@ -27,7 +27,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from stereovo.benchmark.grid import GridCell, Trial, check_seed, estimator_seed, simulate_trial
-from stereovo.estimation import available_methods, estimate_motion
+from stereovo.estimation import available_methods, drop_unread, estimate_motion
 from stereovo.metrics import frame_metrics
 from stereovo.simulation import Frame, simulate_frame
 from stereovo.options import Integer
@@ -151,7 +151,9 @@ def classical_estimators(
 
     Args:
         names: names from :func:`benchmark_methods`; None runs all of them.
-        **options: ``estimate_motion`` options for every method (e.g. ``max_iterations``).
+        **options: ``estimate_motion`` options for every method (e.g. ``max_iterations``): each method
+            gets those it reads (:func:`stereovo.estimation.drop_unread`; ``preemptive`` draws its own M
+            hypotheses under no ``max_iterations``, ``inlier-detection`` none), which it would refuse.
 
     Raises:
         ValueError: naming the unknown methods and listing the known ones.
@@ -163,12 +165,20 @@ def classical_estimators(
         raise ValueError(f"unknown method(s): {', '.join(unknown)}; available: {', '.join(known)}")
     if not names:
         raise ValueError("no methods selected")
-    frozen = tuple(sorted(options.items()))
     out = []
     for name in names:
         base, kind = GUIDED_VARIANTS.get(name, (name, METHOD_INPUTS.get(name)))
-        out.append((name, ClassicalEstimator(base, kind, frozen)))
+        out.append((name, ClassicalEstimator(base, kind, tuple(sorted(_options_read(base, kind, options).items())))))
     return out
+
+
+def _options_read(method: str, kind: str | None, options: dict[str, Any]) -> dict[str, Any]:
+    """Those of ``options`` that ``method`` reads with the score input ``kind``; all of them where
+    they are invalid, so that each estimate records the error as it did."""
+    try:
+        return drop_unread(method, options, order=kind == "order" if kind is not None else None)
+    except ValueError:
+        return options
 
 
 TIME_COLUMNS: tuple[str, ...] = ("time_s",)

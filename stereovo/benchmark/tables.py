@@ -82,7 +82,8 @@ def summary_markdown(
     if "seed" in settings:
         lines.append(f"Seed {settings['seed']}; {settings.get('workers', 1)} worker process(es).")
     lines.append(
-        f"Every method runs with max_iterations = {cap if cap is not None else 'the core default'} (hypothesis cap)"
+        f"Every method runs with max_iterations = {cap if cap is not None else 'the core default'} (hypothesis cap;"
+        " not preemptive, whose cap is its M, nor inlier-detection, which draws no hypotheses)"
         " and the frame's pixel noise sigma; success = " + success_definition() + "."
     )
     lines.append(

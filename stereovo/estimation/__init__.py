@@ -22,7 +22,7 @@ The floors, bottom to top (each imports only those below it):
   :class:`RansacComponents`, returning a :class:`RansacReport`;
 - :mod:`~stereovo.estimation.registry`: the named methods, their option declarations,
   :func:`validate_options` and :func:`unread_options` (a given option the method would not read is
-  refused by every entry point);
+  refused by every entry point), :func:`drop_unread` (settings for many methods, each given what it reads);
 - :mod:`~stereovo.estimation.recipes`: the core's own methods (``ransac``, ``msac``,
   ``probabilistic``), the recipe parts every method shares and the ``+`` variants;
 - :mod:`~stereovo.estimation.methods`: one module per paper (its roles, its option
@@ -38,6 +38,7 @@ from stereovo.estimation.loop import RansacComponents, RansacReport, run_ransac
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.registry import (
     available_methods,
+    drop_unread,
     method_spec,
     register_method,
     unread_options,
@@ -60,6 +61,7 @@ __all__ = [
     "PreparedEstimator",
     "StereoProblem",
     "available_methods",
+    "drop_unread",
     "estimate_motion",
     "estimate_problem",
     "method_spec",

@@ -210,7 +210,7 @@ def estimate_motion(
     start = time.perf_counter()
     spec = method_spec(method)
     shared, extra = split_options(spec, options)
-    refuse_unread(spec, shared, options, order is not None)
+    refuse_unread(spec, shared, options, order is not None, extra)
     problem = StereoProblem.build(prev, curr, camera, shared.noise_sigma, shared.min_disparity_sigmas)
     return _estimate(problem, spec, shared, extra, priors, order, rng, start)
 
@@ -234,7 +234,7 @@ def problem_options(spec: MethodSpec, problem: StereoProblem, options: dict,
     shared, extra = split_options(
         spec, {**options, "noise_sigma": problem.noise_sigma, "min_disparity_sigmas": problem.min_disparity_sigmas}
     )
-    refuse_unread(spec, shared, options, order)
+    refuse_unread(spec, shared, options, order, extra)
     return shared, extra
 
 

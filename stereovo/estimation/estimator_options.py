@@ -233,10 +233,35 @@ STOPS: dict[str, str] = {
     "prosac": "PROSAC's stop: adaptive without a budget; under a fixed budget it still lowers the sampler's "
               "prefix to the n* it picks with confidence",
     "prosac-given-order": "'prosac' when the method is given order=, else 'adaptive'",
-    "clique-fit": "no hypothesis loop: the RANSAC of the fit inside the clique stops adaptively at confidence "
-                  "under a cap of its own, whatever the budget",
+    "preemptive": "one set of M hypotheses (the budget, else the method's own count), which is its cap: never "
+                  "max_iterations; without a budget confidence says whether the set confirms the returned model, "
+                  "for fail_at_cap=True only; under a budget as 'adaptive'",
+    "clique-fit": "no hypothesis loop, so no budget, max_iterations nor fail_at_cap: the RANSAC of the fit inside "
+                  "the clique stops adaptively at confidence under a cap of its own",
 }
 """The stops a method may declare (:attr:`OptionReads.stop`), in words."""
+
+BATCHES: dict[str, str] = {
+    "schedule": "the loop's schedule: batches of batch_size, an adaptive search's first of first_batch_size "
+                "doubling up to it",
+    "one-set": "the whole hypothesis set in one batch: neither batch_size nor first_batch_size, no second batch "
+               "for a runner-up refit (runner_up_refit), and the local refit of local_refit only without a final "
+               "refinement (the one batch ends the search, so the refinement refits its best in the refit's place)",
+    "belief-updates": "the method's own batches between belief updates from the first (bansac_batch, the paper's "
+                      "one hypothesis by default): never first_batch_size, and batch_size only as their cap under "
+                      "bansac_update='verdict-likelihood'",
+    "none": "no hypotheses drawn in batches (batch_size, first_batch_size) nor minimal samples to polish "
+            "(polish_iterations) or check for rigidity (rigidity_gate_probability)",
+}
+"""How a method batches its hypotheses (:attr:`OptionReads.batches`), in words."""
+
+LOCALS: dict[str, str] = {
+    "optional": "the consensus refit of local_refit on each new best (and the runner-up refit of runner_up_refit)",
+    "always": "the consensus refit on every new best whatever local_refit says",
+    "own": "the method's own local optimisation on every new best whatever local_refit says",
+    "none": "no local optimisation: neither local_refit nor runner_up_refit",
+}
+"""The local optimisations a method may declare (:attr:`OptionReads.local`), in words."""
 
 
 @dataclass(frozen=True)
@@ -245,31 +270,41 @@ class OptionReads:
     the parts of the recipe that decide it; every method declares one when it registers
     (:func:`~stereovo.estimation.registry.register_method`), and its ``+`` variants keep it (an
     enhancement switches a part on or off by an option value, which :meth:`unread` reads; it never
-    changes the judge, the refinement or the stop).
+    changes the parts declared here).
 
     Attributes:
         judge: how hypotheses are judged, a key of :data:`JUDGES`: ``"reprojection"`` never reads
             ``gate_probability``.
         refinement: the final refinement, a key of :data:`REFINEMENTS`: only ``"pixel-gated"`` reads
             ``refine_gate_probability`` (and only when a refinement runs); ``"lm-only"`` never reads
-            ``least_squares_refit``, nor does any refinement with ``refine=True``.
+            ``least_squares_refit``, nor does any refinement with ``refine=True``. Whatever the
+            refinement, ``refine_rounds`` is read with ``refine=True`` only, and ``refine_iterations``
+            only where a refinement runs.
         stop: the stopping rule, a key of :data:`STOPS`: under a fixed ``budget`` an ``"adaptive"``
             stop reads none of ``confidence``, ``max_iterations``, ``first_batch_size`` and
-            ``fail_at_cap``; the PROSAC stop still reads ``confidence``; ``"clique-fit"`` reads
-            ``confidence`` whatever the budget.
+            ``fail_at_cap``; the PROSAC stop still reads ``confidence``; ``"preemptive"`` never reads
+            ``max_iterations``; ``"clique-fit"`` reads ``confidence`` whatever the budget, and never
+            ``budget``, ``max_iterations`` or ``fail_at_cap``.
+        batches: how hypotheses are batched, a key of :data:`BATCHES` (default ``"schedule"``, the loop's).
+        local: the local optimisation, a key of :data:`LOCALS` (default ``"optional"``, the loop's):
+            where one runs whatever ``local_refit`` says, ``local_refit`` is read only as what
+            ``runner_up_refit`` needs.
     """
 
     judge: str
     refinement: str
     stop: str
+    batches: str = "schedule"
+    local: str = "optional"
 
     def __post_init__(self) -> None:
-        for name, known in (("judge", JUDGES), ("refinement", REFINEMENTS), ("stop", STOPS)):
+        for name, known in (("judge", JUDGES), ("refinement", REFINEMENTS), ("stop", STOPS), ("batches", BATCHES),
+                            ("local", LOCALS)):
             if getattr(self, name) not in known:
                 raise ValueError(f"OptionReads.{name} must be one of {sorted(known)}, got {getattr(self, name)!r}")
 
     def unread(self, method: str, options: EstimatorOptions, given: Iterable[str],
-               order: bool | None = None) -> dict[str, str]:
+               order: bool | None = None, extra: Mapping[str, Any] | None = None) -> dict[str, str]:
         """The names in ``given`` that ``method`` (declaring this) never reads with ``options``, each
         mapped to why; an empty dict when it reads them all.
 
@@ -279,14 +314,16 @@ class OptionReads:
                 gave; only these are looked at (a default is never refused).
             order: whether the method is given ``order=`` (PROSAC sampling); None when not known,
                 which keeps an option that the method reads with an order.
+            extra: the method's own options as it runs with them; None when not known, which keeps an
+                option that the method reads with some of them (``batch_size`` of ``bansac``).
         """
         given = set(given) & UNREAD_CANDIDATES
         if not given:
             return {}
         why: dict[str, str] = {}
+        adaptive = "(budget=None switches to the adaptive stop)"
         if options.budget is not None and self.stop != "clique-fit":
             budget = f"a fixed budget (budget={options.budget}) draws exactly that many hypotheses per frame"
-            adaptive = "(budget=None switches to the adaptive stop)"
             why["max_iterations"] = f"{budget}, above any cap: max_iterations caps an adaptive search {adaptive}"
             why["first_batch_size"] = (f"{budget} in batches of batch_size: first_batch_size sizes an adaptive "
                                        f"search's first batch {adaptive}")
@@ -296,6 +333,21 @@ class OptionReads:
             prosac = self.stop == "prosac" or (self.stop == "prosac-given-order" and order is not False)
             if not prosac:
                 why["confidence"] = f"{budget}: no adaptive stop runs for confidence to set {adaptive}"
+        if self.stop == "preemptive":
+            one_set = f"method {method!r} draws one set of M hypotheses (the budget, else its preemptive_hypotheses)"
+            why["max_iterations"] = f"{one_set}, which is its cap: max_iterations caps none of its searches"
+            if options.budget is None and not options.fail_at_cap:
+                why["confidence"] = (f"{one_set} and with fail_at_cap=False returns their best whatever the "
+                                     "confidence: only fail_at_cap=True asks whether the set confirms it")
+        elif self.stop == "clique-fit":
+            clique = (f"method {method!r} draws no hypotheses: it takes the maximum clique of consistent matches, "
+                      "whose fit stops at confidence under a cap of its own")
+            why["budget"] = f"{clique}, so there are none for a budget to count"
+            why["max_iterations"] = f"{clique}, so no search of it has a cap for max_iterations to set"
+            why["fail_at_cap"] = f"{clique}; the clique is its verdict, which no cap fails"
+        refines = options.refine or (options.least_squares_refit and self.refinement != "lm-only")
+        why.update(self._unread_by_batches(method, extra))
+        why.update(self._unread_by_local(method, options, refines))
         if self.refinement == "lm-only":
             why["least_squares_refit"] = (f"method {method!r} ends with its own fit, refined only by the iterated LM "
                                           "refinement of refine=True: no least-squares refit runs for "
@@ -303,6 +355,13 @@ class OptionReads:
         elif options.refine:
             why["least_squares_refit"] = ("refine=True ends with the iterated LM refinement; least_squares_refit "
                                           "chooses the final step only with refine=False")
+        if not refines:
+            ends = ("refine=False and least_squares_refit=False run no final refinement" if self.refinement != "lm-only"
+                    else f"method {method!r} with refine=False ends with its own fit")
+            why["refine_iterations"] = f"{ends}: no LM refinement runs for refine_iterations to set its steps"
+        if not options.refine:
+            why["refine_rounds"] = ("refine=False runs no iterated LM refinement: refine_rounds bounds its rounds "
+                                    "only with refine=True")
         if self.judge == "reprojection":
             why["gate_probability"] = (f"method {method!r} judges by the stereo reprojection gate (threshold_px), not "
                                        "by the 3-D Mahalanobis gate whose quantile gate_probability is")
@@ -310,18 +369,61 @@ class OptionReads:
             why["refine_gate_probability"] = (f"method {method!r} has no pixel-gated final refinement (it sets the "
                                               "gate of probabilistic's refinement and of the methods built on its "
                                               "judge)")
-        elif not (options.refine or options.least_squares_refit):
+        elif not refines:
             why["refine_gate_probability"] = ("with refine=False and least_squares_refit=False no final refinement "
                                               "runs for its pixel gate")
         return {name: text for name, text in why.items() if name in given}
 
+    def _unread_by_batches(self, method: str, extra: Mapping[str, Any] | None) -> dict[str, str]:
+        """What :attr:`batches` leaves unread (:meth:`unread`'s reasons)."""
+        if self.batches == "one-set":
+            one_batch = f"method {method!r} hands its whole set of hypotheses to the verifier in one batch"
+            return {"batch_size": f"{one_batch}: batch_size sizes none of its batches",
+                    "first_batch_size": f"{one_batch}: first_batch_size sizes none of its batches",
+                    "runner_up_refit": f"{one_batch}: no later batch has a runner-up for runner_up_refit to refit"}
+        if self.batches == "belief-updates":
+            own = (f"method {method!r} draws its own batches between belief updates from the first (bansac_batch; "
+                   "one hypothesis by default, the paper's)")
+            why = {"first_batch_size": f"{own}: first_batch_size sizes none of them"}
+            if extra is not None and extra.get("bansac_update") != "verdict-likelihood":
+                why["batch_size"] = (f"{own}: batch_size caps them only under bansac_update='verdict-likelihood', "
+                                     f"got bansac_update={extra.get('bansac_update')!r}")
+            return why
+        if self.batches == "none":
+            none = (f"method {method!r} draws no hypotheses: it fits its motion on the maximum clique of consistent "
+                    "matches")
+            return {"batch_size": f"{none}, so batch_size sizes no batch",
+                    "first_batch_size": f"{none}, so first_batch_size sizes no batch",
+                    "polish_iterations": f"{none}, so no minimal fit is there for polish_iterations to polish",
+                    "rigidity_gate_probability": f"{none}, so no minimal sample is there for the rigidity check of "
+                                                 "rigidity_gate_probability to drop"}
+        return {}
+
+    def _unread_by_local(self, method: str, options: EstimatorOptions, refines: bool) -> dict[str, str]:
+        """What :attr:`local` leaves unread with ``options`` (:meth:`unread`'s reasons); ``refines``:
+        whether a final refinement runs."""
+        if self.local == "none":
+            none = f"method {method!r} has no hypothesis loop for a local refit to run in"
+            return {"local_refit": none, "runner_up_refit": none}
+        # where a refit runs anyway, local_refit=True is still what a given runner_up_refit needs
+        if self.local in ("always", "own") and options.runner_up_refit is None:
+            what = ("refits every new best on its consensus" if self.local == "always"
+                    else "runs its own local optimisation on every new best")
+            return {"local_refit": f"method {method!r} {what} whatever local_refit says"}
+        if self.local == "optional" and self.batches == "one-set" and refines:
+            return {"local_refit": (f"method {method!r} draws its hypotheses in one batch, which ends the search: the "
+                                    "final refinement refits the best on its consensus in place of the local refit "
+                                    "(refine=False with least_squares_refit=False leaves it to local_refit)")}
+        return {}
+
 
 UNREAD_CANDIDATES = frozenset({
-    "confidence", "max_iterations", "first_batch_size", "fail_at_cap", "least_squares_refit", "gate_probability",
-    "refine_gate_probability",
+    "confidence", "max_iterations", "budget", "batch_size", "first_batch_size", "fail_at_cap", "least_squares_refit",
+    "gate_probability", "refine_gate_probability", "rigidity_gate_probability", "polish_iterations",
+    "refine_iterations", "refine_rounds", "local_refit", "runner_up_refit",
 })
 """The shared options that some method leaves unread with some settings (:meth:`OptionReads.unread`):
-a call that gives none of them needs no look (the environment's every step)."""
+a call that gives none of them needs no look."""
 
 
 def unread_message(unread: Mapping[str, str], values: Mapping[str, Any]) -> str:

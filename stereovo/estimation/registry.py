@@ -5,7 +5,8 @@ estimator (:func:`register_estimator`), declaring with it which shared options i
 (:class:`~stereovo.estimation.estimator_options.OptionReads`); :func:`register_variant` adds
 ``base+enhancement`` variants; options several methods share are declared once
 (:func:`declare_options`). :func:`validate_options` checks a call's options by these declarations
-and refuses the ones the method would not read (:func:`unread_options`).
+and refuses the ones the method would not read (:func:`unread_options`); :func:`drop_unread` leaves
+them out of settings a caller applies to many methods.
 """
 
 from __future__ import annotations
@@ -273,16 +274,29 @@ def _split_options(spec: MethodSpec, options: Mapping[str, Any]) -> tuple[Estima
 
 
 def unread_options(method: str, options: EstimatorOptions, given: Iterable[str],
-                   order: bool | None = None) -> dict[str, str]:
+                   order: bool | None = None, extra: Mapping[str, Any] | None = None) -> dict[str, str]:
     """The names in ``given`` that ``method`` never reads with ``options``, each mapped to why (by its
     declaration, :meth:`OptionReads.unread <stereovo.estimation.estimator_options.OptionReads.unread>`):
 
     - under a fixed ``budget`` no adaptive stop runs: ``max_iterations``, ``first_batch_size`` and
       ``fail_at_cap`` are never read, nor is ``confidence``, except by a PROSAC stop (``prosac``; ``usac``
-      given an order), which still picks the sampler's prefix with it, and by ``inlier-detection``,
-      whose fit inside the clique stops at it whatever the budget;
+      given an order), which still picks the sampler's prefix with it;
+    - ``preemptive`` hands one set of M hypotheses to its verifier in one batch: never ``max_iterations``
+      (M is its cap), ``batch_size``, ``first_batch_size`` nor ``runner_up_refit``; ``local_refit`` only
+      without a final refinement (which refits the one batch's best in its place), and without a budget
+      ``confidence`` only with ``fail_at_cap=True``;
+    - ``inlier-detection`` draws no hypotheses: never ``budget``, ``max_iterations``, ``fail_at_cap``,
+      ``batch_size``, ``first_batch_size``, ``polish_iterations``, ``rigidity_gate_probability``,
+      ``local_refit`` nor ``runner_up_refit`` (its fit inside the clique reads ``confidence``);
+    - ``bansac`` and ``p-bansac`` draw their own batches (``bansac_batch``): never ``first_batch_size``,
+      and ``batch_size`` only under ``bansac_update='verdict-likelihood'``;
+    - where a local optimisation runs on every new best whatever ``local_refit`` says (the consensus refit
+      of ``bansac``, ``p-bansac`` and ``ars``; the LO+ of ``lo-ransac`` and ``usac``), ``local_refit`` is
+      read only as what a given ``runner_up_refit`` needs;
     - ``least_squares_refit`` chooses the final step only without ``refine`` (the iterated LM
       refinement replaces it), and never in ``inlier-detection``, which ends with its own fit;
+      ``refine_rounds`` is read only with ``refine=True``, ``refine_iterations`` only where a final
+      refinement runs;
     - ``gate_probability`` is never read by a method judged by the stereo reprojection gate
       (``ransac``, ``msac``, ``prosac``, ``r-ransac``, ``waldsac``, ``lo-ransac``, ``preemptive``,
       ``usac``); ``refine_gate_probability`` only by those with ``probabilistic``'s pixel-gated final
@@ -295,25 +309,48 @@ def unread_options(method: str, options: EstimatorOptions, given: Iterable[str],
         method: a registered name. options: its validated options (its defaults under the given ones).
         given: the option names the caller gave (defaults are never refused).
         order: whether ``order=`` is passed; None when not known (an option read with an order is kept).
+        extra: the method's own options, validated (:func:`split_options`); None when not known (an
+            option read with some of them is kept).
 
     Raises:
         ValueError: an unknown method.
     """
-    return method_spec(method).reads.unread(method, options, given, order)
+    return method_spec(method).reads.unread(method, options, given, order, extra)
 
 
-def refuse_unread(spec: MethodSpec, options: EstimatorOptions, given: Mapping[str, Any], order: bool | None) -> None:
+def refuse_unread(spec: MethodSpec, options: EstimatorOptions, given: Mapping[str, Any], order: bool | None,
+                  extra: Mapping[str, Any] | None = None) -> None:
     """Raise if the caller ``given`` options (name -> value) that method ``spec`` with ``options``
-    never reads (:func:`unread_options`); ``order`` as there.
+    never reads (:func:`unread_options`); ``order`` and ``extra`` as there.
 
     Raises:
         ValueError: ``"method NAME: OPTION=VALUE would be ignored: WHY; ..."``, every such option named.
     """
     if UNREAD_CANDIDATES.isdisjoint(given):  # the common call: nothing to look up
         return
-    unread = spec.reads.unread(spec.name, options, given, order)
+    unread = spec.reads.unread(spec.name, options, given, order, extra)
     if unread:
         raise ValueError(f"method {spec.name!r}: {unread_message(unread, given)}")
+
+
+def drop_unread(method: str, options: Mapping[str, Any], among: Iterable[str] | None = None,
+                order: bool | None = None) -> dict[str, Any]:
+    """``options`` without those of ``among`` (default: all of them) that ``method`` would never read
+    with the others (:func:`unread_options`), which it would refuse.
+
+    For settings a caller applies to many methods or sets on its own (a benchmark's hypothesis cap, an
+    environment's recipe): each method gets those it reads. A user's own options for one method are
+    refused instead (leave them out of ``among``). Dropping an unread option leaves what the method
+    reads, and so whether it reads the others, unchanged.
+
+    Raises:
+        ValueError: an unknown method or option, or a value its declaration refuses.
+    """
+    spec = method_spec(method)
+    shared, extra = split_options(spec, options)
+    names = set(options) if among is None else set(options) & set(among)
+    unread = spec.reads.unread(spec.name, shared, names, order, extra)
+    return {name: value for name, value in options.items() if name not in unread}
 
 
 def validate_options(
@@ -339,7 +376,7 @@ def validate_options(
     told = priors is not None or order is not None
     if told:
         spec.check_inputs(bool(priors), bool(order))
-    refuse_unread(spec, shared, options, bool(order) if told else None)
+    refuse_unread(spec, shared, options, bool(order) if told else None, extra)
     return shared, extra
 
 

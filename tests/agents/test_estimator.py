@@ -165,6 +165,17 @@ def test_a_method_an_in_frame_sampler_cannot_drive_is_refused_at_construction(me
     assert "\n" not in str(info.value)
 
 
+@pytest.mark.parametrize("method", ["bansac", "lo-ransac", "preemptive"])
+def test_the_recipe_reaches_a_method_where_it_reads_it_and_the_callers_own_unread_options_are_refused(method):
+    # the environments' recipe sets local_refit=False and, for a one-shot search, its own batches: bansac and
+    # lo-ransac refit every new best anyway, bansac draws its own batches, preemptive its M in one
+    prev, curr, camera, scores, _, R, t = hand_built_frame(np.random.default_rng(4), outliers=0.3)
+    for sampler, budget in ((ONE_SHOT, None), (ONE_SHOT, 16), (IN_FRAME, None)):
+        assert LearnedEstimator(sampler, method=method, budget=budget).estimate(prev, curr, camera, scores).ok
+    with pytest.raises(ValueError, match=f"method '{method}': local_refit=True would be ignored: method '{method}' "):
+        LearnedEstimator(ONE_SHOT, method=method, local_refit=True)
+
+
 def test_in_frame_stop_options_work_or_are_refused():
     prev, curr, camera, scores, *_ = hand_built_frame(np.random.default_rng(8), outliers=0.8)
     # max_iterations caps the sampler's own stop as it caps the one-shot adaptive stop; confidence

@@ -7,6 +7,7 @@ from functools import lru_cache
 import numpy as np
 
 from stereovo import estimate_motion
+from stereovo.estimation import drop_unread
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.roles.scoring import InlierCount, ReprojectionResidual
 from stereovo.estimation.roles.verification import ScoringContext
@@ -38,9 +39,10 @@ ENHANCED = {"polish_iterations": 2, "local_refit": True, "refine": True}
 
 
 def estimate(frame, method, rng, **options):
+    # the enhancements where the method reads them (preemptive's one batch leaves the local refit to the refinement)
+    enhanced = drop_unread(method, {**ENHANCED, **options}, among=set(ENHANCED) - set(options))
     return estimate_motion(
-        frame.prev, frame.curr, frame.camera, method=method, rng=rng, noise_sigma=frame.noise_sigma,
-        **{**ENHANCED, **options},
+        frame.prev, frame.curr, frame.camera, method=method, rng=rng, noise_sigma=frame.noise_sigma, **enhanced,
     )
 
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import vo_gym  # noqa: F401  (registers the ids)
-from stereovo.estimation import StereoProblem, api, available_methods, estimate_problem, method_spec
+from stereovo.estimation import StereoProblem, api, available_methods, drop_unread, estimate_problem, method_spec
 from stereovo.simulation import Sequence, SimulationConfig
 from vo_gym.adaptive_env import StereoVOAdaptiveEnv
 from vo_gym.env import StereoVOEnv
@@ -137,6 +137,9 @@ def test_every_option_the_tables_refuse_leaves_the_methods_estimates_unchanged(m
                 base = {**DEFAULT_ESTIMATOR_OPTIONS, **settings, "noise_sigma": 0.5}
                 if base["budget"] is None:
                     base["max_iterations"] = 64
+                # the environments' defaults and the cap where the method reads them (refine_rounds without
+                # refine is refused, and preemptive's cap is its M)
+                base = drop_unread(method, base, among=set(base) - set(settings), order=sampling == "prosac")
                 env = StereoVOEnv(**SMALL, method=method, sampling=sampling,
                                   **{k: v for k, v in base.items() if k != "noise_sigma"})
                 unread = unread_options(method, env.estimator_options, ALTERNATIVES, sampling)
@@ -167,8 +170,12 @@ def test_the_estimator_gets_only_options_its_method_reads_and_the_environments_d
 
     env = StereoVOEnv(**SMALL, **kwargs)
     given = env.estimator_kwargs
-    assert unread_options(env.method, env.estimator_options, given, order=env.sampling == "prosac") == {}
-    assert {"noise_sigma", "budget", "batch_size", *DEFAULT_ESTIMATOR_OPTIONS} <= set(given)
+    order = env.sampling == "prosac"
+    assert unread_options(env.method, env.estimator_options, given, order=order) == {}
+    # what it sets, but those its method would not read (usac's LO+ runs whatever local_refit says)
+    sets = {"noise_sigma", "budget", "batch_size", *DEFAULT_ESTIMATOR_OPTIONS}
+    assert sets - set(given) == set(unread_options(env.method, env.estimator_options, sets, order=order))
+    assert sets - set(given) == ({"local_refit"} if env.method == "usac" else set())
     env.reset(seed=0)
     frame = env.sequence.frame(1)
     inputs = _inputs(frame, env.sampling)

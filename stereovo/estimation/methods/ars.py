@@ -34,13 +34,13 @@ from stereovo.estimation.kernels import beliefs as belief_kernels
 from stereovo.estimation.loop import LoopState
 from stereovo.estimation.methods.bansac import (
     BELIEF_FLOOR,
+    BELIEF_SAMPLER_READS,
     CEILING_RULE,
     PRIOR_CEILING,
     belief_options,
     initial_beliefs,
     judged_components,
 )
-from stereovo.estimation.recipes import PROBABILISTIC_READS
 from stereovo.estimation.registry import register_method
 from stereovo.estimation.roles.solvers import SAMPLE_SIZE
 
@@ -144,7 +144,7 @@ class ArsSampler:
     "Wei, Matas & Barath, ICCV 2023",
     extra_options={"initial_probability": None, "prior_ceiling": CEILING_RULE},
     inputs="priors-optional",
-    reads=PROBABILISTIC_READS,  # probabilistic's judge and refinement (judged_components); an adaptive stop
+    reads=BELIEF_SAMPLER_READS,
 )
 def _build_ars(problem, options, priors, order, extra):
     return judged_components(problem, options, priors, order, ArsSampler(problem.n, priors, **belief_options(extra)))

@@ -78,13 +78,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from stereovo.estimation.estimator_options import EstimatorOptions
+from stereovo.estimation.estimator_options import EstimatorOptions, OptionReads
 from stereovo.estimation.kernels import bansac_runner as runner_kernels
 from stereovo.estimation.kernels import beliefs as belief_kernels
 from stereovo.estimation.kernels.mahalanobis import point_columns
 from stereovo.estimation.kernels.sampling import weighted_triplets
 from stereovo.estimation.loop import LoopState, RansacComponents, RansacSearch, local_refit_redundant
-from stereovo.estimation.recipes import PROBABILISTIC_READS
 from stereovo.estimation.registry import declare_options, method_spec, register_method
 from stereovo.estimation.roles.local_optimization import ConsensusRefit
 from stereovo.estimation.roles.sample_check import RigidityCheck
@@ -651,6 +650,15 @@ def belief_options(extra: dict) -> dict[str, float]:
             "prior_ceiling": PRIOR_CEILING if ceiling is None else float(ceiling)}
 
 
+BELIEF_SAMPLER_READS = OptionReads(judge="mahalanobis", refinement="pixel-gated", stop="adaptive", local="always")
+"""What a belief sampler on :func:`judged_components` reads: ``probabilistic``'s judge and refinement,
+an adaptive stop, and the consensus refit on every new best whatever ``local_refit`` says."""
+
+BANSAC_READS = dataclasses.replace(BELIEF_SAMPLER_READS, batches="belief-updates")
+"""``bansac``'s and ``p-bansac``'s: those of :data:`BELIEF_SAMPLER_READS`, with batches of their own
+(``bansac_batch``) between belief updates."""
+
+
 def judged_components(problem, options: EstimatorOptions, priors, order, sampler):
     """The ``probabilistic`` method's recipe (Mahalanobis gate, rigidity check, pixel-gated
     refinement) with ``sampler`` in place of its own."""
@@ -707,7 +715,7 @@ def _build_verdict_variant(problem, options, priors, order, extra):
     "Piedade & Miraldo, ICCV 2023",
     extra_options=bansac_options(BANSAC_THRESHOLD),
     inputs="priors-optional",
-    reads=PROBABILISTIC_READS,  # probabilistic's judge and refinement (judged_components); an adaptive stop
+    reads=BANSAC_READS,
 )
 def _build_bansac(problem, options, priors, order, extra):
     return _build(problem, options, priors, order, extra)
@@ -719,7 +727,7 @@ def _build_bansac(problem, options, priors, order, extra):
     "Piedade & Miraldo, ICCV 2023",
     extra_options=bansac_options(P_BANSAC_THRESHOLD),
     inputs="priors-optional",
-    reads=PROBABILISTIC_READS,
+    reads=BANSAC_READS,
 )
 def _build_p_bansac(problem, options, priors, order, extra):
     return _build(problem, options, priors, order, extra)

@@ -358,9 +358,10 @@ def detect_inliers(
         "clique_time_limit_s": Number(low=0.0, high=1e6, low_open=True, unit="s", default=0.5),
         "clique_graph_max": Integer(low=SAMPLE_SIZE, high=20_000, default=GRAPH_MAX),  # 20,000: a 400 MB graph at most
     },
-    # the fit's RANSAC reads gate_probability and confidence (whatever the budget); Howard's reprojection
-    # fit is the last step unless refine adds the LM refinement, so least_squares_refit has no role
-    reads=OptionReads(judge="clique", refinement="lm-only", stop="clique-fit"),
+    # the fit's RANSAC reads gate_probability and confidence, with its own cap, batches and minimal fits;
+    # Howard's reprojection fit is the last step unless refine adds the LM refinement, so
+    # least_squares_refit has no role; no hypothesis loop, so no budget, local refit nor runner-up
+    reads=OptionReads(judge="clique", refinement="lm-only", stop="clique-fit", batches="none", local="none"),
 )
 def _run_inlier_detection(problem, options, priors, order, extra, rng):
     if priors is not None or order is not None:

@@ -23,6 +23,7 @@ This module also declares the ``lo_*`` options (shared with ``usac``) and regist
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -163,6 +164,10 @@ declare_options({
 })  # shared with usac
 
 
+LO_READS = dataclasses.replace(REPROJECTION_READS, local="own")
+"""``lo-ransac``'s: the reprojection judge's reads, with LO+ on every new best whatever ``local_refit`` says."""
+
+
 def inner_ransac_lo(extra: dict) -> InnerRansacLO:
     """LO+ with the ``lo_*`` options of ``extra``."""
     return InnerRansacLO(
@@ -176,7 +181,7 @@ def inner_ransac_lo(extra: dict) -> InnerRansacLO:
     "MSAC with LO+ on every new best: inner RANSAC on non-minimal samples, shrinking-gate least squares",
     "Chum, Matas & Kittler 2003; Lebeda, Matas & Chum 2012",
     extra_options=LO_OPTIONS,
-    reads=REPROJECTION_READS,
+    reads=LO_READS,
 )
 def _build_lo_ransac(problem, options, priors, order, extra):
     components = base_components(problem, options, priors, order, *reprojection_judge(options, TruncatedQuadratic()))

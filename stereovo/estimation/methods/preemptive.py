@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stereovo.estimation.estimator_options import MAX_COUNT
-from stereovo.estimation.recipes import REPROJECTION_READS, base_components, reprojection_judge
+from stereovo.estimation.estimator_options import MAX_COUNT, OptionReads
+from stereovo.estimation.recipes import base_components, reprojection_judge
 from stereovo.estimation.registry import register_method
 from stereovo.estimation.roles.partial import residuals_on
 from stereovo.estimation.roles.scoring import TruncatedQuadratic
@@ -139,7 +139,9 @@ DEFAULT_HYPOTHESES = PreemptiveVerification.hypotheses  # Nister's M without a b
         "preemptive_hypotheses": Integer(low=1, high=MAX_COUNT, allow_none=True, default=None),
         "preemptive_block": Integer(low=1, high=MAX_COUNT, default=PreemptiveVerification.block),
     },
-    reads=REPROJECTION_READS,  # a budget is its M and the stop itself; without one the bound is adaptive
+    # M hypotheses in one batch: M is the cap (the budget, else its own count), and a batch size, a first
+    # batch and a runner-up have no role; the refinement refits the one batch's best in the local refit's place
+    reads=OptionReads(judge="reprojection", refinement="plain", stop="preemptive", batches="one-set"),
 )
 def _build_preemptive(problem, options, priors, order, extra):
     m = extra["preemptive_hypotheses"]

@@ -61,8 +61,8 @@ class EarliestTermination:
     "USAC-like: PROSAC sampling if order= (else uniform/guided), SPRT verification, LO+, SPRT/PROSAC stop",
     "Raguram et al. 2013",
     extra_options=SPRT_OPTIONS + LO_OPTIONS + PROSAC_OPTIONS,
-    # given an order, PROSAC's stop listens under a fixed budget too (see below)
-    reads=OptionReads(judge="reprojection", refinement="plain", stop="prosac-given-order"),
+    # given an order, PROSAC's stop listens under a fixed budget too (see below); LO+ on every new best
+    reads=OptionReads(judge="reprojection", refinement="plain", stop="prosac-given-order", local="own"),
 )
 def _build_usac(problem, options, priors, order, extra):
     components = base_components(problem, options, priors, None, *reprojection_judge(options, TruncatedQuadratic()))

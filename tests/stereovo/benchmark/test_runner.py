@@ -91,6 +91,21 @@ def test_classical_estimators_cover_registry_and_variants():
         bm.classical_estimators(["ransac", "nope"])
 
 
+def test_the_options_for_every_method_reach_each_method_that_reads_them_and_run_without_error_rows():
+    # preemptive's cap is its M and inlier-detection draws no hypotheses: neither gets (nor refuses) the grid's cap
+    pairs = dict(bm.classical_estimators(["ransac", "preemptive", "inlier-detection", "bansac"], max_iterations=300,
+                                         local_refit=False))
+    assert pairs["ransac"].options == (("local_refit", False), ("max_iterations", 300))
+    assert pairs["preemptive"].options == ()  # its final refit refits the one batch's best in the local refit's place
+    assert pairs["inlier-detection"].options == ()
+    assert pairs["bansac"].options == (("max_iterations", 300),)  # it refits every new best anyway
+    rows = bm.run_benchmark(TINY.trials()[:2], list(pairs.items()), seed=3, progress=False)
+    assert not [r["status"] for r in rows if r["status"].startswith("error")]
+    # an invalid option is left to each estimate, which records it as before
+    [(_, bad)] = bm.classical_estimators(["preemptive"], max_iterations=0)
+    assert bad.options == (("max_iterations", 0),)
+
+
 def test_method_inputs_table_is_applied():
     for name, kind in bm.METHOD_INPUTS.items():
         assert ClassicalEstimator(name, kind).inputs == kind

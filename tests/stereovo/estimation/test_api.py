@@ -15,7 +15,7 @@ from hypothesis import given, strategies as st
 
 from stereovo import available_methods, estimate_motion
 from stereovo.benchmark.runner import METHOD_INPUTS, score_inputs
-from stereovo.estimation import method_spec, StereoProblem, estimate_problem, validate_options
+from stereovo.estimation import drop_unread, method_spec, StereoProblem, estimate_problem, validate_options
 from stereovo.geometry import random_rotation, rotation_error, se3_exp
 from stereovo.metrics import is_success, frame_metrics
 from stereovo.simulation import SimulationConfig, simulate_frame
@@ -322,7 +322,9 @@ def test_method_succeeds_on_most_frames_and_is_deterministic(method):
     results = [run(method, frame, rng=i) for i, frame in enumerate(frames())]
     success = np.mean([succeeded(e, f) for e, f in zip(results, frames())])
     assert success >= 0.65, f"{method}: success {success:.2f}"
-    enhanced = [run(method, f, rng=i, polish_iterations=2, refine=True) for i, f in enumerate(frames())]
+    # (the sample polish where the method fits minimal samples: inlier-detection fits on its clique)
+    enhanced = [run(method, f, rng=i, **drop_unread(method, {"polish_iterations": 2, "refine": True}))
+                for i, f in enumerate(frames())]
     success = np.mean([succeeded(e, f) for e, f in zip(enhanced, frames())])
     assert success >= 0.95, f"{method} with polish and LM: success {success:.2f}"
     again = run(method, frames()[0], rng=0)
@@ -376,7 +378,8 @@ def test_degenerate_and_tiny_frames_fail_without_raising(method):
     camera = frames()[0].camera
     line = np.array([[x, 0.0, 10.0] for x in np.linspace(-3, 3, 12)])
     prev, curr = camera.project(line), camera.project(line + [0, 0, -1])
-    collinear = estimate_motion(prev, curr, camera, method=method, budget=64, **inputs_for(method, 12))
+    collinear = estimate_motion(prev, curr, camera, method=method, **drop_unread(method, {"budget": 64}),
+                                **inputs_for(method, 12))
     assert not collinear.ok and "degenerate" in collinear.status
     np.testing.assert_array_equal(collinear.rotation, np.eye(3))
     few = frames()[0]
@@ -387,6 +390,11 @@ def test_degenerate_and_tiny_frames_fail_without_raising(method):
 VALID_SHARED_OPTIONS = {"budget": (64, None), "max_iterations": (200, 50), "confidence": (0.99, 0.9),
                         "noise_sigma": (0.5, 1.0), "refine": (False, True), "batch_size": (32, 128),
                         "min_inliers": (6, 10), "threshold_px": (None, 2.0), "polish_iterations": (0, 2)}
+
+
+def kwargs_options(kwargs: dict) -> dict:
+    """The estimator options among an example's keyword arguments (not its priors or order)."""
+    return {k: v for k, v in kwargs.items() if k not in ("priors", "order")}
 
 
 def adaptive_cap(name: str, value) -> dict:
@@ -417,7 +425,8 @@ def test_estimate_motion_fuzz(method):
         if option == "extra":
             name = spec.extra_options[seed % len(spec.extra_options)] if spec.extra_options else "budget"
         value = weird if fault == "option" else valid_value(spec, name, pick)
-        kwargs: dict = adaptive_cap(name, value)
+        # a valid setting only where the method reads it (a fault-free example is never refused)
+        kwargs: dict = drop_unread(method, adaptive_cap(name, value))
         if fault == "priors" or (fault in ("none", "option") and spec.inputs == "priors"):
             kwargs["priors"] = scores
         elif fault == "order" or (fault in ("none", "option") and spec.inputs == "order"):
@@ -426,7 +435,8 @@ def test_estimate_motion_fuzz(method):
             kwargs["priors"] = np.full(n, weird if not isinstance(weird, (str, list)) else -1.0, dtype=object)
         elif fault == "bad-order":
             kwargs["order"] = np.zeros(n, dtype=int)
-        kwargs[name] = value
+        if fault == "option" or name in drop_unread(method, {**kwargs_options(kwargs), name: value}):
+            kwargs[name] = value
         try:
             est = estimate_quietly(prev, curr, method, seed, kwargs)
         except (ValueError, TypeError) as err:
@@ -466,7 +476,8 @@ def drawn_call(spec, rng: np.random.Generator, kind: str) -> tuple:
     names = SHARED_FUZZ_OPTIONS + spec.extra_options
     name = names[int(rng.integers(len(names)))]
     value = valid_value(spec, name, int(rng.integers(0, 2)))
-    kwargs: dict = adaptive_cap(name, value)
+    # a valid setting only where the method reads it (an option it would not read is refused)
+    kwargs: dict = drop_unread(spec.name, adaptive_cap(name, value))
     taken = {"any": ("none", "priors", "order"), "priors-optional": ("none", "priors"), "priors": ("priors",),
              "order": ("order",), "none": ("none",)}[spec.inputs]
     given = taken[int(rng.integers(len(taken)))]
@@ -474,7 +485,8 @@ def drawn_call(spec, rng: np.random.Generator, kind: str) -> tuple:
         kwargs["priors"] = scores
     elif given == "order":
         kwargs["order"] = np.argsort(-np.asarray(scores), kind="stable")
-    kwargs[name] = value
+    if name in drop_unread(spec.name, {**kwargs_options(kwargs), name: value}, order=given == "order"):
+        kwargs[name] = value
     return prev, curr, kwargs, name, int(rng.integers(0, 2**31))
 
 
@@ -495,7 +507,7 @@ def test_fault_free_calls_estimate_on_every_well_formed_layout(method):
         try:
             est = estimate_quietly(prev, curr, method, seed, kwargs)
         except (ValueError, TypeError) as err:
-            raise AssertionError(f"{kind} with {name}={kwargs[name]!r} refused: {err}") from err
+            raise AssertionError(f"{kind} with {name}={kwargs.get(name, '(unread, left out)')!r} refused: {err}") from err
         _check_estimate(est, np.shape(prev)[0])
 
 
@@ -535,8 +547,8 @@ def test_faulty_calls_are_refused_naming_the_argument(method):
 @pytest.mark.parametrize("method", sorted(available_methods()))
 def test_ok_means_the_returned_inliers_pass_the_final_gate_under_the_returned_pose(method, rendered_frame):
     for i, frame in enumerate([*FRAMES, rendered_frame]):
-        est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=i, max_iterations=2000,
-                              noise_sigma=frame.noise_sigma,
+        est = estimate_motion(frame.prev, frame.curr, frame.camera, method=method, rng=i,
+                              **drop_unread(method, {"max_iterations": 2000}), noise_sigma=frame.noise_sigma,
                               **score_inputs(frame, METHOD_INPUTS.get(method)))
         if not est.ok:
             assert est.n_inliers == 0 and np.array_equal(est.rotation, np.eye(3))

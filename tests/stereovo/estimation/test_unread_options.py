@@ -16,6 +16,7 @@ from stereovo.estimation import (
     StereoProblem,
     api,
     available_methods,
+    drop_unread,
     estimate_motion,
     estimate_problem,
     method_spec,
@@ -23,7 +24,7 @@ from stereovo.estimation import (
     validate_options,
 )
 from stereovo.estimation.estimator_options import UNREAD_CANDIDATES, OptionReads
-from stereovo.estimation.registry import split_options, unread_options
+from stereovo.estimation.registry import unread_options
 from stereovo.simulation import SimulationConfig, simulate_frame
 
 FRAME = simulate_frame(SimulationConfig(n_correspondences=80, outlier_ratio=0.4), np.random.default_rng(5))
@@ -54,7 +55,7 @@ def test_confidence_under_a_fixed_budget_is_refused_naming_it_its_value_and_why(
     ("fail_at_cap", False, ": the budget is the stop itself, never a cap reached before a stop, so no estimate "
                            "fails at it"),
 ])
-@pytest.mark.parametrize("method", ["ransac", "probabilistic", "prosac", "usac", "bansac", "msac+polish+lm"])
+@pytest.mark.parametrize("method", ["ransac", "probabilistic", "prosac", "usac", "ars", "msac+polish+lm"])
 def test_the_adaptive_stops_options_are_refused_under_a_fixed_budget_by_every_loop_method(method, name, value, why):
     inputs = {"order": ORDER} if method == "prosac" else {}
     message = _message(method, budget=64, **inputs, **{name: value})
@@ -114,15 +115,24 @@ def test_the_prosac_stop_reads_confidence_under_a_budget_and_usac_only_given_an_
         validate_options("usac", {"budget": 64, "confidence": 0.5}, priors=True)
 
 
-def test_inlier_detection_reads_confidence_whatever_the_budget():
-    # the RANSAC of its fit inside the clique stops at it; no loop draws a budget there
-    assert unread_options("inlier-detection", validate_options("inlier-detection", {"budget": 8})[0],
-                          ["confidence"]) == {}
+def test_inlier_detection_reads_confidence_and_no_option_of_a_hypothesis_loop():
+    # the RANSAC of its fit inside the clique stops at confidence under a cap of its own; no loop draws
+    # hypotheses there for a budget, a cap, batches, minimal fits or a local refit
+    options = validate_options("inlier-detection", {})[0]
+    assert unread_options("inlier-detection", options, ["confidence"]) == {}
+    message = _message("inlier-detection", budget=8)
+    assert message.startswith("method 'inlier-detection': budget=8 would be ignored: method 'inlier-detection' "
+                              "draws no hypotheses: it takes the maximum clique of consistent matches"), message
+    assert estimate_motion(FRAME.prev, FRAME.curr, FRAME.camera, method="inlier-detection", confidence=0.5).ok
 
 
 def test_defaults_are_never_refused_only_what_the_caller_gave():
     for method in available_methods():
-        assert unread_options(method, validate_options(method, {"budget": 8})[0], ["budget"]) == {}
+        # a fixed budget where the method reads one: the defaults of the adaptive stop it replaces stay unrefused
+        settings = {} if "budget" in unread_options(method, validate_options(method, {})[0], ["budget"]) \
+            else {"budget": 8}
+        options = validate_options(method, settings)[0]
+        assert unread_options(method, options, settings) == {}, method
     # probabilistic's recipe sets refine=True, under which its default least_squares_refit is unread
     estimate_motion(FRAME.prev, FRAME.curr, FRAME.camera, method="probabilistic", budget=16)
     estimate_motion(FRAME.prev, FRAME.curr, FRAME.camera, method="ransac+lm", budget=16)
@@ -146,6 +156,108 @@ def test_every_entry_point_refuses_alike():
         prepared.estimate(problem)
 
 
+# ----------------------------------------------------------------------------- the parts of the methods
+
+ONE_SET = "method 'preemptive' hands its whole set of hypotheses to the verifier in one batch"
+CLIQUE = "method 'inlier-detection' draws no hypotheses: it "
+BANSAC_BATCHES = "method 'bansac' draws its own batches between belief updates from the first"
+
+
+@pytest.mark.parametrize("method, options, name, value, why", [
+    ("preemptive", {}, "max_iterations", 50, "method 'preemptive' draws one set of M hypotheses (the budget, else "
+                                             "its preemptive_hypotheses), which is its cap"),
+    ("preemptive", {"budget": 64}, "max_iterations", 50, "method 'preemptive' draws one set of M hypotheses"),
+    ("preemptive", {}, "batch_size", 64, f"{ONE_SET}: batch_size sizes none of its batches"),
+    ("preemptive", {}, "first_batch_size", 8, f"{ONE_SET}: first_batch_size sizes none of its batches"),
+    ("preemptive", {"local_refit": True, "refine": False, "least_squares_refit": False}, "runner_up_refit", 0.5,
+     f"{ONE_SET}: no later batch has a runner-up"),
+    ("preemptive", {"refine": True}, "local_refit", True, "method 'preemptive' draws its hypotheses in one batch, "
+                                                          "which ends the search: the final refinement refits"),
+    ("preemptive", {"fail_at_cap": False}, "confidence", 0.9, "with fail_at_cap=False returns their best whatever "
+                                                              "the confidence"),
+    ("bansac", {}, "batch_size", 8, f"{BANSAC_BATCHES} (bansac_batch; one hypothesis by default, the paper's): "
+                                    "batch_size caps them only under bansac_update='verdict-likelihood', got "
+                                    "bansac_update='paper'"),
+    ("bansac", {}, "first_batch_size", 8, f"{BANSAC_BATCHES}"),
+    ("p-bansac", {"bansac_update": "verdict-likelihood"}, "first_batch_size", 2, "method 'p-bansac' draws its own"),
+    ("bansac", {}, "local_refit", False, "method 'bansac' refits every new best on its consensus whatever "
+                                         "local_refit says"),
+    ("ars", {}, "local_refit", True, "method 'ars' refits every new best on its consensus whatever local_refit says"),
+    ("lo-ransac", {}, "local_refit", False, "method 'lo-ransac' runs its own local optimisation on every new best"),
+    ("usac", {}, "local_refit", True, "method 'usac' runs its own local optimisation on every new best"),
+    ("inlier-detection", {}, "max_iterations", 50, f"{CLIQUE}takes the maximum clique"),
+    ("inlier-detection", {}, "fail_at_cap", False, "the clique is its verdict, which no cap fails"),
+    ("inlier-detection+lm", {}, "batch_size", 64, "method 'inlier-detection+lm' draws no hypotheses: it fits its "
+                                                  "motion on the maximum clique of consistent matches, so batch_size "
+                                                  "sizes no batch"),
+    ("inlier-detection", {}, "first_batch_size", 8, "so first_batch_size sizes no batch"),
+    ("inlier-detection", {}, "polish_iterations", 2, "so no minimal fit is there for polish_iterations to polish"),
+    ("inlier-detection", {}, "rigidity_gate_probability", 0.999, "so no minimal sample is there for the rigidity "
+                                                                 "check"),
+    ("inlier-detection+lm", {}, "local_refit", True, "has no hypothesis loop for a local refit to run in"),
+    # the local_refit=True it needs is refused too, and named first
+    ("inlier-detection", {"local_refit": True}, "runner_up_refit", 0.5, "local_refit=True would be ignored: method "
+     "'inlier-detection' has no hypothesis loop for a local refit to run in; runner_up_refit=0.5 would be ignored: "
+     "method 'inlier-detection' has no hypothesis loop"),
+    ("inlier-detection", {}, "refine_iterations", 3, "method 'inlier-detection' with refine=False ends with its own "
+                                                     "fit: no LM refinement runs for refine_iterations to set"),
+    ("inlier-detection", {}, "refine_rounds", 2, "refine=False runs no iterated LM refinement: refine_rounds bounds "
+                                                 "its rounds only with refine=True"),
+    ("ransac", {}, "refine_rounds", 2, "refine=False runs no iterated LM refinement"),
+    ("msac", {"least_squares_refit": False}, "refine_iterations", 3, "refine=False and least_squares_refit=False run "
+                                                                     "no final refinement"),
+    ("probabilistic", {"refine": False, "least_squares_refit": False}, "refine_iterations", 3, "run no final "
+                                                                                               "refinement"),
+])
+def test_an_option_a_part_of_the_method_never_reads_is_refused_naming_it_its_value_and_why(method, options, name,
+                                                                                         value, why):
+    message = _message(method, **options, **{name: value})
+    assert message.startswith(f"method {method!r}: ") and f"{name}={value!r} would be ignored: " in message, message
+    assert why in message, message
+    assert message.count("would be ignored") == 1 + ("local_refit=True would be ignored" in why), message
+
+
+@pytest.mark.parametrize("method, options", [
+    ("ransac", {"refine_iterations": 3}),  # the least-squares refit's LM steps
+    ("ransac", {"refine": True, "refine_rounds": 2, "refine_iterations": 3}),
+    ("preemptive", {"local_refit": True, "refine": False, "least_squares_refit": False}),  # the winner's refit
+    ("preemptive", {"budget": 64}), ("preemptive", {"confidence": 0.9}),  # M; the check of fail_at_cap=True
+    ("bansac", {"bansac_update": "verdict-likelihood", "batch_size": 2}),  # the cap of its batches
+    ("bansac", {"local_refit": True, "runner_up_refit": 0.5}),  # what the runner-up refit needs
+    ("lo-ransac", {"local_refit": True, "runner_up_refit": 0.5}),
+    ("ars", {"batch_size": 8, "first_batch_size": 2}),  # the loop's schedule
+    ("inlier-detection", {"refine": True, "refine_rounds": 2, "refine_iterations": 3, "gate_probability": 0.9}),
+])
+def test_what_the_parts_of_a_method_read_is_accepted(method, options):
+    estimate_motion(FRAME.prev, FRAME.curr, FRAME.camera, method=method, rng=0, **options)
+
+
+def test_drop_unread_leaves_out_only_the_options_a_method_would_not_read():
+    recipe = {"max_iterations": 500, "polish_iterations": 2, "local_refit": False, "refine": True,
+              "refine_rounds": 2}
+    assert drop_unread("ransac", recipe) == recipe
+    assert drop_unread("preemptive", recipe) == {"polish_iterations": 2, "refine": True, "refine_rounds": 2}
+    assert drop_unread("inlier-detection", recipe) == {"refine": True, "refine_rounds": 2}
+    assert drop_unread("bansac", recipe) == {"max_iterations": 500, "polish_iterations": 2, "refine": True,
+                                             "refine_rounds": 2}
+    # among: only those may be left out; the others stay, for the method to refuse
+    assert drop_unread("inlier-detection", recipe, among=["local_refit"]) == {
+        "max_iterations": 500, "polish_iterations": 2, "refine": True, "refine_rounds": 2}
+    with pytest.raises(ValueError, match="max_iterations=500 would be ignored"):
+        estimate_motion(FRAME.prev, FRAME.curr, FRAME.camera, method="inlier-detection",
+                        **drop_unread("inlier-detection", recipe, among=["local_refit"]))
+    # what is left runs as the whole would have, bit for bit (the refusal switched off for the whole)
+    kept = estimate_motion(FRAME.prev, FRAME.curr, FRAME.camera, method="preemptive", rng=1,
+                           **drop_unread("preemptive", recipe))
+    api_refuse = api.refuse_unread
+    try:
+        api.refuse_unread = lambda *args: None
+        whole = estimate_motion(FRAME.prev, FRAME.curr, FRAME.camera, method="preemptive", rng=1, **recipe)
+    finally:
+        api.refuse_unread = api_refuse
+    assert np.array_equal(kept.rotation, whole.rotation) and np.array_equal(kept.inliers, whole.inliers)
+
+
 # ----------------------------------------------------------------------------- the declarations
 
 def test_every_method_declares_what_it_reads_and_the_variants_keep_their_bases():
@@ -157,11 +269,19 @@ def test_every_method_declares_what_it_reads_and_the_variants_keep_their_bases()
         register_method("no-reads", "a method that forgets to declare what it reads", "nobody")
     with pytest.raises(ValueError, match="OptionReads.judge must be one of"):
         OptionReads(judge="vibes", refinement="plain", stop="adaptive")
+    with pytest.raises(ValueError, match="OptionReads.batches must be one of .*, got 'lots'"):
+        OptionReads(judge="reprojection", refinement="plain", stop="adaptive", batches="lots")
 
 
-ALTERNATIVES = {"confidence": 0.5, "max_iterations": 2, "first_batch_size": 1, "gate_probability": 0.3,
-                "refine_gate_probability": 0.3}
-"""A value unlike the defaults of each numeric candidate; the switches get the opposite of theirs."""
+ALTERNATIVES = {"confidence": (0.5, 0.9), "max_iterations": (2, 3), "budget": (5, 6), "batch_size": (3, 4),
+                "first_batch_size": (1, 2), "gate_probability": (0.3, 0.5), "refine_gate_probability": (0.3, 0.5),
+                "rigidity_gate_probability": (0.9, 0.99), "polish_iterations": (3, 1), "refine_iterations": (1, 2),
+                "refine_rounds": (1, 4), "runner_up_refit": (0.2, 0.5)}
+"""Values of each numeric candidate: the first unlike the method's own is given; the switches get the
+opposite of theirs."""
+
+COMPANIONS = {"runner_up_refit": {"local_refit": True}}
+"""What a candidate needs beside it to be a valid option (both runs get it)."""
 
 SETTINGS = (
     {"budget": 8, "batch_size": 4},  # the method's own recipe under a budget
@@ -190,7 +310,7 @@ def _samplings(method: str, problem: StereoProblem, frame) -> list[str]:
     out = []
     for sampling in ("none", "priors", "order"):
         try:
-            estimate_problem(problem, method, rng=0, budget=4, **_inputs(frame, sampling))
+            estimate_problem(problem, method, rng=0, **drop_unread(method, {"budget": 4}), **_inputs(frame, sampling))
         except ValueError:
             continue
         out.append(sampling)
@@ -199,7 +319,7 @@ def _samplings(method: str, problem: StereoProblem, frame) -> list[str]:
 
 def _alternative(name: str, options) -> object:
     value = getattr(options, name)
-    return (not value) if isinstance(value, bool) else ALTERNATIVES[name]
+    return (not value) if isinstance(value, bool) else next(v for v in ALTERNATIVES[name] if v != value)
 
 
 def test_every_option_a_method_is_refused_leaves_its_estimates_unchanged(monkeypatch):
@@ -215,21 +335,29 @@ def test_every_option_a_method_is_refused_leaves_its_estimates_unchanged(monkeyp
             for settings in SETTINGS:
                 # what of the settings the method itself would not read is left out, as a caller must
                 order = sampling == "order"
-                settings = {k: v for k, v in settings.items()
-                            if k not in unread_options(method, split_options(spec, settings)[0], settings, order)}
-                options, _ = validate_options(method, settings, priors=sampling == "priors", order=order)
+                settings = drop_unread(method, settings, order=order)
+                options, extra = validate_options(method, settings, priors=sampling == "priors", order=order)
                 given = {name: _alternative(name, options) for name in UNREAD_CANDIDATES - set(settings)}
-                unread = unread_options(method, options, given, order=order)
+                unread = unread_options(method, options, given, order=order, extra=extra)
+                estimates = {}  # the estimates without the option, by the settings they ran with
+
+                def run(frame_index, options):
+                    frame, problem = frames[frame_index], problems[frame_index]
+                    return estimate_problem(problem, method, rng=np.random.default_rng(frame_index),
+                                            **_inputs(frame, sampling), **options)
+
                 for name in unread:
+                    base = {**settings, **COMPANIONS.get(name, {})}
                     with pytest.raises(ValueError, match=f"{name}=.* would be ignored"):
-                        validate_options(method, {**settings, name: given[name]}, priors=sampling == "priors",
+                        validate_options(method, {**base, name: given[name]}, priors=sampling == "priors",
                                          order=order)
                     with monkeypatch.context() as patch:
                         patch.setattr(api, "refuse_unread", lambda *args: None)
-                        for i, (frame, problem) in enumerate(zip(frames, problems)):
-                            a, b = (estimate_problem(problem, method, rng=np.random.default_rng(i),
-                                                     **_inputs(frame, sampling), **run)
-                                    for run in (settings, {**settings, name: given[name]}))
+                        key = tuple(sorted(base.items()))
+                        if key not in estimates:
+                            estimates[key] = [run(i, base) for i in range(len(frames))]
+                        for i, a in enumerate(estimates[key]):
+                            b = run(i, {**base, name: given[name]})
                             assert (a.status, a.n_hypotheses, a.n_scored) == (b.status, b.n_hypotheses, b.n_scored), \
                                 (method, sampling, settings, name)
                             assert np.array_equal(a.rotation, b.rotation), (method, sampling, settings, name)
@@ -237,9 +365,20 @@ def test_every_option_a_method_is_refused_leaves_its_estimates_unchanged(monkeyp
                             assert np.array_equal(a.inliers, b.inliers), (method, sampling, settings, name)
                     checked.add((method, name))
     # each kind of refusal was among those checked, and none of what the methods do read
-    assert {("msac", name) for name in UNREAD_CANDIDATES} <= checked, sorted(checked)
-    assert {("probabilistic", name) for name in UNREAD_CANDIDATES - {"gate_probability"}} <= checked
-    assert {("inlier-detection", "least_squares_refit"), ("inlier-detection", "refine_gate_probability"),
-            ("prosac", "max_iterations"), ("usac", "confidence")} <= checked
+    loop = {"budget", "polish_iterations", "rigidity_gate_probability", "local_refit", "runner_up_refit",
+            "batch_size"}  # what the loop itself reads, whatever the settings
+    assert {("msac", name) for name in UNREAD_CANDIDATES - loop} <= checked, sorted(checked)
+    assert {("probabilistic", name) for name in UNREAD_CANDIDATES - loop - {"gate_probability"}} <= checked
+    assert {("inlier-detection", name) for name in UNREAD_CANDIDATES - {"confidence", "gate_probability"}} <= checked
+    assert {("preemptive", name) for name in ("max_iterations", "batch_size", "first_batch_size", "runner_up_refit",
+                                               "local_refit", "confidence")} <= checked
+    assert {(m, name) for m in ("bansac", "p-bansac") for name in ("batch_size", "first_batch_size", "local_refit")
+            } <= checked
+    assert {("ars", "local_refit"), ("lo-ransac", "local_refit"), ("usac", "local_refit"),
+            ("lo-ransac+polish+lm", "local_refit"), ("inlier-detection+lm", "budget"), ("prosac", "max_iterations"),
+            ("usac", "confidence")} <= checked
     assert not {(m, "gate_probability") for m in ("probabilistic", "mlesac", "bansac", "inlier-detection")} & checked
     assert not {("prosac", "confidence"), ("inlier-detection", "confidence")} & checked
+    assert not ({(m, name) for m in ("msac", "probabilistic") for name in loop}
+                | {("ars", name) for name in loop - {"local_refit"}}) & checked
+    assert not {("preemptive", "budget"), ("ars", "batch_size"), ("bansac", "gate_probability")} & checked

@@ -103,7 +103,7 @@ def test_compiled_search_gives_the_loops_estimates_on_the_hostile_preset(monkeyp
     {"runner_up_refit": 0.5, "local_refit": True},  # the runner-up refit: steps handed back that are not new bests
     {"bansac_weights": "belief"},
     {"initial_probability": 0.3, "prior_ceiling": 0.9},
-    {"local_refit": False, "refine": True},
+    {"refine": True},  # (local_refit=False is refused: the method refits every new best anyway)
     {"confidence": 0.999, "bansac_threshold": 0.05},
 ])
 def test_compiled_search_covers_the_options_of_the_papers_update(monkeypatch, options):
