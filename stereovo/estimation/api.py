@@ -48,8 +48,9 @@ class MotionEstimate:
         covariance: ``(6, 6)`` covariance of the motion's error vector
             ``e = (log(R_est R_true^T), t_est - t_true)`` (rotation first, rad, in the world-side,
             left-multiplied form; then translation, m), propagated from the pixel noise of both
-            frames through the least-squares fit on the final inliers
-            (:func:`stereovo.estimation.covariance.pose_covariance`); None on a failed estimate.
+            frames through the least-squares fit on the final inliers, plus the returned motion's
+            offset from that fit where it is not that fit (no final refinement, or one rolled
+            back: :func:`stereovo.estimation.covariance.pose_covariance`); None on a failed estimate.
             Computed on first read and then kept (it costs a noticeable share of an estimate,
             docs/performance.md, and the environment never reads it).
         counters: the method's own counters (e.g. T(d,d) passes, SPRT tests, local optimisation
@@ -71,17 +72,19 @@ class MotionEstimate:
     unusable: np.ndarray | None = None
     covariance: np.ndarray | None = None
     counters: dict = dataclasses.field(default_factory=dict)
-    # (problem, R, t, inliers) of a covariance not computed yet; the property computes and keeps it.
+    # (problem, R, t, inliers, fitted) of a covariance not computed yet; the property computes and keeps it.
     _covariance_source: tuple | None = dataclasses.field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.unusable is None:
             self.unusable = np.zeros(np.shape(self.inliers)[0], dtype=bool)
 
-    def defer_covariance(self, problem, rotation: np.ndarray, translation: np.ndarray, inliers: np.ndarray) -> None:
-        """Make :attr:`covariance` the :func:`pose_covariance` of this fit on ``problem``,
-        computed when first read."""
-        self._covariance_source = (problem, rotation, translation, inliers)
+    def defer_covariance(self, problem, rotation: np.ndarray, translation: np.ndarray, inliers: np.ndarray,
+                         fitted: bool = True) -> None:
+        """Make :attr:`covariance` the :func:`pose_covariance` of this motion on ``problem``,
+        computed when first read; ``fitted``: whether it is the least-squares fit of ``inliers``
+        (else its offset from that fit is added)."""
+        self._covariance_source = (problem, rotation, translation, inliers, fitted)
 
     @classmethod
     def from_report(cls, report: RansacReport, method: str, time_s: float) -> "MotionEstimate":
@@ -99,7 +102,10 @@ class MotionEstimate:
         ``n`` rows: inliers scattered back, the other rows flagged unusable, and the covariance of a
         successful fit deferred on ``sub``. Returns ``self``."""
         if self.ok:
-            self.defer_covariance(sub, self.rotation, self.translation, self.inliers)
+            # never taken as the least-squares fit of its inliers: a method without the final
+            # refinement, a refinement rolled back, and inliers re-selected after the last fit (the
+            # papers' one refit) all leave it off that fit (pose_covariance adds the offset)
+            self.defer_covariance(sub, self.rotation, self.translation, self.inliers, fitted=False)
         if rows is not None:
             inliers = np.zeros(n, dtype=bool)
             inliers[rows] = self.inliers
