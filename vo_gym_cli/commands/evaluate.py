@@ -36,7 +36,7 @@ from pathlib import Path
 from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
 from vo_gym_cli.commands.baselines import PLOT_FORMATS, add_backend_options, backend_from_args
 from vo_gym_cli.commands.common import OUTLIER_PRESETS, open_run_folder, unread_option
-from vo_gym_cli.commands.common import RunStart, UsageError, check_step_env, flag_error, interrupted_run, stoppable
+from vo_gym_cli.commands.common import RunStart, UsageError, check_step_env, interrupted_run, stoppable
 from vo_gym_cli.commands.common import csv_list, positive_int, seed
 
 DEFAULT_AGENTS = ("uniform", "match-score", "consistency", "constant-velocity", "oracle")
@@ -130,21 +130,22 @@ def run(args: argparse.Namespace) -> int:
     return stoppable("evaluate", lambda: _run(args))
 
 
-# EvalConfig's field (how its errors start) -> the flag that sets it.
+# EvalConfig's field -> the flag that sets it.
 _CONFIG_FLAGS = {
     "episodes": "--episodes", "frames_per_episode": "--frames-per-episode", "seed": "--seed", "budget": "--budget",
-    "epsilons": "--epsilons", "every budget": "--budgets", "budgets": "--budgets", "sweep_epsilon": "--sweep-epsilon",
-    "n": "--n", "max_iterations": "--max-iterations", "unknown classical method": "--methods",
-    "env_kwargs": "--env-kwargs",
+    "epsilons": "--epsilons", "budgets": "--budgets", "sweep_epsilon": "--sweep-epsilon", "n": "--n",
+    "max_iterations": "--max-iterations", "methods": "--methods", "env_kwargs": "--env-kwargs",
 }
 
 
 def _config_error(err: ValueError) -> UsageError:
-    text = str(err)
-    for field, flag in _CONFIG_FLAGS.items():
-        if text.startswith(field + " ") or text.startswith(field + "("):
-            return flag_error(flag, err)
-    return UsageError(text)
+    """EvalConfig's refusal as a usage error: a field's (:class:`~vo_gym.settings.FieldError`, which names
+    it) says the same of the flag that set it; any other keeps its own words."""
+    from vo_gym.settings import FieldError
+
+    if isinstance(err, FieldError) and err.field in _CONFIG_FLAGS:
+        return UsageError(err.named(_CONFIG_FLAGS[err.field]))
+    return UsageError(str(err))
 
 
 def _environment_error(err: ValueError, args: argparse.Namespace) -> UsageError:

@@ -29,7 +29,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import re
 from pathlib import Path
 from typing import Any, Callable
 
@@ -270,20 +269,20 @@ def config_values(args: argparse.Namespace, algo: str, only: set[str] | None = N
 
 
 def _config_error(err: Exception, args: argparse.Namespace) -> UsageError:
-    """A trainer config's refusal, whose message starts with the field's name (``frames must ...``,
-    ``PPO: batch_size=...``), as a usage error naming the option that set it; a resumed run's field
-    that no option set is the checkpoint's, and the message names the checkpoint."""
-    text = str(err)
-    body = text.removeprefix("PPO: ")
-    match = re.match(r"([a-z_]+)(?=[ =])", body)
+    """A trainer config's refusal as a usage error: a field's (:class:`~vo_gym.settings.FieldError`,
+    which names it) names the option that set it (``--pools must ...``, ``--batch-size=...``); a
+    resumed run's field that no option set is the checkpoint's, and the message names the checkpoint.
+    Any other refusal (a checkpoint's, a field no option sets) keeps its own words."""
+    from vo_gym.settings import FieldError
+
     dests = {field: dest for dest, field in OPTIONS[args.algo].items() if dest != "resume"}
-    if match is None or match.group(1) not in dests:
-        return UsageError(text)
-    dest = dests[match.group(1)]
+    if not isinstance(err, FieldError) or err.field not in dests:
+        return UsageError(str(err))
+    dest = dests[err.field]
     typed = given_options(args, add_parser)
     if args.resume is not None and dest not in typed:
-        return UsageError(f"--resume {args.resume}: its training config: {body}")
-    return UsageError(f"{typed.get(dest, _flag(dest))}{body[len(match.group(1)):]}")
+        return UsageError(f"--resume {args.resume}: its training config: {err.subject}{err.rule}")
+    return UsageError(err.named(typed.get(dest, _flag(dest))))
 
 
 def _ngransac_trainer(args: argparse.Namespace):
