@@ -465,7 +465,8 @@ class StereoVOEnv(gym.Env):
     def render(self):
         if self.render_mode is None:
             gym.logger.warn(
-                f"{type(self).__name__}.render() called without a render_mode; make the env with render_mode='rgb_array'"
+                f"{type(self).__name__}.render() called without a render_mode; make the env with "
+                "render_mode='rgb_array'"
             )
             return None
         if self._frame is None:
@@ -509,7 +510,8 @@ class StereoVOEnv(gym.Env):
         bad = np.flatnonzero(~finite if usable is None else ~finite & usable)
         if bad.size:
             raise ValueError(
-                f"{type(self).__name__}: the action has NaN or inf in {bad.size} valid slot(s) (first: slot {int(bad[0])})"
+                f"{type(self).__name__}: the action has NaN or inf in {bad.size} valid slot(s) "
+                f"(first: slot {int(bad[0])})"
             )
         # only rows without depth (never sampled): any value will do, the lowest keeps the weights finite
         a = np.where(finite, a, -self.action_bound)

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from stereovo.options import Choice, Integer, Number, Option, check_options
+from stereovo.options import Choice, Integer, Number, Option, check_options, value_repr
 from stereovo.simulation import Frame
 from vo_gym.env import StereoVOEnv
 
@@ -54,7 +54,7 @@ def top_rows(frame: Frame, index: int, limit: int) -> Frame:
 def _check_source(source: Any, prefix: str) -> None:
     if getattr(source, "true_poses", None) is None or not hasattr(source, "frame"):
         raise ValueError(f"{prefix}source must be a frame sequence with known poses (true_poses), "
-                         f"got {type(source).__name__}: the rewards and the info need the true motion")
+                         f"got {value_repr(source)}: the rewards and the info need the true motion")
 
 
 class ReplayedFrames:
@@ -210,7 +210,7 @@ class StereoVOImagesEnv(StereoVOEnv):
                                  f"renders n_frames + 1 frame pairs, at most {most}), got {checked['n_frames']}")
         if frontend_options is not None and not isinstance(frontend_options, dict):
             raise ValueError(f"{prefix}frontend_options must be a dict of FrontendOptions fields, "
-                             f"got {type(frontend_options).__name__}")
+                             f"got {value_repr(frontend_options)}")
         from stereovo.frontend import FrontendOptions
         from stereovo.sequences.rendered import RESOLUTIONS
 

@@ -61,6 +61,8 @@ SIMULATOR_KEYWORDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(S
 
 # exp(+-300) is representable in float64; a larger logit range overflows the sampling weights.
 MAX_LOGIT = 300.0
+# The action Box is float32: a larger bound is no float32, and gymnasium's Box refused it without naming action_bound.
+MAX_ACTION_BOUND = float(np.finfo(np.float32).max)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -161,7 +163,7 @@ RULES: dict[str, Option] = {
     "sampling": Choice(choices=SAMPLING_MODES),
     "reward_mode": Choice(choices=REWARD_MODES),
     "render_mode": Choice(choices=("rgb_array",), allow_none=True),
-    "action_bound": Number(low=0.0, low_open=True),
+    "action_bound": Number(low=0.0, high=MAX_ACTION_BOUND, low_open=True),
     "logit_scale": Number(low=0.0, low_open=True),
     "success_bonus": Number(low=0.0, high=1.0),
     # Rewards are clipped to [-1, 1]: a cost above 1 per hypothesis would pin every reward at the floor.

@@ -124,7 +124,8 @@ class AdaptiveTrainConfig:
             raise FieldError("width", f" {self.width} and blocks {self.blocks} make a network of {count:,} "
                              f"parameters, more than the {MAX_NETWORK_PARAMETERS:,} a checkpoint may hold")
         if self.prior is not None and self.init is not None:
-            raise FieldError("prior", " starts a fresh network; init continues a checkpoint (which keeps its own prior)")
+            raise FieldError("prior", " starts a fresh network; init continues a checkpoint (which keeps its own "
+                                      "prior)")
 
 
 def episode_settings(config: AdaptiveTrainConfig, episode: int) -> tuple[dict[str, Any], bool]:

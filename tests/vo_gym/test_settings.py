@@ -29,7 +29,7 @@ def _message(cls, **kwargs) -> str:
 @pytest.mark.parametrize("kwargs, rule", [
     ({"hypothesis_cost": 1.5}, "hypothesis_cost must be a finite number in [0, 1], got 1.5"),
     ({"hypothesis_cost": -1}, "hypothesis_cost must be a finite number in [0, 1], got -1"),
-    ({"action_bound": 0.0}, "action_bound must be a finite number > 0, got 0.0"),
+    ({"action_bound": 0.0}, "action_bound must be a finite number in (0, 3.40282e+38], got 0.0"),
     ({"logit_scale": float("nan")}, "logit_scale must be a finite number > 0, got nan"),
     ({"success_bonus": "0.5"}, "success_bonus must be a finite number in [0, 1], got '0.5'"),
     ({"failure_reward": -2}, "failure_reward must be a finite number in [-1, 1], got -2"),
@@ -150,7 +150,8 @@ def test_a_belief_sampler_under_prosac_sampling_is_refused_at_construction(metho
 
 @pytest.mark.parametrize("value", [0, -1, 2.5, True, None, "3", 10**400, np.int64(0)], ids=value_repr)
 def test_check_fields_refuses_with_check_options_message_and_names_the_field(value):
-    declarations = {"seed": Integer(low=0), "frames": Integer(low=1, high=10**9), "rate": Number(low=0.0, low_open=True)}
+    declarations = {"seed": Integer(low=0), "frames": Integer(low=1, high=10**9),
+                    "rate": Number(low=0.0, low_open=True)}
     values = {"seed": 1, "frames": value, "rate": 0.5}
     with pytest.raises(ValueError) as words:
         check_options(declarations, values, prefix="PPO: ")
@@ -184,3 +185,14 @@ def test_a_field_error_keeps_its_field_through_pickle():
     err = pickle.loads(pickle.dumps(FieldError("batch_size", "=9 exceeds the rollout size", prefix="PPO: ")))
     assert (str(err), err.field, err.named("--batch-size")) == (
         "PPO: batch_size=9 exceeds the rollout size", "batch_size", "--batch-size=9 exceeds the rollout size")
+
+
+@pytest.mark.parametrize("cls, kwargs", [(StereoVOEnv, {"sampling": "prosac"}),
+                                         (StereoVOEnv, {"logit_scale": 1e-38}),
+                                         (StereoVOAdaptiveEnv, {"logit_scale": 1e-38})])
+def test_an_action_bound_past_float32_is_refused_naming_it(cls, kwargs):
+    # the action Box is float32: gymnasium refused such a bound without naming action_bound
+    message = _message(cls, action_bound=1e39, **kwargs)
+    assert message == f"{cls.__name__}: action_bound must be a finite number in (0, 3.40282e+38], got 1e+39"
+    assert cls(**SMALL, action_bound=float(np.finfo(np.float32).max), **kwargs).action_space.high[0] == np.finfo(
+        np.float32).max

@@ -41,6 +41,7 @@ from vo_gym_cli.commands.common import (
     finite_float,
     given_options,
     late_help,
+    output_path,
     positive_int,
     require_extras,
     seed,
@@ -143,7 +144,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--algo", choices=("ngransac", "ppo", "adaptive"), default="ngransac",
                         help="trainer: NG-RANSAC-style policy gradient, stable-baselines3 PPO, or the in-frame "
                              "sampler (adaptive: acts inside each frame's RANSAC loop and stops it)")
-    parser.add_argument("--out", default="runs/train",
+    parser.add_argument("--out", type=output_path("--out", str), default="runs/train",
                         help="output folder: the checkpoint and training.json; ngransac and ppo also write TensorBoard"
                              " logs under tb/, adaptive its log windows in training.jsonl (default: runs/train)")
     parser.add_argument("--overwrite", action="store_true",
@@ -569,12 +570,22 @@ def _clear_previous_run(args: argparse.Namespace, out: Path) -> None:
             folder.rmdir()
 
 
+# The largest --seed each trainer takes: torch.manual_seed takes 64 bits; PPO's seed also seeds numpy's
+# legacy generator through stable-baselines3, which takes 32 bits.
+_SEED_MAX = {"ngransac": 2**64 - 1, "ppo": 2**32 - 1, "adaptive": 2**64 - 1}
+
+
 def run(args: argparse.Namespace) -> int:
     check_options_apply(args)
+    if args.seed > _SEED_MAX[args.algo]:
+        from stereovo.options import value_repr
+
+        raise UsageError(f"--seed must be <= {_SEED_MAX[args.algo]} with --algo {args.algo}, "
+                         f"got {value_repr(args.seed)}")
     require_extras("torch", *(("tensorboard",) if args.algo != "adaptive" else ()),
                    *(("stable_baselines3",) if args.algo == "ppo" else ()))
     if args.resume is not None and not Path(args.resume).is_file():
-        raise UsageError(f"--resume: no checkpoint at {args.resume}")
+        raise UsageError(f"--resume: no checkpoint at {args.resume!r}")
     if args.algo == "ppo" and args.resume is not None and Path(args.resume).suffix == ".pt":
         raise UsageError(f"--resume {args.resume}: PPO resumes from the SB3 model zip (e.g. "
                          f"{Path(args.resume).with_suffix('.zip')}); the .pt file is the exported actor only")
