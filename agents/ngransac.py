@@ -45,10 +45,10 @@ from stereovo.estimation import (
 from stereovo.estimation.estimator_options import MAX_COUNT
 from stereovo.geometry import rotation_error
 from stereovo.metrics import pose_error_ratio
-from stereovo.options import Integer, Number, Option, check_options, value_repr
+from stereovo.options import Integer, Number, Option, value_repr
 from stereovo.simulation import OUTLIER_KINDS, Frame, Sequence, SimulationConfig
 from stereovo.simulation.config import MAX_CORRESPONDENCES, MAX_FRAMES
-from vo_gym.settings import DEFAULT_ESTIMATOR_OPTIONS
+from vo_gym.settings import DEFAULT_ESTIMATOR_OPTIONS, FieldError, check_fields
 from vo_gym.features import N_FEATURES, compute_features
 
 LOSSES = ("supervised", "self-supervised", "self-supervised-smooth")
@@ -130,29 +130,29 @@ class NGRansacConfig:
 
     def __post_init__(self) -> None:
         if self.loss not in LOSSES:
-            raise ValueError(f"loss must be one of {LOSSES}, got {self.loss!r}")
+            raise FieldError("loss", f" must be one of {LOSSES}, got {self.loss!r}")
         lo, hi = self.epsilon_range
         if not 0 <= lo <= hi < 1:
-            raise ValueError(f"epsilon_range must satisfy 0 <= low <= high < 1, got {self.epsilon_range}")
-        for name, value in check_options(_NGRANSAC_RULES, vars(self), prefix="", only=_NGRANSAC_RULES).items():
+            raise FieldError("epsilon_range", f" must satisfy 0 <= low <= high < 1, got {self.epsilon_range}")
+        for name, value in check_fields(_NGRANSAC_RULES, vars(self)).items():
             setattr(self, name, value)
         for name in ("width", "blocks"):
             if getattr(self, name) < 1:
-                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+                raise FieldError(name, f" must be >= 1, got {getattr(self, name)}")
         # a network a checkpoint can hold (agents.checkpoint refuses larger ones at load)
         for name in ("width", "blocks"):
             if getattr(self, name) > MAX_NETWORK_SIZE:
-                raise ValueError(f"{name} must be <= {MAX_NETWORK_SIZE}, got {getattr(self, name)}")
+                raise FieldError(name, f" must be <= {MAX_NETWORK_SIZE}, got {getattr(self, name)}")
         count = correspondence_net_parameters(N_FEATURES, self.width, self.blocks)
         if count > MAX_NETWORK_PARAMETERS:
-            raise ValueError(f"width {self.width} and blocks {self.blocks} make a network of {count:,} parameters, "
-                             f"more than the {MAX_NETWORK_PARAMETERS:,} a checkpoint may hold")
+            raise FieldError("width", f" {self.width} and blocks {self.blocks} make a network of {count:,} "
+                             f"parameters, more than the {MAX_NETWORK_PARAMETERS:,} a checkpoint may hold")
         if self.max_grad_norm is not None and not self.max_grad_norm > 0:
-            raise ValueError(f"max_grad_norm must be None or > 0, got {self.max_grad_norm}")
+            raise FieldError("max_grad_norm", f" must be None or > 0, got {self.max_grad_norm}")
         if not self.entropy_weight >= 0:
-            raise ValueError(f"entropy_weight must be >= 0, got {self.entropy_weight}")
+            raise FieldError("entropy_weight", f" must be >= 0, got {self.entropy_weight}")
         if self.pools < 2:
-            raise ValueError("pools must be >= 2: the baseline is the mean loss of the pools")
+            raise FieldError("pools", " must be >= 2: the baseline is the mean loss of the pools")
         self.epsilon_range = (float(lo), float(hi))
 
     def simulation(self, epsilon: float | tuple[float, float] | None = None) -> SimulationConfig:

@@ -59,8 +59,6 @@ __all__ = [
     "StereoVOAdaptiveEnv", "LOOP_FEATURE_NAMES", "GLOBAL_FEATURE_NAMES", "ADAPTIVE_FEATURE_NAMES", "AgentPriorSampler",
 ]
 
-_OWNER = "StereoVOAdaptiveEnv"  # the messages' prefix
-
 # Shared estimator options whose role the agent or the environment's own keywords take here: the
 # search's stopping rule is replaced by the agent's stop under max_hypotheses (InFrameSearch), so
 # these would be accepted and ignored.
@@ -195,12 +193,13 @@ class StereoVOAdaptiveEnv(gym.Env):
         **settings: Any,
     ) -> None:
         super().__init__()
+        owner = type(self).__name__  # the messages name the class the user made, also when it is a subclass
         if render_mode is not None:
-            raise ValueError(f"{_OWNER}: render_mode must be None (the environment has no renderer: "
+            raise ValueError(f"{owner}: render_mode must be None (the environment has no renderer: "
                              f"metadata['render_modes'] is empty), got {render_mode!r}")
         self.render_mode = None
         s = check_settings(
-            _OWNER, batch_size=batch_size, max_hypotheses=max_hypotheses, reward_mode=reward_mode,
+            owner, batch_size=batch_size, max_hypotheses=max_hypotheses, reward_mode=reward_mode,
             hypothesis_cost=hypothesis_cost, success_bonus=success_bonus, failure_reward=failure_reward,
             action_bound=action_bound, logit_scale=logit_scale, max_correspondences=max_correspondences,
             estimator_noise_sigma=estimator_noise_sigma,
@@ -209,20 +208,20 @@ class StereoVOAdaptiveEnv(gym.Env):
         self.batch_size = self.max_hypotheses if s["batch_size"] is None else s["batch_size"]
         self.hypothesis_cost, self.success_bonus = s["hypothesis_cost"], s["success_bonus"]
         self.failure_reward, self.action_bound, self.logit_scale = s["failure_reward"], s["action_bound"], s["logit_scale"]
-        self.sim_config = simulation_config(_OWNER, {k: settings.pop(k) for k in SIMULATOR_KEYWORDS if k in settings})
+        self.sim_config = simulation_config(owner, {k: settings.pop(k) for k in SIMULATOR_KEYWORDS if k in settings})
         self._sequence_config = dataclasses.replace(self.sim_config, n_frames=self.sim_config.n_frames + 1)
         n = self.n_correspondences = self.sim_config.n_correspondences
-        M = self.max_correspondences = observation_rows(_OWNER, s["max_correspondences"], n)
-        self.estimator_noise_sigma = estimator_noise(_OWNER, s["estimator_noise_sigma"], self.sim_config.noise_sigma)
+        M = self.max_correspondences = observation_rows(owner, s["max_correspondences"], n)
+        self.estimator_noise_sigma = estimator_noise(owner, s["estimator_noise_sigma"], self.sim_config.noise_sigma)
         self._spec, self.estimator_options, self._extra = estimator_settings(
-            _OWNER, StereoVOAdaptiveEnv, method, settings, fixed={"noise_sigma": self.estimator_noise_sigma},
+            owner, StereoVOAdaptiveEnv, method, settings, fixed={"noise_sigma": self.estimator_noise_sigma},
             also_known=SIMULATOR_KEYWORDS, refused=_REFUSED_OPTIONS,
         )
         # the agent's weights drive the sampler: the judge must need no priors= or order= of its own
         if self._spec.inputs not in ("any", "priors-optional"):
             why = ("needs priors= or order= from its caller" if self._spec.inputs in ("priors", "order")
                    else "draws no hypotheses for the agent to steer")
-            raise ValueError(f"{_OWNER}: method {method!r} cannot judge the in-frame search: it {why}; "
+            raise ValueError(f"{owner}: method {method!r} cannot judge the in-frame search: it {why}; "
                              "judge with a sampling method, e.g. 'msac' (the default), 'mlesac' or 'probabilistic'")
         self.method = method
         F = N_FEATURES + len(LOOP_FEATURE_NAMES)
@@ -276,7 +275,7 @@ class StereoVOAdaptiveEnv(gym.Env):
     # ------------------------------------------------------------------ gymnasium API
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        check_reset_options(_OWNER, options)
+        check_reset_options(type(self).__name__, options)
         super().reset(seed=seed)
         self._sequence = Sequence(self._sequence_config, int(self.np_random.integers(0, 2**63 - 1)))
         self._rng = np.random.default_rng(int(self.np_random.integers(0, 2**63 - 1)))
@@ -288,9 +287,9 @@ class StereoVOAdaptiveEnv(gym.Env):
 
     def step(self, action):
         if self._frame is None:
-            raise RuntimeError("StereoVOAdaptiveEnv: call reset() before step()")
+            raise RuntimeError(f"{type(self).__name__}: call reset() before step()")
         if self._k > self.sim_config.n_frames:
-            raise RuntimeError("StereoVOAdaptiveEnv: the episode is over (truncated); call reset()")
+            raise RuntimeError(f"{type(self).__name__}: the episode is over (truncated); call reset()")
         logits, stop = self._validate_action(action)
         search = self._search
         drawn, stopping, done = search.step(logits, stop, self.batch_size)
@@ -321,7 +320,7 @@ class StereoVOAdaptiveEnv(gym.Env):
     def render(self) -> None:
         """Nothing to draw: warns (Gymnasium's logger) and returns None, as a Gymnasium environment made
         without a render mode does; the environment has no renderer (``render_mode`` is always None)."""
-        gym.logger.warn(f"{_OWNER}.render() called without a render_mode: the environment has no renderer "
+        gym.logger.warn(f"{type(self).__name__}.render() called without a render_mode: the environment has no renderer "
                         "(metadata['render_modes'] is empty), so there is nothing to draw")
         return None
 
@@ -388,12 +387,12 @@ class StereoVOAdaptiveEnv(gym.Env):
             a = action  # the clip reads float32 values as the float64 ones real_array's cast would give
         else:
             a = real_array("the action", action, (M + 1,), entries="values", per="a logit per slot and the stop slot",
-                           what=f"a numeric array of shape ({M + 1},)", prefix="StereoVOAdaptiveEnv: ")
+                           what=f"a numeric array of shape ({M + 1},)", prefix=f"{type(self).__name__}: ")
         # np.clip's values on the slots read (the others are ignored), times the logit scale; clipping
         # keeps the stop's sign
         logits = clipped_finite(a[:n], self.action_bound, self.logit_scale)
         if logits is None or not math.isfinite(a[M]):
-            raise ValueError("StereoVOAdaptiveEnv: the action has NaN or inf in a valid slot or the stop slot")
+            raise ValueError(f"{type(self).__name__}: the action has NaN or inf in a valid slot or the stop slot")
         return logits, bool(a[M] > 0)
 
     def _observation(self) -> dict[str, np.ndarray]:

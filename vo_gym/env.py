@@ -26,6 +26,7 @@ from stereovo.options import real_array
 from stereovo.simulation import Frame, Sequence
 from vo_gym.action_box import ActionBox, clipped_finite, exp_shifted, plain_float_action
 from vo_gym.features import FEATURE_BOUND, FEATURE_LAYOUT_VERSION, FEATURE_NAMES, N_FEATURES, compute_features
+from vo_gym.names import constructor_keywords
 from vo_gym.ordering import descending_order
 from vo_gym.rewards import inlier_reward, msac_reward, pose_error_ratio, supervised_reward
 from vo_gym.settings import (
@@ -45,7 +46,6 @@ __all__ = ["StereoVOEnv", "SAMPLING_MODES", "DEFAULT_ESTIMATOR_OPTIONS"]
 _NON_DETERMINISTIC_METRICS = ("time_s",)
 # the info's metrics, in the fields' order (FrameMetrics.as_dict() less those, without building it)
 _INFO_METRICS = tuple(f.name for f in dataclasses.fields(FrameMetrics) if f.name not in _NON_DETERMINISTIC_METRICS)
-_OWNER = "StereoVOEnv"  # the messages' prefix, also of the images environment built on it
 
 
 def _nan_to_none(value: Any) -> Any:
@@ -295,8 +295,10 @@ class StereoVOEnv(gym.Env):
         **estimator_options: Any,
     ) -> None:
         super().__init__()
+        # the messages name the class the user made (the images environment passes its keywords on here)
+        owner = type(self).__name__
         s = check_settings(
-            _OWNER, sampling=sampling, reward_mode=reward_mode, render_mode=render_mode, action_bound=action_bound,
+            owner, sampling=sampling, reward_mode=reward_mode, render_mode=render_mode, action_bound=action_bound,
             logit_scale=logit_scale, success_bonus=success_bonus, hypothesis_cost=hypothesis_cost,
             failure_reward=failure_reward, kitti_lengths=kitti_lengths, max_correspondences=max_correspondences,
             estimator_noise_sigma=estimator_noise_sigma, budget=budget, batch_size=batch_size,
@@ -305,7 +307,7 @@ class StereoVOEnv(gym.Env):
         self.action_bound, self.logit_scale = s["action_bound"], s["logit_scale"]
         self.success_bonus, self.hypothesis_cost = s["success_bonus"], s["hypothesis_cost"]
         self.failure_reward, self.kitti_lengths = s["failure_reward"], s["kitti_lengths"]
-        self.sim_config = simulation_config(_OWNER, dict(
+        self.sim_config = simulation_config(owner, dict(
             preset=preset, world=world, n_frames=n_frames, n_correspondences=n_correspondences,
             noise_sigma=noise_sigma, outlier_ratio=outlier_ratio, outlier_mix=outlier_mix, score_auc=score_auc,
             z_min=z_min, z_max=z_max, camera=camera, speed=speed, outliers=outliers, noise_dof=noise_dof,
@@ -313,14 +315,15 @@ class StereoVOEnv(gym.Env):
         # One spare frame pair: the observation returned at truncation is the next real frame.
         self._sequence_config = dataclasses.replace(self.sim_config, n_frames=self.sim_config.n_frames + 1)
         self.n_correspondences = self.sim_config.n_correspondences
-        self.max_correspondences = observation_rows(_OWNER, s["max_correspondences"], self.n_correspondences)
-        self.estimator_noise_sigma = estimator_noise(_OWNER, s["estimator_noise_sigma"], self.sim_config.noise_sigma)
+        self.max_correspondences = observation_rows(owner, s["max_correspondences"], self.n_correspondences)
+        self.estimator_noise_sigma = estimator_noise(owner, s["estimator_noise_sigma"], self.sim_config.noise_sigma)
         self.method, self.budget = method, s["budget"]
         self.batch_size = s["batch_size"] if s["batch_size"] is not None else (
             self.budget if self.budget is not None else EstimatorOptions.batch_size)
         fixed = {"noise_sigma": self.estimator_noise_sigma, "budget": self.budget, "batch_size": self.batch_size}
         _, self.estimator_options, extra = estimator_settings(
-            _OWNER, StereoVOEnv, method, estimator_options, sampling=self.sampling, fixed=fixed,
+            owner, StereoVOEnv, method, estimator_options, sampling=self.sampling, fixed=fixed,
+            also_known=constructor_keywords(type(self)),  # a subclass's own keywords, for the did-you-mean hints
         )
         # The options given to the estimator are the ones set here (validated, normalised), not every
         # field: the estimator refuses a given option its method would not read (confidence under the
@@ -408,7 +411,7 @@ class StereoVOEnv(gym.Env):
     # ------------------------------------------------------------------ gymnasium API
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        check_reset_options(_OWNER, options)
+        check_reset_options(type(self).__name__, options)
         super().reset(seed=seed)
         sequence_seed = int(self.np_random.integers(0, 2**63 - 1))
         ransac_seed = int(self.np_random.integers(0, 2**63 - 1))
@@ -428,9 +431,9 @@ class StereoVOEnv(gym.Env):
 
     def step(self, action):
         if self._frame is None:
-            raise RuntimeError("StereoVOEnv: call reset() before step()")
+            raise RuntimeError(f"{type(self).__name__}: call reset() before step()")
         if self._k > self.sim_config.n_frames:
-            raise RuntimeError("StereoVOEnv: the episode is over (truncated); call reset()")
+            raise RuntimeError(f"{type(self).__name__}: the episode is over (truncated); call reset()")
         values = self._validate_action(action)
         frame = self._frame
         priors = order = None
@@ -466,11 +469,12 @@ class StereoVOEnv(gym.Env):
     def render(self):
         if self.render_mode is None:
             gym.logger.warn(
-                "StereoVOEnv.render() called without a render_mode; make the env with render_mode='rgb_array'"
+                f"{type(self).__name__}.render() called without a render_mode; make the env with "
+                "render_mode='rgb_array'"
             )
             return None
         if self._frame is None:
-            raise RuntimeError("StereoVOEnv: call reset() before render()")
+            raise RuntimeError(f"{type(self).__name__}: call reset() before render()")
         from vo_gym.rendering import render_rgb
 
         if self._last_step is None:
@@ -499,7 +503,7 @@ class StereoVOEnv(gym.Env):
             if clipped is not None:
                 return clipped
         a = real_array("the action", action, (M,), entries="values", per="one value per correspondence slot",
-                       what=f"a numeric array of shape ({M},)", prefix=f"{_OWNER}: ")
+                       what=f"a numeric array of shape ({M},)", prefix=f"{type(self).__name__}: ")
         a = a[:n]
         clipped = clipped_finite(a, self.action_bound)  # np.clip's values, in one pass (the bounds are ordered)
         if clipped is not None:
@@ -510,7 +514,8 @@ class StereoVOEnv(gym.Env):
         bad = np.flatnonzero(~finite if usable is None else ~finite & usable)
         if bad.size:
             raise ValueError(
-                f"StereoVOEnv: the action has NaN or inf in {bad.size} valid slot(s) (first: slot {int(bad[0])})"
+                f"{type(self).__name__}: the action has NaN or inf in {bad.size} valid slot(s) "
+                f"(first: slot {int(bad[0])})"
             )
         # only rows without depth (never sampled): any value will do, the lowest keeps the weights finite
         a = np.where(finite, a, -self.action_bound)

@@ -18,13 +18,12 @@ from typing import Any
 
 import numpy as np
 
-from stereovo.options import Choice, Integer, Number, Option, check_options
+from stereovo.options import Choice, Integer, Number, Option, check_options, value_repr
 from stereovo.simulation import Frame
 from vo_gym.env import StereoVOEnv
 
 __all__ = ["StereoVOImagesEnv", "EpisodeFrames", "ReplayedFrames"]
 
-_PREFIX = "StereoVOImagesEnv: "
 _RULES: dict[str, Option] = {
     "n_frames": Integer(low=1, high=100_000),
     "max_correspondences": Integer(low=3, high=100_000),
@@ -52,10 +51,10 @@ def top_rows(frame: Frame, index: int, limit: int) -> Frame:
                                scores=frame.scores[keep], truth=truth)
 
 
-def _check_source(source: Any) -> None:
+def _check_source(source: Any, prefix: str) -> None:
     if getattr(source, "true_poses", None) is None or not hasattr(source, "frame"):
-        raise ValueError(f"{_PREFIX}source must be a frame sequence with known poses (true_poses), "
-                         f"got {type(source).__name__}: the rewards and the info need the true motion")
+        raise ValueError(f"{prefix}source must be a frame sequence with known poses (true_poses), "
+                         f"got {value_repr(source)}: the rewards and the info need the true motion")
 
 
 class ReplayedFrames:
@@ -167,14 +166,15 @@ class StereoVOImagesEnv(StereoVOEnv):
                  image_noise: float | None = None, speed: float | None = None, world: str | None = None,
                  frontend_options: dict | None = None, texture_seed: int | None = 0, cached_episodes: int = 2,
                  estimator_noise_sigma: float | None = None, **kwargs: Any) -> None:
+        prefix = f"{type(self).__name__}: "  # the class the user made, also when it is a subclass
         refused = sorted(set(kwargs) & set(_SIMULATOR_ONLY))
         if refused:
-            raise TypeError(f"{_PREFIX}{refused} are simulator settings; on images the front end decides them "
+            raise TypeError(f"{prefix}{refused} are simulator settings; on images the front end decides them "
                             "(and the camera is the resolution's or the source's)")
         if source is not None and not isinstance(source, str):
-            _check_source(source)
+            _check_source(source, prefix)
             if frontend_options is not None:
-                raise ValueError(f"{_PREFIX}frontend_options={frontend_options!r} would be ignored: source="
+                raise ValueError(f"{prefix}frontend_options={frontend_options!r} would be ignored: source="
                                  f"{type(source).__name__} matched its frames with its own front end (they apply to "
                                  "the rendered world or a source string)")
         if source is not None:
@@ -185,7 +185,7 @@ class StereoVOImagesEnv(StereoVOEnv):
                 world_given["texture_seed"] = texture_seed
             if world_given:
                 what = repr(source) if isinstance(source, str) else type(source).__name__
-                raise ValueError(f"{_PREFIX}{', '.join(f'{k}={v!r}' for k, v in world_given.items())} would be "
+                raise ValueError(f"{prefix}{', '.join(f'{k}={v!r}' for k, v in world_given.items())} would be "
                                  f"ignored: they set the world rendered when source is None, and source={what} "
                                  "brings its own frames and camera; leave them out")
         preset = "car" if preset is None else preset
@@ -195,7 +195,7 @@ class StereoVOImagesEnv(StereoVOEnv):
         checked = check_options(_RULES, dict(n_frames=n_frames, max_correspondences=max_correspondences,
                                              resolution=resolution, moving_objects=moving_objects,
                                              image_noise=image_noise, texture_seed=texture_seed,
-                                             cached_episodes=cached_episodes), prefix=_PREFIX)
+                                             cached_episodes=cached_episodes), prefix=prefix)
         if source is None:
             # RenderedSequence's own rules for what reset hands it (one more frame pair: the spare one of
             # truncation), checked now rather than at the first reset
@@ -203,29 +203,29 @@ class StereoVOImagesEnv(StereoVOEnv):
 
             check_options(RENDER_RULES, dict(preset=preset, world=world, resolution=checked["resolution"],
                                              moving_objects=checked["moving_objects"], image_noise=checked["image_noise"],
-                                             speed=speed, texture_seed=checked["texture_seed"]), prefix=_PREFIX)
+                                             speed=speed, texture_seed=checked["texture_seed"]), prefix=prefix)
             most = RENDER_RULES["n_frames"].high
             if checked["n_frames"] + 1 > most:
-                raise ValueError(f"{_PREFIX}n_frames must be at most {most - 1} for the rendered world (an episode "
+                raise ValueError(f"{prefix}n_frames must be at most {most - 1} for the rendered world (an episode "
                                  f"renders n_frames + 1 frame pairs, at most {most}), got {checked['n_frames']}")
         if frontend_options is not None and not isinstance(frontend_options, dict):
-            raise ValueError(f"{_PREFIX}frontend_options must be a dict of FrontendOptions fields, "
-                             f"got {type(frontend_options).__name__}")
+            raise ValueError(f"{prefix}frontend_options must be a dict of FrontendOptions fields, "
+                             f"got {value_repr(frontend_options)}")
         from stereovo.frontend import FrontendOptions
         from stereovo.sequences.rendered import RESOLUTIONS
 
         try:
             self.frontend_options = FrontendOptions(**(frontend_options or {}))
         except TypeError as err:
-            raise TypeError(f"{_PREFIX}frontend_options: {err}") from None
+            raise TypeError(f"{prefix}frontend_options: {err}") from None
         if isinstance(source, str):
             from stereovo.sequences import open_source
 
             source = open_source(source, options=self.frontend_options)
         if source is not None:
-            _check_source(source)
+            _check_source(source, prefix)
             if len(source) < checked["n_frames"] + 1:
-                raise ValueError(f"{_PREFIX}source has {len(source)} frame pairs; an episode of n_frames="
+                raise ValueError(f"{prefix}source has {len(source)} frame pairs; an episode of n_frames="
                                  f"{checked['n_frames']} needs n_frames + 1")
             camera, noise = source.camera, float(getattr(source, "noise_sigma", 0.5))
         else:

@@ -15,6 +15,10 @@ is checked by the same rule wherever it enters, with the same message
 
 A constructor hands its keywords to these functions and keeps what they return as plain attributes;
 its signature keeps the defaults (those of the simulator's keywords are SimulationConfig's).
+
+The configs above the environments (the trainers', the evaluation's) refuse a field's value with a
+:class:`FieldError`, which carries the field's name (:func:`check_fields`): a command line that set the
+field by an option of another name says so without reading the name out of the message.
 """
 
 from __future__ import annotations
@@ -30,7 +34,7 @@ from stereovo.estimation import EstimatorOptions, method_spec
 from stereovo.estimation import unread_options
 from stereovo.estimation.estimator_options import ESTIMATOR_OPTION_RULES, MAX_COUNT, SHARED_OPTIONS, unread_message
 from stereovo.estimation.registry import MethodSpec, split_options
-from stereovo.options import Choice, Integer, Number, Option, check_options, is_real, value_repr
+from stereovo.options import Choice, Integer, Number, Option, OptionError, check_options, is_real, value_repr
 from stereovo.simulation import SimulationConfig
 from vo_gym.names import constructor_keywords, keyword_hint
 from vo_gym.rewards import REWARD_MODES
@@ -38,7 +42,7 @@ from vo_gym.rewards import REWARD_MODES
 __all__ = [
     "SAMPLING_MODES", "DEFAULT_ESTIMATOR_OPTIONS", "SIMULATOR_KEYWORDS", "RULES", "Lengths", "ContaminationRange",
     "check_settings", "simulation_config", "observation_rows", "estimator_noise", "estimator_settings",
-    "check_reset_options",
+    "check_reset_options", "FieldError", "check_field", "check_fields",
 ]
 
 SAMPLING_MODES: tuple[str, ...] = ("guided", "prosac")
@@ -57,6 +61,8 @@ SIMULATOR_KEYWORDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(S
 
 # exp(+-300) is representable in float64; a larger logit range overflows the sampling weights.
 MAX_LOGIT = 300.0
+# The action Box is float32: a larger bound is no float32, and gymnasium's Box refused it without naming action_bound.
+MAX_ACTION_BOUND = float(np.finfo(np.float32).max)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -104,11 +110,60 @@ class ContaminationRange(Option):
         return 0.0 <= low <= high < 1.0, (low, high)
 
 
+class FieldError(ValueError):
+    """A config's refusal of one field's value, naming the field in structured form as well as in words.
+
+    The message is ``prefix + subject + rule``: ``subject`` is how it names the field (the field's
+    own name unless given, e.g. ``"every budget"``; empty for a message that starts with no name, whose
+    ``rule`` is then all of it) and ``rule`` what it says of the value (``" must be >= 2"``,
+    ``"=5 exceeds ..."``). A caller that set the field under another name (a command-line option)
+    gives the same message with that name: :meth:`named`.
+
+    Attributes:
+        field: the config field refused. subject, rule, prefix: the message's parts, as above.
+    """
+
+    def __init__(self, field: str, rule: str, subject: str | None = None, prefix: str = "") -> None:
+        self.field, self.rule, self.prefix = field, rule, prefix
+        self.subject = field if subject is None else subject
+        super().__init__(f"{prefix}{self.subject}{rule}")
+
+    def __reduce__(self):
+        # the constructor's arguments, not the message, so that a copy (pickle, a worker's) keeps the field
+        return type(self), (self.field, self.rule, self.subject, self.prefix)
+
+    def named(self, name: str) -> str:
+        """The message with ``name`` for the field and without the prefix: ``name + rule``, or
+        ``"name: rule"`` where the message names no field (an empty ``subject``)."""
+        return f"{name}{self.rule}" if self.subject else f"{name}: {self.rule}"
+
+
+def check_field(field: str, option: Option, value: Any, subject: str | None = None, prefix: str = "") -> Any:
+    """``option.check`` of one field's value: the value normalised, or a :class:`FieldError` whose message
+    is the one ``option.check`` gives (``"{prefix}SUBJECT must be RULE, got VALUE"``; ``subject`` as in
+    :class:`FieldError`, e.g. ``"every budget"`` for one entry of ``budgets``)."""
+    subject = field if subject is None else subject
+    try:
+        return option.check(subject, value, prefix="")
+    except OptionError as err:
+        text = str(err)
+        # Option.check's message is the name it was given, then what it says of the value
+        rule = text[len(subject):] if text.startswith(subject) else f": {text}"
+        raise FieldError(field, rule, subject=subject, prefix=prefix) from None
+
+
+def check_fields(declarations: Mapping[str, Option], values: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """:func:`~stereovo.options.check_options` of a config's fields, every one of ``declarations``, in
+    their order: the values normalised, or :func:`check_field`'s :class:`FieldError` for the first bad one
+    (the message ``check_options`` gives)."""
+    return {name: check_field(name, option, values[name], prefix=prefix) for name, option in declarations.items()}
+
+
 RULES: dict[str, Option] = {
     "sampling": Choice(choices=SAMPLING_MODES),
     "reward_mode": Choice(choices=REWARD_MODES),
     "render_mode": Choice(choices=("rgb_array",), allow_none=True),
-    "action_bound": Number(low=0.0, low_open=True),
+    "action_bound": Number(low=0.0, high=MAX_ACTION_BOUND, low_open=True),
     "logit_scale": Number(low=0.0, low_open=True),
     "success_bonus": Number(low=0.0, high=1.0),
     # Rewards are clipped to [-1, 1]: a cost above 1 per hypothesis would pin every reward at the floor.

@@ -29,11 +29,11 @@ from agents.network_size import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE
 from agents.ngransac import ordered_triplet_log_prob, randomised_settings
 from agents.training_limits import MAX_TRAINING_STEPS
 from stereovo.estimation.estimator_options import MAX_COUNT
-from stereovo.options import Choice, Integer, Number, Option, check_options
+from stereovo.options import Choice, Integer, Number, Option
 from stereovo.simulation.config import MAX_CORRESPONDENCES, MAX_FRAMES
 from vo_gym.adaptive_env import StereoVOAdaptiveEnv
 from vo_gym.registration import HARD_SETTINGS
-from vo_gym.settings import ContaminationRange
+from vo_gym.settings import ContaminationRange, FieldError, check_fields
 
 
 _TRAIN_RULES: dict[str, Option] = {
@@ -118,14 +118,15 @@ class AdaptiveTrainConfig:
     extra: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        check_options(_TRAIN_RULES, vars(self), prefix="", only=_TRAIN_RULES)
+        check_fields(_TRAIN_RULES, vars(self))
         count = AdaptiveSamplerNet.parameter_count(NETWORK_SIZES["n_features"], NETWORK_SIZES["n_globals"],
                                                    self.width, self.blocks)
         if count > MAX_NETWORK_PARAMETERS:
-            raise ValueError(f"width {self.width} and blocks {self.blocks} make a network of {count:,} parameters, "
-                             f"more than the {MAX_NETWORK_PARAMETERS:,} a checkpoint may hold")
+            raise FieldError("width", f" {self.width} and blocks {self.blocks} make a network of {count:,} "
+                             f"parameters, more than the {MAX_NETWORK_PARAMETERS:,} a checkpoint may hold")
         if self.prior is not None and self.init is not None:
-            raise ValueError("prior starts a fresh network; init continues a checkpoint (which keeps its own prior)")
+            raise FieldError("prior", " starts a fresh network; init continues a checkpoint (which keeps its own "
+                                      "prior)")
 
 
 def episode_settings(config: AdaptiveTrainConfig, episode: int) -> tuple[dict[str, Any], bool]:

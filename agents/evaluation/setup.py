@@ -19,6 +19,7 @@ from agents.catalog import IN_FRAME_SAMPLERS, SHIPPED_SAMPLERS, shipped_file
 from agents.policies import HEURISTICS, OraclePolicy, Policy, make_heuristic
 from stereovo.benchmark import typed_value
 from stereovo.options import Integer
+from vo_gym.settings import FieldError, check_field, check_fields
 
 ORACLE = "oracle"
 ORACLE_LABEL = "oracle (upper bound)"
@@ -187,6 +188,13 @@ def resolve_agents(texts: Sequence[str]) -> list[AgentSpec]:
 # --------------------------------------------------------------------------- settings
 
 
+_EVAL_RULES = {
+    **{name: Integer(low=1) for name in ("episodes", "frames_per_episode", "budget", "n", "max_iterations")},
+    "seed": Integer(low=0),
+}
+"""The declarations :class:`EvalConfig`'s counts are checked and normalised by (:mod:`stereovo.options`)."""
+
+
 @dataclass(frozen=True)
 class EvalConfig:
     """What to evaluate on. See the module doc for the protocol.
@@ -230,25 +238,27 @@ class EvalConfig:
 
     def __post_init__(self) -> None:
         if not isinstance(self.adaptive_agents, bool):
-            raise ValueError(f"adaptive_agents must be True or False, got {self.adaptive_agents!r}")
-        for name in ("episodes", "frames_per_episode", "budget", "n", "max_iterations"):
-            object.__setattr__(self, name, Integer(low=1).check(name, getattr(self, name), prefix=""))
-        object.__setattr__(self, "seed", Integer(low=0).check("seed", self.seed, prefix=""))
+            raise FieldError("adaptive_agents", f" must be True or False, got {self.adaptive_agents!r}")
+        for name, value in check_fields(_EVAL_RULES, vars(self)).items():
+            object.__setattr__(self, name, value)
         eps = tuple(float(e) for e in self.epsilons)
         if not eps or not all(0.0 <= e < 1.0 for e in eps) or len(set(eps)) != len(eps):
-            raise ValueError(f"epsilons must be distinct values in [0, 1), got {self.epsilons}")
+            raise FieldError("epsilons", f" must be distinct values in [0, 1), got {self.epsilons}")
         object.__setattr__(self, "epsilons", eps)
-        budgets = tuple(Integer(low=1).check("every budget", b, prefix="") for b in self.budgets)
+        budgets = tuple(check_field("budgets", Integer(low=1), b, subject="every budget") for b in self.budgets)
         if not budgets or len(set(budgets)) != len(budgets):
-            raise ValueError(f"budgets must be distinct integers >= 1, got {self.budgets}")
+            raise FieldError("budgets", f" must be distinct integers >= 1, got {self.budgets}")
         object.__setattr__(self, "budgets", tuple(sorted(budgets)))
         if not 0.0 <= float(self.sweep_epsilon) < 1.0:
-            raise ValueError(f"sweep_epsilon must be in [0, 1), got {self.sweep_epsilon}")
+            raise FieldError("sweep_epsilon", f" must be in [0, 1), got {self.sweep_epsilon}")
         object.__setattr__(self, "sweep_epsilon", float(self.sweep_epsilon))
-        object.__setattr__(self, "methods", tuple(normalize_methods(self.methods)))
+        try:
+            object.__setattr__(self, "methods", tuple(normalize_methods(self.methods)))
+        except ValueError as err:  # its message names no field: "unknown classical method(s): ..."
+            raise FieldError("methods", str(err), subject="") from None
         reserved = {"n_frames", "n_correspondences", "outlier_ratio", "budget"} & set(self.env_kwargs)
         if reserved:
-            raise ValueError(f"env_kwargs must not set {sorted(reserved)}: the evaluation's own options do")
+            raise FieldError("env_kwargs", f" must not set {sorted(reserved)}: the evaluation's own options do")
         # A keyword that a field also sets must agree with it: the frames would take one value and the
         # report's header (the config) show the other.
         for key in ("score_auc", "max_iterations"):

@@ -16,10 +16,10 @@ from typing import Any
 from agents.network_size import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE, ppo_policy_parameters
 from agents.training_limits import MAX_ENVS, MAX_TRAINING_STEPS
 from stereovo.estimation.estimator_options import MAX_COUNT
-from stereovo.options import Choice, Integer, Number, Option, check_options
+from stereovo.options import Choice, Integer, Number, Option
 from stereovo.simulation.config import MAX_CORRESPONDENCES, MAX_FRAMES
 from vo_gym.features import FEATURE_LAYOUT_VERSION, FEATURE_NAMES, N_FEATURES
-from vo_gym.settings import ContaminationRange
+from vo_gym.settings import ContaminationRange, FieldError, check_fields
 
 VEC_ENVS = ("dummy", "subproc")
 
@@ -115,18 +115,16 @@ class PPOConfig:
     max_wall_s: float | None = None
 
     def __post_init__(self) -> None:
-        for name, value in check_options(_PPO_RULES, vars(self), prefix="PPO: ", only=_PPO_RULES).items():
+        for name, value in check_fields(_PPO_RULES, vars(self), prefix="PPO: ").items():
             setattr(self, name, value)
         count = self.policy_parameters()
         if count > MAX_NETWORK_PARAMETERS:
-            raise ValueError(f"PPO: width {self.width}, blocks {self.blocks}, critic_width {self.critic_width} and "
+            raise FieldError("width", f" {self.width}, blocks {self.blocks}, critic_width {self.critic_width} and "
                              f"critic_hidden {self.critic_hidden} make a policy of {count:,} parameters, more than "
-                             f"the {MAX_NETWORK_PARAMETERS:,} a checkpoint may hold")
+                             f"the {MAX_NETWORK_PARAMETERS:,} a checkpoint may hold", prefix="PPO: ")
         if self.batch_size > self.n_steps * self.n_envs:
-            raise ValueError(
-                f"PPO: batch_size={self.batch_size} exceeds the rollout size n_steps * n_envs = "
-                f"{self.n_steps * self.n_envs}"
-            )
+            raise FieldError("batch_size", f"={self.batch_size} exceeds the rollout size n_steps * n_envs = "
+                                           f"{self.n_steps * self.n_envs}", prefix="PPO: ")
         self.env_kwargs = dict(self.env_kwargs)
 
     def policy_parameters(self) -> int:

@@ -295,3 +295,33 @@ def test_arguments_parsed_without_main_count_an_option_as_given_when_it_is_not_a
     evaluate.check_options_apply(parser.parse_args(["evaluate", "--adaptive", "--budget", "16"]))
     with pytest.raises(UsageError, match=r"^--budget 8 applies to the sweeps on simulated matches, not with --adaptive"):
         evaluate.check_options_apply(parser.parse_args(["evaluate", "--adaptive", "--budget", "8"]))
+
+
+@pytest.mark.parametrize("refusal, message", [
+    # a refusal whose words do not name the field still names the flag that set it
+    (("episodes", " exceed the seeds left", "the episode count"), "--episodes exceed the seeds left"),
+    (("methods", "none of these runs on simulated matches", ""), "--methods: none of these runs on simulated matches"),
+])
+def test_a_config_refusal_names_the_flag_of_its_field_not_of_its_words(tmp_path, capsys, monkeypatch, refusal, message):
+    from agents.evaluation.setup import EvalConfig
+    from vo_gym.settings import FieldError
+
+    def refuse(self):
+        raise FieldError(*refusal)
+
+    monkeypatch.setattr(EvalConfig, "__post_init__", refuse)
+    assert main(["evaluate", *SWEEP, "--out", str(tmp_path / "e")]) == 2
+    assert one_line_error(capsys, "evaluate") == f"vo-gym evaluate: error: {message}"
+    assert not (tmp_path / "e").exists()
+
+
+def test_a_config_refusal_without_a_field_keeps_its_words_even_when_they_start_with_a_fields_name(tmp_path, capsys,
+                                                                                                   monkeypatch):
+    from agents.evaluation.setup import EvalConfig
+
+    def refuse(self):
+        raise ValueError("episodes must be fewer")  # no FieldError: which flag set it is not read from the words
+
+    monkeypatch.setattr(EvalConfig, "__post_init__", refuse)
+    assert main(["evaluate", *SWEEP, "--out", str(tmp_path / "e")]) == 2
+    assert one_line_error(capsys, "evaluate") == "vo-gym evaluate: error: episodes must be fewer"

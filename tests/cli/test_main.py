@@ -61,6 +61,7 @@ OPTION_TEXTS = st.sampled_from(["-1", "0", "1", "2", "0.5", "1e3", "nan", "inf",
                                 "0.3:0.9", "2:1", "1e309", "ppo", "msac", "/dev/null", "--x", " ", "0x10"])
 
 
+BIG = "1" + "0" * 30
 BAD_ARGUMENTS = [
     ("bench", ["--no-peers", "--frames", "0"], "--frames must be >= 1"),
     ("bench", ["--no-peers", "--frames", "x"], "--frames"),
@@ -99,6 +100,27 @@ BAD_ARGUMENTS = [
     ("train", ["--n-envs", "0"], "--n-envs"),
     ("train", ["--timesteps", "1e3"], "--timesteps"),
     ("train", ["--lr", "-1"], "--lr"),
+    # counts past the library's caps, refused while parsing: they overflowed a C int (bench --frames, --workers),
+    # escaped as the simulator's traceback (bench --ns), were blamed on --env-id (evaluate) or failed every
+    # estimator call of a run that then exited 0 (baselines --max-iterations)
+    ("bench", ["--no-peers", "--ns", BIG], f"--ns must be <= 100000000, got {BIG}"),
+    ("bench", ["--no-peers", "--frames", BIG], f"--frames must be <= 1000000, got {BIG}"),
+    ("evaluate", ["--n", "2"], "--n must be >= 3, got 2"),
+    ("evaluate", ["--frames-per-episode", BIG], f"--frames-per-episode must be <= 1000000, got {BIG}"),
+    ("evaluate", ["--budget", BIG], f"--budget must be <= 1000000000, got {BIG}"),
+    ("evaluate", ["--budgets", f"4,{BIG}"], f"--budgets must each be <= 1000000000, got {BIG}"),
+    ("evaluate", ["--max-iterations", BIG], f"--max-iterations must be <= 1000000000, got {BIG}"),
+    ("evaluate", ["--workers", BIG], f"--workers must be <= 1024, got {BIG}"),
+    ("baselines", ["--max-iterations", BIG], f"--max-iterations must be <= 1000000000, got {BIG}"),
+    ("baselines", ["--workers", "5000"], "--workers must be <= 1024, got 5000"),
+    # seeds past what torch (64 bits) and stable-baselines3's numpy seeding (32 bits) take
+    ("train", ["--seed", str(2**64)], f"--seed must be <= {2**64 - 1} with --algo ngransac, got {2**64}"),
+    ("train", ["--algo", "ppo", "--seed", str(2**32)], f"--seed must be <= {2**32 - 1} with --algo ppo, got {2**32}"),
+    # a typed value with a line break, or none at all, stays visible on the one line
+    ("train", ["--resume", ""], "--resume: no checkpoint at ''"),
+    ("train", ["--resume", "a\nb"], "--resume: no checkpoint at 'a\\nb'"),
+    ("train", ["--algo", "ngransac", "--env-id", "a\nb"], "does not take --env-id a\\nb (an option of ppo)"),
+    ("evaluate", ["--env-id", "a\nb"], "--env-id: environment 'a\\nb': "),
 ]
 """Bad values of every command: rejected while parsing (argparse's exit) or by the command's own
 check (its return code), alike for the user: exit 2, one line naming the flag, nothing written."""
@@ -109,6 +131,24 @@ def test_bad_arguments_are_one_line_naming_them(tmp_path, capsys, command, argv,
     assert exit_code([command, *argv, "--out", str(tmp_path / "out"), "--no-progress"]) == 2
     assert needle in one_line_error(capsys, command)
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("argv", [["vo"], ["bench", "--no-peers"], ["train"], ["evaluate"], ["baselines"],
+                                  ["sweep", str(ROOT / "configs" / "sweeps" / "example.yaml")]])
+def test_an_empty_out_is_refused_not_taken_for_the_current_folder(tmp_path, capsys, monkeypatch, argv):
+    monkeypatch.chdir(tmp_path)
+    assert exit_code([*argv, "--out", ""]) == 2
+    assert one_line_error(capsys, argv[0]).endswith(
+        "--out must name a file or folder, got '' (the current folder is '.')")
+    assert not any(tmp_path.iterdir())  # vo wrote its results into the current folder
+
+
+def test_bench_refuses_seeds_the_peers_cannot_take_before_computing(capsys):
+    pytest.importorskip("cv2")
+    assert exit_code(["bench", "--seed", str(2**31 - 1), "--frames", "2", "--ns", "60", "--epsilons", "0.5"]) == 2
+    assert one_line_error(capsys, "bench").endswith(
+        f"--seed {2**31 - 1} with --frames 2 seeds the peers up to {2**31}; they take seeds up to {2**31 - 1} "
+        "(OpenCV's generator takes a C int): a smaller --seed, or --no-peers")
 
 
 def test_train_unknown_env_id_is_a_usage_error(tmp_path, capsys):

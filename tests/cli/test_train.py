@@ -333,3 +333,38 @@ def test_a_setting_the_trainer_refuses_is_named_before_out_is_made(tmp_path, cap
     line = one_line_error(capsys, "train")
     assert line.startswith(f"vo-gym train: error: {message}"), line
     assert not (tmp_path / "t").exists()
+
+
+@pytest.mark.parametrize("algo, argv, refusal, message", [
+    # a refusal whose words do not name the field still names the option that set it
+    ("ppo", ["--frames-per-episode", "9"], ("n_frames", " are too many for one episode", "the episode length"),
+     "--frames-per-episode are too many for one episode"),
+    ("ngransac", ["--pools", "3"], ("pools", "share one baseline, and three of them ...", ""),
+     "--pools: share one baseline, and three of them ..."),
+    ("adaptive", ["--n-correspondences", "40"], ("n", " must be more matches", "the frame's size"),
+     "--n-correspondences must be more matches"),
+])
+def test_a_config_refusal_names_the_option_of_its_field_not_of_its_words(tmp_path, capsys, monkeypatch, algo, argv,
+                                                                           refusal, message):
+    from vo_gym.settings import FieldError
+
+    field, rule, subject = refusal
+    assert field not in str(FieldError(field, rule, subject=subject)).split()
+
+    def refuse(self):
+        raise FieldError(field, rule, subject=subject)
+
+    monkeypatch.setattr(train._config_class(algo), "__post_init__", refuse)
+    assert main(["train", "--algo", algo, *argv, "--no-progress", "--out", str(tmp_path / "t")]) == 2
+    assert one_line_error(capsys, "train") == f"vo-gym train: error: {message}"
+    assert not (tmp_path / "t").exists()
+
+
+def test_a_config_refusal_without_a_field_keeps_its_words_even_when_they_start_with_a_fields_name(tmp_path, capsys,
+                                                                                                   monkeypatch):
+    def refuse(self):
+        raise ValueError("pools must be >= 2")  # no FieldError: which option set it is not read from the words
+
+    monkeypatch.setattr(NGRansacConfig, "__post_init__", refuse)
+    assert main(["train", "--algo", "ngransac", "--pools", "1", "--no-progress", "--out", str(tmp_path / "t")]) == 2
+    assert one_line_error(capsys, "train") == "vo-gym train: error: pools must be >= 2"

@@ -584,7 +584,7 @@ def test_image_frames_read_the_action_slots_of_their_own_matches_only():
     env.reset(seed=0)
     own = np.zeros(64)
     own[39] = np.nan
-    with pytest.raises(ValueError, match=r"^StereoVOEnv: the action has NaN or inf in 1 valid slot\(s\) "
+    with pytest.raises(ValueError, match=r"^StereoVOImagesEnv: the action has NaN or inf in 1 valid slot\(s\) "
                                          r"\(first: slot 39\)$"):
         env.step(own)
 

@@ -132,7 +132,7 @@ def test_a_recorded_source_gives_windows_placed_by_the_seed(tmp_path):
     ({"frontend_options": {"detector": "surf"}}, ValueError, "FrontendOptions.detector must be one of"),
     ({"frontend_options": {"colour": True}}, TypeError, "StereoVOImagesEnv: frontend_options"),
     ({"source": 5}, ValueError, "source must be a frame sequence with known poses"),
-    ({"method": "nope"}, ValueError, "StereoVOEnv: method"),
+    ({"method": "nope"}, ValueError, "StereoVOImagesEnv: method"),
 ])
 def test_bad_arguments_are_named(kwargs, error, message):
     with pytest.raises(error) as err:

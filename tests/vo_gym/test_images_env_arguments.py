@@ -42,3 +42,18 @@ def test_camera_is_refused_like_the_other_simulator_only_keywords(camera):
         gym.make("vo_gym/StereoVOImages-v0", **SMALL, camera=camera)
     assert "StereoVOImagesEnv: ['camera'] are simulator settings; on images the front end decides them (and the " \
            "camera is the resolution's or the source's)" in str(err.value)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"source": 5}, "StereoVOImagesEnv: source must be a frame sequence with known poses (true_poses), got 5: "),
+    ({"source": 0.5}, "StereoVOImagesEnv: source must be a frame sequence with known poses (true_poses), got 0.5: "),
+    ({"frontend_options": "n_features=500"},
+     "StereoVOImagesEnv: frontend_options must be a dict of FrontendOptions fields, got 'n_features=500'"),
+    ({"frontend_options": float("nan")}, "StereoVOImagesEnv: frontend_options must be a dict of FrontendOptions "
+                                         "fields, got nan"),
+])
+def test_a_source_or_frontend_options_of_the_wrong_kind_is_named_with_its_value(kwargs, message):
+    # they named the value's type alone ("got int"), not the value
+    with pytest.raises(ValueError) as err:
+        gym.make("vo_gym/StereoVOImages-v0", **SMALL, **kwargs)
+    assert str(err.value).startswith(message), str(err.value)

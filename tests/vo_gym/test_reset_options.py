@@ -35,6 +35,6 @@ def test_the_images_environment_refuses_them_too_before_rendering_anything():
     from vo_gym.images_env import StereoVOImagesEnv
 
     env = StereoVOImagesEnv(n_frames=1, max_correspondences=60)
-    with pytest.raises(ValueError, match=r"^StereoVOEnv: reset\(\) takes no options .* got options=\{'foo': 1\}$"):
+    with pytest.raises(ValueError, match=r"^StereoVOImagesEnv: reset\(\) takes no options .* got options=\{'foo': 1\}$"):
         env.reset(seed=0, options={"foo": 1})
     assert not env._episodes  # nothing rendered

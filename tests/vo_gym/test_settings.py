@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 import dataclasses
+import pickle
 
 import numpy as np
 import pytest
 
 from stereovo.estimation import available_methods, method_spec
+from stereovo.options import Integer, Number, check_options, value_repr
 from stereovo.simulation import SimulationConfig
 from vo_gym.adaptive_env import StereoVOAdaptiveEnv
 from vo_gym.env import StereoVOEnv
 from vo_gym.names import constructor_keywords
-from vo_gym.settings import RULES, SIMULATOR_KEYWORDS, Lengths, check_settings
+from vo_gym.settings import RULES, SIMULATOR_KEYWORDS, FieldError, Lengths, check_field, check_fields, check_settings
 
 SMALL = dict(n_frames=2, n_correspondences=60)
 BOTH = (StereoVOEnv, StereoVOAdaptiveEnv)
@@ -27,7 +29,7 @@ def _message(cls, **kwargs) -> str:
 @pytest.mark.parametrize("kwargs, rule", [
     ({"hypothesis_cost": 1.5}, "hypothesis_cost must be a finite number in [0, 1], got 1.5"),
     ({"hypothesis_cost": -1}, "hypothesis_cost must be a finite number in [0, 1], got -1"),
-    ({"action_bound": 0.0}, "action_bound must be a finite number > 0, got 0.0"),
+    ({"action_bound": 0.0}, "action_bound must be a finite number in (0, 3.40282e+38], got 0.0"),
     ({"logit_scale": float("nan")}, "logit_scale must be a finite number > 0, got nan"),
     ({"success_bonus": "0.5"}, "success_bonus must be a finite number in [0, 1], got '0.5'"),
     ({"failure_reward": -2}, "failure_reward must be a finite number in [-1, 1], got -2"),
@@ -144,3 +146,53 @@ def test_a_belief_sampler_under_prosac_sampling_is_refused_at_construction(metho
     # it used to be accepted and to fail at the first step, when the recipe was built with the order
     with pytest.raises(ValueError, match=f"method '{method}' with sampling='prosac': .*give priors= \\(or nothing\\)"):
         StereoVOEnv(sampling="prosac", method=method)
+
+
+@pytest.mark.parametrize("value", [0, -1, 2.5, True, None, "3", 10**400, np.int64(0)], ids=value_repr)
+def test_check_fields_refuses_with_check_options_message_and_names_the_field(value):
+    declarations = {"seed": Integer(low=0), "frames": Integer(low=1, high=10**9),
+                    "rate": Number(low=0.0, low_open=True)}
+    values = {"seed": 1, "frames": value, "rate": 0.5}
+    with pytest.raises(ValueError) as words:
+        check_options(declarations, values, prefix="PPO: ")
+    with pytest.raises(FieldError) as err:
+        check_fields(declarations, values, prefix="PPO: ")
+    assert str(err.value) == str(words.value)
+    assert (err.value.field, err.value.prefix) == ("frames", "PPO: ")
+    assert err.value.named("--frames") == str(words.value).replace("PPO: frames", "--frames")
+
+
+def test_check_fields_returns_the_normalised_values_in_the_declarations_order():
+    checked = check_fields({"b": Integer(low=0), "a": Number(low=0.0)}, {"a": np.float32(0.5), "b": np.int64(3)})
+    assert list(checked) == ["b", "a"] and checked == {"b": 3, "a": 0.5}
+    assert type(checked["b"]) is int and type(checked["a"]) is float
+
+
+def test_a_field_error_names_its_field_whatever_its_words_say():
+    err = FieldError("budgets", " must be an integer >= 1, got 0", subject="every budget")
+    assert str(err) == "every budget must be an integer >= 1, got 0" and err.field == "budgets"
+    assert err.named("--budgets") == "--budgets must be an integer >= 1, got 0"
+    # a message that starts with no name gets the caller's name before it
+    unnamed = FieldError("methods", "unknown classical method(s): nope", subject="")
+    assert str(unnamed) == "unknown classical method(s): nope"
+    assert unnamed.named("--methods") == "--methods: unknown classical method(s): nope"
+    with pytest.raises(FieldError) as entry:
+        check_field("budgets", Integer(low=1), 0, subject="every budget")
+    assert (str(entry.value), entry.value.field) == (str(err), "budgets")
+
+
+def test_a_field_error_keeps_its_field_through_pickle():
+    err = pickle.loads(pickle.dumps(FieldError("batch_size", "=9 exceeds the rollout size", prefix="PPO: ")))
+    assert (str(err), err.field, err.named("--batch-size")) == (
+        "PPO: batch_size=9 exceeds the rollout size", "batch_size", "--batch-size=9 exceeds the rollout size")
+
+
+@pytest.mark.parametrize("cls, kwargs", [(StereoVOEnv, {"sampling": "prosac"}),
+                                         (StereoVOEnv, {"logit_scale": 1e-38}),
+                                         (StereoVOAdaptiveEnv, {"logit_scale": 1e-38})])
+def test_an_action_bound_past_float32_is_refused_naming_it(cls, kwargs):
+    # the action Box is float32: gymnasium refused such a bound without naming action_bound
+    message = _message(cls, action_bound=1e39, **kwargs)
+    assert message == f"{cls.__name__}: action_bound must be a finite number in (0, 3.40282e+38], got 1e+39"
+    assert cls(**SMALL, action_bound=float(np.finfo(np.float32).max), **kwargs).action_space.high[0] == np.finfo(
+        np.float32).max

@@ -44,11 +44,14 @@ from vo_gym_cli.commands.common import (
     PRESETS,
     RunStart,
     UsageError,
+    bounded_int,
     check_output_dir,
     flag_error,
     csv_list,
     interrupted_run,
+    max_count,
     open_run_folder,
+    output_path,
     parse_source,
     positive_int,
     seed as parse_seed,
@@ -60,12 +63,17 @@ from vo_gym_cli.commands.common import (
 # (a test checks that the two agree).
 PLOT_FORMATS = ("png", "pdf", "svg")
 
+MAX_WORKERS = 1024
+"""The most worker processes (or local Ray CPUs) ``--workers`` asks for: more than any machine here has;
+a larger count is a typo (``10**30`` overflowed the process pool's C int)."""
+
+
 def add_backend_options(parser: argparse.ArgumentParser, what: str = "trials") -> None:
     """``--backend``, ``--workers``, ``--address``, ``--resume``, ``--overwrite``: shared by every grid command."""
     group = parser.add_argument_group("where the trials run and how a run survives")
     group.add_argument("--backend", choices=("local", "ray"), default="local",
                        help=f"local: {what} in this process or a process pool (default); ray: Ray tasks")
-    group.add_argument("--workers", type=positive_int("--workers"), default=None, metavar="N",
+    group.add_argument("--workers", type=bounded_int("--workers", 1, MAX_WORKERS), default=None, metavar="N",
                        help="worker processes (local) or CPUs of the local Ray instance (default: the CPUs"
                             " available)")
     group.add_argument("--address", default=None, metavar="auto|HOST:PORT",
@@ -113,7 +121,8 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                         help="override the grid's outlier kinds (mix, random, stereo, moving; hostile: the "
                              "simulator's hostile preset, match errors and Student-t noise the default grid never "
                              "makes)")
-    parser.add_argument("--max-iterations", type=positive_int("--max-iterations"), default=None, metavar="K",
+    parser.add_argument("--max-iterations", type=bounded_int("--max-iterations", 1, max_count), default=None,
+                        metavar="K",
                         help="hypothesis cap for every method (default: 2000; --full: the core's default)")
     parser.add_argument("--preset", default=None, choices=list(PRESETS), help="motion preset (default: car)")
     parser.add_argument("--source", type=parse_source, default=None, metavar="rendered[:PRESET]",
@@ -126,7 +135,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--resolution", default=None, choices=["kitti", "vga"],
                         help="with --source: image size, kitti (1241x376) or vga (640x480) (default: kitti)")
     parser.add_argument("--seed", type=parse_seed, default=0, help="base seed of frames and estimators (default: 0)")
-    parser.add_argument("--out", type=Path, default=Path("runs/baselines"), help="output folder (default: runs/baselines)")
+    parser.add_argument("--out", type=output_path(), default=Path("runs/baselines"), help="output folder (default: runs/baselines)")
     parser.add_argument("--no-plots", action="store_true", help="skip the figures")
     parser.add_argument("--format", choices=PLOT_FORMATS, default="png", dest="plot_format",
                         help="file format of the figures (default: png)")

@@ -24,8 +24,10 @@ from vo_gym_cli.commands.common import (
     check_output_file,
     csv_list,
     finite_float,
+    max_correspondences,
+    max_frames,
     method_name,
-    positive_int,
+    output_path,
     score_inputs,
 )
 from vo_gym_cli.commands.common import seed as seed_type
@@ -39,6 +41,10 @@ DEFAULT_EPSILONS = (0.2, 0.5, 0.8)
 # "hostile": the simulator's hostile preset (SimulationConfig(outliers="hostile")): the match errors of
 # real front ends, several of which leave rows without a depth (peers get the rows with one at k-1).
 BENCH_OUTLIER_MIXES = {"random": (1.0, 0.0, 0.0), "random+stereo": (0.8, 0.2, 0.0), "hostile": None}
+
+
+PEER_SEED_MAX = 2**31 - 1
+"""The largest seed the peers take (``cv2.setRNGSeed`` refuses what does not fit a C int)."""
 
 
 def _runners(args: argparse.Namespace) -> dict[str, Callable]:
@@ -65,13 +71,14 @@ def _runners(args: argparse.Namespace) -> dict[str, Callable]:
 
 
 def add_parser(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--ns", type=csv_list(bounded_int("--ns", 3), "--ns"), default=list(DEFAULT_NS),
+    parser.add_argument("--ns", type=csv_list(bounded_int("--ns", 3, max_correspondences), "--ns"),
+                        default=list(DEFAULT_NS),
                         metavar="N,...", help="comma-separated correspondence counts N (each >= 3)")
     parser.add_argument("--epsilons", type=csv_list(finite_float("--epsilons", 0.0, 1.0, high_open=True), "--epsilons"),
                         default=list(DEFAULT_EPSILONS), metavar="E,...",
                         help="comma-separated contaminations, each in [0, 1)")
     parser.add_argument(
-        "--frames", type=positive_int("--frames"), default=100,
+        "--frames", type=bounded_int("--frames", 1, max_frames), default=100,
         help="frames per (N, epsilon) cell (a median rotation error over fewer frames can tie by chance)",
     )
     parser.add_argument("--method", type=method_name("--method"), default="probabilistic",
@@ -94,7 +101,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--superansac-rigid", action="store_true",
                         help="also run SupeRANSAC's 3-D-3-D rigid transform on the points triangulated in both frames"
                              " (not with --no-peers)")
-    parser.add_argument("--out", default=None, metavar="CSV",
+    parser.add_argument("--out", type=output_path("--out", str), default=None, metavar="CSV",
                         help="optional CSV path for the per-cell table (default: none)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
@@ -143,13 +150,18 @@ def run(args: argparse.Namespace) -> int:
             ["--superansac-rigid"] if args.superansac_rigid else [])
         if given:
             raise UsageError(f"{given[0]} applies to the SupeRANSAC peer, which --no-peers skips")
-    if args.out:
+    if args.out is not None:
         check_output_file(args.out, "--out")  # before any computing, so no result is lost
     # Imported after the check: the benchmark package binds the simulator's functions when it loads.
     from stereovo.benchmark.peers import frame_errors
 
     ns, epsilons = list(args.ns), list(args.epsilons)
     runners = _runners(args)
+    last_seed = args.seed + args.frames - 1  # frame i of a cell seeds every estimator with --seed + i
+    if len(runners) > 1 and last_seed > PEER_SEED_MAX:
+        raise UsageError(f"--seed {args.seed} with --frames {args.frames} seeds the peers up to {last_seed}; they take "
+                         f"seeds up to {PEER_SEED_MAX} (OpenCV's generator takes a C int): a smaller --seed, or "
+                         "--no-peers")
     print(f"threads: OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}; times are wall-clock per frame")
 
     rows = []
@@ -183,7 +195,7 @@ def run(args: argparse.Namespace) -> int:
                     )
                 )
     _print_table(rows, list(runners))
-    if args.out:
+    if args.out is not None:
         import csv
 
         with open(args.out, "w", newline="") as fh:

@@ -103,8 +103,10 @@ def csv_list(kind: Callable[[str], Any], name: str) -> Callable[[str], list[Any]
     return parse
 
 
-def bounded_int(name: str, minimum: int) -> Callable[[str], int]:
-    """An argparse type for integers ``>= minimum``; errors name ``name`` and the value."""
+def bounded_int(name: str, minimum: int, maximum: int | Callable[[], int] | None = None) -> Callable[[str], int]:
+    """An argparse type for integers ``>= minimum`` (and ``<= maximum``: a number, or a function giving
+    the library's cap, read only when a value is parsed so that building the parser imports nothing);
+    errors name ``name`` and the value."""
 
     def parse(text: str) -> int:
         try:
@@ -113,7 +115,48 @@ def bounded_int(name: str, minimum: int) -> Callable[[str], int]:
             raise argparse.ArgumentTypeError(f"{name} {text!r} is not an integer") from None
         if value < minimum:
             raise argparse.ArgumentTypeError(f"{name} must be >= {minimum}, got {value}")
+        most = maximum() if callable(maximum) else maximum
+        if most is not None and value > most:
+            from stereovo.options import value_repr
+
+            raise argparse.ArgumentTypeError(f"{name} must be <= {most}, got {value_repr(value)}")
         return value
+
+    return parse
+
+
+def max_count() -> int:
+    """The estimator's cap on a count of hypotheses (a budget, an iteration cap)."""
+    from stereovo.estimation.estimator_options import MAX_COUNT
+
+    return MAX_COUNT
+
+
+def max_correspondences() -> int:
+    """The simulator's cap on the matches of a frame."""
+    from stereovo.simulation.config import MAX_CORRESPONDENCES
+
+    return MAX_CORRESPONDENCES
+
+
+def max_frames() -> int:
+    """The simulator's cap on the frames of a sequence."""
+    from stereovo.simulation.config import MAX_FRAMES
+
+    return MAX_FRAMES
+
+
+def output_path(name: str = "--out", kind: Callable[[str], Any] = Path) -> Callable[[str], Any]:
+    """An argparse type for an output path: ``kind(text)``, refusing an empty one (``Path("")`` is the
+    current folder, where an unset shell variable would have a command write) and one holding a NUL
+    character (no file system takes it)."""
+
+    def parse(text: str) -> Any:
+        if not text:
+            raise argparse.ArgumentTypeError(f"{name} must name a file or folder, got '' (the current folder is '.')")
+        if "\x00" in text:
+            raise argparse.ArgumentTypeError(f"{name} must not hold a NUL character, got {text!r}")
+        return kind(text)
 
     return parse
 
@@ -521,13 +564,19 @@ def require_extra(extra: str, *modules: str, context: str = "") -> None:
                              f"pip install 'vo-gym[{extra}]'")
 
 
+def one_line(message: str) -> str:
+    """``message`` on one line: a line break it holds (a typed value's, a library's multi-line text)
+    written as ``\\n``, as ``repr`` writes it."""
+    return message.replace("\r", "\\r").replace("\n", "\\n")
+
+
 def guarded(command: str, run: Callable[[], int]) -> int:
     """Run a command body; usage errors and Ctrl-C become one line and exit codes 2 / 130, and so
     does a missing optional extra (its ``pip install`` line, exit 2)."""
     try:
         code = int(run() or 0)
     except UsageError as err:
-        print(f"vo-gym {command}: error: {err}", file=sys.stderr)
+        print(f"vo-gym {command}: error: {one_line(str(err))}", file=sys.stderr)
         return EXIT_USAGE
     except ValueError as err:
         from stereovo.simulation import InfeasibleSettingsError  # only on this path: the parser stays light

@@ -36,8 +36,9 @@ from pathlib import Path
 from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
 from vo_gym_cli.commands.baselines import PLOT_FORMATS, add_backend_options, backend_from_args
 from vo_gym_cli.commands.common import OUTLIER_PRESETS, open_run_folder, unread_option
-from vo_gym_cli.commands.common import RunStart, UsageError, check_step_env, flag_error, interrupted_run, stoppable
-from vo_gym_cli.commands.common import csv_list, positive_int, seed
+from vo_gym_cli.commands.common import RunStart, UsageError, check_step_env, interrupted_run, stoppable
+from vo_gym_cli.commands.common import bounded_int, csv_list, max_correspondences, max_count, max_frames, output_path
+from vo_gym_cli.commands.common import positive_int, seed
 
 DEFAULT_AGENTS = ("uniform", "match-score", "consistency", "constant-velocity", "oracle")
 
@@ -64,12 +65,12 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--env-id", default="vo_gym/StereoVO-v0", help="environment id (default: vo_gym/StereoVO-v0)")
     parser.add_argument("--episodes", type=positive_int("--episodes"), default=10,
                         help="episodes per setting (default: 10)")
-    parser.add_argument("--frames-per-episode", type=positive_int("--frames-per-episode"), default=10,
+    parser.add_argument("--frames-per-episode", type=bounded_int("--frames-per-episode", 1, max_frames), default=10,
                         help="frame pairs per episode (default: 10)")
     parser.add_argument("--seed", type=seed, default=1000,
                         help="seed of the first episode; episode i uses seed+i (default: 1000, away from"
                              " training seeds)")
-    parser.add_argument("--budget", type=positive_int("--budget"), default=16,
+    parser.add_argument("--budget", type=bounded_int("--budget", 1, max_count), default=16,
                         help="hypotheses per frame of the contamination sweep (default: 16)")
     parser.add_argument("--epsilons", type=csv_list(float, "--epsilons"), default=[0.3, 0.5, 0.7, 0.8, 0.9],
                         metavar="E,...", help="contaminations of sweep (a) (default: 0.3,0.5,0.7,0.8,0.9)")
@@ -77,13 +78,14 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                         metavar="B,...", help="hypothesis budgets of sweep (b) (default: 1,2,4,8,16,32,64)")
     parser.add_argument("--sweep-epsilon", type=float, default=0.8,
                         help="contamination of the budget sweep (default: 0.8)")
-    parser.add_argument("--n", type=positive_int("--n"), default=500, help="correspondences per frame (default: 500)")
+    parser.add_argument("--n", type=bounded_int("--n", 3, max_correspondences), default=500,
+                        help="correspondences per frame (default: 500)")
     parser.add_argument("--auc", type=float, default=None,
                         help="match-score ROC AUC (default: the env id's own, 0.75 for StereoVO-v0)")
     parser.add_argument("--methods", type=csv_list(str, "--methods"), default=None, metavar="A,B,...",
                         help="classical methods side by side (default: ransac,msac,prosac,guided;"
                              " 'guided' = ransac with the match scores as sampling priors; 'none' for none)")
-    parser.add_argument("--max-iterations", type=positive_int("--max-iterations"), default=None,
+    parser.add_argument("--max-iterations", type=bounded_int("--max-iterations", 1, max_count), default=None,
                         help="hypothesis cap of the adaptive classical runs (default: --env-kwargs' max_iterations,"
                              " else 2000)")
     parser.add_argument("--outlier-preset", default=None, choices=list(OUTLIER_PRESETS),
@@ -93,7 +95,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                              " id's own)")
     parser.add_argument("--env-kwargs", default=None, metavar="JSON",
                         help="further environment keyword arguments as a JSON object, e.g. '{\"noise_sigma\": 1.0}'")
-    parser.add_argument("--out", type=Path, default=Path("runs/evaluate"),
+    parser.add_argument("--out", type=output_path(), default=Path("runs/evaluate"),
                         help="output folder (default: runs/evaluate)")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON instead of the tables")
     parser.add_argument("--no-plots", action="store_true", help="skip the figures")
@@ -130,21 +132,22 @@ def run(args: argparse.Namespace) -> int:
     return stoppable("evaluate", lambda: _run(args))
 
 
-# EvalConfig's field (how its errors start) -> the flag that sets it.
+# EvalConfig's field -> the flag that sets it.
 _CONFIG_FLAGS = {
     "episodes": "--episodes", "frames_per_episode": "--frames-per-episode", "seed": "--seed", "budget": "--budget",
-    "epsilons": "--epsilons", "every budget": "--budgets", "budgets": "--budgets", "sweep_epsilon": "--sweep-epsilon",
-    "n": "--n", "max_iterations": "--max-iterations", "unknown classical method": "--methods",
-    "env_kwargs": "--env-kwargs",
+    "epsilons": "--epsilons", "budgets": "--budgets", "sweep_epsilon": "--sweep-epsilon", "n": "--n",
+    "max_iterations": "--max-iterations", "methods": "--methods", "env_kwargs": "--env-kwargs",
 }
 
 
 def _config_error(err: ValueError) -> UsageError:
-    text = str(err)
-    for field, flag in _CONFIG_FLAGS.items():
-        if text.startswith(field + " ") or text.startswith(field + "("):
-            return flag_error(flag, err)
-    return UsageError(text)
+    """EvalConfig's refusal as a usage error: a field's (:class:`~vo_gym.settings.FieldError`, which names
+    it) says the same of the flag that set it; any other keeps its own words."""
+    from vo_gym.settings import FieldError
+
+    if isinstance(err, FieldError) and err.field in _CONFIG_FLAGS:
+        return UsageError(err.named(_CONFIG_FLAGS[err.field]))
+    return UsageError(str(err))
 
 
 def _environment_error(err: ValueError, args: argparse.Namespace) -> UsageError:
@@ -274,6 +277,12 @@ def _run_adaptive(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     check_options_apply(args)
+    # the environment's own cap, named here rather than as the environment's refusal of --env-id's keywords
+    over = next((b for b in args.budgets if b > max_count()), None)
+    if over is not None:
+        from stereovo.options import value_repr
+
+        raise UsageError(f"--budgets must each be <= {max_count()}, got {value_repr(over)}")
     if args.adaptive:
         return _run_adaptive(args)
     if args.source is not None:

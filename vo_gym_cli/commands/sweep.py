@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 
 from vo_gym_cli.commands.common import (
-    EXIT_INTERRUPTED, UsageError, check_output_dir, guarded, positive_int, require_extras,
+    EXIT_INTERRUPTED, UsageError, check_output_dir, guarded, output_path, positive_int, require_extras,
 )
 
 
@@ -27,7 +27,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = "example: vo-gym sweep configs/sweeps/example.yaml (a few minutes on 2 cores)"
     parser.add_argument("config", type=Path, help="sweep file (YAML): algo, fixed, space, metric, scheduler")
-    parser.add_argument("--out", type=Path, default=None, help="output folder (default: runs/sweep/<name>)")
+    parser.add_argument("--out", type=output_path(), default=None, help="output folder (default: runs/sweep/<name>)")
     parser.add_argument("--workers", type=positive_int("--workers"), default=None, metavar="N",
                         help="CPUs of the local Ray instance = trials side by side (default: the CPUs available)")
     parser.add_argument("--address", default=None, metavar="auto|HOST:PORT",

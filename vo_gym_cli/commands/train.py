@@ -29,7 +29,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import re
 from pathlib import Path
 from typing import Any, Callable
 
@@ -42,6 +41,7 @@ from vo_gym_cli.commands.common import (
     finite_float,
     given_options,
     late_help,
+    output_path,
     positive_int,
     require_extras,
     seed,
@@ -144,7 +144,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--algo", choices=("ngransac", "ppo", "adaptive"), default="ngransac",
                         help="trainer: NG-RANSAC-style policy gradient, stable-baselines3 PPO, or the in-frame "
                              "sampler (adaptive: acts inside each frame's RANSAC loop and stops it)")
-    parser.add_argument("--out", default="runs/train",
+    parser.add_argument("--out", type=output_path("--out", str), default="runs/train",
                         help="output folder: the checkpoint and training.json; ngransac and ppo also write TensorBoard"
                              " logs under tb/, adaptive its log windows in training.jsonl (default: runs/train)")
     parser.add_argument("--overwrite", action="store_true",
@@ -270,20 +270,20 @@ def config_values(args: argparse.Namespace, algo: str, only: set[str] | None = N
 
 
 def _config_error(err: Exception, args: argparse.Namespace) -> UsageError:
-    """A trainer config's refusal, whose message starts with the field's name (``frames must ...``,
-    ``PPO: batch_size=...``), as a usage error naming the option that set it; a resumed run's field
-    that no option set is the checkpoint's, and the message names the checkpoint."""
-    text = str(err)
-    body = text.removeprefix("PPO: ")
-    match = re.match(r"([a-z_]+)(?=[ =])", body)
+    """A trainer config's refusal as a usage error: a field's (:class:`~vo_gym.settings.FieldError`,
+    which names it) names the option that set it (``--pools must ...``, ``--batch-size=...``); a
+    resumed run's field that no option set is the checkpoint's, and the message names the checkpoint.
+    Any other refusal (a checkpoint's, a field no option sets) keeps its own words."""
+    from vo_gym.settings import FieldError
+
     dests = {field: dest for dest, field in OPTIONS[args.algo].items() if dest != "resume"}
-    if match is None or match.group(1) not in dests:
-        return UsageError(text)
-    dest = dests[match.group(1)]
+    if not isinstance(err, FieldError) or err.field not in dests:
+        return UsageError(str(err))
+    dest = dests[err.field]
     typed = given_options(args, add_parser)
     if args.resume is not None and dest not in typed:
-        return UsageError(f"--resume {args.resume}: its training config: {body}")
-    return UsageError(f"{typed.get(dest, _flag(dest))}{body[len(match.group(1)):]}")
+        return UsageError(f"--resume {args.resume}: its training config: {err.subject}{err.rule}")
+    return UsageError(err.named(typed.get(dest, _flag(dest))))
 
 
 def _ngransac_trainer(args: argparse.Namespace):
@@ -570,12 +570,22 @@ def _clear_previous_run(args: argparse.Namespace, out: Path) -> None:
             folder.rmdir()
 
 
+# The largest --seed each trainer takes: torch.manual_seed takes 64 bits; PPO's seed also seeds numpy's
+# legacy generator through stable-baselines3, which takes 32 bits.
+_SEED_MAX = {"ngransac": 2**64 - 1, "ppo": 2**32 - 1, "adaptive": 2**64 - 1}
+
+
 def run(args: argparse.Namespace) -> int:
     check_options_apply(args)
+    if args.seed > _SEED_MAX[args.algo]:
+        from stereovo.options import value_repr
+
+        raise UsageError(f"--seed must be <= {_SEED_MAX[args.algo]} with --algo {args.algo}, "
+                         f"got {value_repr(args.seed)}")
     require_extras("torch", *(("tensorboard",) if args.algo != "adaptive" else ()),
                    *(("stable_baselines3",) if args.algo == "ppo" else ()))
     if args.resume is not None and not Path(args.resume).is_file():
-        raise UsageError(f"--resume: no checkpoint at {args.resume}")
+        raise UsageError(f"--resume: no checkpoint at {args.resume!r}")
     if args.algo == "ppo" and args.resume is not None and Path(args.resume).suffix == ".pt":
         raise UsageError(f"--resume {args.resume}: PPO resumes from the SB3 model zip (e.g. "
                          f"{Path(args.resume).with_suffix('.zip')}); the .pt file is the exported actor only")

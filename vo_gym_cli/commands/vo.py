@@ -34,6 +34,7 @@ from vo_gym_cli.commands.common import (
     check_output_dir,
     finite_float,
     flag_error,
+    output_path,
     parse_source,
     positive_int,
     require_extra,
@@ -129,7 +130,7 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                              "either kind (default: none)")
     parser.add_argument("--seed", type=seed, default=0, help="seed of the simulation and of the estimator stream")
     parser.add_argument(
-        "--out", type=Path, default=Path("runs/vo"),
+        "--out", type=output_path(), default=Path("runs/vo"),
         help="output folder: trajectories (TUM, KITTI), frames.csv, covariances.npy (one 6x6 motion covariance "
         "per frame, rotation rad then translation m; NaN where the estimate failed), odometry.png, summary.json",
     )
