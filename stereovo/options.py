@@ -43,7 +43,17 @@ __all__ = [
 
 
 class OptionError(ValueError):
-    """An option's value breaks its declaration; the message names the option and the value."""
+    """An option's value breaks its declaration; the message names the option and the value.
+
+    Raised by :meth:`Option.check`, it also carries the message's parts: ``name`` (the option as the
+    message names it) and ``rule`` (what it says of the value, after the name: ``" must be ..., got
+    ..."``), so that a caller that set the option under another name can say the same of that name;
+    both are None where the error was raised otherwise.
+    """
+
+    def __init__(self, message: str, name: str | None = None, rule: str | None = None) -> None:
+        super().__init__(message)
+        self.name, self.rule = name, rule
 
 
 _NOT_NUMBERS = (bool, np.bool_, np.timedelta64)
@@ -139,7 +149,8 @@ class Option:
             return None
         ok, normalised = self._accepts(value)
         if not ok:
-            raise OptionError(f"{prefix}{name} must be {self.describe()}, got {value_repr(value)}")
+            rule = f" must be {self.describe()}, got {value_repr(value)}"
+            raise OptionError(f"{prefix}{name}{rule}", name=name, rule=rule)
         return normalised
 
     def _accepts(self, value: Any) -> tuple[bool, Any]:  # pragma: no cover - overridden

@@ -146,9 +146,7 @@ def check_field(field: str, option: Option, value: Any, subject: str | None = No
     try:
         return option.check(subject, value, prefix="")
     except OptionError as err:
-        text = str(err)
-        # Option.check's message is the name it was given, then what it says of the value
-        rule = text[len(subject):] if text.startswith(subject) else f": {text}"
+        rule = err.rule if err.name == subject and err.rule is not None else f": {err}"
         raise FieldError(field, rule, subject=subject, prefix=prefix) from None
 
 

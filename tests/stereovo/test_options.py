@@ -23,6 +23,16 @@ def test_integer_accepts_integers_only():
     assert Integer(allow_none=True).check("k", None) is None
 
 
+def test_a_refusal_carries_the_name_and_what_it_says_of_the_value_and_keeps_them_through_pickle():
+    import pickle
+
+    with pytest.raises(OptionError) as caught:
+        Number(low=0.0, high=1.0).check("gamma", 1.5, prefix="PPO: ")
+    err = pickle.loads(pickle.dumps(caught.value))
+    assert err.name == "gamma" and str(err) == f"PPO: gamma{err.rule}"
+    assert err.rule.startswith(" must be ") and err.rule.endswith(", got 1.5")
+
+
 def test_boolean_accepts_bools_only():
     rule = Boolean()
     assert rule.check("b", True) is True and rule.check("b", np.bool_(False)) is False

@@ -44,10 +44,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stereovo.estimation.estimator_options import MAX_COUNT
+from stereovo.estimation.estimator_options import MAX_COUNT, OptionReads
 from stereovo.estimation.kernels.logaddexp import logaddexp_2d, mixture_logaddexp
 from stereovo.estimation.problem import StereoProblem
-from stereovo.estimation.estimator_options import OptionReads
 from stereovo.estimation.recipes import base_components
 from stereovo.estimation.registry import register_method
 from stereovo.estimation.roles.scoring import MahalanobisResidual

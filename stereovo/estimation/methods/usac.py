@@ -14,10 +14,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from stereovo.estimation.estimator_options import OptionReads
 from stereovo.estimation.methods.lo import LO_OPTIONS, inner_ransac_lo
 from stereovo.estimation.methods.prosac import PROSAC_OPTIONS, prosac_sampler, prosac_termination
 from stereovo.estimation.methods.sprt import SPRT_OPTIONS, SprtTermination, sprt_verifier
-from stereovo.estimation.estimator_options import OptionReads
 from stereovo.estimation.recipes import base_components, reprojection_judge
 from stereovo.estimation.registry import register_method
 from stereovo.estimation.roles.scoring import TruncatedQuadratic
