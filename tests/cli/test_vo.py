@@ -82,7 +82,7 @@ def test_config_error_is_reported_not_raised(tmp_path, capsys):
 
 def test_the_hostile_preset_reaches_the_simulated_sequence(tmp_path, capsys):
     from stereovo.simulation import OUTLIER_PRESETS
-    from vo_gym_cli.commands.common import OUTLIER_PRESETS as named
+    from vo_gym_cli.commands.arguments import OUTLIER_PRESETS as named
 
     assert named == tuple(OUTLIER_PRESETS)
     argv = ["vo", "--frames", "3", "--n", "200", "--seed", "5", "--no-progress"]
@@ -183,7 +183,7 @@ def test_vo_on_a_rendered_source_writes_trajectory_drift_and_plot(tmp_path, caps
 
 def test_the_detector_reaches_the_front_end_and_is_refused_without_images(tmp_path, capsys):
     from stereovo.frontend.options import DETECTORS
-    from vo_gym_cli.commands.common import DETECTORS as named
+    from vo_gym_cli.commands.arguments import DETECTORS as named
 
     assert named == DETECTORS
     assert main(["vo", "--detector", "sift", "--frames", "2", "--out", str(tmp_path / "s")]) == 2

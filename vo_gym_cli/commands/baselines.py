@@ -37,24 +37,26 @@ import re
 import sys
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 
-from vo_gym_cli.commands.common import (
+from vo_gym_cli.commands.arguments import (
     PRESETS,
-    RunStart,
-    UsageError,
     bounded_int,
-    check_output_dir,
-    flag_error,
     csv_list,
-    interrupted_run,
     max_count,
-    open_run_folder,
     output_path,
     parse_source,
     positive_int,
     seed as parse_seed,
+)
+from vo_gym_cli.commands.common import (
+    RunStart,
+    UsageError,
+    check_output_dir,
+    flag_error,
+    interrupted_run,
+    open_run_folder,
     stoppable,
     unread_option,
 )

@@ -19,7 +19,6 @@ import argparse
 import csv
 import json
 import platform
-from pathlib import Path
 
 from vo_gym_cli.commands.common import UsageError, open_run_folder, render_pairs, require_extra
 

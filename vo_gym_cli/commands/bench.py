@@ -18,19 +18,17 @@ from typing import Callable
 
 import numpy as np
 
-from vo_gym_cli.commands.common import (
-    UsageError,
+from vo_gym_cli.commands.arguments import (
     bounded_int,
-    check_output_file,
     csv_list,
     finite_float,
     max_correspondences,
     max_frames,
     method_name,
     output_path,
-    score_inputs,
 )
-from vo_gym_cli.commands.common import seed as seed_type
+from vo_gym_cli.commands.common import UsageError, check_output_file, score_inputs
+from vo_gym_cli.commands.arguments import seed as seed_type
 
 DEFAULT_NS = (200, 500, 1000)
 DEFAULT_EPSILONS = (0.2, 0.5, 0.8)

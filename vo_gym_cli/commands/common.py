@@ -1,6 +1,7 @@
-"""What every ``vo-gym`` command shares: argument parsers that name the option, the
-usage-error type, the output-folder check made before any computing, and the
-one-line handling of usage errors and Ctrl-C.
+"""What every ``vo-gym`` command shares besides its argument types
+(:mod:`vo_gym_cli.commands.arguments`): the parser and its help, the usage-error type, the record
+of the options typed, the output-folder check made before any computing, and the one-line handling
+of usage errors and Ctrl-C.
 
 Conventions (argparse's): a usage error prints one line ``vo-gym CMD: error: ...``
 naming the argument and exits 2; Ctrl-C prints one line and exits 130.
@@ -10,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import math
 import os
 import re
 import sys
@@ -79,141 +79,6 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
         else:
             shown = str(default)
         return f"{text} (default: {shown.replace('%', '%%')})".strip()
-
-
-def csv_list(kind: Callable[[str], Any], name: str) -> Callable[[str], list[Any]]:
-    """An argparse type for ``A,B,...`` lists of distinct ``kind`` values (each list is a set of cells,
-    methods or kinds: a value given twice would run or print twice); errors name ``name``."""
-
-    def parse(text: str) -> list[Any]:
-        items = [t.strip() for t in text.split(",") if t.strip()]
-        if not items:
-            raise argparse.ArgumentTypeError(f"{name} needs at least one value")
-        try:
-            values = [kind(t) for t in items]
-        except ValueError:
-            raise argparse.ArgumentTypeError(
-                f"{name} {text!r}: expected comma-separated {kind.__name__} values"
-            ) from None
-        repeated = next((items[i] for i, v in enumerate(values) if v in values[:i]), None)
-        if repeated is not None:
-            raise argparse.ArgumentTypeError(f"{name} {text!r} gives {repeated} twice")
-        return values
-
-    return parse
-
-
-def bounded_int(name: str, minimum: int, maximum: int | Callable[[], int] | None = None) -> Callable[[str], int]:
-    """An argparse type for integers ``>= minimum`` (and ``<= maximum``: a number, or a function giving
-    the library's cap, read only when a value is parsed so that building the parser imports nothing);
-    errors name ``name`` and the value."""
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} {text!r} is not an integer") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"{name} must be >= {minimum}, got {value}")
-        most = maximum() if callable(maximum) else maximum
-        if most is not None and value > most:
-            from stereovo.options import value_repr
-
-            raise argparse.ArgumentTypeError(f"{name} must be <= {most}, got {value_repr(value)}")
-        return value
-
-    return parse
-
-
-def max_count() -> int:
-    """The estimator's cap on a count of hypotheses (a budget, an iteration cap)."""
-    from stereovo.estimation.estimator_options import MAX_COUNT
-
-    return MAX_COUNT
-
-
-def max_correspondences() -> int:
-    """The simulator's cap on the matches of a frame."""
-    from stereovo.simulation.config import MAX_CORRESPONDENCES
-
-    return MAX_CORRESPONDENCES
-
-
-def max_frames() -> int:
-    """The simulator's cap on the frames of a sequence."""
-    from stereovo.simulation.config import MAX_FRAMES
-
-    return MAX_FRAMES
-
-
-def output_path(name: str = "--out", kind: Callable[[str], Any] = Path) -> Callable[[str], Any]:
-    """An argparse type for an output path: ``kind(text)``, refusing an empty one (``Path("")`` is the
-    current folder, where an unset shell variable would have a command write) and one holding a NUL
-    character (no file system takes it)."""
-
-    def parse(text: str) -> Any:
-        if not text:
-            raise argparse.ArgumentTypeError(f"{name} must name a file or folder, got '' (the current folder is '.')")
-        if "\x00" in text:
-            raise argparse.ArgumentTypeError(f"{name} must not hold a NUL character, got {text!r}")
-        return kind(text)
-
-    return parse
-
-
-def positive_int(name: str) -> Callable[[str], int]:
-    return bounded_int(name, 1)
-
-
-def seed(text: str) -> int:
-    """``--seed``: a non-negative integer."""
-    return bounded_int("--seed", 0)(text)
-
-
-def finite_float(name: str, low: float | None = None, high: float | None = None,
-                 low_open: bool = False, high_open: bool = False) -> Callable[[str], float]:
-    """An argparse type for finite floats in ``[low, high]`` (``low_open`` / ``high_open`` exclude a bound)."""
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} {text!r} is not a number") from None
-        if not math.isfinite(value):
-            raise argparse.ArgumentTypeError(f"{name} must be finite, got {text!r}")
-        if low is not None and (value < low or (low_open and value == low)):
-            raise argparse.ArgumentTypeError(f"{name} must be {'>' if low_open else '>='} {low}, got {value}")
-        if high is not None and (value > high or (high_open and value == high)):
-            raise argparse.ArgumentTypeError(f"{name} must be {'<' if high_open else '<='} {high}, got {value}")
-        return value
-
-    return parse
-
-
-PRESETS = ("car", "free")
-"""The motion presets of the simulator and of rendered sequences (``--preset``, ``rendered:PRESET``)."""
-
-OUTLIER_PRESETS = ("default", "hostile")
-"""The simulator's outlier presets (``stereovo.simulation.OUTLIER_PRESETS``' keys, named here so
-that building the parser imports no simulation code; a test keeps the two equal)."""
-
-DETECTORS = ("orb", "sift", "akaze")
-"""The image front end's keypoint detectors (``stereovo.frontend.options.DETECTORS``, named here so
-that building the parser imports no front-end code; a test keeps the two equal)."""
-
-
-def parse_source(text: str) -> str:
-    """``--source``: ``rendered``, ``rendered:PRESET`` or ``kitti:PATH[:SEQ]`` (checked, returned as given)."""
-    from stereovo.sequences.sources import parse_source as parse
-
-    try:
-        kind, named = parse(text)
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(f"--{err}") from None
-    if kind == "rendered" and named.get("preset", "car") not in PRESETS:
-        raise argparse.ArgumentTypeError(f"--source {text!r}: the rendered preset must be one of "
-                                         f"{', '.join(PRESETS)}, got {named['preset']!r}")
-    return text
 
 
 def render_pairs(source: str, preset: str, n_frames: int, seed: int, resolution: str,
@@ -458,20 +323,6 @@ def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:
     if out.exists() and not os.access(out, os.W_OK):
         raise UsageError(f"{option} {str(out)!r} is not writable")
     return out
-
-
-def method_name(name: str = "--method") -> Callable[[str], str]:
-    """An argparse type for a registered estimator method; the error lists them (imports the core on use)."""
-
-    def parse(text: str) -> str:
-        from stereovo.estimation import available_methods
-
-        methods = list(available_methods())
-        if text not in methods:
-            raise argparse.ArgumentTypeError(f"{name}: unknown method {text!r}; available: {', '.join(methods)}")
-        return text
-
-    return parse
 
 
 def score_inputs(method: str) -> dict[str, Any]:

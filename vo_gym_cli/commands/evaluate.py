@@ -35,10 +35,26 @@ from pathlib import Path
 
 from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
 from vo_gym_cli.commands.baselines import PLOT_FORMATS, add_backend_options, backend_from_args
-from vo_gym_cli.commands.common import OUTLIER_PRESETS, open_run_folder, unread_option
-from vo_gym_cli.commands.common import RunStart, UsageError, check_step_env, interrupted_run, stoppable
-from vo_gym_cli.commands.common import bounded_int, csv_list, max_correspondences, max_count, max_frames, output_path
-from vo_gym_cli.commands.common import positive_int, seed
+from vo_gym_cli.commands.arguments import (
+    OUTLIER_PRESETS,
+    bounded_int,
+    csv_list,
+    max_correspondences,
+    max_count,
+    max_frames,
+    output_path,
+    positive_int,
+    seed,
+)
+from vo_gym_cli.commands.common import (
+    RunStart,
+    UsageError,
+    check_step_env,
+    interrupted_run,
+    open_run_folder,
+    stoppable,
+    unread_option,
+)
 
 DEFAULT_AGENTS = ("uniform", "match-score", "consistency", "constant-velocity", "oracle")
 

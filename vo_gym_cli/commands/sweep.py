@@ -18,9 +18,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from vo_gym_cli.commands.common import (
-    EXIT_INTERRUPTED, UsageError, check_output_dir, guarded, output_path, positive_int, require_extras,
-)
+from vo_gym_cli.commands.arguments import output_path, positive_int
+from vo_gym_cli.commands.common import EXIT_INTERRUPTED, UsageError, check_output_dir, guarded, require_extras
 
 
 def add_parser(parser: argparse.ArgumentParser) -> None:

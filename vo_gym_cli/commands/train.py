@@ -22,6 +22,10 @@ A non-empty ``--out`` is refused unless ``--overwrite`` (which first removes the
 files and PPO's periodic zips of the run there, so that its curves and checkpoints do not mix with
 the new run's), or unless ``--resume`` names a checkpoint inside it for ngransac or ppo, which
 continue that run there (their step count and history go on).
+
+The module runs to about 600 lines because the three trainers share one parser: an option is
+declared once, with the table of the config field it sets, so its help, its refusal for another
+trainer and its resume rule come from that one place.
 """
 
 from __future__ import annotations
@@ -32,19 +36,15 @@ import json
 from pathlib import Path
 from typing import Any, Callable
 
+from vo_gym_cli.commands.arguments import bounded_int, finite_float, output_path, positive_int, seed
 from vo_gym_cli.commands.common import (
     RunStart,
     UsageError,
-    bounded_int,
     check_output_dir,
     check_step_env,
-    finite_float,
     given_options,
     late_help,
-    output_path,
-    positive_int,
     require_extras,
-    seed,
     shown_value,
 )
 

@@ -24,23 +24,18 @@ from pathlib import Path
 from typing import Any, Iterator
 
 from agents.catalog import IN_FRAME_SAMPLERS, ONE_SHOT_SAMPLERS
-from vo_gym_cli.commands.common import (
+from vo_gym_cli.commands.arguments import (
     DETECTORS,
     OUTLIER_PRESETS,
     PRESETS,
-    RunStart,
-    UsageError,
     bounded_int,
-    check_output_dir,
     finite_float,
-    flag_error,
     output_path,
     parse_source,
     positive_int,
-    require_extra,
-    score_inputs,
     seed,
 )
+from vo_gym_cli.commands.common import RunStart, UsageError, check_output_dir, flag_error, require_extra, score_inputs
 
 
 class _LazyMethodChoices:
