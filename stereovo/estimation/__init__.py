@@ -9,7 +9,7 @@ The floors, bottom to top (each imports only those below it):
 
 - :mod:`~stereovo.estimation.kernels`: every compiled (numba) kernel: residuals, least squares,
   Mahalanobis distances, fits, sampling, rigidity, refinement rounds, early-rejection
-  verification, belief updates, the covariance sums;
+  verification, belief updates, the covariance sums, the compiled batches of a search;
 - :mod:`~stereovo.estimation.problem`: :class:`StereoProblem`, one frame pair's measurements,
   triangulated points and their covariances;
 - :mod:`~stereovo.estimation.roles`: what the loop composes, named for no method: samplers,
@@ -20,6 +20,8 @@ The floors, bottom to top (each imports only those below it):
   method shares, the named enhancements, and :class:`OptionReads`, which of them a method reads;
 - :mod:`~stereovo.estimation.loop`: :func:`run_ransac`, the one loop, on
   :class:`RansacComponents`, returning a :class:`RansacReport`;
+- :mod:`~stereovo.estimation.compiled_search`: the loop's batches in one compiled call for the
+  ``probabilistic`` judge with uniform draws, bit for bit its steps (a ``search_runner``);
 - :mod:`~stereovo.estimation.registry`: the named methods, their option declarations,
   :func:`validate_options` and :func:`unread_options` (a given option the method would not read is
   refused by every entry point), :func:`drop_unread` (settings for many methods, each given what it reads);

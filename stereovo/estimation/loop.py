@@ -217,7 +217,7 @@ class RansacSearch:
         # An adaptive search starts small (the bound often falls below a full batch at once) and doubles
         # its batches up to batch_size: each batch costs bookkeeping here, as much as several
         # hypotheses, so a long search (high contamination) should take few, large ones.
-        self._size = min(c.first_batch_size, c.batch_size) if c.first_batch_size else c.batch_size
+        self.next_size = min(c.first_batch_size, c.batch_size) if c.first_batch_size else c.batch_size
 
     @property
     def done(self) -> bool:
@@ -232,8 +232,8 @@ class RansacSearch:
         """Draw and judge one batch: ``batch`` hypotheses, or the loop's schedule capped by the bound."""
         c, ctx, n = self.components, self.ctx, self.n
         if batch is None:
-            batch = int(min(self._size, self.required - self.drawn))
-            self._size = min(2 * self._size, c.batch_size)
+            batch = int(min(self.next_size, self.required - self.drawn))
+            self.next_size = min(2 * self.next_size, c.batch_size)
         samples = c.sampler.draw(batch, self.rng)
         self.drawn += batch
         if c.sample_check is not None:
@@ -250,21 +250,34 @@ class RansacSearch:
                 scores, spent = c.verifier.verify(ctx, R, t, self.rng, samples=samples)
             else:
                 scores, spent = c.verifier.verify(ctx, R, t, self.rng)
-            self.scored += R.shape[0]
-            self.checks += spent
-            i = int(np.argmax(scores))
-            earlier_best = self.best_score > -np.inf
-            new_best = bool(scores[i] > self.best_score)
-            if new_best:
-                self._new_best(R, t, i, float(scores[i]))
-            if c.runner_up_fraction is not None and c.local_optimizer is not None and earlier_best:
-                self._refit_runner_up(R, t, scores, i if new_best else -1)
-            if self._feedback is not None:
-                # kept from the scoring pass where it scored the whole batch; counted as before
-                residual_sq = ctx.exact_residuals(R, t)
-                self.checks += R.shape[0] * n
-                state = LoopState(self.drawn, self.best_score, samples=samples, best_inliers=self.best_inliers)
-                self._feedback(R, t, residual_sq < c.threshold_sq, residual_sq, state)
+            self.take_scores(R, t, samples, scores, spent)
+        self.end_batch()
+
+    def take_scores(self, R: np.ndarray, t: np.ndarray, samples: np.ndarray, scores: np.ndarray, spent: int) -> None:
+        """The rest of a batch's step once its ``H`` valid hypotheses ``(R (H, 3, 3), t (H, 3))`` from
+        ``samples (H, 3)`` are scored (``scores (H,)``, ``spent`` point checks): the new best and its
+        local refit, the runner-up refit, the sampler's feedback. A compiled search hands its batches
+        here (:mod:`stereovo.estimation.compiled_search`), their residuals kept in the context."""
+        c, ctx, n = self.components, self.ctx, self.n
+        self.scored += R.shape[0]
+        self.checks += spent
+        i = int(np.argmax(scores))
+        earlier_best = self.best_score > -np.inf
+        new_best = bool(scores[i] > self.best_score)
+        if new_best:
+            self._new_best(R, t, i, float(scores[i]))
+        if c.runner_up_fraction is not None and c.local_optimizer is not None and earlier_best:
+            self._refit_runner_up(R, t, scores, i if new_best else -1)
+        if self._feedback is not None:
+            # kept from the scoring pass where it scored the whole batch; counted as before
+            residual_sq = ctx.exact_residuals(R, t)
+            self.checks += R.shape[0] * n
+            state = LoopState(self.drawn, self.best_score, samples=samples, best_inliers=self.best_inliers)
+            self._feedback(R, t, residual_sq < c.threshold_sq, residual_sq, state)
+
+    def end_batch(self) -> None:
+        """A batch's last part: the batch listeners, then the bound for the best model's support."""
+        c, n = self.components, self.n
         if self._batch_listeners:
             state = self.state
             for listener in self._batch_listeners:

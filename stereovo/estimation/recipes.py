@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from stereovo.estimation.compiled_search import compiled_batch_search
 from stereovo.estimation.estimator_options import EstimatorOptions, OptionReads, chi2_quantile
 from stereovo.estimation.loop import RansacComponents
 from stereovo.estimation.problem import StereoProblem
@@ -183,6 +184,8 @@ def build_probabilistic(problem, options, priors, order, extra) -> RansacCompone
         problem, options, priors, order, MahalanobisResidual(threshold), InlierCount(), threshold
     )
     components.refiner = _pixel_gated_refiner(options, problem.camera.measurement_dof)
+    # uniform draws run their batches compiled (the loop's steps, bit for bit); other samplers decline
+    components.search_runner = compiled_batch_search
     return components
 
 

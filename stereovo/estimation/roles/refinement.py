@@ -38,8 +38,8 @@ _COMPILED_GATES = {
 }
 
 
-_DAMPING = 1e-6  # LM damping relative to the normal equations' diagonal
-_TOLERANCE = 1e-12  # a step below this (rad, m) ends a round's LM
+LM_DAMPING = 1e-6  # LM damping relative to the normal equations' diagonal
+LM_TOLERANCE = 1e-12  # a step below this (rad, m) ends a round's LM
 
 # A refinement's result: R (3, 3), t (3,), inliers (N,) bool, and the squared residuals (N,) or None.
 RefinedFit = tuple[np.ndarray, np.ndarray, np.ndarray, "np.ndarray | None"]
@@ -93,7 +93,7 @@ class ReprojectionRefiner:
             problem.cov_prev, problem.cov_curr, problem.noise_sigma**2, np.asarray(inliers, dtype=bool),
             _COMPILED_GATES[type(gate_model)], float(gate_threshold_sq), self.gate is not None,
             int(self.rounds), int(self.iterations), 0.0 if self.huber_px is None else float(self.huber_px),
-            _DAMPING, _TOLERANCE,
+            LM_DAMPING, LM_TOLERANCE,
         )
         return R, t, inliers, (residual_sq if computed else None)
 
@@ -125,9 +125,9 @@ class ReprojectionRefiner:
                 problem.curr,
                 weights=inliers.astype(float),
                 iterations=self.iterations,
-                damping=_DAMPING,
+                damping=LM_DAMPING,
                 huber=self.huber_px,
-                tolerance=_TOLERANCE,
+                tolerance=LM_TOLERANCE,
             )
             new_sq = residual_model.squared(problem, R_new, t_new)[0]
             new_inliers = new_sq < threshold_sq
