@@ -286,7 +286,8 @@ def minimal_fits(samples, X, Y, mp, mc, cam, area_ratio, polish_iterations):
         _centred_cross_covariance(Xs, Ys, ones, mx, my, cov)
         _horn_fit(cov, mx, my, R[h], t[h], N, V)
         if polish_iterations > 0:
-            levenberg_marquardt(R[h], t[h], Xs, Ys, mps, mcs, cam, ones, 0.0, polish_iterations, 1e-9, 0.0, False, scratch)
+            levenberg_marquardt(R[h], t[h], Xs, Ys, mps, mcs, cam, ones, 0.0, polish_iterations, 1e-9, 0.0, False, scratch,
+                                False)
         ok = True
         for i in range(3):
             if not np.isfinite(t[h, i]):

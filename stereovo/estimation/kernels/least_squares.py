@@ -236,8 +236,14 @@ CONVERGED_STEP_IN_STD = 0.01
 
 
 @jit
-def levenberg_marquardt(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, iterations, damping, tolerance, step_control, scratch):
-    """Refine one motion ``Rh, th`` in place; return its final weighted cost (see :func:`gauss_newton`)."""
+def levenberg_marquardt(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, iterations, damping, tolerance, step_control, scratch,
+                        final_cost=True):
+    """Refine one motion ``Rh, th`` in place; return its final weighted cost (see :func:`gauss_newton`).
+
+    ``final_cost=False`` (without ``step_control``) skips the cost of the motion the last step
+    reaches, which every step's system is built with otherwise; the cost returned is then the one
+    before that step. For a caller that keeps only the motion (the minimal fits' polish, where it
+    was a third of the polish's point passes)."""
     A, g, delta, R_new, t_new, A_back, g_back, L, y, dR, dt, A_trial, g_trial = scratch
     lam = damping
     cost = _cost_and_normal_equations(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, A, g, True, A_back, g_back)
@@ -265,7 +271,8 @@ def levenberg_marquardt(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, iterations, da
         if not step_control:
             Rh[:, :] = R_new
             th[:] = t_new
-            cost = _cost_and_normal_equations(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, A, g, not last, A_back, g_back)
+            if final_cost or not last:
+                cost = _cost_and_normal_equations(Rh, th, Xh, Yh, mph, mch, cam, wh, huber, A, g, not last, A_back, g_back)
             continue
         # The trial pose's system is built in the same pass as its cost: near convergence every
         # step is accepted, so a separate cost-only pass would double the work.
