@@ -17,6 +17,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from stereovo.estimation.kernels.residuals import finite_motion
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.roles.refinement import ReprojectionRefiner
 from stereovo.estimation.roles.samplers import Sampler
@@ -421,13 +422,25 @@ def final_report(
     if refiner is not None:
         counters = {**counters, "refine_rolled_back": 0}
     if refiner is not None and np.count_nonzero(inliers) >= 3:
-        R_new, t_new, _, new_sq = refiner.refine_with_residuals(problem, R, t, inliers, residual_model, threshold_sq)
+        # The core's refiner re-selects from the gate's residuals of the starting model and hands
+        # back those of the refined one: the two passes scored here, read instead of computed
+        # twice (and counted as the judge spends them, as before). Any other refiner keeps the
+        # protocol: residuals in the method's model, or None.
+        core = type(refiner) is ReprojectionRefiner
+        if core:
+            R_new, t_new, _, new_sq = refiner.refine_with_residuals(
+                problem, R, t, inliers, residual_model, threshold_sq,
+                start_sq=residual_sq if gate is not None else None, gate_residuals=True,
+            )
+        else:
+            R_new, t_new, _, new_sq = refiner.refine_with_residuals(problem, R, t, inliers, residual_model, threshold_sq)
         checks += n * refiner.rounds
         new_score = -np.inf
-        if np.all(np.isfinite(R_new)) and np.all(np.isfinite(t_new)):
+        if finite_motion(R_new, t_new):
+            if new_sq is None or (core and gate is not None):
+                checks += n
             if new_sq is None:  # not computed in the gate's model: score anew
                 new_sq = gate_model.squared(problem, R_new[None], t_new[None])[0]
-                checks += n
             new_score = float(quality.score(new_sq[None], gate_sq)[0])
         if new_score >= score:
             R, t, score, residual_sq = R_new, t_new, new_score, new_sq
@@ -437,7 +450,7 @@ def final_report(
     final = np.asarray(residual_sq < gate_sq)
     count = int(np.count_nonzero(final))
     need = max(int(min_inliers), 3)
-    if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
+    if not finite_motion(R, t):
         reason = "the best model is not finite"
     elif count < need:
         reason = f"no consensus (best model has {count} inliers under its final gate, need {need})"

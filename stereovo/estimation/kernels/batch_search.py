@@ -116,7 +116,7 @@ def batch_search(
                 inliers = sq[top] < threshold_sq
                 _, _, _, refit_sq, computed = refine_rounds(
                     R[top], t[top], X, Y, mp, mc, cam, cov_prev, cov_curr, sigma_sq, inliers, GATE_MAHALANOBIS,
-                    threshold_sq, False, refit_rounds, refit_iterations, refit_huber, damping, tolerance,
+                    threshold_sq, False, refit_rounds, refit_iterations, refit_huber, damping, tolerance, none[4],
                 )
                 if computed:
                     refit_score = 0.0

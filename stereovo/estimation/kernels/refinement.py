@@ -31,7 +31,7 @@ def _gate_sq(gate, R, t, X, Y, cov_prev, cov_curr, mc, cam, sigma_sq):
 @jit
 def refine_rounds(
     R, t, X, Y, mp, mc, cam, cov_prev, cov_curr, sigma_sq, inliers, gate, threshold_sq, regate,
-    rounds, iterations, huber, damping, tolerance,
+    rounds, iterations, huber, damping, tolerance, start_sq,
 ):
     """:meth:`ReprojectionRefiner.refine_with_residuals` for a gate with a compiled residual kernel.
 
@@ -39,8 +39,9 @@ def refine_rounds(
     re-selecting them under ``threshold_sq`` of the model ``gate`` (``GATE_*``), for at most
     ``rounds`` rounds; with ``regate`` the given inliers are first re-selected by the gate (kept
     if at least half as many). A round that loses more than half the inliers is undone, and the
-    rounds end once the inliers stay the same. The same arithmetic as the Python loop, without
-    its per-round overhead. Returns ``R (3, 3)``, ``t (3,)``, the inliers ``(N,)``, the gate's
+    rounds end once the inliers stay the same. ``start_sq (N,)``: the gate's squared residuals of
+    ``R, t`` where the caller has them (the re-selection reads them), or an empty array. The same
+    arithmetic as the Python loop, without its per-round overhead. Returns ``R (3, 3)``, ``t (3,)``, the inliers ``(N,)``, the gate's
     squared residuals ``(N,)`` of the returned motion and whether those were computed (False:
     the motion is the one given and was not gated).
     """
@@ -58,7 +59,10 @@ def refine_rounds(
     residual_sq = np.empty(N)
     have_residuals = False
     if regate:
-        sq = _gate_sq(gate, current_R, current_t, X, Y, cov_prev, cov_curr, mc, cam, sigma_sq)[0]
+        if start_sq.shape[0] == N:
+            sq = start_sq
+        else:
+            sq = _gate_sq(gate, current_R, current_t, X, Y, cov_prev, cov_curr, mc, cam, sigma_sq)[0]
         n_gated = 0
         for i in range(N):
             n_gated += sq[i] < threshold_sq

@@ -40,6 +40,7 @@ _COMPILED_GATES = {
 
 LM_DAMPING = 1e-6  # LM damping relative to the normal equations' diagonal
 LM_TOLERANCE = 1e-12  # a step below this (rad, m) ends a round's LM
+_NO_RESIDUALS = np.empty(0)  # the compiled rounds' "no start residuals given"
 
 # A refinement's result: R (3, 3), t (3,), inliers (N,) bool, and the squared residuals (N,) or None.
 RefinedFit = tuple[np.ndarray, np.ndarray, np.ndarray, "np.ndarray | None"]
@@ -69,20 +70,29 @@ class ReprojectionRefiner:
         return self.refine_with_residuals(problem, R, t, inliers, residual_model, threshold_sq)[:3]
 
     def refine_with_residuals(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray, inliers: np.ndarray,
-                              residual_model: ResidualModel, threshold_sq: float) -> RefinedFit:
+                              residual_model: ResidualModel, threshold_sq: float, start_sq: np.ndarray | None = None,
+                              gate_residuals: bool = False) -> RefinedFit:
         """:meth:`refine`, plus the squared residuals ``(N,)`` of the returned motion under the
         caller's ``residual_model``, or None where they were not computed here (the motion is the
         one given, or the refiner's own gate selected the inliers). A caller that scores the
-        result with that model reads them instead of computing them again."""
+        result with that model reads them instead of computing them again.
+
+        ``start_sq``: the refiner's own gate's residuals ``(N,)`` of ``(R, t)``, where the caller
+        has them (its first re-selection reads them instead of computing them). With
+        ``gate_residuals`` the residuals returned are the gate's (the model that selected the
+        returned inliers: the refiner's own, else the caller's), or None where not computed."""
         gate_model = residual_model if self.gate is None else self.gate[0]
         if type(gate_model) in _COMPILED_GATES:
-            R, t, inliers, residual_sq = self._refine_compiled(problem, R, t, inliers, residual_model, threshold_sq)
+            R, t, inliers, residual_sq = self._refine_compiled(problem, R, t, inliers, residual_model, threshold_sq,
+                                                               start_sq)
         else:
-            R, t, inliers, residual_sq = self._refine_in_python(problem, R, t, inliers, residual_model, threshold_sq)
-        return R, t, inliers, (residual_sq if self.gate is None else None)
+            R, t, inliers, residual_sq = self._refine_in_python(problem, R, t, inliers, residual_model, threshold_sq,
+                                                                start_sq)
+        return R, t, inliers, (residual_sq if self.gate is None or gate_residuals else None)
 
     def _refine_compiled(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray, inliers: np.ndarray,
-                         residual_model: ResidualModel, threshold_sq: float) -> RefinedFit:
+                         residual_model: ResidualModel, threshold_sq: float,
+                         start_sq: np.ndarray | None = None) -> RefinedFit:
         """The rounds in one compiled call, for a gate with a residual kernel: per round the
         Python loop spends about as long on its bookkeeping as the kernels spend on a few hundred
         inliers. Residuals are the gate's, as in :meth:`_refine_in_python`."""
@@ -93,12 +103,13 @@ class ReprojectionRefiner:
             problem.cov_prev, problem.cov_curr, problem.noise_sigma**2, np.asarray(inliers, dtype=bool),
             _COMPILED_GATES[type(gate_model)], float(gate_threshold_sq), self.gate is not None,
             int(self.rounds), int(self.iterations), 0.0 if self.huber_px is None else float(self.huber_px),
-            LM_DAMPING, LM_TOLERANCE,
+            LM_DAMPING, LM_TOLERANCE, _NO_RESIDUALS if start_sq is None or self.gate is None else start_sq,
         )
         return R, t, inliers, (residual_sq if computed else None)
 
     def _refine_in_python(self, problem: StereoProblem, R: np.ndarray, t: np.ndarray, inliers: np.ndarray,
-                          residual_model: ResidualModel, threshold_sq: float) -> RefinedFit:
+                          residual_model: ResidualModel, threshold_sq: float,
+                          start_sq: np.ndarray | None = None) -> RefinedFit:
         """The rounds for any residual model, one kernel call at a time; the residuals returned
         are those of the model that selected the inliers (the gate's, if the refiner has one)."""
         n_inliers = int(np.count_nonzero(inliers))
@@ -106,7 +117,7 @@ class ReprojectionRefiner:
         if self.gate is not None:
             residual_model, threshold_sq = self.gate
             # Start from the refiner's own gate: the caller's inliers were selected by another rule.
-            regated_sq = residual_model.squared(problem, R[None], t[None])[0]
+            regated_sq = residual_model.squared(problem, R[None], t[None])[0] if start_sq is None else start_sq
             regated = regated_sq < threshold_sq
             n_regated = int(np.count_nonzero(regated))
             if n_regated >= n_inliers // 2:
