@@ -262,6 +262,22 @@ def test_same_seed_same_result_different_seed_differs():
             estimate_motion(prev, curr, CAMERA, rng=bad)
 
 
+@pytest.mark.parametrize("method", available_methods())
+def test_an_integer_seed_is_the_generator_numpy_seeds_with_it(method):
+    """An integer seed's generator is built from cached seed words (a few microseconds less a frame):
+    every method gives what ``np.random.default_rng(seed)`` gives it, for small, repeated and
+    the largest seeds, and numpy integers (which take numpy's path)."""
+    frame = simulate_frame(SimulationConfig(n_correspondences=120, outlier_ratio=0.4), np.random.default_rng(11))
+    for seed in (0, 5, 5, 2**63 - 1):
+        for given in (seed, np.uint64(seed)):
+            a = run(method, frame, rng=given)
+            b = run(method, frame, rng=np.random.default_rng(seed))
+            np.testing.assert_array_equal(a.rotation, b.rotation)
+            np.testing.assert_array_equal(a.translation, b.translation)
+            np.testing.assert_array_equal(a.inliers, b.inliers)
+            assert (a.status, a.n_hypotheses, a.counters) == (b.status, b.n_hypotheses, b.counters)
+
+
 def test_fixed_budget_draws_exactly_budget():
     rng = np.random.default_rng(4)
     prev, curr = noise_free_pair(rng, np.eye(3), np.array([0, 0, -1.0]), 100)

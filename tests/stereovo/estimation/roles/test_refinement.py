@@ -142,3 +142,53 @@ def test_compiled_refinement_rounds_equal_the_python_loop(gate_kind):
         for a, b in zip(compiled, python):
             np.testing.assert_array_equal(a, b)
         assert compiled[2].sum() > 0.9 * start.sum()
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_start_residuals_and_gate_residuals_are_the_ones_computed(compiled):
+    """``start_sq`` (the gate's residuals of the starting motion, which the final report has) and
+    ``gate_residuals`` (those of the returned motion under the gate that chose its inliers) change
+    nothing but what is computed: the same fit, and the residuals the gate gives it."""
+    from stereovo.estimation.roles.refinement import ReprojectionRefiner
+    from stereovo.estimation.roles.scoring import MahalanobisResidual, PixelMahalanobisResidual, ReprojectionResidual
+    from stereovo.simulation import SimulationConfig, simulate_frame
+
+    gate = PixelMahalanobisResidual(13.28) if compiled else _UncompiledPixelGate(13.28)
+    refiner = ReprojectionRefiner(iterations=6, rounds=3, gate=(gate, 13.28))
+    model, threshold = MahalanobisResidual(), 7.81
+    for seed in range(3):
+        frame = simulate_frame(SimulationConfig(n_correspondences=250, outlier_ratio=0.5), np.random.default_rng(seed))
+        problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+        R0 = frame.truth.rotation @ se3_exp(np.full(6, 3e-4 * (seed + 1)))[0]
+        t0 = frame.truth.translation + 0.003 * seed
+        start = model.squared(problem, R0[None], t0[None])[0] < threshold
+        plain = refiner.refine_with_residuals(problem, R0, t0, start, model, threshold)
+        start_sq = gate.squared(problem, R0[None], t0[None])[0]
+        given = refiner.refine_with_residuals(problem, R0, t0, start, model, threshold, start_sq=start_sq,
+                                              gate_residuals=True)
+        for a, b in zip(plain[:3], given[:3]):
+            np.testing.assert_array_equal(a, b)
+        assert plain[3] is None  # the caller's model was never evaluated
+        np.testing.assert_array_equal(given[3], gate.squared(problem, given[0][None], given[1][None])[0])
+        np.testing.assert_array_equal(given[2], given[3] < 13.28)
+        # start residuals that are not the start motion's show they are read: another selection
+        shifted = refiner.refine_with_residuals(problem, R0, t0, start, model, threshold,
+                                                start_sq=np.where(start_sq < 13.28, 1e9, 0.0))
+        assert not np.array_equal(shifted[2], plain[2])
+    unused = ReprojectionRefiner(iterations=3, rounds=2)  # no gate of its own: start_sq has no role
+    a = unused.refine_with_residuals(problem, R0, t0, start, ReprojectionResidual(), 9.0)
+    b = unused.refine_with_residuals(problem, R0, t0, start, ReprojectionResidual(), 9.0, start_sq=np.zeros(problem.n))
+    for x, y in zip(a, b):
+        np.testing.assert_array_equal(x, y)
+
+
+class _UncompiledPixelGate:
+    """The pixel gate under another class: the refiner runs its Python rounds for it."""
+
+    def __init__(self, threshold_sq):
+        from stereovo.estimation.roles.scoring import PixelMahalanobisResidual
+
+        self.inner = PixelMahalanobisResidual(threshold_sq)
+
+    def squared(self, problem, R, t, cap=None):
+        return self.inner.squared(problem, R, t)
