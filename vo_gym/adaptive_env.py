@@ -160,7 +160,8 @@ class StereoVOAdaptiveEnv(gym.Env):
       An option the judge would not read with the other settings raises ``ValueError`` naming it,
       its value and why, as in :class:`vo_gym.StereoVOEnv` (:func:`stereovo.estimation.unread_options`):
       ``least_squares_refit`` with ``refine=True`` (the default), ``gate_probability`` and
-      ``refine_gate_probability`` with ``method="msac"`` (the default), ...
+      ``refine_gate_probability`` with ``method="msac"`` (the default), ``threshold_px`` with a method
+      judged by the 3-D Mahalanobis gate unless ``reward_mode="msac"`` reads it, ...
 
     Each keyword's rule is declared once, in :mod:`vo_gym.settings`, and is the same as in
     :class:`vo_gym.StereoVOEnv`. Invalid values raise ``ValueError`` naming the argument; unknown
@@ -215,7 +216,7 @@ class StereoVOAdaptiveEnv(gym.Env):
         self.estimator_noise_sigma = estimator_noise(owner, s["estimator_noise_sigma"], self.sim_config.noise_sigma)
         self._spec, self.estimator_options, self._extra = estimator_settings(
             owner, StereoVOAdaptiveEnv, method, settings, fixed={"noise_sigma": self.estimator_noise_sigma},
-            also_known=SIMULATOR_KEYWORDS, refused=_REFUSED_OPTIONS,
+            also_known=SIMULATOR_KEYWORDS, refused=_REFUSED_OPTIONS, reward_mode=self.reward_mode,
         )
         # the agent's weights drive the sampler: the judge must need no priors= or order= of its own
         if self._spec.inputs not in ("any", "priors-optional"):

@@ -37,6 +37,7 @@ from vo_gym.settings import (
     estimator_noise,
     estimator_settings,
     observation_rows,
+    read_by_reward,
     simulation_config,
 )
 
@@ -231,7 +232,10 @@ class StereoVOEnv(gym.Env):
     - ``method``: a name from :func:`stereovo.estimation.available_methods` (default ``"msac"``).
     - ``budget``: hypotheses per frame (default 32); None switches to adaptive termination
       (``confidence``, ``max_iterations``).
-    - ``batch_size``: hypotheses per vectorised batch; None means ``budget`` (one batch).
+    - ``batch_size``: hypotheses per vectorised batch; None means ``budget`` (one batch). Given where the
+      method sizes its batches itself (``"bansac"`` and ``"p-bansac"`` but under
+      ``bansac_update="verdict-likelihood"``, ``"preemptive"``), it is refused (``ValueError``) as an
+      option the estimator would not read.
     - ``estimator_noise_sigma``: the pixel noise the estimator and the features assume;
       None uses the simulator's ``noise_sigma`` (which must then be > 0).
     - ``**estimator_options``: any other :class:`~stereovo.estimation.EstimatorOptions` field
@@ -247,7 +251,9 @@ class StereoVOEnv(gym.Env):
       sampled prefix with it); ``least_squares_refit`` with ``refine=True`` (the default);
       ``gate_probability`` and ``refine_gate_probability`` with a method judged by the
       reprojection gate (``"msac"``, the default, ``"ransac"``, ...), and
-      ``refine_gate_probability`` wherever no pixel-gated final refinement runs.
+      ``refine_gate_probability`` wherever no pixel-gated final refinement runs; ``threshold_px`` with
+      a method judged by the 3-D Mahalanobis gate (``"probabilistic"``, ``"mlesac"``, ``"bansac"``, ...)
+      unless ``reward_mode="msac"``, whose reward scores under it (the estimator then does not get it).
 
     Each keyword's rule is declared once, in :mod:`vo_gym.settings`. Invalid values raise
     ``ValueError`` naming the argument; unknown keywords raise ``TypeError``.
@@ -324,15 +330,19 @@ class StereoVOEnv(gym.Env):
         _, self.estimator_options, extra = estimator_settings(
             owner, StereoVOEnv, method, estimator_options, sampling=self.sampling, fixed=fixed,
             also_known=constructor_keywords(type(self)),  # a subclass's own keywords, for the did-you-mean hints
+            reward_mode=self.reward_mode,
+            # a batch_size the user gave is refused where the method sizes its batches itself; the default is not
+            given_fixed=() if s["batch_size"] is None else ("batch_size",),
         )
         # The options given to the estimator are the ones set here (validated, normalised), not every
         # field: the estimator refuses a given option its method would not read (confidence under the
         # budget, ...), and the others keep the method's defaults, as in estimator_options.
         given = [name for name in (*DEFAULT_ESTIMATOR_OPTIONS, *estimator_options, *fixed) if name in SHARED_OPTIONS]
         kwargs = {**{name: getattr(self.estimator_options, name) for name in given}, **extra}
-        # the environment's own settings only where the method reads them (the user's were checked above)
-        self._estimator_kwargs = drop_unread(method, kwargs, among=set(kwargs) - set(estimator_options),
-                                             order=self.sampling == "prosac")
+        # the environment's own settings, and what its reward reads, only where the method reads them too (the
+        # user's others were checked above)
+        among = (set(kwargs) - set(estimator_options)) | read_by_reward(self.reward_mode)
+        self._estimator_kwargs = drop_unread(method, kwargs, among=among, order=self.sampling == "prosac")
         # the method and these options, derived and checked once instead of on every step
         self._estimator = PreparedEstimator(method, **self._estimator_kwargs)
 

@@ -44,6 +44,7 @@ from stereovo.metrics import pose_error_ratio as error_ratio
 
 __all__ = [
     "REWARD_MODES",
+    "REWARD_OPTIONS",
     "REWARD_RANGE",
     "pose_error_ratio",
     "supervised_reward",
@@ -53,6 +54,11 @@ __all__ = [
 
 REWARD_MODES: tuple[str, ...] = ("supervised", "inliers", "msac")
 """``supervised`` reads the ground truth; ``inliers`` and ``msac`` do not."""
+
+REWARD_OPTIONS: dict[str, str] = {"threshold_px": "msac"}
+"""Estimator options a reward reads itself, each with the ``reward_mode`` that reads it: ``"msac"`` scores
+the estimate under the stereo reprojection gate ``threshold_px`` (``T`` above) whatever gate the method
+judges by, so there the option is the environment's where the method would not read it."""
 
 REWARD_RANGE: tuple[float, float] = (-1.0, 1.0)
 

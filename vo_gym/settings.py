@@ -37,12 +37,12 @@ from stereovo.estimation.registry import MethodSpec, split_options
 from stereovo.options import Choice, Integer, Number, Option, OptionError, check_options, is_real, value_repr
 from stereovo.simulation import SimulationConfig
 from vo_gym.names import constructor_keywords, keyword_hint
-from vo_gym.rewards import REWARD_MODES
+from vo_gym.rewards import REWARD_MODES, REWARD_OPTIONS
 
 __all__ = [
     "SAMPLING_MODES", "DEFAULT_ESTIMATOR_OPTIONS", "SIMULATOR_KEYWORDS", "RULES", "Lengths", "ContaminationRange",
     "check_settings", "simulation_config", "observation_rows", "estimator_noise", "estimator_settings",
-    "check_reset_options", "FieldError", "check_field", "check_fields",
+    "read_by_reward", "check_reset_options", "FieldError", "check_field", "check_fields",
 ]
 
 SAMPLING_MODES: tuple[str, ...] = ("guided", "prosac")
@@ -259,7 +259,8 @@ def estimator_noise(owner: str, estimator_noise_sigma: float | None, noise_sigma
 
 def estimator_settings(owner: str, cls: type, method: str, options: Mapping[str, Any], fixed: Mapping[str, Any],
                        sampling: str | None = None, also_known: Iterable[str] = (),
-                       refused: Mapping[str, str] | None = None) -> tuple[MethodSpec, EstimatorOptions, dict[str, Any]]:
+                       refused: Mapping[str, str] | None = None, reward_mode: str | None = None,
+                       given_fixed: Iterable[str] = ()) -> tuple[MethodSpec, EstimatorOptions, dict[str, Any]]:
     """The method, its :class:`EstimatorOptions` and its own options, validated by their declarations
     (never by running the method).
 
@@ -274,13 +275,17 @@ def estimator_settings(owner: str, cls: type, method: str, options: Mapping[str,
         also_known: further keywords the environment accepts (for the hints).
         refused: shared options the environment has no use for, each with why (it would ignore them):
             refused when given and left out of the options an error lists.
+        reward_mode: the environment's; the options its reward reads (:func:`read_by_reward`) are the
+            environment's, never refused as unread by the method.
+        given_fixed: those of ``fixed`` that the user gave through the environment's own keywords
+            (``batch_size``), refused like ``options`` where the method would not read them.
 
     Raises:
         TypeError: a keyword that is no option of the method, or a refused one (naming it, its value
             and why). ValueError: a bad value, named, or an option the method would not read with these
             settings (:func:`stereovo.estimation.unread_options`: ``confidence`` under a fixed budget,
             ``least_squares_refit`` with ``refine``, ...), naming it, its value and why; only the
-            user's ``options`` are looked at (the environment's defaults and ``fixed`` never are).
+            user's ``options`` and ``given_fixed`` are looked at (the environment's defaults never are).
     """
     refused = dict(refused or {})
     given_refused = [name for name in options if name in refused]
@@ -314,10 +319,22 @@ def estimator_settings(owner: str, cls: type, method: str, options: Mapping[str,
         except ValueError as err:
             raise ValueError(f"{owner}: estimator method {method!r} with sampling={sampling!r}: {err}") from None
     # the adaptive environment (sampling None) steers with weights: no order either
-    unread = unread_options(spec.name, shared, options, order=sampling == "prosac", extra=extra)
+    given = {**{name: fixed[name] for name in given_fixed}, **options}
+    own = read_by_reward(reward_mode)
+    unread = unread_options(spec.name, shared, [name for name in given if name not in own],
+                            order=sampling == "prosac", extra=extra)
     if unread:
-        raise ValueError(f"{owner}: {unread_message(unread, options)}")
+        for name in unread.keys() & REWARD_OPTIONS.keys():
+            unread[name] += (f"; the environment's reward reads it with reward_mode={REWARD_OPTIONS[name]!r} only, got "
+                             f"reward_mode={reward_mode!r}")
+        raise ValueError(f"{owner}: {unread_message(unread, given)}")
     return spec, shared, extra
+
+
+def read_by_reward(reward_mode: str | None) -> frozenset[str]:
+    """The estimator options the reward of ``reward_mode`` reads itself (:data:`vo_gym.rewards.REWARD_OPTIONS`):
+    the environment passes them on only to a method that reads them too."""
+    return frozenset(name for name, mode in REWARD_OPTIONS.items() if mode == reward_mode)
 
 
 def check_reset_options(owner: str, options: Any) -> None:

@@ -212,7 +212,8 @@ SHARED_OPTIONS = frozenset(f.name for f in dataclasses.fields(EstimatorOptions))
 
 JUDGES: dict[str, str] = {
     "reprojection": "hypotheses judged by the stereo reprojection gate (threshold_px)",
-    "mahalanobis": "hypotheses judged by the 3-D Mahalanobis gate (the chi-square(3) quantile gate_probability)",
+    "mahalanobis": "hypotheses judged by the 3-D Mahalanobis gate (the chi-square(3) quantile gate_probability), "
+                   "the final inliers selected by a Mahalanobis gate too: the refinement's, else the judge's",
     "clique": "inliers chosen as the maximum clique of rigid-distance-consistent matches, its motion fitted by a "
               "RANSAC under the 3-D Mahalanobis gate (gate_probability) and re-gated by the stereo reprojection "
               "gate (threshold_px)",
@@ -274,7 +275,8 @@ class OptionReads:
 
     Attributes:
         judge: how hypotheses are judged, a key of :data:`JUDGES`: ``"reprojection"`` never reads
-            ``gate_probability``.
+            ``gate_probability``, ``"mahalanobis"`` never ``threshold_px`` (neither its local refit nor
+            its final refinement re-selects inliers by the stereo reprojection gate).
         refinement: the final refinement, a key of :data:`REFINEMENTS`: only ``"pixel-gated"`` reads
             ``refine_gate_probability`` (and only when a refinement runs); ``"lm-only"`` never reads
             ``least_squares_refit``, nor does any refinement with ``refine=True``. Whatever the
@@ -286,6 +288,8 @@ class OptionReads:
             ``max_iterations``; ``"clique-fit"`` reads ``confidence`` whatever the budget, and never
             ``budget``, ``max_iterations`` or ``fail_at_cap``.
         batches: how hypotheses are batched, a key of :data:`BATCHES` (default ``"schedule"``, the loop's).
+            A search whose cap (the ``budget``, else ``max_iterations``) is no larger than its first
+            batch draws one batch, so it never reads ``runner_up_refit``, which works from the second.
         local: the local optimisation, a key of :data:`LOCALS` (default ``"optional"``, the loop's):
             where one runs whatever ``local_refit`` says, ``local_refit`` is read only as what
             ``runner_up_refit`` needs.
@@ -347,6 +351,7 @@ class OptionReads:
             why["fail_at_cap"] = f"{clique}; the clique is its verdict, which no cap fails"
         refines = options.refine or (options.least_squares_refit and self.refinement != "lm-only")
         why.update(self._unread_by_batches(method, extra))
+        why.update(self._unread_in_one_batch(options, extra))
         why.update(self._unread_by_local(method, options, refines))
         if self.refinement == "lm-only":
             why["least_squares_refit"] = (f"method {method!r} ends with its own fit, refined only by the iterated LM "
@@ -365,6 +370,10 @@ class OptionReads:
         if self.judge == "reprojection":
             why["gate_probability"] = (f"method {method!r} judges by the stereo reprojection gate (threshold_px), not "
                                        "by the 3-D Mahalanobis gate whose quantile gate_probability is")
+        elif self.judge == "mahalanobis":
+            why["threshold_px"] = (f"method {method!r} judges by the 3-D Mahalanobis gate (gate_probability) and "
+                                   "selects its final inliers by a Mahalanobis gate too, never by the stereo "
+                                   "reprojection gate whose threshold threshold_px is")
         if self.refinement != "pixel-gated":
             why["refine_gate_probability"] = (f"method {method!r} has no pixel-gated final refinement (it sets the "
                                               "gate of probabilistic's refinement and of the methods built on its "
@@ -399,6 +408,33 @@ class OptionReads:
                                                  "rigidity_gate_probability to drop"}
         return {}
 
+    def _unread_in_one_batch(self, options: EstimatorOptions, extra: Mapping[str, Any] | None) -> dict[str, str]:
+        """``runner_up_refit`` where the search's cap is no larger than its first batch (:meth:`unread`'s
+        reason): one batch, so no later one has a runner-up. Of the belief updates' own batches only the
+        size ``bansac_batch`` gives is known here (None: one hypothesis at least, the paper's one)."""
+        if self.local == "none" or self.batches not in ("schedule", "belief-updates"):
+            return {}  # no loop, or one set of hypotheses (_unread_by_batches says so)
+        if self.batches == "belief-updates":
+            own = None if extra is None else extra.get("bansac_batch")
+            if own is None:
+                first, size = 1, "one hypothesis at least"
+            elif extra.get("bansac_update") == "verdict-likelihood":
+                first, size = min(options.batch_size, own), f"bansac_batch={own}, at most batch_size"
+            else:
+                first, size = own, f"bansac_batch={own}"
+        elif options.budget is not None or options.batch_size <= options.first_batch_size:
+            first, size = options.batch_size, f"batch_size={options.batch_size}"
+        else:  # an adaptive search starts with first_batch_size
+            first, size = options.first_batch_size, f"first_batch_size={options.first_batch_size}"
+        if options.budget is not None:
+            cap, text = options.budget, f"a fixed budget (budget={options.budget})"
+        else:
+            cap, text = options.max_iterations, f"an adaptive search capped at max_iterations={options.max_iterations}"
+        if cap > first:
+            return {}
+        return {"runner_up_refit": f"{text} draws no more than its first batch ({size}): no later batch has a "
+                                   "runner-up for runner_up_refit to refit"}
+
     def _unread_by_local(self, method: str, options: EstimatorOptions, refines: bool) -> dict[str, str]:
         """What :attr:`local` leaves unread with ``options`` (:meth:`unread`'s reasons); ``refines``:
         whether a final refinement runs."""
@@ -420,7 +456,7 @@ class OptionReads:
 UNREAD_CANDIDATES = frozenset({
     "confidence", "max_iterations", "budget", "batch_size", "first_batch_size", "fail_at_cap", "least_squares_refit",
     "gate_probability", "refine_gate_probability", "rigidity_gate_probability", "polish_iterations",
-    "refine_iterations", "refine_rounds", "local_refit", "runner_up_refit",
+    "refine_iterations", "refine_rounds", "local_refit", "runner_up_refit", "threshold_px",
 })
 """The shared options that some method leaves unread with some settings (:meth:`OptionReads.unread`):
 a call that gives none of them needs no look."""

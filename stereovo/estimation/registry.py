@@ -290,6 +290,9 @@ def unread_options(method: str, options: EstimatorOptions, given: Iterable[str],
       ``local_refit`` nor ``runner_up_refit`` (its fit inside the clique reads ``confidence``);
     - ``bansac`` and ``p-bansac`` draw their own batches (``bansac_batch``): never ``first_batch_size``,
       and ``batch_size`` only under ``bansac_update='verdict-likelihood'``;
+    - ``runner_up_refit`` works from a search's second batch on: never where the cap (the ``budget``, else
+      ``max_iterations``) is no larger than the first batch (``batch_size`` under a budget, an adaptive
+      search's ``first_batch_size`` if smaller; ``bansac``'s ``bansac_batch``, one hypothesis at least);
     - where a local optimisation runs on every new best whatever ``local_refit`` says (the consensus refit
       of ``bansac``, ``p-bansac`` and ``ars``; the LO+ of ``lo-ransac`` and ``usac``), ``local_refit`` is
       read only as what a given ``runner_up_refit`` needs;
@@ -299,8 +302,11 @@ def unread_options(method: str, options: EstimatorOptions, given: Iterable[str],
       refinement runs;
     - ``gate_probability`` is never read by a method judged by the stereo reprojection gate
       (``ransac``, ``msac``, ``prosac``, ``r-ransac``, ``waldsac``, ``lo-ransac``, ``preemptive``,
-      ``usac``); ``refine_gate_probability`` only by those with ``probabilistic``'s pixel-gated final
-      refinement (``probabilistic``, ``bansac``, ``p-bansac``, ``ars``), when a final refinement runs.
+      ``usac``), nor ``threshold_px`` by one judged by the 3-D Mahalanobis gate (``probabilistic``,
+      ``mlesac``, ``guided-mlesac``, ``ars``, ``bansac``, ``p-bansac``), whose final inliers are selected
+      by a Mahalanobis gate too; ``refine_gate_probability`` only by those with ``probabilistic``'s
+      pixel-gated final refinement (``probabilistic``, ``bansac``, ``p-bansac``, ``ars``), when a final
+      refinement runs.
 
     A ``+`` method (``msac+polish+lm``, ``probabilistic+sprt``) reads what its base reads, with its own
     defaults (``+lm``'s ``refine=True`` leaves ``least_squares_refit`` unread).

@@ -88,6 +88,78 @@ def test_several_unread_options_are_named_together_and_a_bad_value_is_named_firs
     assert "confidence must be a finite number in (0, 1), got 1.5" in _refusal(StereoVOEnv, confidence=1.5)
 
 
+THRESHOLD_IGNORED = ("threshold_px=2.0 would be ignored: method 'probabilistic' judges by the 3-D Mahalanobis gate "
+                     "(gate_probability) and selects its final inliers by a Mahalanobis gate too, never by the stereo "
+                     "reprojection gate whose threshold threshold_px is")
+
+
+def _steps(env, n: int = 2) -> list[tuple]:
+    """(reward, rotation error, inliers) of ``n`` steps with zero actions from ``reset(seed=1)``."""
+    env.reset(seed=1)
+    out = []
+    for _ in range(n):
+        action = np.zeros(env.action_space.shape, dtype=np.float32)
+        if isinstance(env, StereoVOAdaptiveEnv):
+            action[-1] = 1.0  # stop after each batch: one frame a step or two
+        _, reward, _, _, info = env.step(action)
+        out.append((reward, info.get("rot_err_deg"), info.get("n_inliers")))
+    return out
+
+
+@pytest.mark.parametrize("cls", [StereoVOEnv, StereoVOAdaptiveEnv])
+def test_threshold_px_is_refused_with_a_mahalanobis_judge_unless_the_msac_reward_reads_it(cls):
+    assert _refusal(cls, method="probabilistic", threshold_px=2.0) == (
+        f"{cls.__name__}: {THRESHOLD_IGNORED}; the environment's reward reads it with reward_mode='msac' only, got "
+        "reward_mode='supervised'")
+    assert _refusal(cls, method="mlesac", reward_mode="inliers", threshold_px=2.0).startswith(
+        f"{cls.__name__}: threshold_px=2.0 would be ignored: method 'mlesac' judges by the 3-D Mahalanobis gate")
+    # the msac reward scores under it: the environment's own, kept from an estimator that would not read it
+    env = cls(**SMALL, method="probabilistic", reward_mode="msac", threshold_px=2.0)
+    plain = cls(**SMALL, method="probabilistic", reward_mode="msac")
+    assert env.estimator_options.threshold_px == 2.0
+    if cls is StereoVOEnv:
+        assert env.estimator_kwargs == plain.estimator_kwargs and "threshold_px" not in env.estimator_kwargs
+        assert "threshold_px" in cls(**SMALL, reward_mode="msac", threshold_px=2.0).estimator_kwargs  # msac reads it
+    gated, ungated = _steps(env), _steps(plain)
+    assert [step[1:] for step in gated] == [step[1:] for step in ungated]  # the same estimates
+    assert [step[0] for step in gated] != [step[0] for step in ungated]  # scored under another gate
+    # read by the reprojection judges whatever the reward
+    assert cls(**SMALL, threshold_px=2.0).estimator_options.threshold_px == 2.0
+
+
+BANSAC_IGNORES_BATCH_SIZE = (
+    "batch_size=8 would be ignored: method {method!r} draws its own batches between belief updates from the first "
+    "(bansac_batch; one hypothesis by default, the paper's): batch_size caps them only under "
+    "bansac_update='verdict-likelihood', got bansac_update='paper'")
+
+
+@pytest.mark.parametrize("method", ["bansac", "p-bansac"])
+def test_the_environments_batch_size_is_refused_where_the_method_sizes_its_batches_itself(method):
+    expected = BANSAC_IGNORES_BATCH_SIZE.format(method=method)
+    assert _refusal("vo_gym/StereoVO-v0", method=method, batch_size=8) == f"StereoVOEnv: {expected}"
+
+    class MyEnv(StereoVOEnv):
+        pass
+
+    assert _refusal(MyEnv, method=method, batch_size=8) == f"MyEnv: {expected}"
+    assert _refusal(StereoVOEnv, method="preemptive", batch_size=8) == (
+        "StereoVOEnv: batch_size=8 would be ignored: method 'preemptive' hands its whole set of hypotheses to the "
+        "verifier in one batch: batch_size sizes none of its batches")
+    # the default, not given (or given as None), is the environment's, never refused: the estimator gets none
+    for kwargs in ({}, {"batch_size": None}):
+        env = gym.make("vo_gym/StereoVO-v0", **SMALL, method=method, **kwargs).unwrapped
+        assert "batch_size" not in env.estimator_kwargs and env.estimator_kwargs["budget"] == 32
+    # read where it caps the verdict-likelihood update's batches
+    env = StereoVOEnv(**SMALL, method=method, batch_size=2, bansac_update="verdict-likelihood")
+    assert env.estimator_kwargs["batch_size"] == 2
+    # the in-frame environment draws batch_size hypotheses a step whatever the judge
+    adaptive = StereoVOAdaptiveEnv(**SMALL, method=method, batch_size=8)
+    adaptive.reset(seed=0)
+    action = np.zeros(adaptive.action_space.shape, dtype=np.float32)
+    action[-1] = -1.0  # go on
+    assert adaptive.step(action)[4]["frame_hypotheses"] == 8
+
+
 def _frames():
     frames = []
     for outliers in ("default", "hostile"):
@@ -97,7 +169,8 @@ def _frames():
 
 
 ALTERNATIVES = {"confidence": 0.5, "max_iterations": 2, "first_batch_size": 1, "fail_at_cap": False,
-                "least_squares_refit": False, "gate_probability": 0.3, "refine_gate_probability": 0.3}
+                "least_squares_refit": False, "gate_probability": 0.3, "refine_gate_probability": 0.3,
+                "threshold_px": 2.0}
 
 
 def _inputs(frame, sampling: str) -> dict:
@@ -137,9 +210,10 @@ def test_every_option_the_tables_refuse_leaves_the_methods_estimates_unchanged(m
                 base = {**DEFAULT_ESTIMATOR_OPTIONS, **settings, "noise_sigma": 0.5}
                 if base["budget"] is None:
                     base["max_iterations"] = 64
-                # the environments' defaults and the cap where the method reads them (refine_rounds without
-                # refine is refused, and preemptive's cap is its M)
-                base = drop_unread(method, base, among=set(base) - set(settings), order=sampling == "prosac")
+                # the environments' defaults, the cap and the batch size where the method reads them
+                # (refine_rounds without refine is refused, preemptive's cap is its M, bansac sizes its batches)
+                base = drop_unread(method, base, among=set(base) - set(settings) | {"batch_size"},
+                                   order=sampling == "prosac")
                 env = StereoVOEnv(**SMALL, method=method, sampling=sampling,
                                   **{k: v for k, v in base.items() if k != "noise_sigma"})
                 unread = unread_options(method, env.estimator_options, ALTERNATIVES, sampling)
@@ -156,8 +230,10 @@ def test_every_option_the_tables_refuse_leaves_the_methods_estimates_unchanged(m
                         assert np.array_equal(a.rotation, b.rotation) and np.array_equal(a.translation, b.translation)
                         assert np.array_equal(a.inliers, b.inliers), (method, sampling, name)
                     checked.add((method.split("+")[0], name))
-    # the defaults' refusals were among those checked
-    assert {("msac", name) for name in ALTERNATIVES} <= checked, sorted(checked)
+    # the defaults' refusals were among those checked, and a Mahalanobis judge's threshold_px
+    assert {("msac", name) for name in ALTERNATIVES.keys() - {"threshold_px"}} <= checked, sorted(checked)
+    assert {(method, "threshold_px") for method in ("probabilistic", "mlesac", "bansac", "ars")} <= checked
+    assert ("msac", "threshold_px") not in checked
 
 
 @pytest.mark.parametrize("kwargs", [{}, {"method": "probabilistic"}, {"sampling": "prosac", "method": "usac"},

@@ -103,6 +103,58 @@ def test_the_gate_quantiles_are_refused_where_no_such_gate_is():
         estimate_motion(FRAME.prev, FRAME.curr, FRAME.camera, method=method, **options)
 
 
+MAHALANOBIS_JUDGED = {"probabilistic", "probabilistic+sprt", "mlesac", "guided-mlesac", "ars", "bansac", "p-bansac"}
+
+
+def test_threshold_px_is_refused_by_the_methods_judged_by_a_mahalanobis_gate():
+    assert _message("probabilistic", threshold_px=2.0) == (
+        "method 'probabilistic': threshold_px=2.0 would be ignored: method 'probabilistic' judges by the 3-D "
+        "Mahalanobis gate (gate_probability) and selects its final inliers by a Mahalanobis gate too, never by the "
+        "stereo reprojection gate whose threshold threshold_px is")
+    # the default's own value, given, is refused as any given value is
+    assert _message("bansac", threshold_px=None).startswith("method 'bansac': threshold_px=None would be ignored: ")
+    refusing = {method for method in available_methods()
+                if unread_options(method, validate_options(method, {})[0], ["threshold_px"])}
+    assert refusing == MAHALANOBIS_JUDGED
+    # read by the reprojection judges, their final refinement, and the clique's re-gating
+    for method in ("ransac", "msac", "msac+polish+lm", "inlier-detection"):
+        assert estimate_motion(FRAME.prev, FRAME.curr, FRAME.camera, method=method, threshold_px=2.0).ok
+
+
+def _accepted(method: str, **options):
+    return estimate_motion(FRAME.prev, FRAME.curr, FRAME.camera, method=method, rng=0, **options)
+
+
+ONE_BATCH = "no later batch has a runner-up for runner_up_refit to refit"
+
+
+def test_runner_up_refit_is_refused_where_the_search_draws_one_batch(monkeypatch):
+    refit = {"local_refit": True, "runner_up_refit": 0.5}
+    assert _message("ransac", budget=64, **refit) == (
+        "method 'ransac': runner_up_refit=0.5 would be ignored: a fixed budget (budget=64) draws no more than its "
+        f"first batch (batch_size=128): {ONE_BATCH}")
+    assert _message("msac", max_iterations=16, **refit) == (
+        "method 'msac': runner_up_refit=0.5 would be ignored: an adaptive search capped at max_iterations=16 draws no "
+        f"more than its first batch (first_batch_size=16): {ONE_BATCH}")
+    assert f"(batch_size=8): {ONE_BATCH}" in _message("msac", max_iterations=8, batch_size=8, **refit)
+    assert f"(bansac_batch=8): {ONE_BATCH}" in _message("bansac", budget=8, bansac_batch=8, **refit)
+    assert f"(bansac_batch=8, at most batch_size): {ONE_BATCH}" in _message(
+        "p-bansac", budget=4, bansac_batch=8, batch_size=4, bansac_update="verdict-likelihood", **refit)
+    assert f"(one hypothesis at least): {ONE_BATCH}" in _message("bansac", budget=1, **refit)
+    # one hypothesis past the first batch is a second batch, which may have a runner-up
+    for method, options in (("ransac", {"budget": 129}), ("ransac", {"budget": 64, "batch_size": 32}),
+                            ("msac", {"max_iterations": 17}), ("msac", {"max_iterations": 8, "first_batch_size": 4}),
+                            ("bansac", {"budget": 2}), ("bansac", {"budget": 9, "bansac_batch": 8})):
+        _accepted(method, **options, **refit)
+    assert _accepted("probabilistic", budget=256, batch_size=16, **refit).counters["runner_up_refits"] > 0
+    # probabilistic's own runner_up_refit is a default: never refused, also where it cannot run
+    assert _accepted("probabilistic", budget=64).counters["runner_up_refits"] == 0
+    # run anyway, the refused refit never runs
+    monkeypatch.setattr(api, "refuse_unread", lambda *args: None)
+    for method, options in (("ransac", {"budget": 64}), ("msac", {"max_iterations": 16}), ("bansac", {"budget": 1})):
+        assert _accepted(method, **options, **refit).counters["runner_up_refits"] == 0
+
+
 def test_the_prosac_stop_reads_confidence_under_a_budget_and_usac_only_given_an_order():
     assert estimate_motion(FRAME.prev, FRAME.curr, FRAME.camera, method="prosac", order=ORDER, budget=64,
                            confidence=0.5).n_hypotheses == 64
@@ -276,7 +328,7 @@ def test_every_method_declares_what_it_reads_and_the_variants_keep_their_bases()
 ALTERNATIVES = {"confidence": (0.5, 0.9), "max_iterations": (2, 3), "budget": (5, 6), "batch_size": (3, 4),
                 "first_batch_size": (1, 2), "gate_probability": (0.3, 0.5), "refine_gate_probability": (0.3, 0.5),
                 "rigidity_gate_probability": (0.9, 0.99), "polish_iterations": (3, 1), "refine_iterations": (1, 2),
-                "refine_rounds": (1, 4), "runner_up_refit": (0.2, 0.5)}
+                "refine_rounds": (1, 4), "runner_up_refit": (0.2, 0.5), "threshold_px": (1.0, 2.0)}
 """Values of each numeric candidate: the first unlike the method's own is given; the switches get the
 opposite of theirs."""
 
@@ -289,6 +341,8 @@ SETTINGS = (
     {"budget": 8, "refine": False},
     {"budget": None, "max_iterations": 64, "refine": False, "least_squares_refit": False},
     {"budget": None, "max_iterations": 64, "refine": True},
+    {"budget": 1},  # one hypothesis: one batch whatever the method's batches
+    {"budget": None, "max_iterations": 8},  # an adaptive search within its first batch (first_batch_size 16)
 )
 
 
@@ -365,11 +419,15 @@ def test_every_option_a_method_is_refused_leaves_its_estimates_unchanged(monkeyp
                             assert np.array_equal(a.inliers, b.inliers), (method, sampling, settings, name)
                     checked.add((method, name))
     # each kind of refusal was among those checked, and none of what the methods do read
-    loop = {"budget", "polish_iterations", "rigidity_gate_probability", "local_refit", "runner_up_refit",
-            "batch_size"}  # what the loop itself reads, whatever the settings
-    assert {("msac", name) for name in UNREAD_CANDIDATES - loop} <= checked, sorted(checked)
+    loop = {"budget", "polish_iterations", "rigidity_gate_probability", "local_refit", "batch_size"}  # whatever
+    # the settings; runner_up_refit too from a second batch on
+    assert {("msac", name) for name in UNREAD_CANDIDATES - loop - {"threshold_px"}} <= checked, sorted(checked)
     assert {("probabilistic", name) for name in UNREAD_CANDIDATES - loop - {"gate_probability"}} <= checked
-    assert {("inlier-detection", name) for name in UNREAD_CANDIDATES - {"confidence", "gate_probability"}} <= checked
+    assert {("inlier-detection", name) for name in UNREAD_CANDIDATES - {"confidence", "gate_probability",
+                                                                       "threshold_px"}} <= checked
+    assert {(m, "threshold_px") for m in ("probabilistic", "probabilistic+sprt", "mlesac", "guided-mlesac", "ars",
+                                          "bansac", "p-bansac")} <= checked
+    assert {(m, "runner_up_refit") for m in ("ransac", "usac", "lo-ransac", "ars", "bansac", "p-bansac")} <= checked
     assert {("preemptive", name) for name in ("max_iterations", "batch_size", "first_batch_size", "runner_up_refit",
                                                "local_refit", "confidence")} <= checked
     assert {(m, name) for m in ("bansac", "p-bansac") for name in ("batch_size", "first_batch_size", "local_refit")
@@ -378,6 +436,7 @@ def test_every_option_a_method_is_refused_leaves_its_estimates_unchanged(monkeyp
             ("lo-ransac+polish+lm", "local_refit"), ("inlier-detection+lm", "budget"), ("prosac", "max_iterations"),
             ("usac", "confidence")} <= checked
     assert not {(m, "gate_probability") for m in ("probabilistic", "mlesac", "bansac", "inlier-detection")} & checked
+    assert not {(m, "threshold_px") for m in ("ransac", "msac", "prosac", "preemptive", "inlier-detection")} & checked
     assert not {("prosac", "confidence"), ("inlier-detection", "confidence")} & checked
     assert not ({(m, name) for m in ("msac", "probabilistic") for name in loop}
                 | {("ars", name) for name in loop - {"local_refit"}}) & checked
