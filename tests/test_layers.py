@@ -202,7 +202,7 @@ ESTIMATION_FLOORS = (
     ("stereovo.estimation.problem",),
     ("stereovo.estimation.roles", "stereovo.estimation.covariance"),
     ("stereovo.estimation.estimator_options",),
-    ("stereovo.estimation.loop",),
+    ("stereovo.estimation.loop", "stereovo.estimation.compiled_search"),
     ("stereovo.estimation.registry",),
     ("stereovo.estimation.recipes",),
     ("stereovo.estimation.methods",),

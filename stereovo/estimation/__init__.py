@@ -19,8 +19,8 @@ The floors, bottom to top (each imports only those below it):
 - :mod:`~stereovo.estimation.estimator_options`: :class:`EstimatorOptions`, the options every
   method shares, the named enhancements, and :class:`OptionReads`, which of them a method reads;
 - :mod:`~stereovo.estimation.loop`: :func:`run_ransac`, the one loop, on
-  :class:`RansacComponents`, returning a :class:`RansacReport`;
-- :mod:`~stereovo.estimation.compiled_search`: the loop's batches in one compiled call for the
+  :class:`RansacComponents`, returning a :class:`RansacReport`; beside it
+  :mod:`~stereovo.estimation.compiled_search`, the loop's batches in one compiled call for the
   ``probabilistic`` judge with uniform draws, bit for bit its steps (a ``search_runner``);
 - :mod:`~stereovo.estimation.registry`: the named methods, their option declarations,
   :func:`validate_options` and :func:`unread_options` (a given option the method would not read is
