@@ -27,7 +27,7 @@ from agents.adaptive.checkpoint import NETWORK_SIZES, load_adaptive, save_adapti
 from agents.adaptive.network import LOGIT_BOUND, AdaptiveSamplerNet, make_action, observation_tensors
 from agents.network_size import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE
 from agents.ngransac import ordered_triplet_log_prob, randomised_settings
-from agents.training_limits import MAX_TRAINING_STEPS
+from agents.training_limits import LEARNING_RATE, MAX_LEARNING_RATE, MAX_TRAINING_STEPS
 from stereovo.estimation.estimator_options import MAX_COUNT
 from stereovo.options import Choice, Integer, Number, Option
 from stereovo.simulation.config import MAX_CORRESPONDENCES, MAX_FRAMES
@@ -47,7 +47,7 @@ _TRAIN_RULES: dict[str, Option] = {
     "n": Integer(low=3, high=MAX_CORRESPONDENCES),
     **{name: Integer(low=1, high=MAX_COUNT) for name in ("batch_size", "max_hypotheses")},
     "seed": Integer(low=0),
-    "lr": Number(low=0.0, low_open=True),
+    "lr": LEARNING_RATE,
     **{name: Number(low=0.0, high=1.0) for name in ("hard_fraction", "right_precision", "right_recall")},
     # a network a checkpoint can hold (agents.checkpoint refuses larger ones at load)
     **{name: Integer(low=1, high=MAX_NETWORK_SIZE) for name in ("width", "blocks")},
@@ -69,7 +69,8 @@ class AdaptiveTrainConfig:
         hard_fraction: share of episodes on the hard settings (contamination ``hard_epsilons``).
         batch_size, max_hypotheses, hypothesis_cost: the environment's.
         n: correspondences per frame (3 to :data:`~stereovo.simulation.config.MAX_CORRESPONDENCES`).
-        lr, width, blocks: optimiser step (Adam's learning rate, finite and > 0) and network size.
+        lr, width, blocks: optimiser step (Adam's learning rate, in ``(0, 0.1)``:
+            :data:`~agents.training_limits.MAX_LEARNING_RATE`) and network size.
         pg_weight, inlier_weight, stop_weight: weights of the policy-gradient and the two auxiliary losses.
         right_precision, right_recall: when the hypothesis a frame would end on counts as right.
         frames_per_update: frames whose losses are summed per optimiser step.
@@ -426,7 +427,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="inlier recall at which a hypothesis counts as right, the stop belief's label "
                              f"(default: {defaults.right_recall:g})")
     parser.add_argument("--lr", type=float, default=defaults.lr,
-                        help=f"Adam's learning rate, finite and > 0 (default: {defaults.lr:g})")
+                        help=f"Adam's learning rate, in (0, {MAX_LEARNING_RATE:g}) (default: {defaults.lr:g})")
     parser.add_argument("--clock", choices=("wall", "cpu"), default=defaults.clock,
                         help=f"what --minutes counts: wall clock or this process' CPU time (default: {defaults.clock})")
     parser.add_argument("--init", default=None, metavar="CHECKPOINT",
@@ -457,10 +458,9 @@ def main(argv: list[str] | None = None) -> int:
                                      right_precision=args.right_precision, right_recall=args.right_recall, lr=args.lr,
                                      clock=args.clock, init=args.init, prior=args.prior,
                                      domain_randomisation=args.domain_randomisation, **ranges)
-    except ValueError as err:  # the config's checks name its field: the message names the option instead
-        text = str(err)
-        field = next((f for f in _MAIN_OPTIONS if text.startswith(f"{f} ")), None)
-        parser.error(f"{_MAIN_OPTIONS[field]}{text[len(field):]}" if field else text)
+    except ValueError as err:  # a FieldError names the config's field: the message names the option instead
+        known = isinstance(err, FieldError) and err.field in _MAIN_OPTIONS
+        parser.error(err.named(_MAIN_OPTIONS[err.field]) if known else str(err))
     problem = _check_start(config) or check_out_file(args.out, args.overwrite)
     if problem:
         parser.error(problem)

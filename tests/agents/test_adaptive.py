@@ -276,8 +276,12 @@ def test_a_run_shorter_than_one_log_window_still_logs_it(tmp_path):
     ({"width": 5000}, "width must be an integer >= 1 and <= 4096, got 5000"),
     ({"width": 2048, "blocks": 2}, "width 2048 and blocks 2 make a network of 25,247,746 parameters"),
     # Adam's learning rate, checked here rather than by torch once training starts
-    ({"lr": -1.0}, r"^lr must be a finite number > 0, got -1.0$"), ({"lr": 0.0}, r"^lr must be a finite number > 0"),
-    ({"lr": float("inf")}, r"^lr must be a finite number > 0, got inf$"),
+    ({"lr": -1.0}, r"^lr must be a finite number in \(0, 0.1\), got -1.0$"),
+    ({"lr": 0.0}, r"^lr must be a finite number in \(0, 0.1\)"),
+    ({"lr": float("inf")}, r"^lr must be a finite number in \(0, 0.1\), got inf$"),
+    # the learning-rate cap (agents.training_limits.MAX_LEARNING_RATE), the cap itself included
+    ({"lr": 1e30}, r"^lr must be a finite number in \(0, 0.1\), got 1e\+30$"),
+    ({"lr": 0.1}, r"^lr must be a finite number in \(0, 0.1\), got 0.1$"),
     # counts within a named cap (agents.training_limits, the simulator's)
     ({"max_episodes": 10**400}, r"^max_episodes must be None or an integer >= 1 and <= 1000000000, got ~1e\+400"),
     ({"n": 10**9}, r"^n must be an integer >= 3 and <= 100000000, got 1000000000$"),
@@ -448,8 +452,9 @@ def test_the_shipped_in_frame_networks_are_far_below_the_size_cap(name):
 
 @pytest.mark.parametrize("argv, message", [
     (["--n", "0"], "--n must be an integer >= 3 and <= 100000000, got 0"),
-    (["--lr", "-1"], "--lr must be a finite number > 0, got -1.0"),
-    (["--lr", "nan"], "--lr must be a finite number > 0, got nan"),
+    (["--lr", "-1"], "--lr must be a finite number in (0, 0.1), got -1.0"),
+    (["--lr", "nan"], "--lr must be a finite number in (0, 0.1), got nan"),
+    (["--lr", "1e30"], "--lr must be a finite number in (0, 0.1), got 1e+30"),
     (["--minutes", "0"], "--minutes must be a finite number > 0, got 0.0"),
     (["--seed", "-2"], "--seed must be an integer >= 0, got -2"),
     (["--hard-fraction", "2"], "--hard-fraction must be a finite number in [0, 1], got 2.0"),

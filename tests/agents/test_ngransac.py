@@ -404,8 +404,9 @@ def test_triplet_log_prob_stays_finite_when_two_picks_hold_all_the_float32_mass(
     ("eval_frames", 0, "eval_frames must be an integer >= 1 and <= 1000000000, got 0"),
     ("budget", 10**10, "budget must be an integer >= 1 and <= 1000000000, got 10000000000"),
     ("frames_per_sequence", 10**7, "frames_per_sequence must be an integer >= 1 and <= 1000000, got 10000000"),
-    ("learning_rate", -1.0, "learning_rate must be a finite number > 0, got -1.0"),
-    ("learning_rate", float("nan"), "learning_rate must be a finite number > 0, got nan"),
+    ("learning_rate", -1.0, "learning_rate must be a finite number in (0, 0.1), got -1.0"),
+    ("learning_rate", float("nan"), "learning_rate must be a finite number in (0, 0.1), got nan"),
+    ("learning_rate", 1e30, "learning_rate must be a finite number in (0, 0.1), got 1e+30"),
 ])
 def test_counts_past_their_cap_and_a_bad_learning_rate_are_refused_naming_the_field(field, value, message):
     with pytest.raises(ValueError) as err:
