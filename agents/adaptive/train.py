@@ -145,18 +145,42 @@ def episode_settings(config: AdaptiveTrainConfig, episode: int) -> tuple[dict[st
 
 def _training_env(config: AdaptiveTrainConfig, episode: int) -> tuple[StereoVOAdaptiveEnv, dict]:
     kwargs, hard = episode_settings(config, episode)
-    env = StereoVOAdaptiveEnv(
+    return _environment(config, kwargs), {"hard": hard, "epsilon": kwargs["outlier_ratio"]}
+
+
+def _environment(config: AdaptiveTrainConfig, settings: dict[str, Any]) -> StereoVOAdaptiveEnv:
+    """The adaptive environment of ``config`` with an episode's simulator keywords ``settings``."""
+    return StereoVOAdaptiveEnv(
         batch_size=config.batch_size, max_hypotheses=config.max_hypotheses, hypothesis_cost=config.hypothesis_cost,
-        n_frames=config.frames_per_episode, n_correspondences=config.n, **kwargs,
+        n_frames=config.frames_per_episode, n_correspondences=config.n, **settings,
     )
-    return env, {"hard": hard, "epsilon": kwargs["outlier_ratio"]}
+
+
+WARM_UP_ENDS = ("found", "missed", "capped")
+"""How :func:`compile_kernels` ends its frames: a motion found (logits on the labelled inliers, a stop after
+the first batch), one missed (uniform logits, a stop after the first batch), the hypothesis cap (no stop)."""
 
 
 def compile_kernels(config: AdaptiveTrainConfig) -> None:
-    """Run one frame of a standard and of a hard training episode's environment (those of ``config``
-    that training would meet first), so that numba's kernels are compiled or loaded from its cache
-    before a budget is timed. Draws nothing from torch's generator and changes nothing training
-    reads: the same config trains the same weights with or without it."""
+    """Run frames of each kind of episode that ``config`` trains, ended in each way a training frame can end
+    (:data:`WARM_UP_ENDS`), so that numba's kernels (the simulator's, the features', the estimator's) are
+    compiled or loaded from its cache before a budget is timed.
+
+    The kinds: the first standard and the first hard episode that training would meet (their settings), and
+    with ``domain_randomisation`` each of them again with every outlier kind in its mix (a drawn mix may leave
+    a kind out). Each way runs on the episode's first two frames, the second with the first's estimate for
+    its prediction features. The kernels a frame needs depend on where its search ends and on its random
+    draws, not on its settings alone: a warm-up of uniform logits only had left the final refinement and the
+    prediction features to compile inside the budget whenever those first frames all missed (measured with
+    an empty numba cache: 9 to 13 s of the first episode with ``hard_fraction=0`` or ``domain_randomisation``,
+    0.1 s once warmed), and the simulator's redraw of rows that noise sent out of the image whenever none did
+    (one more frame, with 10 px of noise, runs it).
+    Draws nothing from torch's generator and changes nothing training reads: the same config trains the
+    same weights with or without it."""
+    from stereovo.simulation import OUTLIER_KINDS, SimulationConfig, simulate_frame
+
+    # the simulator's redraw of rows that noise sent out of the image: always at 10 px of noise
+    simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.5, noise_sigma=10.0), rng=0)
     first: dict[bool, int] = {}
     # hard_fraction 0 or 1 has one kind only, and a rare kind may not come within 64 episodes: its
     # few kernels of its own then compile inside the budget, as before
@@ -165,18 +189,32 @@ def compile_kernels(config: AdaptiveTrainConfig) -> None:
         if len(first) == 2:
             break
     for episode in first.values():
-        env, _ = _training_env(config, episode)
-        obs, _ = env.reset(seed=config.seed * 1_000_003 + episode)
-        n = env.current_frame.n
-        done = False
+        settings = episode_settings(config, episode)[0]
+        kinds = [settings] + ([{**settings, "outlier_mix": dict.fromkeys(OUTLIER_KINDS, 1.0)}]
+                              if config.domain_randomisation else [])
+        for kind in kinds:
+            env = _environment(config, kind)
+            for end in WARM_UP_ENDS:
+                _warm_up_frames(env, config.seed * 1_000_003 + episode, end)
+            env.close()
+
+
+def _warm_up_frames(env: StereoVOAdaptiveEnv, seed: int, end: str) -> None:
+    """Reset ``env`` with ``seed`` and step its first two frames (or its one), each ended as ``end`` says."""
+    obs, _ = env.reset(seed=seed)
+    for _ in range(2):
+        done = truncated = False
         while not done:
+            frame = env.current_frame
+            n = frame.n
+            logits = np.where(frame.truth.inlier, LOGIT_BOUND, -LOGIT_BOUND) if end == "found" else np.zeros(n)
+            step = make_action(logits, obs["mask"][:n], end != "capped" and env.frame_hypotheses > 0)
             action = np.full(env.action_space.shape, -LOGIT_BOUND, dtype=np.float32)
-            # uniform logits; stop once a batch is drawn, as the policy may (the stop path's kernels too)
-            step = make_action(np.zeros(n), obs["mask"][:n], env.frame_hypotheses > 0)
             action[:n], action[-1] = step[:n], step[-1]
             obs, _, _, truncated, info = env.step(action)
             done = info["frame_done"] or truncated
-        env.close()
+        if truncated:
+            return
 
 
 def right_hypothesis(masks: np.ndarray, weights: np.ndarray, inlier: np.ndarray, precision: float, recall: float) -> bool:
