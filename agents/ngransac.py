@@ -298,6 +298,14 @@ class NGRansacTrainer:
         )
         self.loss_fn = LOSS_FUNCTIONS[self.config.loss]
 
+    def frame_loss(self, frame: Frame, previous_motion=None) -> tuple[torch.Tensor, list[float], list[bool], MotionEstimate]:
+        """The objective one training step on ``frame`` descends, without the step: ``(objective, losses,
+        success, first)``, the policy-gradient objective (minus the entropy bonus), each pool's task loss,
+        whether each pool's pose is a success, and the first pool's estimate. ``previous_motion`` (R, t) is
+        the prediction the features and the smooth loss read (None: the first frame of a sequence).
+        Draws the pools from the trainer's generator, as a step does."""
+        return self._frame_loss(frame, previous_motion)
+
     def _frame_loss(self, frame: Frame, previous_motion) -> tuple[torch.Tensor, list[float], list[bool], MotionEstimate]:
         feats = compute_features(frame.prev, frame.curr, frame.scores, frame.camera, frame.noise_sigma, previous_motion)
         problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)

@@ -13,7 +13,6 @@ recall >= ``right_recall`` among its consensus). :func:`main` is ``python -m age
 from __future__ import annotations
 
 import json
-import math
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path

@@ -354,7 +354,10 @@ def test_a_config_refusal_names_the_option_of_its_field_not_of_its_words(tmp_pat
     def refuse(self):
         raise FieldError(field, rule, subject=subject)
 
-    monkeypatch.setattr(train._config_class(algo), "__post_init__", refuse)
+    from agents.adaptive.train import AdaptiveTrainConfig
+
+    config_class = {"ngransac": NGRansacConfig, "ppo": PPOConfig, "adaptive": AdaptiveTrainConfig}[algo]
+    monkeypatch.setattr(config_class, "__post_init__", refuse)
     assert main(["train", "--algo", algo, *argv, "--no-progress", "--out", str(tmp_path / "t")]) == 2
     assert one_line_error(capsys, "train") == f"vo-gym train: error: {message}"
     assert not (tmp_path / "t").exists()
