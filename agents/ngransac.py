@@ -32,7 +32,7 @@ import torch
 from agents.checkpoint import load_checkpoint, save_checkpoint
 from agents.network import CorrespondenceNet
 from agents.network_size import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE, correspondence_net_parameters
-from agents.training_limits import MAX_TRAINING_STEPS
+from agents.training_limits import LEARNING_RATE, MAX_TRAINING_STEPS
 from stereovo.estimation import (
     EstimatorOptions,
     MotionEstimate,
@@ -63,7 +63,7 @@ _NGRANSAC_RULES: dict[str, Option] = {
     "frames_per_sequence": Integer(low=1, high=MAX_FRAMES),
     **{name: Integer(low=1, high=MAX_TRAINING_STEPS) for name in ("frames", "eval_every", "eval_frames")},
     "seed": Integer(low=0),
-    "learning_rate": Number(low=0.0, low_open=True),
+    "learning_rate": LEARNING_RATE,
     "eval_epsilon": Number(low=0.0, high=1.0, high_open=True),
 }
 """The declarations :class:`NGRansacConfig`'s numbers are checked and normalised by (:mod:`stereovo.options`)."""
@@ -91,7 +91,7 @@ class NGRansacConfig:
         pools: pools per frame (K, at least 2); their mean loss is the baseline.
         frames: training frames (policy-gradient steps; at most
             :data:`~agents.training_limits.MAX_TRAINING_STEPS`, as are ``eval_every`` and ``eval_frames``).
-        learning_rate: Adam's step size (> 0).
+        learning_rate: Adam's step size, in ``(0, 0.1)`` (:data:`~agents.training_limits.MAX_LEARNING_RATE`).
         method: core method that fits and scores each pool.
         max_grad_norm: the policy gradient's norm is clipped to this (None: no clipping). One
             outsized step can push the softmax onto a few points whose triplets all fail; then
@@ -297,6 +297,14 @@ class NGRansacTrainer:
             **DEFAULT_ESTIMATOR_OPTIONS,
         )
         self.loss_fn = LOSS_FUNCTIONS[self.config.loss]
+
+    def frame_loss(self, frame: Frame, previous_motion=None) -> tuple[torch.Tensor, list[float], list[bool], MotionEstimate]:
+        """The objective one training step on ``frame`` descends, without the step: ``(objective, losses,
+        success, first)``, the policy-gradient objective (minus the entropy bonus), each pool's task loss,
+        whether each pool's pose is a success, and the first pool's estimate. ``previous_motion`` (R, t) is
+        the prediction the features and the smooth loss read (None: the first frame of a sequence).
+        Draws the pools from the trainer's generator, as a step does."""
+        return self._frame_loss(frame, previous_motion)
 
     def _frame_loss(self, frame: Frame, previous_motion) -> tuple[torch.Tensor, list[float], list[bool], MotionEstimate]:
         feats = compute_features(frame.prev, frame.curr, frame.scores, frame.camera, frame.noise_sigma, previous_motion)

@@ -46,9 +46,18 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-from agents.training_limits import MAX_TRAINING_STEPS
+from agents.training_limits import LEARNING_RATE, MAX_TRAINING_STEPS
 from stereovo.estimation.estimator_options import MAX_COUNT
-from stereovo.options import Integer, Number, Option, check_options, is_finite_real, is_integer, value_repr
+from stereovo.options import (
+    Integer,
+    Number,
+    Option,
+    OptionError,
+    check_options,
+    is_finite_real,
+    is_integer,
+    value_repr,
+)
 from stereovo.simulation.config import MAX_CORRESPONDENCES, MAX_FRAMES
 
 __all__ = [
@@ -101,6 +110,22 @@ _METRIC_RULES: dict[str, Option] = {
     "epsilon": Number(low=0.0, high=1.0, high_open=True),
 }
 """The declarations :class:`MetricSpec` is checked by (:mod:`stereovo.options`)."""
+
+_ASHA_RULES: dict[str, Option] = {
+    "scheduler.grace_period": Integer(low=1),
+    "scheduler.reduction_factor": Number(low=1.0, low_open=True),
+}
+_COUNT_RULES: dict[str, Option] = {
+    "samples": Integer(low=1, high=MAX_SAMPLES),
+    "report_every": Integer(low=1, high=MAX_TRAINING_STEPS),
+    "search_seed": Integer(low=0),
+}
+"""The declarations of the file's own numbers (the ASHA scheduler's, then the top's), by key as messages name them."""
+
+_SEARCHED_RULES: dict[str, Option] = {"learning_rate": LEARNING_RATE}
+"""Trainer config fields whose every searched value is checked by the trainer's declaration: each grid or
+choice value and both bounds of a range (the trainer's config checks the fixed value and the first point of
+the space only, and a trial drawn past the cap would fail after the sweep had started)."""
 
 
 @dataclass(frozen=True)
@@ -253,11 +278,13 @@ def yaml_number_hint(value: Any, integer: bool = False) -> str:
     return f" (YAML reads {value!r} as text; write {number!r}, without quotes)"
 
 
-def _hinted(message: str, values: Mapping[str, Any]) -> str:
-    """``message`` (``KEY must be ..., got VALUE``) with :func:`yaml_number_hint`'s words for the value
-    of the key it starts with, one of ``values``' keys."""
-    key = message.removeprefix("sweep ").split(" ", 1)[0]
-    return message + (yaml_number_hint(values[key], integer="must be an integer" in message) if key in values else "")
+def _hint(err: OptionError, values: Mapping[str, Any], declarations: Mapping[str, Option]) -> str:
+    """:func:`yaml_number_hint`'s words for the value that ``err`` refused: the one of ``values`` under the
+    key that ``err`` names (its ``name``, one of ``declarations``, whose type says whether a whole number
+    is due), or ``""``."""
+    if err.name not in values or err.name not in declarations:
+        return ""
+    return yaml_number_hint(values[err.name], integer=isinstance(declarations[err.name], Integer))
 
 
 def _finite_list(length: int) -> Callable[[Any], bool]:
@@ -393,6 +420,9 @@ def parse_sweep(data: Any, source: str = "sweep") -> SweepSpec:
             for i, value in enumerate(values):
                 if rule is not None:
                     rule.check(source, f"{where}[{i}]", value)
+        if isinstance(key, str) and key in _SEARCHED_RULES:
+            for i, value in enumerate(values):
+                _SEARCHED_RULES[key].check(f"{where}[{i}]", value, prefix=f"{source}: ")
         space[key] = {kind: list(values)}
     if algo == "ppo":  # the id PPO trains in: a step environment, as the metric's
         ids = [("fixed.env_id", fixed["env_id"])] if isinstance(fixed.get("env_id"), str) else []
@@ -420,9 +450,8 @@ def parse_sweep(data: Any, source: str = "sweep") -> SweepSpec:
                         "the metric steps a one-shot policy through one of")
     try:
         metric = MetricSpec(**{k: v for k, v in metric_in.items() if k != "name"})
-    except (TypeError, ValueError) as err:
-        given = {f"metric.{k}": v for k, v in metric_in.items()}
-        raise ValueError(f"{source}: {_hinted(_short(err), given)}") from None
+    except OptionError as err:  # it names the field: the hint is for that field's value
+        raise ValueError(f"{source}: {_short(err)}{_hint(err, metric_in, _METRIC_RULES)}") from None
     scheduler = data.get("scheduler") or {"type": "asha"}
     if not isinstance(scheduler, dict):
         raise ValueError(f"{source}: scheduler must be a mapping, got {value_repr(scheduler)}")
@@ -435,21 +464,20 @@ def parse_sweep(data: Any, source: str = "sweep") -> SweepSpec:
     if unknown:
         raise ValueError(f"{source}: unknown scheduler key(s) {_keys(unknown)} for {kind};"
                          f" known: {', '.join(sorted(allowed))}")
+    if kind == "asha":
+        scheduler.setdefault("grace_period", 1)
+        scheduler.setdefault("reduction_factor", 2)
+    # the numbers of the file's top and of its scheduler, by key as the messages name them
+    rules = {**(_ASHA_RULES if kind == "asha" else {}), **_COUNT_RULES}
+    given = {**{f"scheduler.{k}": v for k, v in scheduler.items()}, "samples": data.get("samples", 1),
+             "report_every": data.get("report_every"), "search_seed": data.get("search_seed", 0)}
     try:
-        if kind == "asha":
-            grace = scheduler.setdefault("grace_period", 1)
-            scheduler["grace_period"] = Integer(low=1).check("scheduler.grace_period", grace, prefix="sweep ")
-            rf = scheduler.setdefault("reduction_factor", 2)
-            if not is_finite_real(rf) or rf <= 1:
-                raise ValueError(f"sweep scheduler.reduction_factor must be a finite number > 1, got {value_repr(rf)}")
-        samples = Integer(low=1, high=MAX_SAMPLES).check("samples", data.get("samples", 1), prefix="sweep ")
-        report_every = Integer(low=1, high=MAX_TRAINING_STEPS).check("report_every", data.get("report_every"),
-                                                                      prefix="sweep ")
-        search_seed = Integer(low=0).check("search_seed", data.get("search_seed", 0), prefix="sweep ")
-    except ValueError as err:
-        given = {"samples": data.get("samples"), "report_every": data.get("report_every"),
-                 "search_seed": data.get("search_seed"), **{f"scheduler.{k}": v for k, v in scheduler.items()}}
-        raise ValueError(f"{source}: {_hinted(str(err).removeprefix('sweep '), given)}") from None
+        checked = check_options(rules, given, prefix="", only=rules)
+    except OptionError as err:  # it names the key: the hint is for that key's value
+        raise ValueError(f"{source}: {err}{_hint(err, given, rules)}") from None
+    if kind == "asha":
+        scheduler["grace_period"] = checked["scheduler.grace_period"]
+    samples, report_every, search_seed = checked["samples"], checked["report_every"], checked["search_seed"]
     spec = SweepSpec(
         name=name, algo=algo, fixed=dict(fixed), space=space, samples=samples, report_every=report_every,
         metric=metric, scheduler=scheduler, search_seed=search_seed,
@@ -461,20 +489,22 @@ def parse_sweep(data: Any, source: str = "sweep") -> SweepSpec:
     try:
         spec.trainer_config(first)
     except (TypeError, ValueError, ArithmeticError) as err:
-        raise ValueError(f"{source}: {_keyed(_short(err), fixed, space)}") from None
+        raise ValueError(f"{source}: {_keyed(err, fixed, space)}") from None
     return spec
 
 
-def _keyed(message: str, fixed: Mapping[str, Any], space: Mapping[str, Any]) -> str:
-    """A trainer config's refusal (``frames must ...``, ``PPO: timesteps must ...``) naming the sweep file's
-    key that set the field: ``fixed.frames must ...``, ``space.learning_rate (its first value) must ...``."""
-    body = message.removeprefix("PPO: ")
-    field = body.split(" ", 1)[0].split("=", 1)[0]
-    if field in fixed:
-        return f"fixed.{body}"
-    if field in space:
-        return f"space.{field} (its first value){body[len(field):]}"
-    return message
+def _keyed(err: BaseException, fixed: Mapping[str, Any], space: Mapping[str, Any]) -> str:
+    """A trainer config's refusal naming the sweep file's key that set the field, where the refusal is a
+    :class:`~vo_gym.settings.FieldError` (which names its field; the trainer's prefix, ``PPO:``, is left
+    out): ``fixed.frames must ...``, ``space.learning_rate (its first value) must ...``. Any other
+    refusal, or one of a field the file does not set, keeps its own words (on one line)."""
+    from vo_gym.settings import FieldError
+
+    if isinstance(err, FieldError) and err.field in fixed:
+        return _short(err.named(f"fixed.{err.field}"))
+    if isinstance(err, FieldError) and err.field in space:
+        return _short(err.named(f"space.{err.field} (its first value)"))
+    return _short(err)
 
 
 def _check_step_env(source: str, where: str, env_id: str, purpose: str) -> None:

@@ -13,7 +13,6 @@ recall >= ``right_recall`` among its consensus). :func:`main` is ``python -m age
 from __future__ import annotations
 
 import json
-import math
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -27,7 +26,7 @@ from agents.adaptive.checkpoint import NETWORK_SIZES, load_adaptive, save_adapti
 from agents.adaptive.network import LOGIT_BOUND, AdaptiveSamplerNet, make_action, observation_tensors
 from agents.network_size import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE
 from agents.ngransac import ordered_triplet_log_prob, randomised_settings
-from agents.training_limits import MAX_TRAINING_STEPS
+from agents.training_limits import LEARNING_RATE, MAX_LEARNING_RATE, MAX_TRAINING_STEPS
 from stereovo.estimation.estimator_options import MAX_COUNT
 from stereovo.options import Choice, Integer, Number, Option
 from stereovo.simulation.config import MAX_CORRESPONDENCES, MAX_FRAMES
@@ -47,7 +46,7 @@ _TRAIN_RULES: dict[str, Option] = {
     "n": Integer(low=3, high=MAX_CORRESPONDENCES),
     **{name: Integer(low=1, high=MAX_COUNT) for name in ("batch_size", "max_hypotheses")},
     "seed": Integer(low=0),
-    "lr": Number(low=0.0, low_open=True),
+    "lr": LEARNING_RATE,
     **{name: Number(low=0.0, high=1.0) for name in ("hard_fraction", "right_precision", "right_recall")},
     # a network a checkpoint can hold (agents.checkpoint refuses larger ones at load)
     **{name: Integer(low=1, high=MAX_NETWORK_SIZE) for name in ("width", "blocks")},
@@ -69,7 +68,8 @@ class AdaptiveTrainConfig:
         hard_fraction: share of episodes on the hard settings (contamination ``hard_epsilons``).
         batch_size, max_hypotheses, hypothesis_cost: the environment's.
         n: correspondences per frame (3 to :data:`~stereovo.simulation.config.MAX_CORRESPONDENCES`).
-        lr, width, blocks: optimiser step (Adam's learning rate, finite and > 0) and network size.
+        lr, width, blocks: optimiser step (Adam's learning rate, in ``(0, 0.1)``:
+            :data:`~agents.training_limits.MAX_LEARNING_RATE`) and network size.
         pg_weight, inlier_weight, stop_weight: weights of the policy-gradient and the two auxiliary losses.
         right_precision, right_recall: when the hypothesis a frame would end on counts as right.
         frames_per_update: frames whose losses are summed per optimiser step.
@@ -144,18 +144,42 @@ def episode_settings(config: AdaptiveTrainConfig, episode: int) -> tuple[dict[st
 
 def _training_env(config: AdaptiveTrainConfig, episode: int) -> tuple[StereoVOAdaptiveEnv, dict]:
     kwargs, hard = episode_settings(config, episode)
-    env = StereoVOAdaptiveEnv(
+    return _environment(config, kwargs), {"hard": hard, "epsilon": kwargs["outlier_ratio"]}
+
+
+def _environment(config: AdaptiveTrainConfig, settings: dict[str, Any]) -> StereoVOAdaptiveEnv:
+    """The adaptive environment of ``config`` with an episode's simulator keywords ``settings``."""
+    return StereoVOAdaptiveEnv(
         batch_size=config.batch_size, max_hypotheses=config.max_hypotheses, hypothesis_cost=config.hypothesis_cost,
-        n_frames=config.frames_per_episode, n_correspondences=config.n, **kwargs,
+        n_frames=config.frames_per_episode, n_correspondences=config.n, **settings,
     )
-    return env, {"hard": hard, "epsilon": kwargs["outlier_ratio"]}
+
+
+WARM_UP_ENDS = ("found", "missed", "capped")
+"""How :func:`compile_kernels` ends its frames: a motion found (logits on the labelled inliers, a stop after
+the first batch), one missed (uniform logits, a stop after the first batch), the hypothesis cap (no stop)."""
 
 
 def compile_kernels(config: AdaptiveTrainConfig) -> None:
-    """Run one frame of a standard and of a hard training episode's environment (those of ``config``
-    that training would meet first), so that numba's kernels are compiled or loaded from its cache
-    before a budget is timed. Draws nothing from torch's generator and changes nothing training
-    reads: the same config trains the same weights with or without it."""
+    """Run frames of each kind of episode that ``config`` trains, ended in each way a training frame can end
+    (:data:`WARM_UP_ENDS`), so that numba's kernels (the simulator's, the features', the estimator's) are
+    compiled or loaded from its cache before a budget is timed.
+
+    The kinds: the first standard and the first hard episode that training would meet (their settings), and
+    with ``domain_randomisation`` each of them again with every outlier kind in its mix (a drawn mix may leave
+    a kind out). Each way runs on the episode's first two frames, the second with the first's estimate for
+    its prediction features. The kernels a frame needs depend on where its search ends and on its random
+    draws, not on its settings alone: a warm-up of uniform logits only had left the final refinement and the
+    prediction features to compile inside the budget whenever those first frames all missed (measured with
+    an empty numba cache: 9 to 13 s of the first episode with ``hard_fraction=0`` or ``domain_randomisation``,
+    0.1 s once warmed), and the simulator's redraw of rows that noise sent out of the image whenever none did
+    (one more frame, with 10 px of noise, runs it).
+    Draws nothing from torch's generator and changes nothing training reads: the same config trains the
+    same weights with or without it."""
+    from stereovo.simulation import OUTLIER_KINDS, SimulationConfig, simulate_frame
+
+    # the simulator's redraw of rows that noise sent out of the image: always at 10 px of noise
+    simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.5, noise_sigma=10.0), rng=0)
     first: dict[bool, int] = {}
     # hard_fraction 0 or 1 has one kind only, and a rare kind may not come within 64 episodes: its
     # few kernels of its own then compile inside the budget, as before
@@ -164,18 +188,32 @@ def compile_kernels(config: AdaptiveTrainConfig) -> None:
         if len(first) == 2:
             break
     for episode in first.values():
-        env, _ = _training_env(config, episode)
-        obs, _ = env.reset(seed=config.seed * 1_000_003 + episode)
-        n = env.current_frame.n
-        done = False
+        settings = episode_settings(config, episode)[0]
+        kinds = [settings] + ([{**settings, "outlier_mix": dict.fromkeys(OUTLIER_KINDS, 1.0)}]
+                              if config.domain_randomisation else [])
+        for kind in kinds:
+            env = _environment(config, kind)
+            for end in WARM_UP_ENDS:
+                _warm_up_frames(env, config.seed * 1_000_003 + episode, end)
+            env.close()
+
+
+def _warm_up_frames(env: StereoVOAdaptiveEnv, seed: int, end: str) -> None:
+    """Reset ``env`` with ``seed`` and step its first two frames (or its one), each ended as ``end`` says."""
+    obs, _ = env.reset(seed=seed)
+    for _ in range(2):
+        done = truncated = False
         while not done:
+            frame = env.current_frame
+            n = frame.n
+            logits = np.where(frame.truth.inlier, LOGIT_BOUND, -LOGIT_BOUND) if end == "found" else np.zeros(n)
+            step = make_action(logits, obs["mask"][:n], end != "capped" and env.frame_hypotheses > 0)
             action = np.full(env.action_space.shape, -LOGIT_BOUND, dtype=np.float32)
-            # uniform logits; stop once a batch is drawn, as the policy may (the stop path's kernels too)
-            step = make_action(np.zeros(n), obs["mask"][:n], env.frame_hypotheses > 0)
             action[:n], action[-1] = step[:n], step[-1]
             obs, _, _, truncated, info = env.step(action)
             done = info["frame_done"] or truncated
-        env.close()
+        if truncated:
+            return
 
 
 def right_hypothesis(masks: np.ndarray, weights: np.ndarray, inlier: np.ndarray, precision: float, recall: float) -> bool:
@@ -426,7 +464,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="inlier recall at which a hypothesis counts as right, the stop belief's label "
                              f"(default: {defaults.right_recall:g})")
     parser.add_argument("--lr", type=float, default=defaults.lr,
-                        help=f"Adam's learning rate, finite and > 0 (default: {defaults.lr:g})")
+                        help=f"Adam's learning rate, in (0, {MAX_LEARNING_RATE:g}) (default: {defaults.lr:g})")
     parser.add_argument("--clock", choices=("wall", "cpu"), default=defaults.clock,
                         help=f"what --minutes counts: wall clock or this process' CPU time (default: {defaults.clock})")
     parser.add_argument("--init", default=None, metavar="CHECKPOINT",
@@ -457,10 +495,9 @@ def main(argv: list[str] | None = None) -> int:
                                      right_precision=args.right_precision, right_recall=args.right_recall, lr=args.lr,
                                      clock=args.clock, init=args.init, prior=args.prior,
                                      domain_randomisation=args.domain_randomisation, **ranges)
-    except ValueError as err:  # the config's checks name its field: the message names the option instead
-        text = str(err)
-        field = next((f for f in _MAIN_OPTIONS if text.startswith(f"{f} ")), None)
-        parser.error(f"{_MAIN_OPTIONS[field]}{text[len(field):]}" if field else text)
+    except ValueError as err:  # a FieldError names the config's field: the message names the option instead
+        known = isinstance(err, FieldError) and err.field in _MAIN_OPTIONS
+        parser.error(err.named(_MAIN_OPTIONS[err.field]) if known else str(err))
     problem = _check_start(config) or check_out_file(args.out, args.overwrite)
     if problem:
         parser.error(problem)

@@ -71,6 +71,7 @@ from agents.evaluation.setup import (
 from agents.policies import Policy
 from agents.rollout import make_env
 from stereovo.options import Integer
+from vo_gym.settings import FieldError
 
 __all__ = [
     "check_environments",
@@ -87,21 +88,65 @@ def check_environments(config: EvalConfig) -> None:
     """Build (and close) the environment of every setting of ``config`` once, running nothing.
 
     Raises:
-        ValueError: an unknown id (with the closest registered one) or a keyword argument the
-            environment refuses; the message starts with ``environment 'ID':``.
+        FieldError: (a ValueError) an unknown id (with the closest registered one) or a keyword argument
+            the environment refuses; its ``field`` is the config field that set the refused keyword
+            (:func:`_refused_field`), its message starts with ``environment 'ID':``.
     """
     import vo_gym
     from vo_gym.names import did_you_mean
 
     if config.env_id not in vo_gym.ENV_IDS:
-        make_env(config.env_id).close()  # Gymnasium's own message first, when it refuses the id
-        raise ValueError(f"environment {config.env_id!r} is not a vo_gym id{did_you_mean(config.env_id, vo_gym.ENV_IDS)}")
+        try:
+            make_env(config.env_id).close()  # Gymnasium's own message first, when it refuses the id
+        except (TypeError, ValueError) as err:
+            raise FieldError("env_id", _refusal(config.env_id, err), subject="") from None
+        raise FieldError("env_id", f"environment {config.env_id!r} is not a vo_gym id"
+                                   f"{did_you_mean(config.env_id, vo_gym.ENV_IDS)}", subject="")
     for epsilon, budget in config.settings():
         try:
             make_env(config.env_id, **config.env_kwargs_for(epsilon, budget)).close()
         except (TypeError, ValueError) as err:
-            text = str(err).split(" was raised from the environment creator")[0]
-            raise ValueError(text if text.startswith("environment ") else f"environment {config.env_id!r}: {text}") from None
+            raise _refused_field(config, epsilon, budget, err) from None
+
+
+def _refusal(env_id: str, err: BaseException) -> str:
+    """An environment's refusal in one message that starts with ``environment 'ID':``."""
+    text = str(err).split(" was raised from the environment creator")[0]
+    return text if text.startswith("environment ") else f"environment {env_id!r}: {text}"
+
+
+def _refused_field(config: EvalConfig, epsilon: float, budget: int, err: BaseException) -> FieldError:
+    """The refusal of the setting ``(epsilon, budget)``'s environment as a :class:`FieldError` whose
+    ``field`` is the config field that set the keyword it refuses.
+
+    The environment's messages name its own keywords, not the config's fields (and one of them may
+    name two: a ``noise_sigma`` too large *when frames have outliers*), so the field is found by
+    building, not by reading the message: the id alone (``env_id``: its registered keywords), then the
+    keywords of ``frames_per_episode``, ``n``, the contamination (``epsilons``, or ``sweep_epsilon`` for
+    the budget sweep's), the budget (``budget`` or ``budgets``), ``score_auc`` and last ``env_kwargs``
+    added one field at a time; the first that the environment refuses is named, with its message.
+    Call it once the setting's environment was refused (``err``; the last build is the whole setting).
+    """
+    kwargs = config.env_kwargs_for(epsilon, budget)
+    field_of = {"n_frames": "frames_per_episode", "n_correspondences": "n",
+                "outlier_ratio": "epsilons" if epsilon in config.epsilons else "sweep_epsilon",
+                "budget": "budget" if budget == config.budget else "budgets"}
+    if config.score_auc is not None:  # else a score_auc keyword is env_kwargs'
+        field_of["score_auc"] = "score_auc"
+    groups: dict[str, dict[str, Any]] = {"env_id": {}}
+    for field in (*field_of.values(), "env_kwargs"):
+        groups.setdefault(field, {})
+    for key, value in kwargs.items():
+        groups[field_of.get(key, "env_kwargs")][key] = value
+    built: dict[str, Any] = {}
+    for field, keywords in groups.items():
+        built.update(keywords)
+        try:
+            make_env(config.env_id, **built).close()
+        except (TypeError, ValueError) as refusal:
+            return FieldError(field, _refusal(config.env_id, refusal), subject="")
+    # the whole setting built this time (an environment that refuses at random): the id is all there is to name
+    return FieldError("env_id", _refusal(config.env_id, err), subject="")
 
 
 def episode_frames(env, seed: int) -> list:

@@ -19,6 +19,7 @@ from agents.catalog import IN_FRAME_SAMPLERS, SHIPPED_SAMPLERS, shipped_file
 from agents.policies import HEURISTICS, OraclePolicy, Policy, make_heuristic
 from stereovo.benchmark import typed_value
 from stereovo.options import Integer
+from stereovo.simulation.scores import SCORE_AUC
 from vo_gym.settings import FieldError, check_field, check_fields
 
 ORACLE = "oracle"
@@ -252,6 +253,8 @@ class EvalConfig:
         if not 0.0 <= float(self.sweep_epsilon) < 1.0:
             raise FieldError("sweep_epsilon", f" must be in [0, 1), got {self.sweep_epsilon}")
         object.__setattr__(self, "sweep_epsilon", float(self.sweep_epsilon))
+        if self.score_auc is not None:  # the simulator's rule, named here as the field (not the environment's keyword)
+            object.__setattr__(self, "score_auc", float(check_field("score_auc", SCORE_AUC, self.score_auc)))
         try:
             object.__setattr__(self, "methods", tuple(normalize_methods(self.methods)))
         except ValueError as err:  # its message names no field: "unknown classical method(s): ..."

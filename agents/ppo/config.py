@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from agents.network_size import MAX_NETWORK_PARAMETERS, MAX_NETWORK_SIZE, ppo_policy_parameters
-from agents.training_limits import MAX_ENVS, MAX_TRAINING_STEPS
+from agents.training_limits import LEARNING_RATE, MAX_ENVS, MAX_TRAINING_STEPS
 from stereovo.estimation.estimator_options import MAX_COUNT
 from stereovo.options import Choice, Integer, Number, Option
 from stereovo.simulation.config import MAX_CORRESPONDENCES, MAX_FRAMES
@@ -41,7 +41,7 @@ _PPO_RULES: dict[str, Option] = {
     "vec_env": Choice(choices=VEC_ENVS),
     "epsilon_range": ContaminationRange(),
     "eval_epsilon": Number(low=0.0, high=1.0, high_open=True),
-    "learning_rate": Number(low=0.0, low_open=True),
+    "learning_rate": LEARNING_RATE,
     "clip_range": Number(low=0.0, low_open=True),
     "gamma": Number(low=0.0, high=1.0),
     "gae_lambda": Number(low=0.0, high=1.0),

@@ -336,7 +336,7 @@ def test_frame_loss_pools_the_frames_problem_and_the_previous_motions_features(m
         return pools[-1][2]
 
     monkeypatch.setattr(ngransac, "run_pool", spy)
-    objective, losses, success, first = trainer._frame_loss(frame, previous)
+    objective, losses, success, first = trainer.frame_loss(frame, previous)
 
     features = compute_features(frame.prev, frame.curr, frame.scores, frame.camera, 2.0, previous)
     assert not np.array_equal(features, compute_features(frame.prev, frame.curr, frame.scores, frame.camera, 2.0))
@@ -368,7 +368,7 @@ def test_frame_loss_of_a_randomised_method_draws_from_the_trainers_rng():
     config = NGRansacConfig(loss="self-supervised", method="r-ransac", n_correspondences=60, epsilon_range=(0.5, 0.5),
                             budget=3, pools=2, width=8, blocks=1, seed=4)
     frame = simulate_frame(config.simulation(0.5), np.random.default_rng(5))
-    steps = [NGRansacTrainer(config)._frame_loss(frame, None) for _ in range(2)]
+    steps = [NGRansacTrainer(config).frame_loss(frame) for _ in range(2)]
     assert steps[0][1] == steps[1][1]
     assert float(steps[0][0].detach()) == float(steps[1][0].detach())
 
@@ -379,7 +379,7 @@ def test_frame_loss_success_is_strictly_under_the_bound(monkeypatch):
                             width=8, blocks=1, seed=4)
     frame = simulate_frame(config.simulation(0.5), np.random.default_rng(5))
     monkeypatch.setattr(ngransac, "pose_loss", lambda estimate, frame: 1.0)
-    assert NGRansacTrainer(config)._frame_loss(frame, None)[2] == [False, False]
+    assert NGRansacTrainer(config).frame_loss(frame)[2] == [False, False]
 
 
 # --- The draws' log-probability where float32 runs out of mass ---
@@ -404,8 +404,9 @@ def test_triplet_log_prob_stays_finite_when_two_picks_hold_all_the_float32_mass(
     ("eval_frames", 0, "eval_frames must be an integer >= 1 and <= 1000000000, got 0"),
     ("budget", 10**10, "budget must be an integer >= 1 and <= 1000000000, got 10000000000"),
     ("frames_per_sequence", 10**7, "frames_per_sequence must be an integer >= 1 and <= 1000000, got 10000000"),
-    ("learning_rate", -1.0, "learning_rate must be a finite number > 0, got -1.0"),
-    ("learning_rate", float("nan"), "learning_rate must be a finite number > 0, got nan"),
+    ("learning_rate", -1.0, "learning_rate must be a finite number in (0, 0.1), got -1.0"),
+    ("learning_rate", float("nan"), "learning_rate must be a finite number in (0, 0.1), got nan"),
+    ("learning_rate", 1e30, "learning_rate must be a finite number in (0, 0.1), got 1e+30"),
 ])
 def test_counts_past_their_cap_and_a_bad_learning_rate_are_refused_naming_the_field(field, value, message):
     with pytest.raises(ValueError) as err:

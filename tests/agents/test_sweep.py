@@ -477,3 +477,68 @@ def test_numbers_yaml_reads_as_text_are_named_in_the_metric_the_axes_and_the_sch
         with pytest.raises(ValueError) as err:
             parse_sweep({**data, **change}, "s.yaml")
         assert needle in str(err.value), str(err.value)
+
+
+@pytest.mark.parametrize("algo", ["ngransac", "ppo"])
+@pytest.mark.parametrize("where, change, needle", [
+    ("fixed", {"learning_rate": 1e30}, "fixed.learning_rate must be a finite number in (0, 0.1), got 1e+30"),
+    ("fixed", {"learning_rate": 0.1}, "fixed.learning_rate must be a finite number in (0, 0.1), got 0.1"),
+    # every searched value, not only the first point of the space (which the trainer's config checks)
+    ("space", {"learning_rate": {"grid": [1e-4, 1e30]}},
+     "space.learning_rate.grid[1] must be a finite number in (0, 0.1), got 1e+30"),
+    ("space", {"learning_rate": {"choice": [1e-3, 0.0]}},
+     "space.learning_rate.choice[1] must be a finite number in (0, 0.1), got 0.0"),
+    ("space", {"learning_rate": {"loguniform": [1e-5, 1.0]}},
+     "space.learning_rate.loguniform[1] must be a finite number in (0, 0.1), got 1.0"),
+    ("space", {"learning_rate": {"uniform": [-1.0, 1e-3]}},
+     "space.learning_rate.uniform[0] must be a finite number in (0, 0.1), got -1.0"),
+])
+def test_a_learning_rate_past_the_trainers_cap_is_refused_wherever_the_file_sets_it(algo, where, change, needle):
+    import yaml
+
+    data = yaml.safe_load(NGRANSAC if algo == "ngransac" else PPO)
+    data["space"].pop("learning_rate", None)  # the tiny ngransac sweep searches it
+    data[where] = {**data[where], **change}
+    with pytest.raises(ValueError) as err:
+        parse_sweep(data, "s.yaml")
+    assert str(err.value) == f"s.yaml: {needle}"
+
+
+def test_the_hint_and_the_key_come_from_the_errors_fields_not_from_their_words(monkeypatch):
+    # Reworded refusals whose first word is no key: read from the text, the hint for the metric's value
+    # and the file's key of a trainer field were lost; the errors' fields (OptionError.name,
+    # FieldError.field) still name them.
+    import yaml
+
+    import agents.ngransac
+    import agents.sweep_config
+    from stereovo.options import OptionError
+    from vo_gym.settings import FieldError
+
+    class RewordedMetric(agents.sweep_config.MetricSpec):
+        def __post_init__(self) -> None:
+            try:
+                super().__post_init__()
+            except OptionError as err:
+                raise OptionError(f"the held-out {err.name}{err.rule}", name=err.name, rule=err.rule) from None
+
+    class RewordedConfig(agents.ngransac.NGRansacConfig):
+        def __post_init__(self) -> None:
+            try:
+                super().__post_init__()
+            except FieldError as err:
+                raise FieldError(err.field, err.rule, subject=f"the trainer's {err.subject}") from None
+
+    monkeypatch.setattr(agents.sweep_config, "MetricSpec", RewordedMetric)
+    monkeypatch.setattr(agents.ngransac, "NGRansacConfig", RewordedConfig)
+    data = yaml.safe_load(NGRANSAC)
+    with pytest.raises(ValueError) as err:
+        parse_sweep({**data, "metric": {**data["metric"], "budget": "1e3"}}, "s.yaml")
+    assert str(err.value) == ("s.yaml: the held-out budget must be an integer >= 1 and <= 1000000000, got '1e3'"
+                              " (YAML reads '1e3' as text; write 1000)")
+    with pytest.raises(ValueError) as err:
+        parse_sweep({**data, "fixed": {**data["fixed"], "pools": 1}}, "s.yaml")
+    assert str(err.value) == "s.yaml: fixed.pools must be >= 2: the baseline is the mean loss of the pools"
+    with pytest.raises(ValueError) as err:
+        parse_sweep({**data, "space": {**data["space"], "entropy_weight": {"grid": [-1.0, 0.0]}}}, "s.yaml")
+    assert str(err.value) == "s.yaml: space.entropy_weight (its first value) must be >= 0, got -1.0"

@@ -35,12 +35,14 @@ def test_tiny_bench_prints_every_estimator_and_writes_the_csv(tmp_path, capsys):
 
 
 def _recording_runners(monkeypatch, calls):
-    """``bench._runners`` whose runners (our estimator, twice under two names) record every frame they get."""
+    """The bench's runners as two that record every frame they get: ours, and our estimator again as the one
+    installed peer (OpenCV's place; the other peers count as not installed)."""
     from stereovo.benchmark import peers
-    from vo_gym_cli.commands import bench
+
+    ours = peers.ours
 
     def make(name):
-        inner = peers.ours("probabilistic", "uniform")
+        inner = ours("probabilistic", "uniform")
 
         def run(frame, seed):
             calls.append((name, frame))
@@ -48,7 +50,10 @@ def _recording_runners(monkeypatch, calls):
 
         return run
 
-    monkeypatch.setattr(bench, "_runners", lambda args: {"ours:probabilistic": make("ours"), "peer": make("peer")})
+    monkeypatch.setattr(peers, "ours", lambda method, sampling: make("ours"))
+    monkeypatch.setattr(peers, "opencv", lambda: make("peer"))
+    for absent in ("poselib", "superansac"):
+        monkeypatch.setattr(peers, absent, lambda *args, **kwargs: None)
 
 
 def test_every_estimator_is_warmed_on_a_frame_no_cell_times_before_any_timing(monkeypatch, capsys):

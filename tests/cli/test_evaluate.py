@@ -134,6 +134,78 @@ def test_an_env_id_the_sweeps_cannot_step_is_refused_before_the_header(tmp_path,
     assert not (tmp_path / "e").exists()
 
 
+ENV = "environment 'vo_gym/StereoVO-v0': "
+
+
+@pytest.mark.parametrize("more, needle", [
+    # the message names outlier_ratio (a noise_sigma too large *when frames have outliers*): read from the
+    # text, it was blamed on --epsilons / --sweep-epsilon
+    (["--env-kwargs", '{"noise_sigma": 300}'], f"--env-kwargs: {ENV}StereoVOEnv: invalid simulator setting: "
+                                               "SimulationConfig.noise_sigma must be small enough"),
+    # the message has none of the words the text was searched for: it was blamed on --env-id
+    (["--env-kwargs", '{"method": "nosac"}'], f"--env-kwargs: {ENV}StereoVOEnv: method: unknown method 'nosac'"),
+    (["--env-kwargs", '{"hypothesis_cost": 2}'], f"--env-kwargs: {ENV}StereoVOEnv: hypothesis_cost must be"),
+    (["--env-kwargs", '{"noise_sigmaa": 1}'], f"--env-kwargs: {ENV}StereoVOEnv got unexpected keyword argument(s)"),
+    (["--env-kwargs", '{"score_auc": 1.5}'], f"--env-kwargs: {ENV}StereoVOEnv: invalid simulator setting: "
+                                             "SimulationConfig.score_auc must be"),
+    # the AUC of the flag is checked as the config's field, by the simulator's rule
+    (["--auc", "1.5"], "--auc must be a finite number in [0.5, 1), got 1.5"),
+    (["--auc", "nan"], "--auc must be a finite number in [0.5, 1), got nan"),
+    (["--env-id", "vo_gym/StereoVO-v1"], "--env-id: environment 'vo_gym/StereoVO-v1': "),
+])
+def test_an_environments_refusal_names_the_option_that_set_the_refused_keyword(tmp_path, capsys, more, needle):
+    assert main(["evaluate", *SWEEP, *more, "--out", str(tmp_path / "e")]) == 2
+    line = one_line_error(capsys, "evaluate")
+    assert line.startswith(f"vo-gym evaluate: error: {needle}"), line
+    assert not (tmp_path / "e").exists()
+
+
+@pytest.mark.parametrize("more, refused, flag", [
+    (["--epsilons", "0.3,0.6"], ("outlier_ratio", 0.6), "--epsilons"),
+    (["--sweep-epsilon", "0.7"], ("outlier_ratio", 0.7), "--sweep-epsilon"),
+    (["--auc", "0.6"], ("score_auc", 0.6), "--auc"),
+    (["--budget", "8", "--budgets", "4,16"], ("budget", 16), "--budgets"),
+    (["--budget", "8"], ("budget", 8), "--budget"),
+    (["--n", "90"], ("n_correspondences", 90), "--n"),
+    (["--frames-per-episode", "3"], ("n_frames", 3), "--frames-per-episode"),
+    (["--env-kwargs", '{"noise_sigma": 0.7}'], ("noise_sigma", 0.7), "--env-kwargs"),
+    ([], None, "--env-id"),  # refused whatever the keywords: the id's own
+])
+def test_the_refused_keyword_is_found_by_building_not_by_reading_the_message(tmp_path, capsys, monkeypatch, more,
+                                                                             refused, flag):
+    # An environment that refuses one keyword's value in words that name no keyword (and say "must"): the
+    # option is the one whose keyword, added to the id's own, the environment refuses.
+    import agents.evaluation.run as run
+
+    real = run.make_env
+
+    def make_env(env_id, **kwargs):
+        if refused is None or kwargs.get(refused[0]) == refused[1]:
+            raise ValueError("StereoVOEnv: this must wait for a later version")
+        return real(env_id, **kwargs)
+
+    monkeypatch.setattr(run, "make_env", make_env)
+    assert main(["evaluate", *SWEEP, *more, "--out", str(tmp_path / "e")]) == 2
+    assert one_line_error(capsys, "evaluate") == (f"vo-gym evaluate: error: {flag}: {ENV}StereoVOEnv: this must wait "
+                                                  "for a later version")
+    assert not (tmp_path / "e").exists()
+
+
+def test_check_environments_names_the_config_field_in_its_error():
+    from agents.evaluation.run import check_environments
+    from agents.evaluation.setup import EvalConfig
+    from vo_gym.settings import FieldError
+
+    with pytest.raises(FieldError) as err:
+        check_environments(EvalConfig(episodes=1, frames_per_episode=1, epsilons=(0.0,), sweep_epsilon=0.8, n=60,
+                                      budgets=(4,), env_kwargs={"noise_sigma": 300}, methods=("msac",)))
+    # frames without outliers need no outlier threshold; the budget sweep's (eps 0.8) do: refused there
+    assert err.value.field == "env_kwargs" and str(err.value).startswith(f"{ENV}StereoVOEnv: invalid simulator")
+    with pytest.raises(FieldError) as err:
+        check_environments(EvalConfig(env_id="vo_gym/StereoVO-v9", methods=("msac",)))
+    assert err.value.field == "env_id" and str(err.value).startswith("environment 'vo_gym/StereoVO-v9': ")
+
+
 ADAPTIVE = ["--adaptive", "--episodes", "1", "--frames-per-episode", "1"]
 
 

@@ -281,7 +281,7 @@ def test_evaluate_of_heuristics_and_classical_methods_runs_without_torch(tmp_pat
     (["--env-kwargs", '{"noise_sigmaa": 1.0}'], "'noise_sigmaa' (did you mean 'noise_sigma'?)"),
     (["--epsilons", "1.5"], "error: --epsilons must be distinct values in [0, 1), got (1.5,)"),
     (["--sweep-epsilon", "1"], "error: --sweep-epsilon must be in [0, 1), got 1.0"),
-    (["--auc", "1.5"], "error: --auc 1.5: "),
+    (["--auc", "1.5"], "error: --auc must be a finite number in [0.5, 1), got 1.5"),
     (["--budgets", "0"], "error: --budgets must be an integer >= 1, got 0"),
     (["--agent", "nope"], "error: --agent: unknown agent 'nope'"),
     (["--methods", "nosac"], "error: --methods: unknown classical method(s): nosac"),

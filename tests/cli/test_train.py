@@ -12,7 +12,7 @@ import pytest
 from agents.checkpoint import load_checkpoint
 from agents.ngransac import NGRansacConfig
 from agents.ppo.config import PPOConfig
-from tests.support.cli import ROOT, one_line_error
+from tests.support.cli import ROOT, exit_code, one_line_error
 from vo_gym_cli.commands import train
 from vo_gym_cli.main import main
 
@@ -152,7 +152,7 @@ def test_train_adaptive_minutes_must_be_positive(tmp_path, capsys):
 
 @pytest.mark.parametrize("argv, needle", [
     (["--algo", "adaptive", "--max-minutes", "1"], "--algo adaptive does not take --max-minutes 1.0 (an option of ppo; here: --minutes)"),
-    (["--algo", "adaptive", "--frames", "10", "--lr", "0.1"], "--frames 10 (an option of ngransac; here: --max-episodes or --minutes), --lr 0.1"),
+    (["--algo", "adaptive", "--frames", "10", "--lr", "0.01"], "--frames 10 (an option of ngransac; here: --max-episodes or --minutes), --lr 0.01"),
     (["--algo", "ppo", "--minutes", "3"], "--algo ppo does not take --minutes 3.0 (an option of adaptive; here: --max-minutes)"),
     (["--algo", "ngransac", "--timesteps", "5", "--prior", "ppo"], "--algo ngransac does not take --prior ppo (an option of adaptive), --timesteps 5"),
     (["--algo", "adaptive", "--epsilon", "0.5"], "--epsilon 0.5 (an option of ngransac and ppo)"),
@@ -238,11 +238,11 @@ def _tiny_ngransac(tmp_path):
 def test_resume_refuses_every_option_the_checkpoint_fixes_in_one_line(tmp_path, capsys):
     checkpoint = _tiny_ngransac(tmp_path)
     capsys.readouterr()
-    fixed = ["--budget", "3", "--pools", "2", "--lr", "0.5", "--loss", "self-supervised", "--epsilon", "0.5"]
+    fixed = ["--budget", "3", "--pools", "2", "--lr", "0.05", "--loss", "self-supervised", "--epsilon", "0.5"]
     assert main(["train", "--algo", "ngransac", "--resume", str(checkpoint), "--frames", "6", *fixed, "--seed", "7",
                  "--out", str(tmp_path / "z")]) == 2
     assert one_line_error(capsys, "train") == (
-        "vo-gym train: error: --budget 3, --pools 2, --lr 0.5, --loss self-supervised, --epsilon 0.5: fixed by the "
+        "vo-gym train: error: --budget 3, --pools 2, --lr 0.05, --loss self-supervised, --epsilon 0.5: fixed by the "
         f"checkpoint --resume {checkpoint}, whose run goes on with its own settings; a resumed ngransac run takes only "
         "--seed, --frames, --eval-every (start a new run to change the others)")
     assert not (tmp_path / "z").exists()  # refused before --out was made
@@ -272,10 +272,10 @@ def test_ppo_resume_refuses_what_the_zip_fixes_and_applies_what_it_takes(tmp_pat
     zip_path = out / "ppo.zip"
     capsys.readouterr()
     assert main(["train", "--algo", "ppo", "--resume", str(zip_path), "--timesteps", "24", "--budget", "4",
-                 "--ppo-lr", "0.5", "--reward-mode", "inliers", "--env-id", "vo_gym/StereoVOHard-v0",
+                 "--ppo-lr", "0.05", "--reward-mode", "inliers", "--env-id", "vo_gym/StereoVOHard-v0",
                  "--out", str(tmp_path / "z")]) == 2
     line = one_line_error(capsys, "train")
-    assert line.startswith("vo-gym train: error: --budget 4, --ppo-lr 0.5, --reward-mode inliers, --env-id "
+    assert line.startswith("vo-gym train: error: --budget 4, --ppo-lr 0.05, --reward-mode inliers, --env-id "
                            f"vo_gym/StereoVOHard-v0: fixed by the checkpoint --resume {zip_path}"), line
     assert line.endswith("a resumed ppo run takes only --n-envs, --seed, --timesteps, --eval-every, --vec-env, "
                          "--checkpoint-every, --max-minutes (start a new run to change the others)")
@@ -354,7 +354,10 @@ def test_a_config_refusal_names_the_option_of_its_field_not_of_its_words(tmp_pat
     def refuse(self):
         raise FieldError(field, rule, subject=subject)
 
-    monkeypatch.setattr(train._config_class(algo), "__post_init__", refuse)
+    from agents.adaptive.train import AdaptiveTrainConfig
+
+    config_class = {"ngransac": NGRansacConfig, "ppo": PPOConfig, "adaptive": AdaptiveTrainConfig}[algo]
+    monkeypatch.setattr(config_class, "__post_init__", refuse)
     assert main(["train", "--algo", algo, *argv, "--no-progress", "--out", str(tmp_path / "t")]) == 2
     assert one_line_error(capsys, "train") == f"vo-gym train: error: {message}"
     assert not (tmp_path / "t").exists()
@@ -368,3 +371,28 @@ def test_a_config_refusal_without_a_field_keeps_its_words_even_when_they_start_w
     monkeypatch.setattr(NGRansacConfig, "__post_init__", refuse)
     assert main(["train", "--algo", "ngransac", "--pools", "1", "--no-progress", "--out", str(tmp_path / "t")]) == 2
     assert one_line_error(capsys, "train") == "vo-gym train: error: pools must be >= 2"
+
+
+@pytest.mark.parametrize("algo, flag", [("ngransac", "--lr"), ("ppo", "--ppo-lr")])
+@pytest.mark.parametrize("value, rule", [
+    ("1e30", "must be < 0.1, got 1e+30"), ("0.1", "must be < 0.1, got 0.1"), ("5", "must be < 0.1, got 5.0"),
+    ("0", "must be > 0.0, got 0.0"), ("-1e-3", "must be > 0.0, got -0.001"), ("nan", "must be finite, got 'nan'"),
+    ("inf", "must be finite, got 'inf'"), ("-inf", "must be finite, got '-inf'"), ("1e400", "must be finite, got '1e400'"),
+])
+def test_a_learning_rate_that_cannot_train_is_refused_before_out_is_made(tmp_path, capsys, algo, flag, value, rule):
+    # 1e30 used to start and fail mid-training (NG-RANSAC: a traceback; PPO: NaN logits), --out already made
+    assert exit_code(["train", "--algo", algo, f"{flag}={value}", "--out", str(tmp_path / "t")]) == 2
+    assert one_line_error(capsys, "train") == f"vo-gym train: error: {flag} {rule}"
+    assert not (tmp_path / "t").exists()
+
+
+def test_the_command_lines_learning_rate_cap_is_the_trainers():
+    from agents.training_limits import MAX_LEARNING_RATE
+    from vo_gym_cli.commands.arguments import max_learning_rate
+
+    assert max_learning_rate() == MAX_LEARNING_RATE
+    below = MAX_LEARNING_RATE * (1 - 1e-9)
+    assert NGRansacConfig(learning_rate=below).learning_rate == below and PPOConfig(learning_rate=below).learning_rate == below
+    for config in (NGRansacConfig, PPOConfig):
+        with pytest.raises(ValueError, match=r"learning_rate must be a finite number in \(0, 0\.1\), got 0\.1$"):
+            config(learning_rate=MAX_LEARNING_RATE)

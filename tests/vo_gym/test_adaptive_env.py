@@ -318,7 +318,7 @@ def test_a_pickled_environment_goes_on_bit_for_bit():
     action[-1] = -1.0
     env.step(action)
     copy = pickle.loads(pickle.dumps(env))
-    assert copy._spec is env._spec and env._spec.name == "msac+polish+lm"
+    assert copy.method == env.method == "msac+polish+lm" and copy.method_options == env.method_options
     for stop in (-1.0, 1.0, -1.0):
         action[-1] = stop
         assert data_equivalence(env.step(action), copy.step(action))

@@ -28,6 +28,7 @@ import vo_gym
 import vo_gym.env as env_module
 from stereovo.estimation import available_methods
 from stereovo.simulation import Sequence, SimulationConfig
+from tests.support.frames import frames_without_depth
 from tests.support.fuzz import FUZZ, WEIRD_NUMBERS
 from vo_gym import FEATURE_NAMES, N_FEATURES, StereoVOEnv
 from vo_gym.features import usable_rows
@@ -550,10 +551,9 @@ def test_environment_steps_through_frames_with_unusable_rows():
     import vo_gym  # noqa: F401
 
     env = gymnasium.make("vo_gym/StereoVO-v0", n_frames=3, n_correspondences=100).unwrapped
-    obs, _ = env.reset(seed=0)
-    frame = env.current_frame
-    frame.prev[:4, 2] = frame.prev[:4, 0]  # the next step's frame loses the depth of four rows
-    obs = env._observation()
+    with pytest.MonkeyPatch.context() as patch:
+        frames_without_depth(patch, [0, 1, 2, 3])  # the frame of the first step loses the depth of four rows
+        obs, _ = env.reset(seed=0)
     assert np.all(np.isfinite(obs["features"]))
     np.testing.assert_array_equal(obs["mask"][:4], 0)
     assert obs["mask"][4:].all()

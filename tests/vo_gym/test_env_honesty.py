@@ -24,6 +24,7 @@ import vo_gym.env as env_module
 from stereovo.camera import StereoCamera
 from stereovo.estimation import EstimatorOptions, method_spec
 from stereovo.simulation import Sequence
+from tests.support.frames import frames_without_depth
 from vo_gym import StereoVOEnv
 from vo_gym.features import compute_features, feature_index
 
@@ -469,22 +470,15 @@ def test_padded_observations_are_float32_and_keep_the_frames_features():
     np.testing.assert_array_equal(padded["mask"], np.r_[np.ones(120), np.zeros(10)])
 
 
-def _without_depth(env, rows):
-    """The current frame's ``rows`` lose their depth (zero disparity at k-1); the observation is rebuilt."""
-    frame = env.current_frame
-    frame.prev[rows, 2] = frame.prev[rows, 0]
-    return env._observation()
-
-
 def _spy_priors(monkeypatch):
     return spy_estimator(monkeypatch, lambda kwargs: kwargs["priors"])
 
 
 def test_rows_without_depth_are_masked_and_take_any_action_value(monkeypatch):
     received = _spy_priors(monkeypatch)
+    frames_without_depth(monkeypatch, [5, 9])
     env = StereoVOEnv(**KWARGS)
-    env.reset(seed=2)
-    obs = _without_depth(env, [5, 9])
+    obs, _ = env.reset(seed=2)
     np.testing.assert_array_equal(np.flatnonzero(obs["mask"] == 0), [5, 9])
     action = np.zeros(120)
     action[0] = 2.0
@@ -496,22 +490,24 @@ def test_rows_without_depth_are_masked_and_take_any_action_value(monkeypatch):
     np.testing.assert_allclose(received[0], expected, rtol=1e-12)
 
 
-def test_a_non_finite_value_in_a_valid_slot_is_refused_by_count_and_first_slot():
-    env = StereoVOEnv(**KWARGS, max_correspondences=125)
-    env.reset(seed=2)
+def test_a_non_finite_value_in_a_valid_slot_is_refused_by_count_and_first_slot(monkeypatch):
+    def second_step(action):
+        env = StereoVOEnv(**KWARGS, max_correspondences=125)
+        env.reset(seed=2)
+        padded = np.zeros(125)
+        padded[[120, 124]] = np.nan  # padding: ignored
+        env.step(padded)
+        with pytest.raises(ValueError) as err:
+            env.step(action)
+        return str(err.value)
+
     action = np.zeros(125)
-    action[[120, 124]] = np.nan  # padding: ignored
-    env.step(action)
-    action[[7, 30]] = [np.inf, np.nan]
-    with pytest.raises(ValueError) as err:
-        env.step(action)
-    assert str(err.value) == "StereoVOEnv: the action has NaN or inf in 2 valid slot(s) (first: slot 7)"
+    action[[7, 11, 30]] = [np.inf, 0.0, np.nan]
+    assert second_step(action) == "StereoVOEnv: the action has NaN or inf in 2 valid slot(s) (first: slot 7)"
     # With rows without depth, only the usable ones count.
-    _without_depth(env, [7, 11])
+    frames_without_depth(monkeypatch, [7, 11])
     action[11] = np.nan
-    with pytest.raises(ValueError) as err:
-        env.step(action)
-    assert str(err.value) == "StereoVOEnv: the action has NaN or inf in 1 valid slot(s) (first: slot 30)"
+    assert second_step(action) == "StereoVOEnv: the action has NaN or inf in 1 valid slot(s) (first: slot 30)"
 
 
 def test_action_values_are_clipped_to_the_box_on_both_sides(monkeypatch):

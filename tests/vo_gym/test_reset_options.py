@@ -31,10 +31,13 @@ def test_reset_takes_none_or_an_empty_dict_and_refuses_other_options_naming_them
     assert data_equivalence(plain.step(action), empty.step(action))
 
 
-def test_the_images_environment_refuses_them_too_before_rendering_anything():
+def test_the_images_environment_refuses_them_too_before_rendering_anything(monkeypatch):
+    import stereovo.sequences.rendered
     from vo_gym.images_env import StereoVOImagesEnv
 
+    rendered = []
+    monkeypatch.setattr(stereovo.sequences.rendered, "RenderedSequence", lambda **kwargs: rendered.append(kwargs))
     env = StereoVOImagesEnv(n_frames=1, max_correspondences=60)
     with pytest.raises(ValueError, match=r"^StereoVOImagesEnv: reset\(\) takes no options .* got options=\{'foo': 1\}$"):
         env.reset(seed=0, options={"foo": 1})
-    assert not env._episodes  # nothing rendered
+    assert rendered == [] and env.current_frame is None  # nothing rendered, nothing drawn

@@ -71,6 +71,13 @@ def max_correspondences() -> int:
     return MAX_CORRESPONDENCES
 
 
+def max_learning_rate() -> float:
+    """The trainers' cap on a learning rate (exclusive: :data:`agents.training_limits.MAX_LEARNING_RATE`)."""
+    from agents.training_limits import MAX_LEARNING_RATE
+
+    return MAX_LEARNING_RATE
+
+
 def max_frames() -> int:
     """The simulator's cap on the frames of a sequence."""
     from stereovo.simulation.config import MAX_FRAMES
@@ -102,9 +109,10 @@ def seed(text: str) -> int:
     return bounded_int("--seed", 0)(text)
 
 
-def finite_float(name: str, low: float | None = None, high: float | None = None,
+def finite_float(name: str, low: float | None = None, high: float | Callable[[], float] | None = None,
                  low_open: bool = False, high_open: bool = False) -> Callable[[str], float]:
-    """An argparse type for finite floats in ``[low, high]`` (``low_open`` / ``high_open`` exclude a bound)."""
+    """An argparse type for finite floats in ``[low, high]`` (``low_open`` / ``high_open`` exclude a bound;
+    ``high`` may be a function giving the library's cap, read only when a value is parsed)."""
 
     def parse(text: str) -> float:
         try:
@@ -115,8 +123,9 @@ def finite_float(name: str, low: float | None = None, high: float | None = None,
             raise argparse.ArgumentTypeError(f"{name} must be finite, got {text!r}")
         if low is not None and (value < low or (low_open and value == low)):
             raise argparse.ArgumentTypeError(f"{name} must be {'>' if low_open else '>='} {low}, got {value}")
-        if high is not None and (value > high or (high_open and value == high)):
-            raise argparse.ArgumentTypeError(f"{name} must be {'<' if high_open else '<='} {high}, got {value}")
+        most = high() if callable(high) else high
+        if most is not None and (value > most or (high_open and value == most)):
+            raise argparse.ArgumentTypeError(f"{name} must be {'<' if high_open else '<='} {most}, got {value}")
         return value
 
     return parse

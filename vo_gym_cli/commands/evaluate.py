@@ -150,32 +150,22 @@ def run(args: argparse.Namespace) -> int:
 
 # EvalConfig's field -> the flag that sets it.
 _CONFIG_FLAGS = {
-    "episodes": "--episodes", "frames_per_episode": "--frames-per-episode", "seed": "--seed", "budget": "--budget",
-    "epsilons": "--epsilons", "budgets": "--budgets", "sweep_epsilon": "--sweep-epsilon", "n": "--n",
-    "max_iterations": "--max-iterations", "methods": "--methods", "env_kwargs": "--env-kwargs",
+    "env_id": "--env-id", "episodes": "--episodes", "frames_per_episode": "--frames-per-episode", "seed": "--seed",
+    "budget": "--budget", "epsilons": "--epsilons", "budgets": "--budgets", "sweep_epsilon": "--sweep-epsilon",
+    "n": "--n", "score_auc": "--auc", "max_iterations": "--max-iterations", "methods": "--methods",
+    "env_kwargs": "--env-kwargs",
 }
 
 
 def _config_error(err: ValueError) -> UsageError:
-    """EvalConfig's refusal as a usage error: a field's (:class:`~vo_gym.settings.FieldError`, which names
-    it) says the same of the flag that set it; any other keeps its own words."""
+    """EvalConfig's refusal, or the environments' (:func:`agents.evaluation.run.check_environments`), as a
+    usage error: a field's (:class:`~vo_gym.settings.FieldError`, which names it) says the same of the
+    flag that set it; any other keeps its own words."""
     from vo_gym.settings import FieldError
 
     if isinstance(err, FieldError) and err.field in _CONFIG_FLAGS:
         return UsageError(err.named(_CONFIG_FLAGS[err.field]))
     return UsageError(str(err))
-
-
-def _environment_error(err: ValueError, args: argparse.Namespace) -> UsageError:
-    """An environment's refusal, named by the flag that set the value it refuses."""
-    text = str(err)
-    if "score_auc" in text and args.auc is not None:
-        return UsageError(f"--auc {args.auc}: {text}")
-    if "outlier_ratio" in text:
-        return UsageError(f"--epsilons / --sweep-epsilon: {text}")
-    if args.env_kwargs and ("keyword" in text or "setting" in text or "must" in text):
-        return UsageError(f"--env-kwargs: {text}")
-    return UsageError(f"--env-id: {text}")
 
 
 SWEEPS, ADAPTIVE, IMAGES = "sweeps", "adaptive", "images"
@@ -330,8 +320,8 @@ def _run(args: argparse.Namespace) -> int:
         raise _config_error(err) from None
     try:
         check_environments(config)  # the id and every keyword, before anything is written
-    except ValueError as err:
-        raise _environment_error(err, args) from None
+    except ValueError as err:  # a FieldError naming the field whose keyword the environment refused
+        raise _config_error(err) from None
     if args.address is not None and args.backend != "ray":
         raise UsageError(f"--address {args.address!r} needs --backend ray")
     start = RunStart(args.out)

@@ -36,7 +36,14 @@ import json
 from pathlib import Path
 from typing import Any, Callable
 
-from vo_gym_cli.commands.arguments import bounded_int, finite_float, output_path, positive_int, seed
+from vo_gym_cli.commands.arguments import (
+    bounded_int,
+    finite_float,
+    max_learning_rate,
+    output_path,
+    positive_int,
+    seed,
+)
 from vo_gym_cli.commands.common import (
     RunStart,
     UsageError,
@@ -171,8 +178,8 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                    help="hypotheses per pool (ngransac) or per frame (ppo) ({config_default})")
     _config_option(ng, "--pools", type=positive_int("--pools"),
                    help="pools per frame; their mean loss is the baseline ({config_default})")
-    _config_option(ng, "--lr", type=finite_float("--lr", 0.0, low_open=True),
-                   help="Adam learning rate ({config_default})")
+    _config_option(ng, "--lr", type=finite_float("--lr", 0.0, max_learning_rate, low_open=True, high_open=True),
+                   help="Adam learning rate, below 0.1 ({config_default})")
     _config_option(ng, "--max-grad-norm", type=finite_float("--max-grad-norm", 0.0),
                    help="clip the policy gradient's norm to this (0: no clipping; {config_default})")
     _config_option(ng, "--entropy-weight", type=finite_float("--entropy-weight", 0.0),
@@ -194,8 +201,9 @@ def add_parser(parser: argparse.ArgumentParser) -> None:
                    help="SB3 vectorised env: DummyVecEnv or SubprocVecEnv ({config_default})")
     _config_option(ppo, "--frames-per-episode", type=positive_int("--frames-per-episode"),
                    help="frame pairs per training episode ({config_default})")
-    _config_option(ppo, "--ppo-lr", type=finite_float("--ppo-lr", 0.0, low_open=True),
-                   help="PPO learning rate ({config_default}; --lr is NG-RANSAC's)")
+    _config_option(ppo, "--ppo-lr", type=finite_float("--ppo-lr", 0.0, max_learning_rate, low_open=True,
+                                                      high_open=True),
+                   help="PPO learning rate, below 0.1 ({config_default}; --lr is NG-RANSAC's)")
     _config_option(ppo, "--n-correspondences", type=bounded_int("--n-correspondences", 3),
                    help="matches per training frame ({config_default}; the net serves any N)")
     _config_option(ppo, "--eval-n", type=bounded_int("--eval-n", 3), help="matches per evaluation frame ({config_default})")

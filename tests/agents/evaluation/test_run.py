@@ -182,20 +182,24 @@ def test_interrupt_then_resume_writes_the_uninterrupted_files(tmp_path, capsys, 
     n_units = len(evaluation.evaluation_units(
         EvalConfig(episodes=2, frames_per_episode=3, n=100, epsilons=(0.5, 0.85), budget=8, budgets=(2, 8),
                    sweep_epsilon=0.85, methods=("msac",)), [resolve_agent("uniform")]))
-    real, calls = evaluation._run_unit, []
+    # every unit is one episode of an agent or of the classical methods: the sixth is interrupted
+    calls = []
 
-    def stop_at_unit_5(unit, config):
-        calls.append(unit)
-        if len(calls) == 6:
-            raise KeyboardInterrupt
-        return real(unit, config)
+    def stop_at_unit_5(real):
+        def run(*args, **kwargs):
+            calls.append(args)
+            if len(calls) == 6:
+                raise KeyboardInterrupt
+            return real(*args, **kwargs)
+        return run
 
-    monkeypatch.setattr(evaluation, "_run_unit", stop_at_unit_5)
-    capsys.readouterr()
-    assert main([*argv, "--out", str(out)]) == 130
+    with monkeypatch.context() as patch:
+        for name in ("run_agent_episode", "run_classical_episode"):
+            patch.setattr(evaluation, name, stop_at_unit_5(getattr(evaluation, name)))
+        capsys.readouterr()
+        assert main([*argv, "--out", str(out)]) == 130
     assert capsys.readouterr().err.strip().splitlines() == [
         f"interrupted: 5 of {n_units} trials saved in {out}; rerun with --resume"]
-    monkeypatch.setattr(evaluation, "_run_unit", real)
     assert main([*argv, "--out", str(out)]) == 2  # not empty: refused without --resume
     assert "--resume" in capsys.readouterr().err
     assert main([*argv, "--out", str(out), "--resume"]) == 0
