@@ -257,8 +257,8 @@ class RansacSearch:
     def take_scores(self, R: np.ndarray, t: np.ndarray, samples: np.ndarray, scores: np.ndarray, spent: int) -> None:
         """The rest of a batch's step once its ``H`` valid hypotheses ``(R (H, 3, 3), t (H, 3))`` from
         ``samples (H, 3)`` are scored (``scores (H,)``, ``spent`` point checks): the new best and its
-        local refit, the runner-up refit, the sampler's feedback. A compiled search hands its batches
-        here (:mod:`stereovo.estimation.compiled_search`), their residuals kept in the context."""
+        local refit, the runner-up refit, the sampler's feedback (``probabilistic``'s compiled search,
+        :mod:`stereovo.estimation.compiled_search`, writes this out for its components)."""
         c, ctx, n = self.components, self.ctx, self.n
         self.scored += R.shape[0]
         self.checks += spent

@@ -1,4 +1,4 @@
-"""The compiled batches of ``probabilistic`` (stereovo/estimation/compiled_search.py and
+"""The compiled search of ``probabilistic`` (stereovo/estimation/compiled_search.py and
 kernels/batch_search.py) against the loop's own steps, the reference they replace: the same
 estimates, counts, counters and generator state, bit for bit, on fixed seeds (default mix and
 hostile preset, eps 0.2 to 0.9, the options the kernel covers, frames that fail), and the searches
@@ -11,6 +11,7 @@ import pytest
 
 from stereovo.estimation import estimate_motion
 from stereovo.estimation import compiled_search
+from stereovo.estimation.kernels import batch_search as kernel
 from stereovo.simulation import SimulationConfig, simulate_frame
 
 REPORT_FIELDS = ("score", "status", "n_hypotheses", "n_scored", "n_point_checks", "n_degenerate",
@@ -26,17 +27,17 @@ def _estimate(monkeypatch, frame, seed, compiled, **kwargs):
     """``estimate_motion`` with the compiled batches on or off; also how many searches the kernel
     took over and the generator's state afterwards."""
     monkeypatch.setattr(compiled_search, "COMPILED_BATCHES", compiled)
-    runs = []
-    run = compiled_search._BatchSearch.run
+    searches = set()
+    batches = kernel.batch_search
 
-    def spy(self):
-        runs.append(1)
-        run(self)
+    def spy(u, state, *args):
+        searches.add(id(state))  # one state array a search
+        return batches(u, state, *args)
 
-    monkeypatch.setattr(compiled_search._BatchSearch, "run", spy)
+    monkeypatch.setattr(kernel, "batch_search", spy)
     rng = np.random.default_rng(seed)
     est = estimate_motion(frame.prev, frame.curr, frame.camera, rng=rng, noise_sigma=frame.noise_sigma, **kwargs)
-    return est, len(runs), rng.bit_generator.state
+    return est, len(searches), rng.bit_generator.state
 
 
 def _assert_same(monkeypatch, frame, seed, **kwargs):
@@ -66,13 +67,11 @@ def test_the_compiled_batches_are_the_loops_steps(monkeypatch, outliers, n, eps)
         est, ran = _assert_same(monkeypatch, _frame(n, eps, 10 * seed + n, outliers), seed)
         taken += ran
         assert est.status == "ok"
-    if eps >= 0.8:  # long searches: the kernel takes over (short ones stay with the loop, by design)
-        assert taken == 4
+    assert taken == 4  # every search the kernel covers, short ones included
 
 
 def test_runner_up_refits_and_their_wins_are_the_loops(monkeypatch):
-    """The kernel refits a runner-up itself unless the refit beats the best, which it hands back:
-    both paths run on these frames and count as the loop counts them."""
+    """Runner-up refits that lose and that win both run on these frames, and count as the loop counts them."""
     refits = wins = 0
     for seed in range(6):
         est, ran = _assert_same(monkeypatch, _frame(200, 0.9, 700 + seed, "hostile"), seed)
@@ -108,6 +107,21 @@ def test_frames_that_fail_are_the_loops(monkeypatch):
         est, _ = _assert_same(monkeypatch, frame, seed, max_iterations=2000)
         statuses.add(est.status.split(":")[0])
     assert "failed" in statuses
+
+
+@pytest.mark.parametrize("count,n", [(0, 3), (2, 3), (3, 3), (3, 4), (7, 500), (50, 500), (499, 500), (500, 500),
+                                     (3, 1_000_000), (20, 10_000)])
+@pytest.mark.parametrize("confidence", [0.5, 0.99, 0.999999, 1 - 1e-15])
+def test_the_kernels_bound_is_the_terminations(count, n, confidence):
+    """:func:`required_draws` gives what the loop's termination gives, at every scale (no int64 overflow
+    where the bound is astronomic) and for a fixed budget."""
+    from stereovo.estimation.roles.termination import AdaptiveTermination, FixedBudget
+
+    for max_iterations, min_iterations in ((10_000, 1), (10**9, 1), (10_000, 50), (7, 7)):
+        term = AdaptiveTermination(confidence, max_iterations, min_iterations)
+        assert kernel.required_draws(float(count), n, confidence, max_iterations, min_iterations, 0) == \
+            term.required(count, n)
+    assert kernel.required_draws(float(count), n, confidence, 64, 1, 64) == FixedBudget(64).required(count, n)
 
 
 def test_searches_the_kernel_does_not_cover_stay_with_the_loop(monkeypatch):
