@@ -198,6 +198,40 @@ def test_a_refinement_with_its_own_gate_is_judged_by_that_gate_not_the_methods_m
     np.testing.assert_array_equal(report.inliers, good)
 
 
+class _ProtocolRefiner(ReprojectionRefiner):
+    """The core's refiner under another class: final_report calls it by the refiner protocol (no start
+    residuals given, residuals in the method's model), where the core's is handed its gate's."""
+
+
+@pytest.mark.parametrize("gated", [True, False])
+def test_the_core_refiners_shortcut_reports_what_the_refiner_protocol_reports(gated):
+    """The final report hands the core's refiner the gate's residuals of the starting model and takes
+    back those of the refined one, instead of computing both again: the same report, point checks
+    included, as a refiner called by the plain protocol (six seeds, a refinement that re-selects and
+    one that rolls back)."""
+    from stereovo.estimation.roles.scoring import PixelMahalanobisResidual
+
+    for seed in range(6):
+        frame = simulate_frame(SimulationConfig(n_correspondences=200, outlier_ratio=0.4), seed)
+        problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
+        model, threshold = MahalanobisResidual(7.81), 7.81
+        gate = (PixelMahalanobisResidual(11.34), 11.34) if gated else None
+        offset = 0.02 if seed % 2 else 1e-4  # near the truth, or so far that the frame fails
+        R = frame.truth.rotation @ so3_exp(np.array([offset, -offset, 0.0]))
+        t = frame.truth.translation + offset
+        inliers = model.squared(problem, R[None], t[None])[0] < threshold
+        reports = [final_report(problem, R, t, inliers, float(inliers.sum()), kind(iterations=4, rounds=3, gate=gate),
+                                model, InlierCount(), threshold, 6, {}, **COUNTS)
+                   for kind in (ReprojectionRefiner, _ProtocolRefiner)]
+        core, protocol = reports
+        np.testing.assert_array_equal(core.rotation, protocol.rotation)
+        np.testing.assert_array_equal(core.translation, protocol.translation)
+        np.testing.assert_array_equal(core.inliers, protocol.inliers)
+        assert (core.status, core.score, core.n_point_checks, core.counters, core.gate) == \
+            (protocol.status, protocol.score, protocol.n_point_checks, protocol.counters, protocol.gate)
+        assert (core.status == "ok") == (seed % 2 == 0)
+
+
 def test_a_non_finite_best_model_fails():
     frame = simulate_frame(SimulationConfig(n_correspondences=100, outlier_ratio=0.3), 3)
     problem = StereoProblem.build(frame.prev, frame.curr, frame.camera, frame.noise_sigma)
