@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stereovo.camera import StereoCamera
-from stereovo.options import Choice, Integer, Number, Option, is_finite_real, is_real, value_repr
+from stereovo.options import Choice, Integer, Number, Option, OptionError, is_finite_real, is_real, value_repr
 from stereovo.simulation.motion import PRESETS, MotionPreset
 from stereovo.simulation.scores import SCORE_AUC
 
@@ -164,7 +164,9 @@ class SimulationConfig:
 
     def __post_init__(self) -> None:
         def fail(name: str, requirement: str) -> None:
-            raise ValueError(f"SimulationConfig.{name} must be {requirement}, got {value_repr(getattr(self, name))}")
+            # an OptionError, as the scalar fields' checks raise: a caller maps the field by its name
+            rule = f" must be {requirement}, got {value_repr(getattr(self, name))}"
+            raise OptionError(f"SimulationConfig.{name}{rule}", name=name, rule=rule)
 
         # The scalar fields by the one options contract (stereovo.options); the composite ones below.
         for name, rule in _CONFIG_RULES.items():

@@ -458,3 +458,27 @@ def test_an_in_frame_agent_with_a_method_it_cannot_drive_is_one_line(tmp_path, c
     line = one_line_error(capsys, "vo")
     assert f"method {method!r} needs" in line and "in-frame sampler 'adaptive-pg-prior'" in line
     assert not (tmp_path / "v").exists()
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["--noise", "1000"], "error: --noise must be small enough that the outlier threshold max(4, 8*noise_sigma) = "
+                          "8000 px fits in the 1241x376 px image"),
+    (["--auc", "0.3"], "error: --auc must be a finite number in [0.5, 1), got 0.3"),
+])
+def test_a_simulator_setting_is_named_by_its_flag_from_the_fields_error(tmp_path, capsys, argv, message):
+    """The config's errors carry their field (OptionError.name): the flag is found by it, not by the
+    message's words, for the composite fields' checks (outlier_ratio) as for the scalar ones."""
+    code = main(["vo", *argv, "--n", "60", "--out", str(tmp_path / "x"), "--no-progress"])
+    assert code == 2
+    assert message in one_line_error(capsys, "vo")
+    assert not (tmp_path / "x").exists()
+
+
+def test_the_simulator_config_names_the_field_of_a_composite_check():
+    from stereovo.options import OptionError
+    from stereovo.simulation import SimulationConfig
+
+    with pytest.raises(OptionError) as err:
+        SimulationConfig(outlier_mix={"sky": 1.0})
+    assert err.value.name == "outlier_mix" and err.value.rule.startswith(" must be a mapping from outlier kinds")
+    assert str(err.value) == f"SimulationConfig.outlier_mix{err.value.rule}"

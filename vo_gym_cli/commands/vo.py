@@ -35,7 +35,7 @@ from vo_gym_cli.commands.arguments import (
     positive_int,
     seed,
 )
-from vo_gym_cli.commands.common import RunStart, UsageError, check_output_dir, flag_error, require_extra, score_inputs
+from vo_gym_cli.commands.common import RunStart, UsageError, check_output_dir, require_extra, score_inputs
 
 
 class _LazyMethodChoices:
@@ -295,6 +295,7 @@ def run(args: argparse.Namespace) -> int:
     if args.source is not None:
         return _run_source(args)
     from stereovo.odometry import run_odometry
+    from stereovo.options import OptionError
     from stereovo.simulation import Sequence, SimulationConfig
 
     try:
@@ -303,9 +304,10 @@ def run(args: argparse.Namespace) -> int:
         )
         sequence = Sequence(config, seed=args.seed)
     except ValueError as err:
-        # Invalid settings (the config validates them, naming its field): the message names the flag.
-        field = next((f for f in _CONFIG_FLAGS if str(err).startswith(f"SimulationConfig.{f} ")), None)
-        raise (flag_error(_CONFIG_FLAGS[field], err) if field else UsageError(str(err))) from None
+        # Invalid settings: the config's OptionError names its field, and the message names the flag.
+        field = err.name if isinstance(err, OptionError) and err.rule else None
+        raise (UsageError(f"{_CONFIG_FLAGS[field]}{err.rule}") if field in _CONFIG_FLAGS else UsageError(str(err))) \
+            from None
     sampling = _sampling(args, args.noise)
     start = RunStart(args.out)
     out: Path = check_output_dir(args.out)  # before computing: a bad --out loses no result
