@@ -17,13 +17,13 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from stereovo.estimation.kernels.residuals import finite_motion
 from stereovo.estimation.problem import StereoProblem
 from stereovo.estimation.roles.refinement import ReprojectionRefiner
 from stereovo.estimation.roles.samplers import Sampler
 from stereovo.estimation.roles.scoring import Quality, ResidualModel
 from stereovo.estimation.roles.solvers import SAMPLE_SIZE, minimal_hypotheses
 from stereovo.estimation.roles.verification import FullVerification, ScoringContext, Verifier
+from stereovo.geometry import finite_motion
 
 
 class LocalOptimizer(Protocol):

@@ -37,8 +37,10 @@ The kernels by role (import each name from its module):
 - :mod:`~stereovo.estimation.kernels.sampling`: drawing minimal samples and their rigidity check;
 - :mod:`~stereovo.estimation.kernels.refinement`: the refine / re-gate rounds;
 - :mod:`~stereovo.estimation.kernels.verification`: early rejection (T(d,d), SPRT) and the guided stopping bound;
+- :mod:`~stereovo.estimation.kernels.stopping`: the uniform adaptive stopping bound;
 - :mod:`~stereovo.estimation.kernels.logaddexp`: numpy's ``logaddexp``, bit for bit (scalar and ``(H, N)``);
 - :mod:`~stereovo.estimation.kernels.beliefs`: BANSAC's and ARS's belief updates and draws;
 - :mod:`~stereovo.estimation.kernels.bansac_runner`: BANSAC's compiled search;
+- :mod:`~stereovo.estimation.kernels.batch_search`: ``probabilistic``'s compiled search;
 - :mod:`~stereovo.estimation.kernels.covariance`: the normal equations of the pose covariance.
 """

@@ -21,8 +21,6 @@ a float64 array (``F_*``).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from stereovo.estimation.kernels.base import jit
@@ -31,6 +29,7 @@ from stereovo.estimation.kernels.mahalanobis import mahalanobis_sq
 from stereovo.estimation.kernels.refinement import GATE_MAHALANOBIS, refine_rounds
 from stereovo.estimation.kernels.sampling import distinct_triplets, rigid_triplets
 from stereovo.estimation.kernels.scores import count_below
+from stereovo.estimation.kernels.stopping import adaptive_bound
 
 # int64 state: the loop's counts, its bound and batch schedule, the best model's support and when it was found
 S_DRAWN, S_SCORED, S_CHECKS, S_DEGENERATE, S_REJECTED = 0, 1, 2, 3, 4
@@ -49,23 +48,11 @@ DONE, UNIFORMS_USED = 0, 1
 @jit
 def required_draws(count, n, confidence, max_iterations, min_iterations, budget):
     """The termination's ``required(count, n)``: ``budget`` if positive (a fixed budget), else the
-    uniform adaptive bound :func:`stereovo.estimation.roles.termination.required_iterations` (the
-    without-replacement ``q`` of three draws, ``ceil(log(1 - p) / log(1 - q))`` in
-    ``[1, max_iterations]``) raised to ``min_iterations``, in the same operations."""
+    uniform adaptive bound of three draws (:func:`~stereovo.estimation.kernels.stopping.adaptive_bound`,
+    which the termination role calls too) raised to ``min_iterations``."""
     if budget > 0:
         return budget
-    q = 1.0
-    for i in range(3):
-        q = q * max(count - i, 0.0) / max(n - i, 1)
-    if q <= 0.0:
-        k = max_iterations
-    elif q >= 1.0:
-        k = 1
-    else:
-        ratio = math.log1p(-confidence) / math.log1p(-q)
-        # Python's ceil is exact at any size; an int64 is not: compare as floats first
-        k = max_iterations if ratio >= max_iterations else min(max(int(math.ceil(ratio)), 1), max_iterations)
-    return max(k, min_iterations)
+    return max(adaptive_bound(count, n, confidence, max_iterations, 3), min_iterations)
 
 
 @jit

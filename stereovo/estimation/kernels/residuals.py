@@ -3,8 +3,7 @@
 A point's symmetric residual (:func:`symmetric_residuals`) is its forward reprojection at k
 (uL, vL, uR, vR) and its backward one at k-1, with the 8 x 6 Jacobian under the left
 perturbation; :func:`forward_reprojection_sq` is the squared forward error that scoring
-thresholds, written once per point in :func:`point_reprojection_sq`; :func:`finite_motion` is the
-check every estimate makes of its motion.
+thresholds, written once per point in :func:`point_reprojection_sq`.
 """
 
 from __future__ import annotations
@@ -153,15 +152,3 @@ def forward_reprojection_sq(R, t, X, mc, cam):
             )
     return out
 
-
-@jit
-def finite_motion(R, t):
-    """Whether every entry of ``R (3, 3)`` and ``t (3,)`` is finite: ``np.all(np.isfinite(.))`` of both,
-    for the few checks of every estimate, where numpy's two passes a matrix cost microseconds."""
-    for i in range(3):
-        if not np.isfinite(t[i]):
-            return False
-        for j in range(3):
-            if not np.isfinite(R[i, j]):
-                return False
-    return True

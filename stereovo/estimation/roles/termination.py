@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from stereovo.estimation.kernels.stopping import adaptive_bound
 from stereovo.estimation.roles.solvers import SAMPLE_SIZE
 
 
@@ -47,13 +48,9 @@ def required_iterations(
 
 @functools.lru_cache(maxsize=4096)
 def _required_for_count(n_inliers: int, n: int, confidence: float, max_iterations: int, sample_size: int) -> int:
-    # The loop asks after every batch, mostly with a count it asked before: cache the bound.
-    q = float(all_inlier_probability(n_inliers, n, sample_size))
-    if q <= 0.0:
-        return max_iterations
-    if q >= 1.0:
-        return 1
-    return min(max(math.ceil(math.log1p(-confidence) / math.log1p(-q)), 1), max_iterations)
+    # The loop asks after every batch, mostly with a count it asked before: cache the bound. The one
+    # formula, compiled, which the compiled search calls too.
+    return int(adaptive_bound(float(n_inliers), n, confidence, max_iterations, sample_size))
 
 
 def iterations_for(q: float, confidence: float, max_iterations: int) -> int:

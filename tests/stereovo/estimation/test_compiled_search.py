@@ -13,9 +13,7 @@ from stereovo.estimation import estimate_motion
 from stereovo.estimation import compiled_search
 from stereovo.estimation.kernels import batch_search as kernel
 from stereovo.simulation import SimulationConfig, simulate_frame
-
-REPORT_FIELDS = ("score", "status", "n_hypotheses", "n_scored", "n_point_checks", "n_degenerate",
-                 "n_local_optimizations", "best_found_at", "n_rejected_samples", "counters")
+from tests.support.estimates import assert_same_estimate
 
 
 def _frame(n, eps, seed, outliers="default", **config):
@@ -44,15 +42,7 @@ def _assert_same(monkeypatch, frame, seed, **kwargs):
     compiled, ran, compiled_rng = _estimate(monkeypatch, frame, seed, True, **kwargs)
     loop, ran_loop, loop_rng = _estimate(monkeypatch, frame, seed, False, **kwargs)
     assert ran_loop == 0
-    np.testing.assert_array_equal(compiled.rotation, loop.rotation)
-    np.testing.assert_array_equal(compiled.translation, loop.translation)
-    np.testing.assert_array_equal(compiled.inliers, loop.inliers)
-    for name in ("status", "n_hypotheses", "n_scored", "n_point_checks", "score", "counters"):
-        assert getattr(compiled, name) == getattr(loop, name), name
-    assert (compiled.report is None) == (loop.report is None)
-    if compiled.report is not None:
-        for name in REPORT_FIELDS:
-            assert getattr(compiled.report, name) == getattr(loop.report, name), name
+    assert_same_estimate(compiled, loop)
     assert compiled_rng == loop_rng  # the generator ends where the loop leaves it
     return compiled, ran
 

@@ -17,9 +17,7 @@ from stereovo.estimation.kernels import beliefs as belief_kernels
 from stereovo.estimation.methods import bansac
 from stereovo.estimation.registry import split_options
 from stereovo.simulation import SimulationConfig, simulate_frame
-
-REPORT_FIELDS = ("score", "status", "n_hypotheses", "n_scored", "n_point_checks", "n_degenerate",
-                 "n_local_optimizations", "best_found_at", "n_rejected_samples", "counters")
+from tests.support.estimates import assert_same_estimate
 
 
 def _priors(frame, seed):
@@ -62,15 +60,7 @@ def _assert_same(monkeypatch, frame, method, priors, seed, **options):
     compiled, ran, compiled_rng, compiled_beliefs = _estimate(monkeypatch, frame, method, priors, seed, True, **options)
     loop, ran_loop, loop_rng, loop_beliefs = _estimate(monkeypatch, frame, method, priors, seed, False, **options)
     assert not ran_loop
-    np.testing.assert_array_equal(compiled.rotation, loop.rotation)
-    np.testing.assert_array_equal(compiled.translation, loop.translation)
-    np.testing.assert_array_equal(compiled.inliers, loop.inliers)
-    for name in ("status", "n_hypotheses", "n_scored", "n_point_checks", "score", "counters"):
-        assert getattr(compiled, name) == getattr(loop, name), name
-    assert (compiled.report is None) == (loop.report is None)
-    if compiled.report is not None:
-        for name in REPORT_FIELDS:
-            assert getattr(compiled.report, name) == getattr(loop.report, name), name
+    assert_same_estimate(compiled, loop)
     assert compiled_rng == loop_rng  # the generator ends where the loop leaves it
     if compiled_beliefs is not None:
         np.testing.assert_array_equal(compiled_beliefs, loop_beliefs)

@@ -258,3 +258,21 @@ def test_required_iterations_without_replacement():
     assert required_iterations(20, 20, 0.99) == 1
     # arrays of counts give the bounds elementwise
     np.testing.assert_array_equal(required_iterations(np.array([[6, 2], [20, 6]]), 20, 0.99), [[261, 10_000], [1, 261]])
+
+
+def test_the_compiled_bound_is_the_formula_at_every_scale():
+    """``required_iterations`` runs the compiled bound (shared with the compiled search); against the
+    formula in Python's floats and exact integer ``ceil``, with numpy's ``q`` of draws without
+    replacement: equal for counts, sizes, sample sizes, confidences and caps from the edges to where
+    the bound no longer fits an int64 (``1 - 1e-15`` at N 1e6)."""
+    rng = np.random.default_rng(4)
+    cases = [(0, 3), (2, 3), (3, 3), (3, 4), (7, 500), (50, 500), (499, 500), (500, 500), (3, 1_000_000),
+             (20, 10_000)] + [(int(c), int(n)) for n in rng.integers(3, 5000, 60) for c in rng.integers(0, n + 1, 2)]
+    for count, n in cases:
+        for sample_size in (1, 3, 4):
+            for confidence in (0.5, 0.99, 0.999999, 1 - 1e-15):
+                for cap in (7, 10_000, 10**9, 2**62):
+                    q = float(all_inlier_probability(count, n, sample_size))
+                    want = cap if q <= 0 else 1 if q >= 1 else min(max(math.ceil(math.log1p(-confidence) /
+                                                                                 math.log1p(-q)), 1), cap)
+                    assert required_iterations(count, n, confidence, cap, sample_size) == want, (count, n, cap)
